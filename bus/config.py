@@ -1,0 +1,131 @@
+"""The swarm configuration: one pydantic model tree shared by every process (written to the run
+directory as ``config.json`` and passed to each child with ``--config``).
+
+Units are in the field names. Bus endpoints can be overridden from the environment
+(``SWARMLOC_ZENOH_MODE``, ``SWARMLOC_ZENOH_CONNECT``, ``SWARMLOC_ZENOH_LISTEN``, ``SWARMLOC_PREFIX``;
+lists are comma separated), as containers need.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from bus.errors import ConfigError
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class BusConfig(_Strict):
+    prefix: str = Field("swarm", pattern=r"^[A-Za-z0-9_\-]+(/[A-Za-z0-9_\-]+)*$")
+    mode: Literal["peer", "client", "router"] = "client"
+    connect: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
+    listen: tuple[str, ...] = ()
+
+    def with_env(self, env: dict[str, str] | None = None) -> "BusConfig":
+        """This config with ``SWARMLOC_*`` environment overrides applied."""
+        env = os.environ if env is None else env
+        updates: dict[str, object] = {}
+        if env.get("SWARMLOC_ZENOH_MODE"):
+            updates["mode"] = env["SWARMLOC_ZENOH_MODE"]
+        for name in ("connect", "listen"):
+            value = env.get(f"SWARMLOC_ZENOH_{name.upper()}")
+            if value is not None:
+                updates[name] = tuple(e.strip() for e in value.split(",") if e.strip())
+        if env.get("SWARMLOC_PREFIX"):
+            updates["prefix"] = env["SWARMLOC_PREFIX"]
+        return _validated(BusConfig, {**self.model_dump(), **updates})
+
+
+class ClockConfig(_Strict):
+    mode: Literal["lockstep", "realtime"] = "lockstep"
+    speed: float = Field(1.0, gt=0, le=1000, description="realtime: sim seconds per wall second")
+    tick_s: float = Field(0.02, gt=0, le=1.0, description="sim time the world advances per clock tick")
+    duration_s: float = Field(60.0, gt=0, le=86400)
+    ack_timeout_s: float = Field(10.0, gt=0, description="lockstep: wall time before a silent vehicle is dead")
+    start_timeout_s: float = Field(30.0, gt=0, description="wall time to wait for every process to join")
+
+
+class SensorSpec(_Strict):
+    """Rates and noise of the simulated sensors (also the vehicles' datasheet noise model)."""
+
+    imu_rate_hz: float = Field(100.0, gt=0, le=1000)
+    gyro_sigma_radps: float = Field(0.01, ge=0)
+    gyro_bias_sigma_radps: float = Field(0.005, ge=0, description="initial gyro bias spread")
+    gyro_bias_walk_radps_rtsec: float = Field(0.0005, ge=0)
+    accel_sigma_mps2: float = Field(0.05, ge=0)
+    odom_rate_hz: float = Field(50.0, gt=0, le=1000)
+    odom_speed_sigma_mps: float = Field(0.05, ge=0)
+    odom_yaw_rate_sigma_radps: float = Field(0.02, ge=0)
+    gnss_rate_hz: float = Field(5.0, gt=0, le=100)
+    gnss_sigma_m: float = Field(1.5, gt=0)
+    truth_rate_hz: float = Field(50.0, gt=0, le=1000)
+    prior_sigma_m: float = Field(0.5, gt=0, description="launch-pad survey of the start position")
+    prior_heading_sigma_rad: float = Field(0.05, gt=0)
+
+
+class WorldConfig(_Strict):
+    vehicles: int = Field(5, ge=1, le=250)
+    seed: int = Field(0, ge=0)
+    trajectories: tuple[Literal["circle", "figure8", "waypoints"], ...] = ("circle", "figure8", "waypoints")
+    speed_mps: float = Field(4.0, gt=0, le=100)
+    radius_m: float = Field(20.0, gt=0)
+    altitude_m: float = Field(30.0, ge=0)
+    spacing_m: float = Field(60.0, gt=0, description="distance between neighbouring start pads")
+
+
+class VehicleConfig(_Strict):
+    loop_rate_hz: float = Field(50.0, gt=0, le=1000)
+    gate_probability: float = Field(0.9995, gt=0.5, lt=1.0, description="chi-square gate for GNSS")
+    heartbeat_period_s: float = Field(1.0, gt=0)
+    status_period_s: float = Field(1.0, gt=0)
+
+
+class SwarmConfig(_Strict):
+    name: str = Field("run", pattern=r"^[A-Za-z0-9_.\-]+$")
+    bus: BusConfig = BusConfig()
+    clock: ClockConfig = ClockConfig()
+    world: WorldConfig = WorldConfig()
+    sensors: SensorSpec = SensorSpec()
+    vehicle: VehicleConfig = VehicleConfig()
+
+    @model_validator(mode="after")
+    def _rates_fit_the_world_step(self) -> "SwarmConfig":
+        step_us = round(1e6 / self.sensors.imu_rate_hz)
+        for label, rate in [("odom", self.sensors.odom_rate_hz), ("gnss", self.sensors.gnss_rate_hz),
+                            ("truth", self.sensors.truth_rate_hz), ("tick", 1.0 / self.clock.tick_s)]:
+            if round(1e6 / rate) % step_us:
+                raise ValueError(f"{label} period must be a multiple of the IMU period ({step_us} us)")
+        return self
+
+    def dump(self, path: Path) -> None:
+        path.write_text(json.dumps(self.model_dump(mode="json"), indent=2) + "\n")
+
+
+def _validated(model: type[_Strict], data: dict) -> _Strict:
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"]) or model.__name__
+        raise ConfigError(f"invalid configuration: {where}: {first['msg']}") from None
+
+
+def build_config(data: dict) -> SwarmConfig:
+    """A validated SwarmConfig from a nested dict; ConfigError names the first bad field."""
+    return _validated(SwarmConfig, data)
+
+
+def load_config(path: Path) -> SwarmConfig:
+    """Read a config JSON written by :meth:`SwarmConfig.dump` (or by hand)."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"cannot read config {path}: {exc}") from None
+    return build_config(data)

@@ -1,0 +1,187 @@
+"""MAVLink 2 codec for vehicle state: ODOMETRY (#331), HEARTBEAT (#0), with message signing.
+
+Signing (MAVLink 2, 32-byte key): outgoing frames carry a 48-bit timestamp in units of 10 us since
+2015-01-01 and a truncated SHA-256 signature. Incoming frames are verified here rather than by
+pymavlink, because pymavlink 2.4.50 stores a stream's timestamp *before* checking the signature:
+one forged frame with a far-future timestamp would make every genuine frame look like a replay.
+We check the signature first and only then advance the stream's timestamp.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import time
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+from pymavlink.dialects.v20 import common as mavlink2
+
+from bus.errors import DecodeError
+
+COMPONENT_ID = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
+SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
+NEW_STREAM_TOLERANCE = 6_000_000  # 60 s in 10-us units, as in the MAVLink signing spec
+_UPPER = np.triu_indices(6)
+
+
+class MavlinkRejected(DecodeError):
+    """A well-formed frame that failed authentication (unsigned, bad signature, replay)."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(f"MAVLink frame rejected ({reason}): {detail}")
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class StateEstimate:
+    """One vehicle's state estimate as carried by ODOMETRY, in local NED.
+
+    position_m (3,), velocity_mps (3,) in the body frame, covariances (6, 6) over
+    [x, y, z, roll, pitch, yaw] and [vx, vy, vz, rollrate, pitchrate, yawrate].
+    """
+
+    vehicle_id: int
+    time_usec: int
+    position_m: np.ndarray
+    yaw_rad: float
+    velocity_mps: np.ndarray
+    yaw_rate_radps: float
+    pose_covariance: np.ndarray
+    velocity_covariance: np.ndarray
+    reset_counter: int = 0
+    estimator_type: int = mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS
+
+
+@dataclass(frozen=True)
+class Heartbeat:
+    vehicle_id: int
+    mav_type: int
+    system_status: int
+
+
+def signing_now() -> int:
+    """The current MAVLink signing timestamp (10 us units since 2015-01-01)."""
+    return int((time.time() - SIGNING_EPOCH_S) * 100_000)
+
+
+def load_signing_key(raw: str | bytes) -> bytes:
+    """A 32-byte key from 64 hex characters (str) or 32 raw bytes."""
+    key = bytes.fromhex(raw.strip()) if isinstance(raw, str) else bytes(raw)
+    if len(key) != 32:
+        raise ValueError(f"a MAVLink signing key has 32 bytes, got {len(key)}")
+    return key
+
+
+class MavlinkEncoder:
+    """Packs one vehicle's MAVLink 2 stream (sysid = vehicle id, compid 191), signed if keyed."""
+
+    def __init__(self, *, vehicle_id: int, signing_key: bytes | None = None, link_id: int = 0) -> None:
+        self._mav = mavlink2.MAVLink(None, srcSystem=vehicle_id, srcComponent=COMPONENT_ID)
+        if signing_key is not None:
+            self._mav.signing.secret_key = signing_key
+            self._mav.signing.sign_outgoing = True
+            self._mav.signing.link_id = link_id
+
+    def _pack(self, message: mavlink2.MAVLink_message) -> bytes:
+        signing = self._mav.signing
+        if signing.sign_outgoing:
+            signing.timestamp = max(signing.timestamp, signing_now())
+        return bytes(message.pack(self._mav))
+
+    def odometry(self, est: StateEstimate) -> bytes:
+        half = 0.5 * est.yaw_rad
+        quaternion = [float(np.cos(half)), 0.0, 0.0, float(np.sin(half))]  # w, x, y, z
+        msg = self._mav.odometry_encode(
+            est.time_usec, mavlink2.MAV_FRAME_LOCAL_NED, mavlink2.MAV_FRAME_BODY_FRD,
+            *map(float, est.position_m), quaternion, *map(float, est.velocity_mps),
+            0.0, 0.0, float(est.yaw_rate_radps),
+            est.pose_covariance[_UPPER].tolist(), est.velocity_covariance[_UPPER].tolist(),
+            est.reset_counter % 256, est.estimator_type, 100,
+        )
+        return self._pack(msg)
+
+    def heartbeat(self) -> bytes:
+        msg = self._mav.heartbeat_encode(
+            mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_GENERIC, 0, 0, mavlink2.MAV_STATE_ACTIVE
+        )
+        return self._pack(msg)
+
+
+class MavlinkDecoder:
+    """Decodes single MAVLink 2 frames and authenticates them; counts every rejection by reason."""
+
+    def __init__(self, *, signing_key: bytes | None = None, require_signing: bool | None = None) -> None:
+        self._key = signing_key
+        self._require = signing_key is not None if require_signing is None else require_signing
+        self._mav = mavlink2.MAVLink(None)
+        self._stream_timestamps: dict[tuple[int, int, int], int] = {}
+        self.rejected: Counter[str] = Counter()
+
+    def decode(self, frame: bytes) -> StateEstimate | Heartbeat | None:
+        """One frame -> StateEstimate, Heartbeat, or None for other message types.
+
+        Raises DecodeError for malformed frames, MavlinkRejected for failed authentication.
+        """
+        try:
+            msg = self._mav.decode(bytearray(frame))
+        except Exception as exc:  # pymavlink raises MAVError, struct.error, IndexError, ...
+            raise DecodeError(f"malformed MAVLink frame: {exc}") from None
+        if len(msg.get_msgbuf()) != len(frame) or frame[0] != mavlink2.PROTOCOL_MARKER_V2:
+            raise DecodeError("payload is not exactly one MAVLink 2 frame")
+        try:
+            self._authenticate(bytes(frame), msg.get_srcSystem(), msg.get_srcComponent())
+        except MavlinkRejected as exc:
+            self.rejected[exc.reason] += 1
+            raise
+        if isinstance(msg, mavlink2.MAVLink_odometry_message):
+            return _to_estimate(msg)
+        if isinstance(msg, mavlink2.MAVLink_heartbeat_message):
+            return Heartbeat(msg.get_srcSystem(), msg.type, msg.system_status)
+        return None
+
+    def _authenticate(self, frame: bytes, sysid: int, compid: int) -> None:
+        signed = bool(frame[2] & mavlink2.MAVLINK_IFLAG_SIGNED)
+        if self._key is None:
+            return
+        if not signed:
+            if self._require:
+                raise MavlinkRejected("unsigned", f"sysid {sysid} sent an unsigned frame")
+            return
+        expected = hashlib.sha256(self._key + frame[:-6]).digest()[:6]
+        if not hmac.compare_digest(expected, frame[-6:]):
+            raise MavlinkRejected("bad_signature", f"sysid {sysid}: signature does not match the key")
+        stream = (frame[-13], sysid, compid)
+        stamp = int.from_bytes(frame[-12:-6], "little")
+        last = self._stream_timestamps.get(stream)
+        if last is not None and stamp <= last:
+            raise MavlinkRejected("replay", f"sysid {sysid}: timestamp {stamp} not after {last}")
+        if last is None and stamp + NEW_STREAM_TOLERANCE < signing_now():
+            raise MavlinkRejected("stale", f"sysid {sysid}: new stream more than 60 s old")
+        self._stream_timestamps[stream] = stamp
+
+
+def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate:
+    values = [msg.x, msg.y, msg.z, *msg.q, msg.vx, msg.vy, msg.vz, msg.yawspeed,
+              *msg.pose_covariance, *msg.velocity_covariance]
+    if not np.all(np.isfinite(values)):
+        raise DecodeError(f"ODOMETRY from sysid {msg.get_srcSystem()} has non-finite fields")
+    w, _, _, z = msg.q
+    pose_cov, vel_cov = _full_covariance(msg.pose_covariance), _full_covariance(msg.velocity_covariance)
+    if np.any(np.diag(pose_cov) < 0) or np.any(np.diag(vel_cov) < 0):
+        raise DecodeError(f"ODOMETRY from sysid {msg.get_srcSystem()} has negative variances")
+    return StateEstimate(
+        vehicle_id=msg.get_srcSystem(), time_usec=msg.time_usec,
+        position_m=np.array([msg.x, msg.y, msg.z]), yaw_rad=float(2.0 * np.arctan2(z, w)),
+        velocity_mps=np.array([msg.vx, msg.vy, msg.vz]), yaw_rate_radps=float(msg.yawspeed),
+        pose_covariance=pose_cov, velocity_covariance=vel_cov,
+        reset_counter=msg.reset_counter, estimator_type=msg.estimator_type,
+    )
+
+
+def _full_covariance(upper: list[float]) -> np.ndarray:
+    """21 floats (upper-right triangle, row-major) -> symmetric (6, 6)."""
+    cov = np.zeros((6, 6))
+    cov[_UPPER] = upper
+    return cov + np.triu(cov, 1).T

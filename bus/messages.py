@@ -1,0 +1,118 @@
+"""Typed messages that cross the bus as msgpack (sensor feeds, truth, clock, acks, status).
+
+Units are in the field names; times are simulation time in integer microseconds. Frames: the world
+is local NED at constant altitude, so ``x`` points north, ``y`` east, heading ``theta`` is measured
+from north towards east (rad).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated
+
+import numpy as np
+
+from bus.schema import Array, Bool, Covariance, Float, Int, decode, encode
+
+VehicleId = Annotated[int, Int(1, 250)]
+StampUs = Annotated[int, Int(0, 2**53)]
+Seq = Annotated[int, Int(0, 2**63 - 1)]
+MAX_POSITION_M = 1e7
+
+__all__ = [
+    "ImuSample", "WheelOdometry", "GnssFix", "PosePrior", "Truth", "ClockTick", "TickAck",
+    "VehicleStatus", "encode", "decode",
+]
+
+
+@dataclass(frozen=True)
+class ImuSample:
+    """Body-frame gyro (rad/s) and specific force (m/s^2), each shape (3,)."""
+
+    vehicle_id: VehicleId
+    stamp_us: StampUs
+    seq: Seq
+    gyro_radps: Annotated[np.ndarray, Array((3,), 100.0)]
+    accel_mps2: Annotated[np.ndarray, Array((3,), 1000.0)]
+
+
+@dataclass(frozen=True)
+class WheelOdometry:
+    """Measured forward speed (m/s) and yaw rate (rad/s)."""
+
+    vehicle_id: VehicleId
+    stamp_us: StampUs
+    seq: Seq
+    speed_mps: Annotated[float, Float(1000.0)]
+    yaw_rate_radps: Annotated[float, Float(100.0)]
+
+
+@dataclass(frozen=True)
+class GnssFix:
+    """Horizontal position fix (m, shape (2,)) with its reported covariance (m^2, (2, 2))."""
+
+    vehicle_id: VehicleId
+    stamp_us: StampUs
+    seq: Seq
+    position_m: Annotated[np.ndarray, Array((2,), MAX_POSITION_M)]
+    covariance_m2: Annotated[np.ndarray, Covariance((2, 2), 1e8)]
+
+
+@dataclass(frozen=True)
+class PosePrior:
+    """Surveyed start pose ``[x_m, y_m, theta_rad]`` with covariance (3, 3), given at launch."""
+
+    vehicle_id: VehicleId
+    stamp_us: StampUs
+    seq: Seq
+    pose: Annotated[np.ndarray, Array((3,), MAX_POSITION_M)]
+    covariance: Annotated[np.ndarray, Covariance((3, 3), 1e8)]
+
+
+@dataclass(frozen=True)
+class Truth:
+    """True pose ``[x_m, y_m, theta_rad]``, speed (m/s) and yaw rate (rad/s)."""
+
+    vehicle_id: VehicleId
+    stamp_us: StampUs
+    seq: Seq
+    pose: Annotated[np.ndarray, Array((3,), MAX_POSITION_M)]
+    speed_mps: Annotated[float, Float(1000.0)]
+    yaw_rate_radps: Annotated[float, Float(100.0)]
+
+
+@dataclass(frozen=True)
+class ClockTick:
+    """World clock: every feed stamped up to ``stamp_us`` has been published for this tick.
+
+    ``wall_ns`` is the world's wall clock at publication; ``final`` marks the end of the run.
+    """
+
+    tick: Annotated[int, Int(0, 2**53)]
+    stamp_us: StampUs
+    wall_ns: Annotated[int, Int(0, 2**63 - 1)]
+    final: Annotated[bool, Bool()]
+
+
+@dataclass(frozen=True)
+class TickAck:
+    """A vehicle has processed everything up to ``tick`` (lockstep mode)."""
+
+    vehicle_id: VehicleId
+    tick: Annotated[int, Int(0, 2**53)]
+
+
+@dataclass(frozen=True)
+class VehicleStatus:
+    """Loop statistics a vehicle reports about itself (cumulative since start)."""
+
+    vehicle_id: VehicleId
+    stamp_us: StampUs
+    cycles: Annotated[int, Int(0, 2**53)]
+    overruns: Annotated[int, Int(0, 2**53)]
+    jitter_p99_us: Annotated[float, Float(1e12)]
+    cycle_p99_us: Annotated[float, Float(1e12)]
+    dropped_stale: Annotated[int, Int(0, 2**53)]
+    rejected_gnss: Annotated[int, Int(0, 2**53)]
+    decode_errors: Annotated[int, Int(0, 2**53)]
+    reset_counter: Annotated[int, Int(0, 255)]

@@ -1,0 +1,113 @@
+"""Bus endpoints: a zenoh session and an in-memory twin with the same small API.
+
+Callbacks only enqueue: every subscription delivers into an ``Inbox`` (a thread-safe FIFO) that the
+process's loop thread drains. Roles are enforced here: a vehicle may not subscribe to truth.
+"""
+
+from __future__ import annotations
+
+import json
+import queue
+from dataclasses import dataclass
+from typing import Protocol
+
+from bus.config import BusConfig
+from bus.errors import AccessDenied
+from bus.keys import KeySpace
+
+Inbox = queue.SimpleQueue
+
+
+@dataclass(frozen=True)
+class Envelope:
+    key: str
+    payload: bytes
+
+
+@dataclass(frozen=True)
+class LivelinessEvent:
+    key: str
+    alive: bool
+
+
+class Publisher(Protocol):
+    def put(self, payload: bytes) -> None: ...
+
+
+class Bus(Protocol):
+    keys: KeySpace
+    role: str
+
+    def publisher(self, key: str) -> Publisher: ...
+    def subscribe(self, key_expr: str, inbox: Inbox) -> None: ...
+    def declare_token(self, key: str) -> None: ...
+    def watch_liveliness(self, key_expr: str, inbox: Inbox) -> None: ...
+    def close(self) -> None: ...
+
+
+def check_subscription(role: str, keys: KeySpace, key_expr: str) -> None:
+    """Raise AccessDenied when ``role`` may not read ``key_expr`` (vehicles never see truth)."""
+    if role == "vehicle" and keys.is_truth(key_expr):
+        raise AccessDenied(f"role 'vehicle' may not subscribe to truth ({key_expr!r})")
+
+
+def zenoh_config(conf: BusConfig):
+    """A zenoh.Config from our BusConfig: explicit endpoints, multicast scouting off."""
+    import zenoh
+
+    zconf = zenoh.Config()
+    zconf.insert_json5("mode", json.dumps(conf.mode))
+    zconf.insert_json5("connect/endpoints", json.dumps(list(conf.connect)))
+    zconf.insert_json5("listen/endpoints", json.dumps(list(conf.listen)))
+    zconf.insert_json5("scouting/multicast/enabled", "false")
+    return zconf
+
+
+class ZenohBus:
+    """A zenoh session with swarmloc's role checks; use as a context manager so it always closes."""
+
+    def __init__(self, conf: BusConfig, *, role: str) -> None:
+        import zenoh
+
+        self._zenoh = zenoh
+        self.keys = KeySpace(conf.prefix)
+        self.role = role
+        self._session = zenoh.open(zenoh_config(conf))
+        self._keep: list[object] = []
+
+    def publisher(self, key: str) -> Publisher:
+        pub = self._session.declare_publisher(
+            key, congestion_control=self._zenoh.CongestionControl.BLOCK, express=True
+        )
+        self._keep.append(pub)
+        return pub
+
+    def subscribe(self, key_expr: str, inbox: Inbox) -> None:
+        check_subscription(self.role, self.keys, key_expr)
+
+        def on_sample(sample) -> None:
+            inbox.put(Envelope(str(sample.key_expr), sample.payload.to_bytes()))
+
+        self._keep.append(self._session.declare_subscriber(key_expr, on_sample))
+
+    def declare_token(self, key: str) -> None:
+        self._keep.append(self._session.liveliness().declare_token(key))
+
+    def watch_liveliness(self, key_expr: str, inbox: Inbox) -> None:
+        put_kind = self._zenoh.SampleKind.PUT
+
+        def on_change(sample) -> None:
+            inbox.put(LivelinessEvent(str(sample.key_expr), sample.kind == put_kind))
+
+        self._keep.append(self._session.liveliness().declare_subscriber(key_expr, on_change, history=True))
+
+    def close(self) -> None:
+        if not self._session.is_closed():
+            self._keep.clear()
+            self._session.close()
+
+    def __enter__(self) -> "ZenohBus":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
