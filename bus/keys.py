@@ -8,6 +8,7 @@ Layout under a configurable prefix (default ``swarm``)::
     <prefix>/v/<id>/status           vehicle loop statistics
     <prefix>/ctl/clock               simulation clock ticks
     <prefix>/ctl/ack/<id>            lockstep acknowledgements
+    <prefix>/ctl/end                 end of run
     <prefix>/alive/<role>/<id>       liveliness tokens
 """
 
@@ -47,6 +48,9 @@ class KeySpace:
 
     def ack(self, vehicle_id: int | str) -> str:
         return f"{self.prefix}/ctl/ack/{vehicle_id}"
+
+    def end(self) -> str:
+        return f"{self.prefix}/ctl/end"
 
     def alive(self, role: str, ident: int | str) -> str:
         if role not in ROLES:

@@ -21,7 +21,7 @@ MAX_POSITION_M = 1e7
 
 __all__ = [
     "ImuSample", "WheelOdometry", "GnssFix", "PosePrior", "Truth", "ClockTick", "TickAck",
-    "VehicleStatus", "encode", "decode",
+    "VehicleStatus", "RunEnd", "encode", "decode",
 ]
 
 
@@ -116,3 +116,12 @@ class VehicleStatus:
     rejected_gnss: Annotated[int, Int(0, 2**53)]
     decode_errors: Annotated[int, Int(0, 2**53)]
     reset_counter: Annotated[int, Int(0, 255)]
+
+
+@dataclass(frozen=True)
+class RunEnd:
+    """The world has finished: every vehicle acknowledged the final tick (or was declared dead)."""
+
+    tick: Annotated[int, Int(0, 2**53)]
+    stamp_us: StampUs
+    vehicles_alive: Annotated[int, Int(0, 250)]

@@ -1,0 +1,131 @@
+"""The `swarm` command: run a whole swarm (`up`) or one process of it (`router`, `sim`, `vehicle`, `gs`)."""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+from typing import Callable, Optional
+
+import typer
+
+from bus.errors import SwarmlocError
+
+app = typer.Typer(add_completion=False, no_args_is_help=True,
+                  help="swarmloc: multi-process swarm localization over zenoh, with MAVLink 2 state packets.")
+
+
+def _fail(message: str) -> None:
+    typer.echo(f"swarm: error: {message}", err=True)
+    raise typer.Exit(1)
+
+
+def _run_node(config_path: Path, role: str, body: Callable) -> None:
+    """Load the config, open the bus for ``role``, run ``body(bus, config, stop)``, always close."""
+    from bus.config import load_config
+    from bus.process import stop_on_signals
+    from bus.session import ZenohBus
+
+    logging.basicConfig(level=logging.INFO, format=f"%(asctime)s {role} %(levelname)s %(message)s")
+    stop = stop_on_signals()
+    try:
+        config = load_config(config_path)
+        with ZenohBus(config.bus.with_env(), role=role) as bus:
+            body(bus, config, stop)
+    except SwarmlocError as exc:
+        _fail(str(exc))
+
+
+@app.command()
+def up(
+    vehicles: int = typer.Option(5, help="number of vehicles (1-250)"),
+    duration: float = typer.Option(60.0, help="simulated seconds"),
+    mode: str = typer.Option("lockstep", help="lockstep (reproducible, as fast as possible) or realtime"),
+    speed: float = typer.Option(1.0, help="realtime only: sim seconds per wall second"),
+    seed: int = typer.Option(0, help="seed of trajectories and sensor noise"),
+    tick: float = typer.Option(0.02, help="sim seconds the world advances per clock tick"),
+    out: Path = typer.Option(Path("runs"), help="parent folder of run directories"),
+    name: str = typer.Option("run", help="run directory name (a suffix is added if it exists)"),
+    quiet: bool = typer.Option(False, help="no progress display, only the final table"),
+) -> None:
+    """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table."""
+    from bus.config import build_config
+    from bus.process import stop_on_signals
+    from groundstation.launcher import launch
+
+    if mode not in ("lockstep", "realtime"):
+        _fail(f"unknown mode {mode!r}: use lockstep or realtime")
+    try:
+        config = build_config({"name": name, "world": {"vehicles": vehicles, "seed": seed},
+                               "clock": {"mode": mode, "speed": speed, "duration_s": duration, "tick_s": tick}})
+        run_dir, failures = launch(config, out, show_progress=not quiet, stop=stop_on_signals())
+    except SwarmlocError as exc:
+        _fail(str(exc))
+    _print_result(run_dir, failures)
+
+
+def _print_result(run_dir: Path, failures: list[str]) -> None:
+    from rich.console import Console
+
+    from groundstation.display import rmse_table
+
+    console = Console()
+    for failure in failures:
+        console.print(f"[red]swarm: {failure}[/red]")
+    summary_path = run_dir / "summary.json"
+    if summary_path.exists():
+        summary = json.loads(summary_path.read_text())
+        timing_path = run_dir / "timing.json"
+        timing = json.loads(timing_path.read_text()) if timing_path.exists() else None
+        console.print(rmse_table(summary, timing, title=f"{summary['name']}: {summary['status']}"))
+    else:
+        console.print(f"[red]swarm: no summary.json was written in {run_dir}[/red]")
+    console.print(f"run directory: {run_dir}")
+    if failures or not summary_path.exists():
+        raise typer.Exit(1)
+
+
+@app.command()
+def router(listen: list[str] = typer.Option(["tcp/0.0.0.0:7447"], help="zenoh endpoint(s) to listen on")) -> None:
+    """Run a zenoh router (what vehicles, world and ground station connect to)."""
+    from bus.process import stop_on_signals
+    from groundstation.router import run_router
+
+    run_router(tuple(listen), stop_on_signals())
+
+
+@app.command()
+def sim(config: Path = typer.Option(..., help="swarm config JSON")) -> None:
+    """Run the world process: truth, sensor feeds and the clock."""
+    from sim.node import run_world
+
+    _run_node(config, "world", run_world)
+
+
+@app.command()
+def vehicle(config: Path = typer.Option(..., help="swarm config JSON"),
+            id: int = typer.Option(..., "--id", min=1, max=250, help="vehicle id (MAVLink sysid)")) -> None:
+    """Run one vehicle process: the fixed-rate estimator loop."""
+    from vehicle.node import run_vehicle
+
+    _run_node(config, "vehicle", lambda bus, cfg, stop: run_vehicle(bus, cfg, id, stop))
+
+
+@app.command()
+def gs(config: Path = typer.Option(..., help="swarm config JSON"),
+       run_dir: Path = typer.Option(..., help="run directory to write (appended if it exists)"),
+       quiet: bool = typer.Option(False, help="no live display")) -> None:
+    """Run the ground station: score estimates against truth and write the run directory."""
+    from groundstation.display import live_display
+    from groundstation.node import run_groundstation
+
+    def body(bus, cfg, stop) -> None:
+        with live_display(cfg.clock.mode, cfg.clock.duration_s, quiet) as on_progress:
+            run_groundstation(bus, cfg, run_dir, stop, on_progress)
+
+    _run_node(config, "groundstation", body)
+
+
+if __name__ == "__main__":
+    app()

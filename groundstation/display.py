@@ -1,0 +1,59 @@
+"""What the ground station shows while a run goes: a progress bar (lockstep) or a live table (realtime),
+and the final RMSE/NEES table."""
+
+from __future__ import annotations
+
+import math
+from contextlib import contextmanager
+from typing import Any, Iterator
+
+from rich.console import Console
+from rich.live import Live
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+
+def rmse_table(summary: dict[str, Any], timing: dict[str, Any] | None = None, title: str = "swarm RMSE") -> Table:
+    """Per-vehicle and swarm position RMSE, ANEES and loop counters from a summary (and timing)."""
+    table = Table(title=title)
+    for column in ("vehicle", "RMSE [m]", "max err [m]", "ANEES (3 dof)", "NEES in 95%", "GNSS rejected",
+                   "overruns", "jitter p99 [us]"):
+        table.add_column(column, justify="right")
+    for vid, v in summary["vehicles"].items():
+        t = (timing or {}).get(vid, {})
+        table.add_row(vid, _num(v.get("rmse_m")), _num(v.get("max_error_m")), _num(v.get("anees")),
+                      _pct(v.get("nees_inside_95")), str(v.get("gnss_rejected", "-")),
+                      str(t.get("overruns", v.get("overruns", "-"))), _num(t.get("jitter_p99_us"), 0))
+    s = summary["swarm"]
+    table.add_row("swarm", _num(s.get("rmse_m")), "", _num(s.get("anees")), "", "", "", "", style="bold")
+    return table
+
+
+def _num(value: float | None, digits: int = 3) -> str:
+    return "-" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.{digits}f}"
+
+
+def _pct(value: float | None) -> str:
+    return "-" if value is None else f"{100 * value:.1f}%"
+
+
+@contextmanager
+def live_display(mode: str, duration_s: float, quiet: bool) -> Iterator[Any]:
+    """Yields an ``on_progress(gs)`` callback that updates the display at most ~5 times a second."""
+    if quiet:
+        yield None
+        return
+    console = Console()
+    if mode == "lockstep":
+        with Progress(TextColumn("sim time"), BarColumn(), TextColumn("{task.completed:.1f}/{task.total:.0f} s"),
+                      TimeElapsedColumn(), console=console, transient=True) as progress:
+            task = progress.add_task("run", total=duration_s)
+            yield lambda gs: progress.update(task, completed=gs.sim_time_us * 1e-6)
+        return
+    with Live(console=console, refresh_per_second=4, transient=True) as live:
+        def update(gs: Any) -> None:
+            if gs.sim_time_us % 500_000 == 0:
+                from groundstation.summary import build_summary
+                summary = build_summary(gs.config, gs.scorer, gs.statuses, dict(gs.rejected), {}, "running")
+                live.update(rmse_table(summary, title=f"t = {gs.sim_time_us * 1e-6:.1f} s"))
+        yield update

@@ -1,0 +1,116 @@
+"""The ground-station process: scores every vehicle's MAVLink estimates against truth, logs events,
+and writes the run directory as it goes.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from collections import Counter
+from pathlib import Path
+
+from bus import messages as m
+from bus.config import SwarmConfig
+from bus.errors import DecodeError
+from bus.mavlink_codec import MavlinkDecoder, StateEstimate
+from bus.session import Bus, Envelope, LivelinessEvent
+from groundstation.rundir import RunDirectory
+from groundstation.scoring import Scorer
+from groundstation.summary import build_summary, build_timing
+
+log = logging.getLogger("swarmloc.groundstation")
+REALTIME_LAG_US = 1_000_000
+
+
+class GroundStation:
+    def __init__(self, bus: Bus, config: SwarmConfig, run_dir: Path) -> None:
+        self.bus, self.config = bus, config
+        keys, prefix = bus.keys, bus.keys.prefix
+        self.inbox: queue.SimpleQueue = queue.SimpleQueue()
+        for expr in (f"{prefix}/v/*/truth", f"{prefix}/v/*/mavlink", f"{prefix}/v/*/status", keys.clock(), keys.end()):
+            bus.subscribe(expr, self.inbox)
+        bus.watch_liveliness(f"{prefix}/alive/vehicle/*", self.inbox)
+        bus.declare_token(keys.alive("groundstation", 0))
+        self.run = RunDirectory(run_dir)
+        self.scorer = Scorer()
+        self.decoder = MavlinkDecoder()
+        self.statuses: dict[int, m.VehicleStatus] = {}
+        self.rejected: Counter[int] = Counter()
+        self.events: Counter[str] = Counter()
+        self.sim_time_us = 0
+        self.previous_tick_us = -1
+        self.ended = False
+        self.on_progress = lambda gs: None
+
+    def event(self, kind: str, **fields: object) -> None:
+        self.events[kind] += 1
+        self.run.event(kind, self.sim_time_us, **fields)
+
+    def handle(self, item: object) -> None:
+        if isinstance(item, LivelinessEvent):
+            vid = item.key.rsplit("/", 1)[-1]
+            self.event("vehicle_joined" if item.alive else "vehicle_lost", vehicle=int(vid) if vid.isdigit() else vid)
+            return
+        keys, key = self.bus.keys, item.key
+        try:
+            if key == keys.clock():
+                self._on_tick(m.decode(m.ClockTick, item.payload))
+            elif key == keys.end():
+                self.ended = True
+            elif key.endswith("/truth"):
+                self.scorer.add_truth(m.decode(m.Truth, item.payload))
+            elif key.endswith("/status"):
+                status = m.decode(m.VehicleStatus, item.payload)
+                self.statuses[status.vehicle_id] = status
+            elif key.endswith("/mavlink"):
+                self._on_mavlink(item)
+        except DecodeError as exc:
+            self.events["decode_error"] += 1
+            log.warning("ground station dropped a payload on %s: %s", key, exc)
+
+    def _on_mavlink(self, item: Envelope) -> None:
+        try:
+            decoded = self.decoder.decode(item.payload)
+        except DecodeError:
+            self.rejected[self.bus.keys.vehicle_of(item.key)] += 1
+            raise
+        if isinstance(decoded, StateEstimate):
+            self.scorer.add_estimate(decoded)
+
+    def _on_tick(self, tick: m.ClockTick) -> None:
+        """Lockstep: tick k means every estimate up to tick k-1 has been published and received."""
+        if tick.tick == 0:
+            self.event("run_started", mode=self.config.clock.mode)
+        self.sim_time_us = tick.stamp_us
+        if self.config.clock.mode == "lockstep" and self.previous_tick_us >= 0:
+            self.run.write_scores(self.scorer.release(self.previous_tick_us))
+        elif self.config.clock.mode == "realtime":
+            self.run.write_scores(self.scorer.release(tick.stamp_us - REALTIME_LAG_US))
+        self.previous_tick_us = tick.stamp_us
+        self.on_progress(self)
+
+    def finish(self, status: str) -> dict:
+        """Score everything left, write summary.json and timing.json, close the files."""
+        self.run.write_scores(self.scorer.release(float("inf")))
+        self.event("run_ended", status=status)
+        summary = build_summary(self.config, self.scorer, self.statuses, dict(self.rejected),
+                                dict(sorted(self.events.items())), status)
+        self.run.write_json("summary.json", summary)
+        self.run.write_json("timing.json", build_timing(self.statuses))
+        self.run.close()
+        return summary
+
+
+def run_groundstation(bus: Bus, config: SwarmConfig, run_dir: Path, stop: threading.Event,
+                      on_progress=None) -> dict:
+    """Score until the world ends the run (or ``stop`` is set); returns the summary."""
+    gs = GroundStation(bus, config, run_dir)
+    if on_progress is not None:
+        gs.on_progress = on_progress
+    while not gs.ended and not stop.is_set():
+        try:
+            gs.handle(gs.inbox.get(timeout=0.2))
+        except queue.Empty:
+            gs.run.maybe_flush()
+    return gs.finish("complete" if gs.ended else "interrupted")

@@ -1,0 +1,83 @@
+"""The run directory: config.json, metrics.csv, events.jsonl, summary.json, timing.json, tum/.
+
+Files are appended and flushed at least every ``flush_period_s`` of wall time, so killing the
+ground station loses at most the last second. A restarted ground station appends.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from groundstation.scoring import Score
+
+METRICS_HEADER = "t_s,vehicle,err_x_m,err_y_m,err_pos_m,err_yaw_rad,sigma_x_m,sigma_y_m,sigma_yaw_rad,nees,reset_counter\n"
+
+
+def tum_line(stamp_us: int, x: float, y: float, z: float, yaw: float) -> str:
+    """One TUM trajectory line: ``timestamp tx ty tz qx qy qz qw`` (yaw-only attitude)."""
+    return f"{stamp_us * 1e-6:.6f} {x:.6f} {y:.6f} {z:.6f} 0 0 {np.sin(yaw / 2):.9f} {np.cos(yaw / 2):.9f}\n"
+
+
+class RunDirectory:
+    def __init__(self, path: Path, *, flush_period_s: float = 0.5) -> None:
+        self.path = Path(path)
+        (self.path / "tum").mkdir(parents=True, exist_ok=True)
+        self._flush_period_s = flush_period_s
+        self._last_flush = time.monotonic()
+        self._metrics = self._open("metrics.csv", METRICS_HEADER)
+        self._events = self._open("events.jsonl")
+        self._tum: dict[str, TextIO] = {}
+
+    def _open(self, name: str, header: str = "") -> TextIO:
+        path = self.path / name
+        fresh = not path.exists() or path.stat().st_size == 0
+        handle = path.open("a", encoding="utf-8")
+        if fresh and header:
+            handle.write(header)
+        return handle
+
+    def _tum_file(self, kind: str, vehicle_id: int) -> TextIO:
+        name = f"tum/{kind}_v{vehicle_id}.tum"
+        if name not in self._tum:
+            self._tum[name] = self._open(name)
+        return self._tum[name]
+
+    def write_scores(self, scores: list[Score]) -> None:
+        for s in scores:
+            e, sg = s.error_m, s.sigma
+            self._metrics.write(f"{s.stamp_us * 1e-6:.6f},{s.vehicle_id},{e[0]:.6f},{e[1]:.6f},"
+                                f"{s.position_error_m:.6f},{e[2]:.6f},{sg[0]:.6f},{sg[1]:.6f},"
+                                f"{sg[2]:.6f},{s.nees:.6f},{s.reset_counter}\n")
+            est, tp = s.estimate, s.truth_pose
+            self._tum_file("est", s.vehicle_id).write(tum_line(s.stamp_us, *est.position_m, est.yaw_rad))
+            self._tum_file("truth", s.vehicle_id).write(tum_line(s.stamp_us, tp[0], tp[1], est.position_m[2], tp[2]))
+        self.maybe_flush()
+
+    def event(self, kind: str, stamp_us: int, **fields: Any) -> None:
+        record = {"t_s": round(stamp_us * 1e-6, 6), "event": kind, **fields}
+        self._events.write(json.dumps(record, sort_keys=True) + "\n")
+        self.maybe_flush()
+
+    def write_json(self, name: str, data: dict[str, Any]) -> None:
+        tmp = self.path / f".{name}.tmp"
+        tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
+        tmp.replace(self.path / name)
+
+    def maybe_flush(self) -> None:
+        if time.monotonic() - self._last_flush >= self._flush_period_s:
+            self.flush()
+
+    def flush(self) -> None:
+        for handle in (self._metrics, self._events, *self._tum.values()):
+            handle.flush()
+        self._last_flush = time.monotonic()
+
+    def close(self) -> None:
+        self.flush()
+        for handle in (self._metrics, self._events, *self._tum.values()):
+            handle.close()

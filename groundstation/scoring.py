@@ -1,0 +1,134 @@
+"""Scores state estimates against truth interpolated at their timestamps (pure, no bus).
+
+Errors are in the horizontal plane; NEES is over the pose [x, y, yaw] with the estimate's own
+covariance (3 degrees of freedom), so its mean should be 3 for a consistent estimator.
+"""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2
+
+from bus.mavlink_codec import StateEstimate
+from bus.messages import Truth
+
+POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw inside ODOMETRY's 6x6 pose covariance
+NEES_DOF = 3
+
+
+def wrap(angle: float) -> float:
+    return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
+
+
+@dataclass(frozen=True)
+class Score:
+    vehicle_id: int
+    stamp_us: int
+    error_m: np.ndarray        # (3,) x, y (m) and yaw (rad) error: estimate - truth
+    sigma: np.ndarray          # (3,) standard deviations from the estimate's covariance
+    nees: float
+    reset_counter: int
+    estimate: StateEstimate
+    truth_pose: np.ndarray     # (3,)
+
+    @property
+    def position_error_m(self) -> float:
+        return float(np.hypot(self.error_m[0], self.error_m[1]))
+
+
+@dataclass
+class Tally:
+    """Running per-vehicle totals."""
+
+    samples: int = 0
+    sum_sq_position_m2: float = 0.0
+    max_position_error_m: float = 0.0
+    sum_nees: float = 0.0
+    nees_inside: int = 0
+
+    def add(self, score: Score, bounds: tuple[float, float]) -> None:
+        err = score.position_error_m
+        self.samples += 1
+        self.sum_sq_position_m2 += err * err
+        self.max_position_error_m = max(self.max_position_error_m, err)
+        self.sum_nees += score.nees
+        self.nees_inside += int(bounds[0] <= score.nees <= bounds[1])
+
+
+class TruthTrack:
+    """One vehicle's truth samples, interpolated (angle-aware) at arbitrary stamps."""
+
+    def __init__(self) -> None:
+        self.stamps: list[int] = []
+        self.poses: list[np.ndarray] = []
+
+    def add(self, truth: Truth) -> None:
+        if self.stamps and truth.stamp_us <= self.stamps[-1]:
+            return  # duplicate or out of order: truth is published in order
+        self.stamps.append(truth.stamp_us)
+        self.poses.append(truth.pose)
+
+    def covers(self, stamp_us: int) -> bool:
+        return bool(self.stamps) and self.stamps[0] <= stamp_us <= self.stamps[-1]
+
+    def at(self, stamp_us: int) -> np.ndarray:
+        i = bisect.bisect_left(self.stamps, stamp_us)
+        if self.stamps[i] == stamp_us:
+            return self.poses[i]
+        t0, t1, p0, p1 = self.stamps[i - 1], self.stamps[i], self.poses[i - 1], self.poses[i]
+        a = (stamp_us - t0) / (t1 - t0)
+        pose = p0 + a * (p1 - p0)
+        pose[2] = wrap(p0[2] + a * wrap(p1[2] - p0[2]))
+        return pose
+
+    def forget_before(self, stamp_us: int) -> None:
+        keep = max(0, bisect.bisect_left(self.stamps, stamp_us) - 1)
+        del self.stamps[:keep], self.poses[:keep]
+
+
+def score(est: StateEstimate, truth_pose: np.ndarray) -> Score:
+    error = np.array([est.position_m[0] - truth_pose[0], est.position_m[1] - truth_pose[1],
+                      wrap(est.yaw_rad - truth_pose[2])])
+    cov = est.pose_covariance[np.ix_(POSE_INDEX, POSE_INDEX)]
+    nees = float(error @ np.linalg.solve(cov, error))
+    return Score(est.vehicle_id, est.time_usec, error, np.sqrt(np.diag(cov)), nees, est.reset_counter,
+                 est, truth_pose)
+
+
+@dataclass
+class Scorer:
+    """Holds estimates until the watermark passes them, then scores them in (stamp, vehicle) order."""
+
+    truth: dict[int, TruthTrack] = field(default_factory=dict)
+    pending: list[StateEstimate] = field(default_factory=list)
+    tallies: dict[int, Tally] = field(default_factory=dict)
+    unscored: int = 0
+    bounds: tuple[float, float] = (float(chi2.ppf(0.025, NEES_DOF)), float(chi2.ppf(0.975, NEES_DOF)))
+
+    def add_truth(self, truth: Truth) -> None:
+        self.truth.setdefault(truth.vehicle_id, TruthTrack()).add(truth)
+
+    def add_estimate(self, est: StateEstimate) -> None:
+        self.pending.append(est)
+
+    def release(self, watermark_us: float) -> list[Score]:
+        """Score every pending estimate stamped <= watermark_us; the rest stay pending."""
+        due = sorted((e for e in self.pending if e.time_usec <= watermark_us),
+                     key=lambda e: (e.time_usec, e.vehicle_id))
+        self.pending = [e for e in self.pending if e.time_usec > watermark_us]
+        scores = []
+        for est in due:
+            track = self.truth.get(est.vehicle_id)
+            if track is None or not track.covers(est.time_usec):
+                self.unscored += 1
+                continue
+            result = score(est, track.at(est.time_usec))
+            self.tallies.setdefault(est.vehicle_id, Tally()).add(result, self.bounds)
+            scores.append(result)
+        if watermark_us != float("inf"):
+            for track in self.truth.values():
+                track.forget_before(int(watermark_us) - 1_000_000)
+        return scores

@@ -1,0 +1,1 @@
+"""The world: truth, trajectories, sensor models and the clock. Imports only ``bus``."""

@@ -1,0 +1,44 @@
+"""Generic EKF pieces shared by the estimator cores: gated Joseph-form update, chi-square gates."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+
+import numpy as np
+from scipy.stats import chi2
+
+
+@cache
+def gate_threshold(dof: int, probability: float) -> float:
+    """Chi-square quantile: innovations with NIS above it are rejected (PX4-style test ratio > 1)."""
+    return float(chi2.ppf(probability, dof))
+
+
+@dataclass(frozen=True)
+class UpdateResult:
+    """Outcome of one measurement update; ``test_ratio`` = NIS / gate, accepted when <= 1."""
+
+    accepted: bool
+    nis: float
+    test_ratio: float
+
+
+def gated_update(x: np.ndarray, P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
+                 gate: float) -> tuple[np.ndarray, np.ndarray, UpdateResult]:
+    """One EKF update in Joseph form, skipped when the innovation fails the gate.
+
+    x (n,), P (n, n), innovation y = z - h(x) (m,), H (m, n), R (m, m), gate = chi-square threshold.
+    Returns the new x, P (symmetric positive definite) and the test result.
+    P+ = (I - K H) P (I - K H)^T + K R K^T   (Joseph form, stable for any gain K).
+    """
+    S = H @ P @ H.T + R
+    S_inv_y = np.linalg.solve(S, innovation)
+    nis = float(innovation @ S_inv_y)
+    ratio = nis / gate
+    if not ratio <= 1.0:  # also rejects NaN
+        return x, P, UpdateResult(False, nis, ratio)
+    K = np.linalg.solve(S, H @ P).T  # K = P H^T S^-1, using symmetry of P and S
+    I_KH = np.eye(len(x)) - K @ H
+    P_new = I_KH @ P @ I_KH.T + K @ R @ K.T
+    return x + K @ innovation, 0.5 * (P_new + P_new.T), UpdateResult(True, nis, ratio)

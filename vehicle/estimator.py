@@ -1,0 +1,123 @@
+"""A vehicle's estimator core: turns decoded sensor messages, in stamp order, into state estimates.
+
+Pure: no bus, no clock. The node feeds it messages and asks for an estimate once per loop cycle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bus import messages as m
+from bus.config import SensorSpec
+from bus.mavlink_codec import StateEstimate
+from vehicle import unicycle_ekf as ekf
+from vehicle.ekf import gate_threshold
+
+_GYRO_STALE_PERIODS = 5
+_NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch: constant altitude, level flight
+
+
+@dataclass
+class EstimatorCounters:
+    gnss_accepted: int = 0
+    gnss_rejected: int = 0
+    stale: int = 0
+    last_gnss_test_ratio: float = 0.0
+
+
+class VehicleEstimator:
+    """EKF over [x, y, theta, gyro_bias] driven by odometry speed and gyro yaw rate, GNSS-corrected."""
+
+    def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float) -> None:
+        self.vehicle_id = vehicle_id
+        self._spec = spec
+        self._gate = gate_threshold(2, gate_probability)
+        self._altitude_m = altitude_m
+        self._noise = ekf.InputNoise(spec.odom_speed_sigma_mps, 1.0 / spec.odom_rate_hz, spec.gyro_sigma_radps,
+                                     1.0 / spec.imu_rate_hz, spec.gyro_bias_walk_radps_rtsec)
+        self._gyro_period_us = round(1e6 / spec.imu_rate_hz)
+        self.x: np.ndarray | None = None
+        self.P: np.ndarray | None = None
+        self.time_us = 0
+        self._speed_mps = 0.0
+        self._odom_yaw_rate = 0.0
+        self._gyro_radps = 0.0
+        self._gyro_stamp_us: int | None = None
+        self.counters = EstimatorCounters()
+
+    @property
+    def initialized(self) -> bool:
+        return self.x is not None
+
+    def handle(self, msg: object) -> None:
+        """Apply one message; messages must come in non-decreasing stamp order (older ones are counted)."""
+        if isinstance(msg, m.PosePrior):
+            self._initialise(msg)
+            return
+        if self.x is None:
+            return
+        if msg.stamp_us < self.time_us:
+            self.counters.stale += 1
+            return
+        self.propagate_to(msg.stamp_us)
+        if isinstance(msg, m.ImuSample):
+            self._gyro_radps, self._gyro_stamp_us = float(msg.gyro_radps[2]), msg.stamp_us
+        elif isinstance(msg, m.WheelOdometry):
+            self._speed_mps, self._odom_yaw_rate = msg.speed_mps, msg.yaw_rate_radps
+        elif isinstance(msg, m.GnssFix):
+            self._fuse_gnss(msg)
+
+    def _initialise(self, prior: m.PosePrior) -> None:
+        self.x = np.append(prior.pose, 0.0)
+        self.P = np.zeros((4, 4))
+        self.P[:3, :3] = prior.covariance
+        self.P[3, 3] = self._spec.gyro_bias_sigma_radps**2
+        self.time_us = prior.stamp_us
+
+    def propagate_to(self, stamp_us: int) -> None:
+        """Predict with the held inputs from the current time to ``stamp_us`` (commits the filter)."""
+        if self.x is not None and stamp_us > self.time_us:
+            self.x, self.P = self.predicted(stamp_us)
+            self.time_us = stamp_us
+
+    def predicted(self, stamp_us: int) -> tuple[np.ndarray, np.ndarray]:
+        """State (4,) and covariance (4, 4) predicted to ``stamp_us`` without changing the filter."""
+        if self.x is None:
+            raise RuntimeError("the estimator has not been initialised by a pose prior")
+        if stamp_us <= self.time_us:
+            return self.x, self.P
+        dt = (stamp_us - self.time_us) * 1e-6
+        gyro_fresh = (self._gyro_stamp_us is not None
+                      and stamp_us - self._gyro_stamp_us <= _GYRO_STALE_PERIODS * self._gyro_period_us)
+        if gyro_fresh:
+            return ekf.predict(self.x, self.P, self._speed_mps, self._gyro_radps, dt, self._noise)
+        noise = ekf.InputNoise(self._noise.speed_sigma_mps, self._noise.speed_period_s,
+                               self._spec.odom_yaw_rate_sigma_radps, self._noise.speed_period_s,
+                               self._noise.bias_walk_radps_rtsec)
+        return ekf.predict(self.x, self.P, self._speed_mps, self._odom_yaw_rate, dt, noise, use_bias=False)
+
+    def _fuse_gnss(self, fix: m.GnssFix) -> None:
+        self.x, self.P, result = ekf.gnss_update(self.x, self.P, fix.position_m, fix.covariance_m2, self._gate)
+        self.counters.last_gnss_test_ratio = result.test_ratio
+        if result.accepted:
+            self.counters.gnss_accepted += 1
+        else:
+            self.counters.gnss_rejected += 1
+
+    def estimate(self, stamp_us: int, reset_counter: int = 0) -> StateEstimate:
+        """The estimate predicted to ``stamp_us`` as a StateEstimate (NED, body-frame velocity)."""
+        x, P = self.predicted(stamp_us)
+        pose_cov = np.diag([0.0, 0.0, _NOT_ESTIMATED_VAR, _NOT_ESTIMATED_VAR, _NOT_ESTIMATED_VAR, 0.0])
+        index = np.array([0, 1, 5])
+        pose_cov[np.ix_(index, index)] = P[:3, :3]
+        yaw_rate_var = self._spec.gyro_sigma_radps**2 + P[3, 3]
+        vel_cov = np.diag([self._spec.odom_speed_sigma_mps**2, _NOT_ESTIMATED_VAR, _NOT_ESTIMATED_VAR,
+                           _NOT_ESTIMATED_VAR, _NOT_ESTIMATED_VAR, yaw_rate_var])
+        return StateEstimate(
+            vehicle_id=self.vehicle_id, time_usec=max(stamp_us, self.time_us),
+            position_m=np.array([x[0], x[1], -self._altitude_m]), yaw_rad=float(x[2]),
+            velocity_mps=np.array([self._speed_mps, 0.0, 0.0]), yaw_rate_radps=self._gyro_radps - float(x[3]),
+            pose_covariance=pose_cov, velocity_covariance=vel_cov, reset_counter=reset_counter,
+        )

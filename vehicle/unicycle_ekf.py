@@ -1,0 +1,81 @@
+"""EKF for a unicycle at constant altitude with gyro-bias estimation.
+
+State x = [x_m, y_m, theta_rad, gyro_bias_radps] (4,). Inputs: forward speed from wheel odometry and
+yaw rate from the gyro minus the estimated bias (or odometry yaw rate when the gyro is silent).
+Motion model (cooperative-localization paper): x + v dt cos(theta), y + v dt sin(theta),
+theta + w dt, integrated here along the exact arc. GNSS observes [x, y].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vehicle.ekf import UpdateResult, gated_update
+
+STATE_DIM = 4
+_H_GNSS = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class InputNoise:
+    """Per-sample input noise and sample periods: the held-input model of the process noise.
+
+    A sample with white noise sigma, held for its period T_s, perturbs a propagation of length dt by
+    a variance sigma^2 T_s dt (equivalent continuous PSD sigma^2 T_s).
+    """
+
+    speed_sigma_mps: float
+    speed_period_s: float
+    yaw_rate_sigma_radps: float
+    yaw_rate_period_s: float
+    bias_walk_radps_rtsec: float
+
+
+def wrap(angle: float) -> float:
+    return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
+
+
+def propagate_mean(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float) -> np.ndarray:
+    """Exact arc propagation of the state (4,); the bias is already removed from yaw_rate_radps."""
+    dtheta = yaw_rate_radps * dt_s
+    chord = speed_mps * dt_s * np.sinc(dtheta / (2.0 * np.pi))
+    mid = x[2] + 0.5 * dtheta
+    return np.array([x[0] + chord * np.cos(mid), x[1] + chord * np.sin(mid), wrap(x[2] + dtheta), x[3]])
+
+
+def motion_jacobians(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """F = d f / d x (4, 4) and G = d f / d [v, w] (4, 2), midpoint approximation of the arc."""
+    mid = x[2] + 0.5 * yaw_rate_radps * dt_s
+    c, s = np.cos(mid), np.sin(mid)
+    half_v_dt2 = 0.5 * speed_mps * dt_s * dt_s
+    G = np.array([[dt_s * c, -half_v_dt2 * s], [dt_s * s, half_v_dt2 * c], [0.0, dt_s], [0.0, 0.0]])
+    F = np.eye(STATE_DIM)
+    F[0, 2], F[1, 2] = -speed_mps * dt_s * s, speed_mps * dt_s * c
+    F[:3, 3] = -G[:3, 1]  # the bias enters as w_true = w_measured - bias
+    return F, G
+
+
+def predict(x: np.ndarray, P: np.ndarray, speed_mps: float, gyro_radps: float, dt_s: float,
+            noise: InputNoise, use_bias: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Propagate (x, P) over dt_s with held inputs; ``use_bias`` False for a bias-free yaw source."""
+    yaw_rate = gyro_radps - (x[3] if use_bias else 0.0)
+    F, G = motion_jacobians(x, speed_mps, yaw_rate, dt_s)
+    if not use_bias:
+        F[:, 3] = 0.0
+        F[3, 3] = 1.0
+    input_var = np.array([noise.speed_sigma_mps**2 * max(noise.speed_period_s, dt_s),
+                          noise.yaw_rate_sigma_radps**2 * max(noise.yaw_rate_period_s, dt_s)]) / dt_s
+    Q = (G * input_var) @ G.T
+    Q[3, 3] += noise.bias_walk_radps_rtsec**2 * dt_s
+    P_new = F @ P @ F.T + Q
+    return propagate_mean(x, speed_mps, yaw_rate, dt_s), 0.5 * (P_new + P_new.T)
+
+
+def gnss_update(x: np.ndarray, P: np.ndarray, fix_m: np.ndarray, cov_m2: np.ndarray,
+                gate: float) -> tuple[np.ndarray, np.ndarray, UpdateResult]:
+    """Fuse a horizontal position fix (2,) with covariance (2, 2) behind a chi-square gate."""
+    x_new, P_new, result = gated_update(x, P, fix_m - x[:2], _H_GNSS, cov_m2, gate)
+    x_new[2] = wrap(x_new[2])
+    return x_new, P_new, result
