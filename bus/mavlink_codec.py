@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import math
 import time
 from collections import Counter
 from dataclasses import dataclass
@@ -24,6 +25,17 @@ COMPONENT_ID = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
 NEW_STREAM_TOLERANCE = 6_000_000  # 60 s in 10-us units, as in the MAVLink signing spec
 _UPPER = np.triu_indices(6)
+_DIAGONAL = (0, 6, 11, 15, 18, 20)  # positions of the variances in the 21-float upper triangle
+
+
+def _symmetric_index() -> np.ndarray:
+    """(6, 6) index into the 21-float upper triangle that rebuilds the full symmetric matrix."""
+    index = np.zeros((6, 6), dtype=np.intp)
+    index[_UPPER] = np.arange(21)
+    return np.maximum(index, index.T)
+
+
+_SYMMETRIC_INDEX = _symmetric_index()
 
 
 class MavlinkRejected(DecodeError):
@@ -165,23 +177,21 @@ class MavlinkDecoder:
 def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate:
     values = [msg.x, msg.y, msg.z, *msg.q, msg.vx, msg.vy, msg.vz, msg.yawspeed,
               *msg.pose_covariance, *msg.velocity_covariance]
-    if not np.all(np.isfinite(values)):
+    if not all(map(math.isfinite, values)):
         raise DecodeError(f"ODOMETRY from sysid {msg.get_srcSystem()} has non-finite fields")
-    w, _, _, z = msg.q
-    pose_cov, vel_cov = _full_covariance(msg.pose_covariance), _full_covariance(msg.velocity_covariance)
-    if np.any(np.diag(pose_cov) < 0) or np.any(np.diag(vel_cov) < 0):
+    if any(msg.pose_covariance[i] < 0 for i in _DIAGONAL) or any(msg.velocity_covariance[i] < 0 for i in _DIAGONAL):
         raise DecodeError(f"ODOMETRY from sysid {msg.get_srcSystem()} has negative variances")
+    w, _, _, z = msg.q
     return StateEstimate(
         vehicle_id=msg.get_srcSystem(), time_usec=msg.time_usec,
-        position_m=np.array([msg.x, msg.y, msg.z]), yaw_rad=float(2.0 * np.arctan2(z, w)),
+        position_m=np.array([msg.x, msg.y, msg.z]), yaw_rad=2.0 * math.atan2(z, w),
         velocity_mps=np.array([msg.vx, msg.vy, msg.vz]), yaw_rate_radps=float(msg.yawspeed),
-        pose_covariance=pose_cov, velocity_covariance=vel_cov,
+        pose_covariance=_full_covariance(msg.pose_covariance),
+        velocity_covariance=_full_covariance(msg.velocity_covariance),
         reset_counter=msg.reset_counter, estimator_type=msg.estimator_type,
     )
 
 
 def _full_covariance(upper: list[float]) -> np.ndarray:
     """21 floats (upper-right triangle, row-major) -> symmetric (6, 6)."""
-    cov = np.zeros((6, 6))
-    cov[_UPPER] = upper
-    return cov + np.triu(cov, 1).T
+    return np.asarray(upper, dtype=np.float64)[_SYMMETRIC_INDEX]

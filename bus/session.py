@@ -77,7 +77,7 @@ class ZenohBus:
 
     def publisher(self, key: str) -> Publisher:
         pub = self._session.declare_publisher(
-            key, congestion_control=self._zenoh.CongestionControl.BLOCK, express=True
+            key, congestion_control=self._zenoh.CongestionControl.BLOCK
         )
         self._keep.append(pub)
         return pub

@@ -20,7 +20,7 @@ def rmse_table(summary: dict[str, Any], timing: dict[str, Any] | None = None, ti
                    "overruns", "jitter p99 [us]"):
         table.add_column(column, justify="right")
     for vid, v in summary["vehicles"].items():
-        t = (timing or {}).get(vid, {})
+        t = (timing or {}).get("vehicles", {}).get(vid, {})
         table.add_row(vid, _num(v.get("rmse_m")), _num(v.get("max_error_m")), _num(v.get("anees")),
                       _pct(v.get("nees_inside_95")), str(v.get("gnss_rejected", "-")),
                       str(t.get("overruns", v.get("overruns", "-"))), _num(t.get("jitter_p99_us"), 0))

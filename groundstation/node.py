@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+import time
 from collections import Counter
 from pathlib import Path
 
@@ -41,6 +42,9 @@ class GroundStation:
         self.sim_time_us = 0
         self.previous_tick_us = -1
         self.ended = False
+        self.final_seen = False
+        self.wall_start: float | None = None
+        self.wall_end: float | None = None
         self.on_progress = lambda gs: None
 
     def event(self, kind: str, **fields: object) -> None:
@@ -50,14 +54,15 @@ class GroundStation:
     def handle(self, item: object) -> None:
         if isinstance(item, LivelinessEvent):
             vid = item.key.rsplit("/", 1)[-1]
-            self.event("vehicle_joined" if item.alive else "vehicle_lost", vehicle=int(vid) if vid.isdigit() else vid)
+            kind = "vehicle_joined" if item.alive else ("vehicle_left" if self.final_seen else "vehicle_lost")
+            self.event(kind, vehicle=int(vid) if vid.isdigit() else vid)
             return
         keys, key = self.bus.keys, item.key
         try:
             if key == keys.clock():
                 self._on_tick(m.decode(m.ClockTick, item.payload))
             elif key == keys.end():
-                self.ended = True
+                self.ended, self.wall_end = True, time.perf_counter()
             elif key.endswith("/truth"):
                 self.scorer.add_truth(m.decode(m.Truth, item.payload))
             elif key.endswith("/status"):
@@ -81,7 +86,9 @@ class GroundStation:
     def _on_tick(self, tick: m.ClockTick) -> None:
         """Lockstep: tick k means every estimate up to tick k-1 has been published and received."""
         if tick.tick == 0:
+            self.wall_start = time.perf_counter()
             self.event("run_started", mode=self.config.clock.mode)
+        self.final_seen = self.final_seen or tick.final
         self.sim_time_us = tick.stamp_us
         if self.config.clock.mode == "lockstep" and self.previous_tick_us >= 0:
             self.run.write_scores(self.scorer.release(self.previous_tick_us))
@@ -97,7 +104,8 @@ class GroundStation:
         summary = build_summary(self.config, self.scorer, self.statuses, dict(self.rejected),
                                 dict(sorted(self.events.items())), status)
         self.run.write_json("summary.json", summary)
-        self.run.write_json("timing.json", build_timing(self.statuses))
+        wall_s = (self.wall_end or time.perf_counter()) - (self.wall_start or time.perf_counter())
+        self.run.write_json("timing.json", build_timing(self.statuses, self.sim_time_us * 1e-6, wall_s))
         self.run.close()
         return summary
 

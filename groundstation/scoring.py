@@ -10,7 +10,7 @@ import bisect
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from bus.mavlink_codec import StateEstimate
 from bus.messages import Truth
@@ -106,7 +106,8 @@ class Scorer:
     pending: list[StateEstimate] = field(default_factory=list)
     tallies: dict[int, Tally] = field(default_factory=dict)
     unscored: int = 0
-    bounds: tuple[float, float] = (float(chi2.ppf(0.025, NEES_DOF)), float(chi2.ppf(0.975, NEES_DOF)))
+    # two-sided 95% chi-square bounds for one NEES sample: inverse survival at 0.975 and 0.025
+    bounds: tuple[float, float] = (float(chdtri(NEES_DOF, 0.975)), float(chdtri(NEES_DOF, 0.025)))
 
     def add_truth(self, truth: Truth) -> None:
         self.truth.setdefault(truth.vehicle_id, TruthTrack()).add(truth)

@@ -41,9 +41,12 @@ def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, Vehic
             "duration_s": config.clock.duration_s, "vehicles": vehicles, "swarm": swarm, "events": events}
 
 
-def build_timing(statuses: dict[int, VehicleStatus]) -> dict[str, Any]:
-    """Wall-clock loop statistics per vehicle: never reproducible, so kept out of summary.json."""
-    return {str(vid): {"cycles": st.cycles, "overruns": st.overruns,
+def build_timing(statuses: dict[int, VehicleStatus], sim_s: float, wall_s: float) -> dict[str, Any]:
+    """Wall-clock loop statistics per vehicle and the run's real-time factor (sim s per wall s):
+    never reproducible, so kept out of summary.json."""
+    vehicles = {str(vid): {"cycles": st.cycles, "overruns": st.overruns,
                        "overrun_rate": _round(st.overruns / st.cycles) if st.cycles else 0.0,
                        "jitter_p99_us": _round(st.jitter_p99_us), "cycle_p99_us": _round(st.cycle_p99_us)}
-            for vid, st in sorted(statuses.items())}
+                for vid, st in sorted(statuses.items())}
+    return {"sim_s": _round(sim_s), "wall_s": _round(wall_s),
+            "real_time_factor": _round(sim_s / wall_s) if wall_s > 0 else None, "vehicles": vehicles}

@@ -6,13 +6,13 @@ from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 
 @cache
 def gate_threshold(dof: int, probability: float) -> float:
     """Chi-square quantile: innovations with NIS above it are rejected (PX4-style test ratio > 1)."""
-    return float(chi2.ppf(probability, dof))
+    return float(chdtri(dof, 1.0 - probability))  # inverse survival function of chi-square
 
 
 @dataclass(frozen=True)

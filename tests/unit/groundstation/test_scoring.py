@@ -1,0 +1,53 @@
+"""Scoring against truth: interpolation, NEES, ordering, and RMSE."""
+
+import numpy as np
+import pytest
+
+from bus.mavlink_codec import StateEstimate
+from bus.messages import Truth
+from groundstation.scoring import Scorer, TruthTrack, score
+
+
+def _est(vid: int, t_us: int, x: float, y: float, yaw: float = 0.0, var: float = 1.0) -> StateEstimate:
+    cov = np.diag([var, var, 1e-6, 1e-6, 1e-6, var])
+    return StateEstimate(vid, t_us, np.array([x, y, -30.0]), yaw, np.zeros(3), 0.0, cov, np.eye(6))
+
+
+def test_truth_interpolation_is_angle_aware():
+    track = TruthTrack()
+    track.add(Truth(1, 0, 0, np.array([0.0, 0.0, np.pi - 0.1]), 1.0, 0.0))
+    track.add(Truth(1, 100, 1, np.array([10.0, 0.0, -np.pi + 0.1]), 1.0, 0.0))
+    pose = track.at(50)
+    assert pose[0] == pytest.approx(5.0)
+    assert abs(abs(pose[2]) - np.pi) < 1e-9
+
+
+def test_nees_of_a_known_error():
+    result = score(_est(1, 0, 3.0, 4.0, var=4.0), np.array([0.0, 0.0, 0.0]))
+    assert result.position_error_m == pytest.approx(5.0)
+    assert result.nees == pytest.approx(25.0 / 4.0)
+
+
+def test_release_orders_by_time_then_vehicle_and_waits_for_truth():
+    scorer = Scorer()
+    for vid in (2, 1):
+        for t in (0, 20_000):
+            scorer.add_truth(Truth(vid, t, t // 20_000, np.zeros(3), 0.0, 0.0))
+    for est in (_est(2, 20_000, 1, 0), _est(1, 20_000, 2, 0), _est(2, 0, 3, 0), _est(1, 40_000, 4, 0)):
+        scorer.add_estimate(est)
+    released = scorer.release(20_000)
+    assert [(s.stamp_us, s.vehicle_id) for s in released] == [(0, 2), (20_000, 1), (20_000, 2)]
+    assert len(scorer.pending) == 1
+    assert scorer.release(float("inf")) == [] and scorer.unscored == 1  # no truth at 40 ms
+
+
+def test_rmse_tally():
+    scorer = Scorer()
+    for t in (0, 1, 2):
+        scorer.add_truth(Truth(1, t, t, np.zeros(3), 0.0, 0.0))
+    for t, x in ((0, 3.0), (1, 4.0), (2, 0.0)):
+        scorer.add_estimate(_est(1, t, x, 0.0))
+    scorer.release(float("inf"))
+    tally = scorer.tallies[1]
+    assert np.sqrt(tally.sum_sq_position_m2 / tally.samples) == pytest.approx(np.sqrt(25 / 3))
+    assert tally.max_position_error_m == 4.0
