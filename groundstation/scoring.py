@@ -7,6 +7,7 @@ covariance (3 degrees of freedom), so its mean should be 3 for a consistent esti
 from __future__ import annotations
 
 import bisect
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,6 +16,7 @@ from scipy.special import chdtri
 from bus.mavlink_codec import StateEstimate
 from bus.messages import Truth
 
+log = logging.getLogger("swarmloc.groundstation")
 POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw inside ODOMETRY's 6x6 pose covariance
 NEES_DOF = 3
 
@@ -125,6 +127,9 @@ class Scorer:
             track = self.truth.get(est.vehicle_id)
             if track is None or not track.covers(est.time_usec):
                 self.unscored += 1
+                log.warning("no truth for vehicle %d at %d us (truth covers %s); estimate not scored",
+                            est.vehicle_id, est.time_usec,
+                            f"{track.stamps[0]}..{track.stamps[-1]}" if track and track.stamps else "nothing")
                 continue
             result = score(est, track.at(est.time_usec))
             self.tallies.setdefault(est.vehicle_id, Tally()).add(result, self.bounds)

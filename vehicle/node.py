@@ -67,6 +67,10 @@ class VehicleNode:
         self.next_cycle_us = 0
         self._next_heartbeat_us = 0
         self._next_status_us = 0
+        self.received: dict[str, int] = {}  # per topic: how many samples arrived (seq + 1)
+        spec = config.sensors
+        self._feed_periods_us = {"imu": round(1e6 / spec.imu_rate_hz), "odom": round(1e6 / spec.odom_rate_hz),
+                                 "gnss": round(1e6 / spec.gnss_rate_hz)}
 
     def take(self, envelope: Envelope) -> m.ClockTick | None:
         """File one inbox item: sensors go to the buffer; a clock tick is returned to the loop."""
@@ -80,7 +84,20 @@ class VehicleNode:
             return None
         if msg.vehicle_id == self.vehicle_id:
             self.buffer.push(msg)
+            topic = self.bus.keys.topic_of(envelope.key)
+            self.received[topic] = max(self.received.get(topic, 0), msg.seq + 1)
         return None
+
+    def feeds_complete(self, stamp_us: int) -> bool:
+        """True when every periodic feed stamped <= stamp_us has arrived (lockstep).
+
+        Zenoh keeps order within a key but not across keys, so a clock tick can overtake the
+        samples published before it; sequence numbers tell what is still on its way.
+        """
+        if self.received.get("prior", 0) < 1:
+            return False
+        return all(self.received.get(topic, 0) >= stamp_us // period + 1
+                   for topic, period in self._feed_periods_us.items())
 
     def cycle(self, t_us: int) -> None:
         """One loop cycle at sim time t_us: fuse everything stamped <= t_us, publish the estimate."""
@@ -122,6 +139,7 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
             continue
         if tick is None:
             continue
+        _wait_for_feeds(node, tick.stamp_us, stop)
         for t_us in node.cycles_due(tick.stamp_us):
             start = time.perf_counter()
             node.cycle(t_us)
@@ -131,6 +149,18 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
         node.acknowledge(tick)
         if tick.final:
             return
+
+
+def _wait_for_feeds(node: VehicleNode, stamp_us: int, stop: threading.Event, timeout_s: float = 2.0) -> None:
+    """Keep filing inbox items until the feeds up to ``stamp_us`` are complete (or time runs out)."""
+    deadline = time.monotonic() + timeout_s
+    while not node.feeds_complete(stamp_us) and not stop.is_set() and time.monotonic() < deadline:
+        try:
+            node.take(node.inbox.get(timeout=0.05))
+        except queue.Empty:
+            pass
+    if not node.feeds_complete(stamp_us):
+        log.warning("vehicle %d: feeds up to %d us incomplete; cycling without them", node.vehicle_id, stamp_us)
 
 
 def run_realtime(node: VehicleNode, stop: threading.Event) -> None:

@@ -1,0 +1,50 @@
+"""Helpers for integration tests: run `swarm up` as a real subprocess with a loopback zenoh router."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+
+def swarm_command(out: Path, *args: str) -> list[str]:
+    return [sys.executable, "-m", "groundstation.cli", "up", "--quiet", "--out", str(out), *args]
+
+
+def run_swarm(out: Path, *args: str, timeout_s: float = 240) -> subprocess.CompletedProcess:
+    return subprocess.run(swarm_command(out, *args), capture_output=True, text=True, timeout=timeout_s,
+                          env={**os.environ, "COLUMNS": "200"})
+
+
+def read_summary(run_dir: Path) -> dict:
+    return json.loads((run_dir / "summary.json").read_text())
+
+
+def processes_matching(text: str) -> list[int]:
+    """PIDs whose command line contains ``text`` (Linux /proc)."""
+    pids = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if text in cmdline:
+                pids.append(int(entry.name))
+    return pids
+
+
+@pytest.fixture(scope="session")
+def three_vehicle_runs(tmp_path_factory) -> list[Path]:
+    """Two lockstep runs of 3 vehicles for 30 s with the same seed (shared by several tests)."""
+    out = tmp_path_factory.mktemp("runs")
+    dirs = []
+    for name in ("a", "b"):
+        result = run_swarm(out, "--vehicles", "3", "--duration", "30", "--seed", "11", "--name", name)
+        assert result.returncode == 0, result.stdout + result.stderr
+        dirs.append(out / name)
+    return dirs

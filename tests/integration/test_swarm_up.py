@@ -1,0 +1,94 @@
+"""`swarm up` end to end: real router, world, ground station and vehicle processes over zenoh."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import time
+
+import pytest
+
+from tests.integration.conftest import processes_matching, read_summary, run_swarm, swarm_command
+
+pytestmark = pytest.mark.integration
+GNSS_SIGMA_M = 1.5  # the default SensorSpec.gnss_sigma_m
+
+
+def test_fusion_beats_raw_gnss_on_every_vehicle(three_vehicle_runs):
+    summary = read_summary(three_vehicle_runs[0])
+    assert summary["status"] == "complete"
+    assert set(summary["vehicles"]) == {"1", "2", "3"}
+    for vid, vehicle in summary["vehicles"].items():
+        assert vehicle["samples"] == 30 * 50 + 1, vid  # every 50 Hz cycle from 0 to 30 s was scored
+        assert vehicle["rmse_m"] < GNSS_SIGMA_M, vid
+
+
+def test_same_seed_gives_identical_summary_and_metrics(three_vehicle_runs):
+    a, b = three_vehicle_runs
+    assert (a / "summary.json").read_text() == (b / "summary.json").read_text()
+    assert (a / "metrics.csv").read_bytes() == (b / "metrics.csv").read_bytes()
+
+
+def test_run_directory_is_complete(three_vehicle_runs):
+    run = three_vehicle_runs[0]
+    for name in ("config.json", "metrics.csv", "events.jsonl", "summary.json", "timing.json"):
+        assert (run / name).stat().st_size > 0, name
+    for vid in (1, 2, 3):
+        est, truth = (run / "tum" / f"est_v{vid}.tum").read_text().splitlines(), \
+                     (run / "tum" / f"truth_v{vid}.tum").read_text().splitlines()
+        assert len(est) == len(truth) == 1501 and len(est[0].split()) == 8
+    events = [json.loads(line)["event"] for line in (run / "events.jsonl").read_text().splitlines()]
+    assert events.count("vehicle_joined") == 3 and "run_started" in events and events[-1] == "run_ended"
+
+
+def test_killed_vehicle_is_logged_and_the_others_finish(tmp_path):
+    process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "3", "--duration", "40", "--name", "kill"),
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    run = tmp_path / "kill"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:  # wait until scoring has begun, then kill vehicle 2
+        metrics = run / "metrics.csv"
+        if metrics.exists() and metrics.stat().st_size > 20_000:
+            break
+        time.sleep(0.2)
+    victims = processes_matching(f"{run}/config.json --id 2")
+    assert victims, "vehicle 2 process not found"
+    os.kill(victims[0], signal.SIGKILL)
+    output, _ = process.communicate(timeout=240)
+    assert process.returncode != 0 and "vehicle-2 died" in output
+    summary = read_summary(run)
+    assert summary["status"] == "complete"
+    assert summary["events"].get("vehicle_lost") == 1
+    assert summary["vehicles"]["1"]["samples"] == summary["vehicles"]["3"]["samples"] == 40 * 50 + 1
+    assert summary["vehicles"]["2"]["samples"] < 40 * 50
+    lost = [json.loads(line) for line in (run / "events.jsonl").read_text().splitlines()]
+    assert any(e["event"] == "vehicle_lost" and e["vehicle"] == 2 for e in lost)
+
+
+def test_sigint_shuts_everything_down_and_leaves_a_summary(tmp_path):
+    process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "2", "--duration", "600", "--name", "stop"),
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    run = tmp_path / "stop"
+    deadline = time.monotonic() + 120
+    while not ((run / "metrics.csv").exists() and (run / "metrics.csv").stat().st_size > 2_000):
+        assert time.monotonic() < deadline, "the run never started"
+        time.sleep(0.2)
+    process.send_signal(signal.SIGINT)
+    process.communicate(timeout=30)
+    assert read_summary(run)["status"] == "interrupted"
+    assert processes_matching(f"{run}/config.json") == []
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--duration", "-5"], "duration_s"),
+    (["--vehicles", "0"], "vehicles"),
+    (["--mode", "warp"], "unknown mode"),
+])
+def test_bad_arguments_give_a_one_line_error(tmp_path, args, message):
+    result = run_swarm(tmp_path, *args, timeout_s=60)
+    assert result.returncode == 1
+    assert message in result.stderr and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert not any(tmp_path.iterdir())
