@@ -22,6 +22,7 @@ from groundstation.summary import build_summary, build_timing
 
 log = logging.getLogger("swarmloc.groundstation")
 REALTIME_LAG_US = 1_000_000
+END_GRACE_S = 0.3
 
 
 class GroundStation:
@@ -44,6 +45,7 @@ class GroundStation:
         self.ended = False
         self.final_seen = False
         self.active: set[int] = set()  # vehicles alive on the bus
+        self.departed: set[int] = set()
         self.latest_estimate_us: dict[int, int] = {}
         self.latest_truth_us: dict[int, int] = {}
         self.wall_start: float | None = None
@@ -51,15 +53,19 @@ class GroundStation:
         self.on_progress = lambda gs: None
 
     def event(self, kind: str, **fields: object) -> None:
-        self.events[kind] += 1
+        """Log an event; departures after the final tick are logged but not counted in the summary
+        (they race with the end of the run, and summary.json must be reproducible)."""
+        if kind not in ("vehicle_left", "vehicle_lost"):  # departures are counted in finish()
+            self.events[kind] += 1
         self.run.event(kind, self.sim_time_us, **fields)
 
     def handle(self, item: object) -> None:
         if isinstance(item, LivelinessEvent):
             vid = item.key.rsplit("/", 1)[-1]
-            kind = "vehicle_joined" if item.alive else ("vehicle_left" if self.final_seen else "vehicle_lost")
+            kind = "vehicle_joined" if item.alive else ("vehicle_left" if self._completed(vid) else "vehicle_lost")
             if vid.isdigit():
                 (self.active.add if item.alive else self.active.discard)(int(vid))
+                (self.departed.discard if item.alive else self.departed.add)(int(vid))
             self.event(kind, vehicle=int(vid) if vid.isdigit() else vid)
             return
         keys, key = self.bus.keys, item.key
@@ -105,6 +111,11 @@ class GroundStation:
         self.previous_tick_us = tick.stamp_us
         self.on_progress(self)
 
+    def _completed(self, vid: str) -> bool:
+        """A vehicle whose estimates reached the end of the run left normally; otherwise it was lost."""
+        end_us = round(self.config.clock.duration_s * 1e6)
+        return vid.isdigit() and self.latest_estimate_us.get(int(vid), -1) >= end_us
+
     def _lockstep_watermark(self) -> int:
         """Estimates up to here can be scored in (time, vehicle) order: every live vehicle has
         published past it and truth covers it. Zenoh keeps order within a key, not across keys,
@@ -116,7 +127,10 @@ class GroundStation:
     def finish(self, status: str) -> dict:
         """Score everything left, write summary.json and timing.json, close the files."""
         self.run.write_scores(self.scorer.release(float("inf")))
-        self.event("run_ended", status=status)
+        lost = sorted(vid for vid in self.departed if not self._completed(str(vid)))
+        if lost:
+            self.events["vehicle_lost"] = len(lost)
+        self.event("run_ended", status=status, vehicles_lost=lost)
         summary = build_summary(self.config, self.scorer, self.statuses, dict(self.rejected),
                                 dict(sorted(self.events.items())), status)
         self.run.write_json("summary.json", summary)
@@ -137,4 +151,14 @@ def run_groundstation(bus: Bus, config: SwarmConfig, run_dir: Path, stop: thread
             gs.handle(gs.inbox.get(timeout=0.2))
         except queue.Empty:
             gs.run.maybe_flush()
+    _drain(gs, END_GRACE_S)  # keys are not ordered among each other: let stragglers land
     return gs.finish("complete" if gs.ended else "interrupted")
+
+
+def _drain(gs: GroundStation, seconds: float) -> None:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        try:
+            gs.handle(gs.inbox.get(timeout=max(0.0, deadline - time.monotonic())))
+        except queue.Empty:
+            return
