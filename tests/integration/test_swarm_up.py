@@ -92,3 +92,16 @@ def test_bad_arguments_give_a_one_line_error(tmp_path, args, message):
     assert message in result.stderr and "Traceback" not in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
     assert not any(tmp_path.iterdir())
+
+
+def test_realtime_mode_runs_and_reports_loop_timing(tmp_path):
+    result = run_swarm(tmp_path, "--vehicles", "2", "--duration", "6", "--mode", "realtime", "--speed", "2",
+                       "--name", "rt")
+    assert result.returncode == 0, result.stdout + result.stderr
+    summary = read_summary(tmp_path / "rt")
+    timing = json.loads((tmp_path / "rt" / "timing.json").read_text())
+    assert summary["status"] == "complete" and summary["mode"] == "realtime"
+    for vid in ("1", "2"):
+        assert summary["vehicles"][vid]["rmse_m"] < GNSS_SIGMA_M
+        assert timing["vehicles"][vid]["cycles"] >= 6 * 50
+    assert 1.0 < timing["real_time_factor"] < 3.0  # paced near the requested speed of 2
