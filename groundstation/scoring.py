@@ -13,16 +13,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import chdtri
 
+from bus.angles import wrap_angle as wrap
 from bus.mavlink_codec import StateEstimate
 from bus.messages import Truth
 
 log = logging.getLogger("swarmloc.groundstation")
 POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw inside ODOMETRY's 6x6 pose covariance
 NEES_DOF = 3
-
-
-def wrap(angle: float) -> float:
-    return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
 
 
 @dataclass(frozen=True)

@@ -14,9 +14,14 @@ TYPES = {"imu": m.ImuSample, "odom": m.WheelOdometry, "gnss": m.GnssFix, "prior"
 
 
 def pose_nees_series(seed: int, *, duration_s: float, trajectory: str, every_us: int = 1_000_000,
-                     estimator_spec: SensorSpec | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """NEES over [x, y, yaw] and position error (m) of one vehicle, sampled every ``every_us``."""
-    config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": [trajectory]}})
+                     estimator_spec: SensorSpec | None = None,
+                     world_sensors: SensorSpec | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """NEES over [x, y, yaw] and position error (m) of one vehicle, sampled every ``every_us``.
+
+    ``world_sensors`` overrides what the world simulates; ``estimator_spec`` what the filter assumes.
+    """
+    sensors = (world_sensors or SensorSpec()).model_dump()
+    config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": [trajectory]}, "sensors": sensors})
     world, keys = World(config), KeySpace()
     estimator = VehicleEstimator(vehicle_id=1, spec=estimator_spec or config.sensors,
                                  gate_probability=config.vehicle.gate_probability, altitude_m=30.0)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bus.angles import wrap_angle as wrap
 from vehicle.ekf import UpdateResult, gated_update
 
 STATE_DIM = 4
@@ -31,10 +32,6 @@ class InputNoise:
     yaw_rate_sigma_radps: float
     yaw_rate_period_s: float
     bias_walk_radps_rtsec: float
-
-
-def wrap(angle: float) -> float:
-    return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
 
 
 def propagate_mean(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float) -> np.ndarray:

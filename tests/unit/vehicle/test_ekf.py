@@ -42,12 +42,5 @@ def test_noise_free_sensors_give_exact_tracking():
     tiny = SensorSpec(gyro_sigma_radps=1e-9, gyro_bias_sigma_radps=1e-9, gyro_bias_walk_radps_rtsec=0.0,
                       accel_sigma_mps2=0.0, odom_speed_sigma_mps=1e-9, odom_yaw_rate_sigma_radps=1e-9,
                       gnss_sigma_m=1e-6, prior_sigma_m=1e-9, prior_heading_sigma_rad=1e-9)
-    import tests.offline as offline
-    from bus.config import build_config
-    original = offline.build_config
-    offline.build_config = lambda data: build_config({**data, "sensors": tiny.model_dump()})
-    try:
-        _, errors = pose_nees_series(3, duration_s=20.0, trajectory="waypoints", estimator_spec=tiny)
-    finally:
-        offline.build_config = original
+    _, errors = pose_nees_series(3, duration_s=20.0, trajectory="waypoints", estimator_spec=tiny, world_sensors=tiny)
     assert errors.max() < 1e-4
