@@ -37,6 +37,10 @@ class VehicleEstimator:
         self._altitude_m = altitude_m
         self._noise = ekf.InputNoise(spec.odom_speed_sigma_mps, 1.0 / spec.odom_rate_hz, spec.gyro_sigma_radps,
                                      1.0 / spec.imu_rate_hz, spec.gyro_bias_walk_radps_rtsec)
+        # when the gyro is silent, yaw rate comes from odometry (its noise and period, no bias)
+        self._odom_noise = ekf.InputNoise(spec.odom_speed_sigma_mps, 1.0 / spec.odom_rate_hz,
+                                          spec.odom_yaw_rate_sigma_radps, 1.0 / spec.odom_rate_hz,
+                                          spec.gyro_bias_walk_radps_rtsec)
         self._gyro_period_us = round(1e6 / spec.imu_rate_hz)
         self.x: np.ndarray | None = None
         self.P: np.ndarray | None = None
@@ -93,10 +97,7 @@ class VehicleEstimator:
                       and stamp_us - self._gyro_stamp_us <= _GYRO_STALE_PERIODS * self._gyro_period_us)
         if gyro_fresh:
             return ekf.predict(self.x, self.P, self._speed_mps, self._gyro_radps, dt, self._noise)
-        noise = ekf.InputNoise(self._noise.speed_sigma_mps, self._noise.speed_period_s,
-                               self._spec.odom_yaw_rate_sigma_radps, self._noise.speed_period_s,
-                               self._noise.bias_walk_radps_rtsec)
-        return ekf.predict(self.x, self.P, self._speed_mps, self._odom_yaw_rate, dt, noise, use_bias=False)
+        return ekf.predict(self.x, self.P, self._speed_mps, self._odom_yaw_rate, dt, self._odom_noise, use_bias=False)
 
     def _fuse_gnss(self, fix: m.GnssFix) -> None:
         self.x, self.P, result = ekf.gnss_update(self.x, self.P, fix.position_m, fix.covariance_m2, self._gate)
