@@ -16,6 +16,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from bus.errors import ConfigError
+from bus.faults import PhysicalFault, named
 
 
 class _Strict(BaseModel):
@@ -94,6 +95,19 @@ class SwarmConfig(_Strict):
     world: WorldConfig = WorldConfig()
     sensors: SensorSpec = SensorSpec()
     vehicle: VehicleConfig = VehicleConfig()
+    faults: tuple[PhysicalFault, ...] = Field((), description="physical fault timeline, applied by the world")
+
+    @model_validator(mode="after")
+    def _faults_are_named_and_valid(self) -> "SwarmConfig":
+        faults = named(list(self.faults))
+        names = [f.name for f in faults]
+        if len(set(names)) != len(names):
+            raise ValueError(f"fault names must be unique, got {names}")
+        for f in faults:
+            if getattr(f, "vehicle", 1) > self.world.vehicles:
+                raise ValueError(f"fault {f.name}: vehicle {f.vehicle} does not exist ({self.world.vehicles} vehicles)")
+        object.__setattr__(self, "faults", tuple(faults))
+        return self
 
     @model_validator(mode="after")
     def _rates_fit_the_world_step(self) -> "SwarmConfig":

@@ -1,4 +1,5 @@
-"""MAVLink 2 codec for vehicle state: ODOMETRY (#331), HEARTBEAT (#0), with message signing.
+"""MAVLink 2 codec for vehicle state: ODOMETRY (#331), HEARTBEAT (#0), ESTIMATOR_STATUS (#230) and
+STATUSTEXT (#253), with message signing.
 
 Signing (MAVLink 2, 32-byte key): outgoing frames carry a 48-bit timestamp in units of 10 us since
 2015-01-01 and a truncated SHA-256 signature. Incoming frames are verified here rather than by
@@ -86,6 +87,29 @@ def load_signing_key(raw: str | bytes) -> bytes:
     return key
 
 
+@dataclass(frozen=True)
+class EstimatorStatus:
+    """ESTIMATOR_STATUS: solution flags (ESTIMATOR_GPS_GLITCH when GNSS is distrusted), the GNSS
+    innovation test ratio (``pos_horiz_ratio``, PX4 convention: > 1 rejects) and 1-sigma horizontal accuracy."""
+
+    vehicle_id: int
+    time_usec: int
+    flags: int
+    pos_horiz_ratio: float
+    pos_horiz_accuracy_m: float
+
+    @property
+    def gps_glitch(self) -> bool:
+        return bool(self.flags & mavlink2.ESTIMATOR_GPS_GLITCH)
+
+
+@dataclass(frozen=True)
+class StatusText:
+    vehicle_id: int
+    severity: int
+    text: str
+
+
 class MavlinkEncoder:
     """Packs one vehicle's MAVLink 2 stream (sysid = vehicle id, compid 191), signed if keyed."""
 
@@ -114,6 +138,14 @@ class MavlinkEncoder:
         )
         return self._pack(msg)
 
+    def estimator_status(self, status: EstimatorStatus) -> bytes:
+        msg = self._mav.estimator_status_encode(status.time_usec, status.flags, 0.0, float(status.pos_horiz_ratio),
+                                                0.0, 0.0, 0.0, 0.0, float(status.pos_horiz_accuracy_m), 0.0)
+        return self._pack(msg)
+
+    def statustext(self, severity: int, text: str) -> bytes:
+        return self._pack(self._mav.statustext_encode(severity, text.encode()[:50]))
+
     def heartbeat(self) -> bytes:
         msg = self._mav.heartbeat_encode(
             mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_GENERIC, 0, 0, mavlink2.MAV_STATE_ACTIVE
@@ -131,8 +163,8 @@ class MavlinkDecoder:
         self._stream_timestamps: dict[tuple[int, int, int], int] = {}
         self.rejected: Counter[str] = Counter()
 
-    def decode(self, frame: bytes) -> StateEstimate | Heartbeat | None:
-        """One frame -> StateEstimate, Heartbeat, or None for other message types.
+    def decode(self, frame: bytes) -> StateEstimate | Heartbeat | EstimatorStatus | StatusText | None:
+        """One frame -> StateEstimate, Heartbeat, EstimatorStatus, StatusText, or None for other types.
 
         Raises DecodeError for malformed frames, MavlinkRejected for failed authentication.
         """
@@ -151,6 +183,14 @@ class MavlinkDecoder:
             return _to_estimate(msg)
         if isinstance(msg, mavlink2.MAVLink_heartbeat_message):
             return Heartbeat(msg.get_srcSystem(), msg.type, msg.system_status)
+        if isinstance(msg, mavlink2.MAVLink_estimator_status_message):
+            if not (math.isfinite(msg.pos_horiz_ratio) and math.isfinite(msg.pos_horiz_accuracy)):
+                raise DecodeError(f"ESTIMATOR_STATUS from sysid {msg.get_srcSystem()} has non-finite fields")
+            return EstimatorStatus(msg.get_srcSystem(), msg.time_usec, msg.flags, msg.pos_horiz_ratio,
+                                   msg.pos_horiz_accuracy)
+        if isinstance(msg, mavlink2.MAVLink_statustext_message):
+            text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode("utf-8", "replace")
+            return StatusText(msg.get_srcSystem(), msg.severity, text.rstrip("\x00"))
         return None
 
     def _authenticate(self, frame: bytes, sysid: int, compid: int) -> None:

@@ -12,7 +12,7 @@ from typing import Annotated
 
 import numpy as np
 
-from bus.schema import Array, Bool, Covariance, Float, Int, decode, encode
+from bus.schema import Array, Bool, Counts, Covariance, Float, Int, decode, encode
 
 VehicleId = Annotated[int, Int(1, 250)]
 StampUs = Annotated[int, Int(0, 2**53)]
@@ -81,17 +81,29 @@ class Truth:
     yaw_rate_radps: Annotated[float, Float(100.0)]
 
 
+FEEDS = ("prior", "imu", "odom", "gnss")
+
+
 @dataclass(frozen=True)
 class ClockTick:
     """World clock: every feed stamped up to ``stamp_us`` has been published for this tick.
 
     ``wall_ns`` is the world's wall clock at publication; ``final`` marks the end of the run.
+    ``published`` counts, per vehicle, the samples published so far on each feed of ``FEEDS``:
+    entry ``(id - 1) * len(FEEDS) + k``. Jamming and blackouts silence feeds, so a vehicle cannot
+    infer from the rates alone what is still on its way; these counts tell it.
     """
 
     tick: Annotated[int, Int(0, 2**53)]
     stamp_us: StampUs
     wall_ns: Annotated[int, Int(0, 2**63 - 1)]
     final: Annotated[bool, Bool()]
+    published: Annotated[tuple[int, ...], Counts(250 * 4)] = ()
+
+    def published_by(self, vehicle_id: int) -> dict[str, int]:
+        """Samples published so far per feed for one vehicle (empty when the tick carries no counts)."""
+        row = self.published[(vehicle_id - 1) * len(FEEDS): vehicle_id * len(FEEDS)]
+        return dict(zip(FEEDS, row)) if len(row) == len(FEEDS) else {}
 
 
 @dataclass(frozen=True)

@@ -62,6 +62,24 @@ class Float:
 
 
 @dataclasses.dataclass(frozen=True)
+class Counts:
+    """A tuple of at most ``max_len`` integers in [0, hi] (travels as a msgpack list)."""
+
+    max_len: int
+    hi: int = 2**53
+
+    def pack(self, value: Any) -> list[int]:
+        return [int(v) for v in value]
+
+    def unpack(self, name: str, raw: Any) -> tuple[int, ...]:
+        if not isinstance(raw, list) or len(raw) > self.max_len:
+            raise DecodeError(f"{name}: expected a list of at most {self.max_len} integers")
+        if not all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= self.hi for v in raw):
+            raise DecodeError(f"{name}: entries must be integers in [0, {self.hi}]")
+        return tuple(raw)
+
+
+@dataclasses.dataclass(frozen=True)
 class Bool:
     def pack(self, value: Any) -> bool:
         return bool(value)

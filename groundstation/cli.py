@@ -39,26 +39,29 @@ def _run_node(config_path: Path, role: str, body: Callable) -> None:
 
 @app.command()
 def up(
-    vehicles: int = typer.Option(5, help="number of vehicles (1-250)"),
-    duration: float = typer.Option(60.0, help="simulated seconds"),
-    mode: str = typer.Option("lockstep", help="lockstep (reproducible, as fast as possible) or realtime"),
-    speed: float = typer.Option(1.0, help="realtime only: sim seconds per wall second"),
-    seed: int = typer.Option(0, help="seed of trajectories and sensor noise"),
-    tick: float = typer.Option(0.02, help="sim seconds the world advances per clock tick"),
+    scenario: Optional[Path] = typer.Argument(None, help="TOML scenario (config and fault timeline); options below override it"),
+    vehicles: Optional[int] = typer.Option(None, help="number of vehicles (1-250) [default: 5]"),
+    duration: Optional[float] = typer.Option(None, help="simulated seconds [default: 60]"),
+    mode: Optional[str] = typer.Option(None, help="lockstep (reproducible, as fast as possible) or realtime [default: lockstep]"),
+    speed: Optional[float] = typer.Option(None, help="realtime only: sim seconds per wall second [default: 1]"),
+    seed: Optional[int] = typer.Option(None, help="seed of trajectories and sensor noise [default: 0]"),
+    tick: Optional[float] = typer.Option(None, help="sim seconds the world advances per clock tick [default: 0.02]"),
     out: Path = typer.Option(Path("runs"), help="parent folder of run directories"),
-    name: str = typer.Option("run", help="run directory name (a suffix is added if it exists)"),
+    name: Optional[str] = typer.Option(None, help="run directory name (a suffix is added if it exists) [default: the scenario's name, or run]"),
     quiet: bool = typer.Option(False, help="no progress display, only the final table"),
 ) -> None:
-    """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table."""
+    """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table and write the report."""
     from bus.config import build_config
     from bus.process import stop_on_signals
     from groundstation.launcher import launch
+    from groundstation.scenario import load_scenario, overlay
 
-    if mode not in ("lockstep", "realtime"):
+    if mode not in (None, "lockstep", "realtime"):
         _fail(f"unknown mode {mode!r}: use lockstep or realtime")
     try:
-        config = build_config({"name": name, "world": {"vehicles": vehicles, "seed": seed},
-                               "clock": {"mode": mode, "speed": speed, "duration_s": duration, "tick_s": tick}})
+        base = load_scenario(scenario) if scenario else {}
+        config = build_config(overlay(base, {"name": name, "world": {"vehicles": vehicles, "seed": seed},
+                                             "clock": {"mode": mode, "speed": speed, "duration_s": duration, "tick_s": tick}}))
         run_dir, failures = launch(config, out, show_progress=not quiet, stop=stop_on_signals())
     except SwarmlocError as exc:
         _fail(str(exc))
@@ -82,7 +85,35 @@ def _print_result(run_dir: Path, failures: list[str]) -> None:
     else:
         console.print(f"[red]swarm: no summary.json was written in {run_dir}[/red]")
     console.print(f"run directory: {run_dir}")
-    if failures or not summary_path.exists():
+    report_ok = _report(run_dir, console)
+    if failures or not summary_path.exists() or not report_ok:
+        raise typer.Exit(1)
+
+
+def _report(run_dir: Path, console) -> bool:
+    """Write the report of ``run_dir`` and say where it is; a failure is one line, never a traceback."""
+    from groundstation.report import ReportError, write_report
+
+    try:
+        result = write_report(run_dir)
+    except ReportError as exc:
+        console.print(f"[red]swarm: error: {exc}[/red]", highlight=False)
+        return False
+    except Exception as exc:  # the run itself is safe on disk; say what went wrong and go on
+        console.print(f"[red]swarm: report of {run_dir} failed: {type(exc).__name__}: {exc}[/red]")
+        return False
+    for problem in result.problems:
+        console.print(f"[yellow]report: {problem}[/yellow]")
+    console.print(f"report: {result.html}")
+    return True
+
+
+@app.command()
+def report(run_dir: Path = typer.Argument(..., help="a run directory written by `swarm up` (may be partial)")) -> None:
+    """Write report.html (self-contained) and report/*.png for a run directory; says what is missing."""
+    from rich.console import Console
+
+    if not _report(run_dir, Console()):
         raise typer.Exit(1)
 
 

@@ -14,8 +14,9 @@ from pathlib import Path
 from bus import messages as m
 from bus.config import SwarmConfig
 from bus.errors import DecodeError
-from bus.mavlink_codec import MavlinkDecoder, StateEstimate
+from bus.mavlink_codec import EstimatorStatus, MavlinkDecoder, StateEstimate, StatusText
 from bus.session import Bus, Envelope, LivelinessEvent
+from groundstation.fault_log import FaultLog
 from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
 from groundstation.summary import build_summary, build_timing
@@ -48,6 +49,8 @@ class GroundStation:
         self.departed: set[int] = set()
         self.latest_estimate_us: dict[int, int] = {}
         self.latest_truth_us: dict[int, int] = {}
+        self.gnss_glitch: dict[int, bool] = {}
+        self.fault_log = FaultLog(config.faults, self._fault_event)
         self.wall_start: float | None = None
         self.wall_end: float | None = None
         self.on_progress = lambda gs: None
@@ -58,6 +61,10 @@ class GroundStation:
         if kind not in ("vehicle_left", "vehicle_lost"):  # departures are counted in finish()
             self.events[kind] += 1
         self.run.event(kind, self.sim_time_us, **fields)
+
+    def _fault_event(self, kind: str, stamp_us: int, **fields: object) -> None:
+        self.events[kind] += 1
+        self.run.event(kind, stamp_us, **fields)
 
     def handle(self, item: object) -> None:
         if isinstance(item, LivelinessEvent):
@@ -96,6 +103,23 @@ class GroundStation:
         if isinstance(decoded, StateEstimate):
             self.scorer.add_estimate(decoded)
             self.latest_estimate_us[decoded.vehicle_id] = decoded.time_usec
+        elif isinstance(decoded, EstimatorStatus):
+            self._on_estimator_status(decoded)
+        elif isinstance(decoded, StatusText):
+            self.run.event("vehicle_message", self.sim_time_us, vehicle=decoded.vehicle_id,
+                           severity=decoded.severity, text=decoded.text)
+            if decoded.text.startswith("estimator reset"):
+                self.event("estimator_reset", vehicle=decoded.vehicle_id, text=decoded.text)
+
+    def _on_estimator_status(self, status: EstimatorStatus) -> None:
+        """GNSS health changes (the GPS glitch flag) become events, stamped with the vehicle's time."""
+        was = self.gnss_glitch.get(status.vehicle_id, False)
+        self.gnss_glitch[status.vehicle_id] = status.gps_glitch
+        if status.gps_glitch != was:
+            kind = "gnss_unhealthy" if status.gps_glitch else "gnss_healthy"
+            self.events[kind] += 1
+            self.run.event(kind, status.time_usec, vehicle=status.vehicle_id,
+                           test_ratio=round(status.pos_horiz_ratio, 3))
 
     def _on_tick(self, tick: m.ClockTick) -> None:
         """Lockstep: tick k means every estimate up to tick k-1 has been published and received."""
@@ -104,6 +128,7 @@ class GroundStation:
             self.event("run_started", mode=self.config.clock.mode)
         self.final_seen = self.final_seen or tick.final
         self.sim_time_us = tick.stamp_us
+        self.fault_log.advance(tick.stamp_us)
         if self.config.clock.mode == "lockstep" and self.previous_tick_us >= 0:
             self.run.write_scores(self.scorer.release(self._lockstep_watermark()))
         elif self.config.clock.mode == "realtime":

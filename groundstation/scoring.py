@@ -27,11 +27,16 @@ class Score:
     vehicle_id: int
     stamp_us: int
     error_m: np.ndarray        # (3,) x, y (m) and yaw (rad) error: estimate - truth
-    sigma: np.ndarray          # (3,) standard deviations from the estimate's covariance
+    pose_covariance: np.ndarray  # (3, 3) the estimate's covariance of [x, y, yaw] (m^2, m rad, rad^2)
     nees: float
     reset_counter: int
     estimate: StateEstimate
     truth_pose: np.ndarray     # (3,)
+
+    @property
+    def sigma(self) -> np.ndarray:
+        """(3,) standard deviations of x, y (m) and yaw (rad)."""
+        return np.sqrt(np.diag(self.pose_covariance))
 
     @property
     def position_error_m(self) -> float:
@@ -93,7 +98,7 @@ def score(est: StateEstimate, truth_pose: np.ndarray) -> Score:
                       wrap(est.yaw_rad - truth_pose[2])])
     cov = est.pose_covariance[np.ix_(POSE_INDEX, POSE_INDEX)]
     nees = float(error @ np.linalg.solve(cov, error))
-    return Score(est.vehicle_id, est.time_usec, error, np.sqrt(np.diag(cov)), nees, est.reset_counter,
+    return Score(est.vehicle_id, est.time_usec, error, cov, nees, est.reset_counter,
                  est, truth_pose)
 
 

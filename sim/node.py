@@ -120,7 +120,7 @@ class WorldNode:
         for key, payload in self.world.advance(stamp):
             self.publish(key, payload)
         self.members.acked = set()
-        self.publish(self.bus.keys.clock(), m.encode(m.ClockTick(tick, stamp, time.time_ns(), final)))
+        self.publish(self.bus.keys.clock(), m.encode(m.ClockTick(tick, stamp, time.time_ns(), final, self.world.published())))
 
     def await_acks(self, tick: int, stop: threading.Event, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s

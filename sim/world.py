@@ -14,6 +14,7 @@ from bus import messages as m
 from bus.config import SwarmConfig
 from bus.keys import KeySpace
 from sim import sensors
+from sim.physical_faults import PhysicalFaults
 from sim.kinematics import unicycle_step
 from sim.trajectories import make_trajectory, start_pads
 
@@ -58,9 +59,14 @@ class World:
             self.vehicles.append(_Vehicle(vid, trajectory, rng, sensors.initial_gyro_bias(spec, rng)))
             poses.append(start)
         self.poses = np.array(poses)
+        self.faults = PhysicalFaults(config.faults)
 
     def vehicle_ids(self) -> list[int]:
         return [v.vehicle_id for v in self.vehicles]
+
+    def published(self) -> tuple[int, ...]:
+        """Samples published so far per vehicle and feed, in the layout of ``ClockTick.published``."""
+        return tuple(v.seq.get(feed, -1) + 1 for v in self.vehicles for feed in m.FEEDS)
 
     def advance(self, until_us: int) -> list[tuple[str, bytes]]:
         """Emit every step stamped in (now, until_us]; returns (key, payload) pairs in stamp order."""
@@ -95,11 +101,15 @@ class World:
         accel_fwd = (speed - v.last_speed_mps) / (self.step_us * 1e-6) if t_us else 0.0
         v.last_speed_mps = speed
         gyro, accel = sensors.imu_sample(speed, accel_fwd, yaw_rate, v.gyro_bias, spec, v.rng)
-        out.append((keys.sensor(vid, "imu"), m.encode(m.ImuSample(vid, t_us, v.next_seq("imu"), gyro, accel))))
+        if not self.faults.silenced(vid, "imu", t_us, pose):
+            out.append((keys.sensor(vid, "imu"), m.encode(m.ImuSample(vid, t_us, v.next_seq("imu"), gyro, accel))))
         if self._due(t_us, spec.odom_rate_hz):
             measured = sensors.odometry_sample(speed, yaw_rate, spec, v.rng)
-            out.append((keys.sensor(vid, "odom"), m.encode(m.WheelOdometry(vid, t_us, v.next_seq("odom"), *measured))))
+            if not self.faults.silenced(vid, "odom", t_us, pose):
+                out.append((keys.sensor(vid, "odom"), m.encode(m.WheelOdometry(vid, t_us, v.next_seq("odom"), *measured))))
         if self._due(t_us, spec.gnss_rate_hz):
-            fix, cov = sensors.gnss_fix(pose[:2], spec, v.rng)
-            out.append((keys.sensor(vid, "gnss"), m.encode(m.GnssFix(vid, t_us, v.next_seq("gnss"), fix, cov))))
+            fix, cov = sensors.gnss_fix(pose[:2], spec, v.rng)  # drawn even when jammed: faults never shift the noise
+            if not self.faults.silenced(vid, "gnss", t_us, pose):
+                fix = fix + self.faults.spoof_offset_m(vid, t_us, pose)
+                out.append((keys.sensor(vid, "gnss"), m.encode(m.GnssFix(vid, t_us, v.next_seq("gnss"), fix, cov))))
         return out

@@ -9,6 +9,7 @@ from bus.config import SensorSpec, build_config
 from bus.keys import KeySpace
 from sim.world import World
 from vehicle.estimator import VehicleEstimator
+from vehicle.gnss_health import GnssHealthSpec
 
 TYPES = {"imu": m.ImuSample, "odom": m.WheelOdometry, "gnss": m.GnssFix, "prior": m.PosePrior, "truth": m.Truth}
 
@@ -37,3 +38,28 @@ def pose_nees_series(seed: int, *, duration_s: float, trajectory: str, every_us:
             nees.append(float(d @ np.linalg.solve(P[:3, :3], d)))
             errors.append(float(np.hypot(d[0], d[1])))
     return np.array(nees), np.array(errors)
+
+
+def gnss_fault_run(seed: int, *, duration_s: float, faults: list[dict], monitor: bool = True,
+                   every_us: int = 200_000) -> dict[str, np.ndarray]:
+    """One vehicle on its circle with world ``faults``: time (s), position error (m) and GNSS health,
+    sampled every ``every_us``. ``monitor=False`` fuses every fix that passes the gate (no health checks)."""
+    config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": ["circle"]}, "faults": faults})
+    world, keys = World(config), KeySpace()
+    estimator = VehicleEstimator(vehicle_id=1, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
+                                 altitude_m=30.0)
+    if not monitor:
+        estimator.gnss_health.spec = GnssHealthSpec(mean_gate_probability=1.0 - 1e-300, unhealthy_after_s=1e9,
+                                                    fix_timeout_s=1e9)
+    t, errors, healthy = [], [], []
+    for key, payload in world.advance(round(duration_s * 1e6)):
+        msg = m.decode(TYPES[keys.topic_of(key)], payload)
+        if not isinstance(msg, m.Truth):
+            estimator.handle(msg)
+        elif estimator.initialized and msg.stamp_us % every_us == 0:
+            estimator.tick(msg.stamp_us)
+            x, _ = estimator.predicted(msg.stamp_us)
+            t.append(msg.stamp_us * 1e-6)
+            errors.append(float(np.hypot(*(x[:2] - msg.pose[:2]))))
+            healthy.append(estimator.gnss_health.healthy)
+    return {"t_s": np.array(t), "error_m": np.array(errors), "healthy": np.array(healthy)}

@@ -11,9 +11,11 @@ import numpy as np
 
 from bus import messages as m
 from bus.config import SensorSpec
-from bus.mavlink_codec import StateEstimate
+from pymavlink.dialects.v20 import common as mavlink2
+from bus.mavlink_codec import EstimatorStatus, StateEstimate
 from vehicle import unicycle_ekf as ekf
 from vehicle.ekf import gate_threshold
+from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 
 _GYRO_STALE_PERIODS = 5
 _NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch: constant altitude, level flight
@@ -24,7 +26,9 @@ class EstimatorCounters:
     gnss_accepted: int = 0
     gnss_rejected: int = 0
     stale: int = 0
+    resets: int = 0
     last_gnss_test_ratio: float = 0.0
+    last_gnss_mean_test_ratio: float = 0.0
 
 
 class VehicleEstimator:
@@ -50,6 +54,7 @@ class VehicleEstimator:
         self._gyro_radps = 0.0
         self._gyro_stamp_us: int | None = None
         self.counters = EstimatorCounters()
+        self.gnss_health = GnssHealth(GnssHealthSpec(gate_probability=gate_probability))
 
     @property
     def initialized(self) -> bool:
@@ -100,12 +105,52 @@ class VehicleEstimator:
         return ekf.predict(self.x, self.P, self._speed_mps, self._odom_yaw_rate, dt, self._odom_noise, use_bias=False)
 
     def _fuse_gnss(self, fix: m.GnssFix) -> None:
-        self.x, self.P, result = ekf.gnss_update(self.x, self.P, fix.position_m, fix.covariance_m2, self._gate)
-        self.counters.last_gnss_test_ratio = result.test_ratio
-        if result.accepted:
-            self.counters.gnss_accepted += 1
-        else:
+        """Fuse a fix only if the GNSS health monitor trusts the receiver and the fix passes its tests."""
+        verdict = self.gnss_health.check(fix.stamp_us, fix.position_m - self.x[:2], self.P[:2, :2] + fix.covariance_m2,
+                                         fix.covariance_m2)
+        self.counters.last_gnss_test_ratio = verdict.test_ratio
+        self.counters.last_gnss_mean_test_ratio = verdict.mean_test_ratio
+        if verdict.reset_offset_m is not None:
+            self._reset_position(verdict.reset_offset_m, verdict.reset_variance_m2)
+        if not verdict.fuse:
             self.counters.gnss_rejected += 1
+            return
+        self.x, self.P, _ = ekf.gnss_update(self.x, self.P, fix.position_m, fix.covariance_m2, self._gate)
+        self.counters.gnss_accepted += 1
+
+    def _reset_position(self, offset_m: np.ndarray, variance_m2: float) -> None:
+        """Jump the position by ``offset_m`` (2,) with per-axis variance ``variance_m2``; decorrelate it."""
+        self.x[:2] += offset_m
+        self.P[:2, 2:] = 0.0
+        self.P[2:, :2] = 0.0
+        self.P[:2, :2] = np.eye(2) * variance_m2
+        self.counters.resets += 1
+
+    def tick(self, stamp_us: int) -> None:
+        """Once per loop cycle: notices loss of GNSS fix."""
+        self.gnss_health.tick(stamp_us)
+
+    def diverged(self) -> bool:
+        """Non-finite state or covariance, or a covariance that is no longer positive definite."""
+        if self.x is None:
+            return False
+        if not (np.all(np.isfinite(self.x)) and np.all(np.isfinite(self.P))):
+            return True
+        return bool(np.any(np.linalg.eigvalsh(self.P) <= 0.0))
+
+    def reset_from(self, x: np.ndarray, P: np.ndarray) -> None:
+        """Divergence guard: restart the filter from a last good state (4,) with covariance (4, 4)."""
+        self.x, self.P = x.copy(), P.copy()
+        self.counters.resets += 1
+
+    def status(self, stamp_us: int) -> EstimatorStatus:
+        """ESTIMATOR_STATUS contents: GPS glitch flag while GNSS is distrusted, the larger GNSS test ratio."""
+        flags = mavlink2.ESTIMATOR_ATTITUDE | mavlink2.ESTIMATOR_VELOCITY_HORIZ | mavlink2.ESTIMATOR_POS_HORIZ_REL
+        flags |= mavlink2.ESTIMATOR_POS_HORIZ_ABS if self.gnss_health.healthy else mavlink2.ESTIMATOR_GPS_GLITCH
+        c = self.counters
+        _, P = self.predicted(stamp_us)
+        return EstimatorStatus(self.vehicle_id, stamp_us, flags, max(c.last_gnss_test_ratio, c.last_gnss_mean_test_ratio),
+                               float(np.sqrt(0.5 * (P[0, 0] + P[1, 1]))))
 
     def estimate(self, stamp_us: int, reset_counter: int = 0) -> StateEstimate:
         """The estimate predicted to ``stamp_us`` as a StateEstimate (NED, body-frame velocity)."""

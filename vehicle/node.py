@@ -15,6 +15,8 @@ import queue
 import threading
 import time
 
+import numpy as np
+
 from bus import messages as m
 from bus.config import SwarmConfig
 from bus.errors import DecodeError
@@ -25,6 +27,9 @@ from vehicle.estimator import VehicleEstimator
 from vehicle.loop_stats import LoopStats
 
 log = logging.getLogger("swarmloc.vehicle")
+STATUS_WARNING, STATUS_INFO = 4, 6  # MAV_SEVERITY
+DIVERGENCE_INFLATION = 10.0
+DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^2
 SENSOR_TYPES = {"imu": m.ImuSample, "odom": m.WheelOdometry, "gnss": m.GnssFix, "prior": m.PosePrior}
 
 
@@ -46,8 +51,10 @@ class MeasurementBuffer:
 
 
 class VehicleNode:
-    def __init__(self, bus: Bus, config: SwarmConfig, vehicle_id: int) -> None:
+    def __init__(self, bus: Bus, config: SwarmConfig, vehicle_id: int, *, restarts: int = 0) -> None:
         self.bus, self.config, self.vehicle_id = bus, config, vehicle_id
+        self.restarts = restarts  # a restarted vehicle re-initialises and counts up reset_counter
+        self._last_good: tuple[np.ndarray, np.ndarray] | None = None
         keys = bus.keys
         self.inbox: queue.SimpleQueue = queue.SimpleQueue()
         bus.subscribe(keys.sensors(vehicle_id), self.inbox)
@@ -68,9 +75,6 @@ class VehicleNode:
         self._next_heartbeat_us = 0
         self._next_status_us = 0
         self.received: dict[str, int] = {}  # per topic: how many samples arrived (seq + 1)
-        spec = config.sensors
-        self._feed_periods_us = {"imu": round(1e6 / spec.imu_rate_hz), "odom": round(1e6 / spec.odom_rate_hz),
-                                 "gnss": round(1e6 / spec.gnss_rate_hz)}
 
     def take(self, envelope: Envelope) -> m.ClockTick | None:
         """File one inbox item: sensors go to the buffer; a clock tick is returned to the loop."""
@@ -88,30 +92,60 @@ class VehicleNode:
             self.received[topic] = max(self.received.get(topic, 0), msg.seq + 1)
         return None
 
-    def feeds_complete(self, stamp_us: int) -> bool:
-        """True when every periodic feed stamped <= stamp_us has arrived (lockstep).
+    def feeds_complete(self, tick: m.ClockTick) -> bool:
+        """True when every sample the world published up to ``tick`` has arrived (lockstep).
 
         Zenoh keeps order within a key but not across keys, so a clock tick can overtake the
-        samples published before it; sequence numbers tell what is still on its way.
+        samples published before it; the tick's per-feed counts tell what is still on its way.
         """
-        if self.received.get("prior", 0) < 1:
-            return False
-        return all(self.received.get(topic, 0) >= stamp_us // period + 1
-                   for topic, period in self._feed_periods_us.items())
+        return all(self.received.get(feed, 0) >= count for feed, count in tick.published_by(self.vehicle_id).items())
 
     def cycle(self, t_us: int) -> None:
         """One loop cycle at sim time t_us: fuse everything stamped <= t_us, publish the estimate."""
-        for msg in self.buffer.pop_until(t_us):
-            self.estimator.handle(msg)
+        try:
+            for msg in self.buffer.pop_until(t_us):
+                self.estimator.handle(msg)
+            if self.estimator.initialized:
+                self.estimator.tick(t_us)
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+            self._recover(t_us, f"{type(exc).__name__}: {exc}")
         if not self.estimator.initialized:
             return
-        self._mavlink.put(self.encoder.odometry(self.estimator.estimate(t_us)))
+        if self.estimator.diverged():
+            self._recover(t_us, "non-finite or indefinite covariance")
+        self._last_good = (self.estimator.x.copy(), self.estimator.P.copy())
+        self._report_gnss_health(t_us)
+        self._mavlink.put(self.encoder.odometry(self.estimator.estimate(t_us, self.reset_counter)))
         if t_us >= self._next_heartbeat_us:
             self._mavlink.put(self.encoder.heartbeat())
+            self._mavlink.put(self.encoder.estimator_status(self.estimator.status(t_us)))
             self._next_heartbeat_us = t_us + round(self.config.vehicle.heartbeat_period_s * 1e6)
         if t_us >= self._next_status_us:
             self.publish_status(t_us)
             self._next_status_us = t_us + round(self.config.vehicle.status_period_s * 1e6)
+
+    @property
+    def reset_counter(self) -> int:
+        return self.restarts + self.estimator.counters.resets
+
+    def _recover(self, t_us: int, why: str) -> None:
+        """Divergence guard: restart the filter from the last good cycle, covariance inflated; say so."""
+        if self._last_good is None:
+            raise RuntimeError(f"vehicle {self.vehicle_id}: estimator diverged before its first good cycle: {why}")
+        x, P = self._last_good
+        self.estimator.reset_from(x, DIVERGENCE_INFLATION * P + np.diag(DIVERGENCE_FLOOR))
+        log.warning("vehicle %d: estimator diverged at %d us (%s); reset from the last good state", self.vehicle_id, t_us, why)
+        self._mavlink.put(self.encoder.statustext(STATUS_WARNING, f"estimator reset: {why}"[:50]))
+
+    def _report_gnss_health(self, t_us: int) -> None:
+        """Every GNSS health change goes out at once as STATUSTEXT and ESTIMATOR_STATUS."""
+        transitions = self.estimator.gnss_health.transitions
+        for _, healthy, reason in transitions:
+            text = f"GNSS {'healthy' if healthy else 'unhealthy'}: {reason}"
+            self._mavlink.put(self.encoder.statustext(STATUS_INFO if healthy else STATUS_WARNING, text[:50]))
+        if transitions:
+            self._mavlink.put(self.encoder.estimator_status(self.estimator.status(t_us)))
+            transitions.clear()
 
     def publish_status(self, t_us: int) -> None:
         c = self.estimator.counters
@@ -139,7 +173,7 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
             continue
         if tick is None:
             continue
-        _wait_for_feeds(node, tick.stamp_us, stop)
+        _wait_for_feeds(node, tick, stop)
         for t_us in node.cycles_due(tick.stamp_us):
             start = time.perf_counter()
             node.cycle(t_us)
@@ -151,16 +185,16 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
             return
 
 
-def _wait_for_feeds(node: VehicleNode, stamp_us: int, stop: threading.Event, timeout_s: float = 2.0) -> None:
-    """Keep filing inbox items until the feeds up to ``stamp_us`` are complete (or time runs out)."""
+def _wait_for_feeds(node: VehicleNode, tick: m.ClockTick, stop: threading.Event, timeout_s: float = 2.0) -> None:
+    """Keep filing inbox items until the feeds up to ``tick`` are complete (or time runs out)."""
     deadline = time.monotonic() + timeout_s
-    while not node.feeds_complete(stamp_us) and not stop.is_set() and time.monotonic() < deadline:
+    while not node.feeds_complete(tick) and not stop.is_set() and time.monotonic() < deadline:
         try:
             node.take(node.inbox.get(timeout=0.05))
         except queue.Empty:
             pass
-    if not node.feeds_complete(stamp_us):
-        log.warning("vehicle %d: feeds up to %d us incomplete; cycling without them", node.vehicle_id, stamp_us)
+    if not node.feeds_complete(tick):
+        log.warning("vehicle %d: feeds up to %d us incomplete; cycling without them", node.vehicle_id, tick.stamp_us)
 
 
 def run_realtime(node: VehicleNode, stop: threading.Event) -> None:

@@ -1,0 +1,47 @@
+"""`swarm report`: PNG figures and one self-contained HTML page from a run directory."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from groundstation.report.rundata import ReportError, load_run
+
+__all__ = ["Report", "ReportError", "write_report"]
+
+
+@dataclass(frozen=True)
+class Report:
+    html: Path
+    figures: list[Path]
+    problems: list[str]
+
+
+def write_report(run_dir: Path) -> Report:
+    """Render ``run_dir/report/*.png`` and ``run_dir/report.html``; works on partial runs and says what is missing."""
+    from groundstation.report import figures as f
+    from groundstation.report.page import render_page
+    from groundstation.report.stats import vehicle_table
+
+    data = load_run(run_dir)
+    out = data.path / "report"
+    out.mkdir(exist_ok=True)
+    notes = []
+    if len(data.vehicles) > f.MAX_ERROR_PANELS:
+        notes.append(f"the error figure shows the first {f.MAX_ERROR_PANELS} of {len(data.vehicles)} vehicles")
+    if not data.zones():
+        notes.append("no jamming or spoofing zones in this run")
+    notes.append("this run's estimators have no landmarks and no inter-vehicle fusion links to draw")
+    written: list[tuple[str, Path]] = []
+    for title, stem, build in (("Map", "map", f.map_figure), ("Position error", "error", f.error_figure),
+                               ("Swarm RMSE", "rmse", f.rmse_figure), ("NEES", "nees", f.nees_figure)):
+        figure = build(data)
+        if figure is None:
+            notes.append(f"{title}: nothing to draw")
+            continue
+        png = out / f"{stem}.png"
+        figure.savefig(png, dpi=100)
+        written.append((title, png))
+    page = data.path / "report.html"
+    page.write_text(render_page(data, vehicle_table(data), written, notes), encoding="utf-8")
+    return Report(html=page, figures=[p for _, p in written], problems=data.problems)

@@ -1,0 +1,151 @@
+"""The report's figures, drawn with matplotlib's object API (no pyplot state, no display needed).
+
+Each function takes the loaded run and returns a Figure, or None when the run has nothing to draw.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
+from matplotlib.ticker import FormatStrFormatter
+
+from groundstation.report.rundata import RunData
+from groundstation.report.stats import binned_nees, binned_rmse, covariance_ellipse
+
+MAX_ERROR_PANELS = 12
+MARKER_COLORS = {"fault_added": "tab:red", "fault_removed": "tab:green", "fault_expired": "tab:green",
+                 "vehicle_lost": "black", "vehicle_restarted": "tab:purple", "estimator_reset": "tab:purple",
+                 "gnss_unhealthy": "tab:orange", "gnss_healthy": "tab:olive"}
+
+
+def _color(index: int) -> Any:
+    return f"C{index % 10}"
+
+
+def map_figure(data: RunData, *, ellipse_every_s: float = 5.0) -> Figure | None:
+    """Top-down map: true (solid) and estimated (dashed) tracks, 3-sigma position ellipses every
+    ``ellipse_every_s`` seconds, and jamming/spoofing zones announced in the events."""
+    if not data.est and not data.truth:
+        return None
+    fig = Figure(figsize=(8.0, 7.0), layout="constrained")
+    ax = fig.subplots()
+    for i, vid in enumerate(data.vehicles):
+        if vid in data.truth:
+            ax.plot(data.truth[vid][:, 1], data.truth[vid][:, 2], "-", color=_color(i), lw=1.0, alpha=0.6)
+        if vid in data.est:
+            ax.plot(data.est[vid][:, 1], data.est[vid][:, 2], "--", color=_color(i), lw=1.0, label=f"v{vid}")
+            _draw_ellipses(ax, data, vid, _color(i), ellipse_every_s)
+    for zone in data.zones():
+        spoof = "spoof" in str(zone.get("fault"))
+        ax.add_patch(Circle(tuple(zone["center_m"]), zone["radius_m"], color="tab:orange" if spoof else "tab:red",
+                            alpha=0.15, lw=1.5, label=f"{zone['fault']} {zone['name']}".strip()))
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"tracks: true solid, estimated dashed; 3-sigma ellipses every {ellipse_every_s:g} s")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", fontsize="small", ncols=2)
+    return fig
+
+
+def _draw_ellipses(ax: Any, data: RunData, vid: int, color: Any, every_s: float) -> None:
+    rows = data.rows_of(vid)
+    if not rows:
+        return
+    t = rows["t_s"]
+    picks = np.unique(np.searchsorted(t, np.arange(t[0], t[-1] + 1e-9, every_s)).clip(0, len(t) - 1))
+    est = data.est[vid]
+    cov_xy = rows.get("cov_xy_m2", np.zeros_like(t))
+    for k in picks:
+        center = np.array([np.interp(t[k], est[:, 0], est[:, 1]), np.interp(t[k], est[:, 0], est[:, 2])])
+        cov = np.array([[rows["sigma_x_m"][k] ** 2, cov_xy[k]], [cov_xy[k], rows["sigma_y_m"][k] ** 2]])
+        outline = center + covariance_ellipse(cov)
+        ax.plot(outline[:, 0], outline[:, 1], "-", color=color, lw=0.7)
+
+
+def _mark_events(ax: Any, events: list[dict[str, Any]], vehicle: int | None = None) -> None:
+    """Vertical lines at fault events; per-vehicle panels show swarm-wide events and their own."""
+    for e in events:
+        if vehicle is not None and e.get("vehicle") not in (None, vehicle):
+            continue
+        kind = str(e.get("event"))
+        ax.axvline(float(e.get("t_s", 0.0)), color=MARKER_COLORS.get(kind, "tab:gray"), ls=":", lw=1.2)
+
+
+def _marker_legend(ax: Any, events: list[dict[str, Any]]) -> None:
+    for kind in sorted({str(e.get("event")) for e in events}):
+        ax.plot([], [], ":", color=MARKER_COLORS.get(kind, "tab:gray"), label=kind)
+
+
+def error_figure(data: RunData) -> Figure | None:
+    """Position error per axis over time per vehicle, inside its shaded 3-sigma envelope."""
+    vehicles = [v for v in data.vehicles if data.rows_of(v)][:MAX_ERROR_PANELS]
+    if not vehicles:
+        return None
+    fig = Figure(figsize=(9.0, 1.0 + 1.7 * len(vehicles)), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(len(vehicles), 1, sharex=True))
+    events = data.marker_events()
+    for ax, vid in zip(axes, vehicles):
+        r = data.rows_of(vid)
+        for axis, color in (("x", "C0"), ("y", "C1")):
+            bound = 3.0 * r[f"sigma_{axis}_m"]
+            ax.fill_between(r["t_s"], -bound, bound, color=color, alpha=0.15, lw=0)
+            ax.plot(r["t_s"], r[f"err_{axis}_m"], color=color, lw=0.8, label=f"{axis} error")
+        _mark_events(ax, events, vid)
+        ax.set_ylabel(f"v{vid} [m]")
+        ax.grid(alpha=0.3)
+    axes[0].set_title("position error per axis (lines) and its 3-sigma envelope (shaded)")
+    _marker_legend(axes[0], events)
+    axes[0].legend(loc="upper right", fontsize="small", ncols=4)
+    axes[-1].set_xlabel("sim time [s]")
+    return fig
+
+
+def rmse_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
+    """Swarm RMSE per ``bin_s`` seconds (bold) over the per-vehicle RMSE (thin), with fault markers."""
+    m = data.metrics
+    if not m or not len(m["t_s"]):
+        return None
+    fig = Figure(figsize=(9.0, 3.6), layout="constrained")
+    ax = fig.subplots()
+    for i, vid in enumerate(data.vehicles):
+        r = data.rows_of(vid)
+        if r:
+            ax.plot(*binned_rmse(r["t_s"], r["err_pos_m"], bin_s), color=_color(i), lw=0.6, alpha=0.6)
+    ax.plot(*binned_rmse(m["t_s"], m["err_pos_m"], bin_s), color="black", lw=2.0, label="swarm")
+    events = data.marker_events()
+    _mark_events(ax, events)
+    _marker_legend(ax, events)
+    ax.set_xlabel("sim time [s]")
+    ax.set_ylabel(f"RMSE per {bin_s:g} s [m]")
+    ax.set_ylim(bottom=0.0)
+    ax.set_title("swarm position RMSE over time (thin: each vehicle)")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", fontsize="small")
+    return fig
+
+
+def nees_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
+    """Swarm-average pose NEES per ``bin_s`` seconds against its 95% chi-square band (3 dof)."""
+    m = data.metrics
+    if not m or not len(m["t_s"]):
+        return None
+    t, mean, lower, upper = binned_nees(m["t_s"], m["vehicle"], m["nees"], bin_s)
+    fig = Figure(figsize=(9.0, 3.6), layout="constrained")
+    ax = fig.subplots()
+    ax.fill_between(t, lower, upper, color="tab:green", alpha=0.2, lw=0, label="95% chi-square band")
+    ax.axhline(3.0, color="tab:green", lw=0.8)
+    ax.plot(t, mean, color="black", lw=1.2, marker=".", label="mean over vehicles, one sample each per bin")
+    _mark_events(ax, data.marker_events())
+    ax.set_yscale("log")
+    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
+    ax.set_xlabel("sim time [s]")
+    ax.set_ylabel("NEES [x, y, yaw]")
+    ax.set_title(f"swarm-average NEES per {bin_s:g} s (consistent: inside the band, around 3)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(loc="upper right", fontsize="small")
+    return fig

@@ -1,0 +1,47 @@
+"""Applies the plan's physical faults to the world's sensor output: GNSS jamming and spoofing zones,
+sensor blackouts. Pure and deterministic: a function of sim time and the vehicles' true poses."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bus.faults import Blackout, JamGnss, SpoofGnss
+
+
+class PhysicalFaults:
+    def __init__(self, faults: tuple = ()) -> None:
+        self.faults = tuple(faults)
+        self._captured_us: dict[tuple[int, str], int] = {}  # (vehicle, spoof fault) -> capture time
+
+    def replace(self, faults: tuple) -> None:
+        """A new plan (from the ground station); capture times of spoofers that remain are kept."""
+        self.faults = tuple(faults)
+        names = {f.name for f in faults}
+        self._captured_us = {k: v for k, v in self._captured_us.items() if k[1] in names}
+
+    def silenced(self, vehicle_id: int, sensor: str, t_us: int, pose: np.ndarray) -> bool:
+        """True when ``sensor`` of ``vehicle_id`` produces nothing at ``t_us`` (blackout or jamming)."""
+        t_s = t_us * 1e-6
+        for f in self.faults:
+            if not f.active(t_s):
+                continue
+            if isinstance(f, Blackout) and f.vehicle == vehicle_id and f.sensor == sensor:
+                return True
+            if isinstance(f, JamGnss) and sensor == "gnss" and f.inside(pose[:2]):
+                return True
+        return False
+
+    def spoof_offset_m(self, vehicle_id: int, t_us: int, pose: np.ndarray) -> np.ndarray:
+        """(2,) metres added to the fix: drift_mps times the time since the vehicle was captured."""
+        offset = np.zeros(2)
+        for f in self.faults:
+            if not isinstance(f, SpoofGnss):
+                continue
+            key = (vehicle_id, f.name)
+            if not (f.active(t_us * 1e-6) and f.inside(pose[:2])):
+                self._captured_us.pop(key, None)
+                continue
+            captured = self._captured_us.setdefault(key, t_us)
+            heading = np.deg2rad(f.heading_deg)
+            offset += f.drift_mps * (t_us - captured) * 1e-6 * np.array([np.cos(heading), np.sin(heading)])
+        return offset
