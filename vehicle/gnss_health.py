@@ -68,14 +68,14 @@ class GnssHealth:
         mean_ratio = self._mean_ratio(w) if self.healthy and ratio <= 1.0 else 0.0
         consistent = ratio <= 1.0 and mean_ratio <= 1.0
         if self.healthy:
-            self._judge_healthy(stamp_us, consistent, "spoofing suspected: innovations biased"
-                                if mean_ratio > 1.0 else "fixes rejected by the innovation gate")
+            self._judge_healthy(stamp_us, consistent, "spoofing suspected"
+                                if mean_ratio > 1.0 else "fixes fail the gate")
         else:
             self._judge_unhealthy(stamp_us, ratio <= 1.0)
             if not self.healthy:
                 offset = self._self_consistent_offset(stamp_us, innovation, R)
                 if offset is not None and self._plausible_jump(offset, S - R, R):
-                    self._set(stamp_us, True, "position reset to consistent fixes")
+                    self._set(stamp_us, True, "reset to consistent fixes")
                     return FixVerdict(False, ratio, mean_ratio, offset, 4.0 * float(np.mean(np.diag(R))) / self.spec.reset_window)
         return FixVerdict(self.healthy and consistent, ratio, mean_ratio)
 
@@ -113,7 +113,7 @@ class GnssHealth:
         """Loss of fix: no fix for ``fix_timeout_s`` (jamming) makes GNSS unhealthy."""
         timeout_us = self.spec.fix_timeout_s * 1e6
         if self.healthy and self.last_fix_us is not None and stamp_us - self.last_fix_us > timeout_us:
-            self._set(stamp_us, False, "no fix (jamming suspected)")
+            self._set(stamp_us, False, "no fix, jamming suspected")
 
     def _mean_ratio(self, w: np.ndarray) -> float:
         self._window.append(w)

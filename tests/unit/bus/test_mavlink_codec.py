@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
 from bus.errors import DecodeError
-from bus.mavlink_codec import (COMPONENT_ID, Heartbeat, MavlinkDecoder, MavlinkEncoder, MavlinkRejected,
+from bus.mavlink_codec import (COMPONENT_ID, EstimatorStatus, Heartbeat, StatusText, MavlinkDecoder, MavlinkEncoder, MavlinkRejected,
                                StateEstimate, signing_now)
 
 KEY = bytes(range(32))
@@ -102,3 +102,14 @@ def test_mutated_frames_raise_decode_error_or_decode(data):
         MavlinkDecoder().decode(bytes(frame))
     except DecodeError:
         pass
+
+
+def test_estimator_status_and_statustext_round_trip_signed():
+    key = bytes(range(32))
+    encoder, decoder = MavlinkEncoder(vehicle_id=4, signing_key=key), MavlinkDecoder(signing_key=key)
+    status = decoder.decode(encoder.estimator_status(
+        EstimatorStatus(4, 12_000_000, mavlink2.ESTIMATOR_GPS_GLITCH | mavlink2.ESTIMATOR_ATTITUDE, 1.75, 0.5)))
+    assert status.vehicle_id == 4 and status.time_usec == 12_000_000 and status.gps_glitch
+    assert status.pos_horiz_ratio == pytest.approx(1.75)
+    text = decoder.decode(encoder.statustext(4, "GNSS unhealthy: spoofing suspected"))
+    assert text == StatusText(4, 4, "GNSS unhealthy: spoofing suspected")

@@ -64,3 +64,24 @@ def test_vehicle_subscriptions_never_reach_truth():
     VehicleNode(hub.connect("vehicle"), SwarmConfig(), 2)
     subscribed = [expr for expr, _ in hub._subscriptions]
     assert subscribed and not any(hub.connect("vehicle").keys.is_truth(e) for e in subscribed)
+
+
+def test_divergence_guard_resets_instead_of_publishing_nan():
+    import queue
+
+    from bus.mavlink_codec import MavlinkDecoder, StateEstimate, StatusText
+
+    node, hub = _node()
+    out: queue.SimpleQueue = queue.SimpleQueue()
+    hub.connect("groundstation").subscribe(node.bus.keys.mavlink(1), out)
+    node.take(Envelope(node.bus.keys.sensor(1, "prior"), m.encode(m.PosePrior(1, 0, 0, np.zeros(3), np.eye(3)))))
+    node.cycle(0)
+    node.estimator.P[0, 0] = np.nan  # a numerical accident inside the filter
+    node.cycle(20_000)
+    decoder, decoded = MavlinkDecoder(), []
+    while not out.empty():
+        decoded.append(decoder.decode(out.get().payload))
+    estimates = [d for d in decoded if isinstance(d, StateEstimate)]
+    assert [e.reset_counter for e in estimates] == [0, 1]
+    assert np.all(np.isfinite(estimates[-1].pose_covariance)) and np.all(np.isfinite(estimates[-1].position_m))
+    assert any(isinstance(d, StatusText) and d.text.startswith("estimator reset") for d in decoded)
