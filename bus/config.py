@@ -16,7 +16,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from bus.errors import ConfigError
-from bus.faults import PhysicalFault, named
+from bus.faults import Fault, check_fault, named
 
 
 class _Strict(BaseModel):
@@ -86,6 +86,7 @@ class VehicleConfig(_Strict):
     gate_probability: float = Field(0.9995, gt=0.5, lt=1.0, description="chi-square gate for GNSS")
     heartbeat_period_s: float = Field(1.0, gt=0)
     status_period_s: float = Field(1.0, gt=0)
+    fusion_horizon_s: float = Field(0.5, ge=0, le=10, description="late measurements up to this old are still fused in order")
 
 
 class SwarmConfig(_Strict):
@@ -95,7 +96,7 @@ class SwarmConfig(_Strict):
     world: WorldConfig = WorldConfig()
     sensors: SensorSpec = SensorSpec()
     vehicle: VehicleConfig = VehicleConfig()
-    faults: tuple[PhysicalFault, ...] = Field((), description="physical fault timeline, applied by the world")
+    faults: tuple[Fault, ...] = Field((), description="fault timeline (physical, link and kill faults)")
 
     @model_validator(mode="after")
     def _faults_are_named_and_valid(self) -> "SwarmConfig":
@@ -104,8 +105,7 @@ class SwarmConfig(_Strict):
         if len(set(names)) != len(names):
             raise ValueError(f"fault names must be unique, got {names}")
         for f in faults:
-            if getattr(f, "vehicle", 1) > self.world.vehicles:
-                raise ValueError(f"fault {f.name}: vehicle {f.vehicle} does not exist ({self.world.vehicles} vehicles)")
+            check_fault(f, self.world.vehicles)
         object.__setattr__(self, "faults", tuple(faults))
         return self
 

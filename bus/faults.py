@@ -1,30 +1,44 @@
-"""The fault plan's physical faults (applied by the world), as validated config models.
+"""The fault plan: every fault the swarm can suffer, as validated models (pydantic).
 
 Times are sim seconds. A fault is active for ``start_s <= t < start_s + for_s`` (``for_s`` None:
 until the end of the run). Zones are circles in the world's x-y plane (metres).
+
+- physical faults, applied by the world: ``jam-gnss``, ``spoof-gnss``, ``blackout``, ``jam-comms``;
+- link faults, applied by each receiving process's bus layer (``bus.link_faults``): ``delay``,
+  ``loss``, ``duplicate``, ``reorder``, selected by source, destination and topic globs;
+- ``kill``: the vehicle process is SIGKILLed at ``start_s`` and, with ``restart_after_s``, started
+  again by the supervisor (``swarm up``).
+
+Endpoints are named ``v<id>`` (vehicles), ``gs`` (ground station) and ``world``.
 """
 
 from __future__ import annotations
 
+import fnmatch
+import re
 from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
+
+GLOB = r"^[A-Za-z0-9_*?\[\]\-]{1,32}$"
+NAME = r"^[A-Za-z0-9_.\-]{0,64}$"
+LINK_TOPICS = ("imu", "odom", "gnss", "prior", "ranging", "mavlink")
 
 
 class _Fault(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    name: str = Field("", max_length=64, description="unique label; assigned when empty")
-    start_s: float = Field(0.0, ge=0)
-    for_s: float | None = Field(None, gt=0)
+    name: str = Field("", pattern=NAME, description="unique label; assigned when empty")
+    start_s: float = Field(0.0, ge=0, le=1e7)
+    for_s: float | None = Field(None, gt=0, le=1e7)
 
     def active(self, t_s: float) -> bool:
         return self.start_s <= t_s and (self.for_s is None or t_s < self.start_s + self.for_s)
 
 
 class _Zone(_Fault):
-    center_m: tuple[float, float]
+    center_m: tuple[float, float] = Field(description="zone centre [x, y] (m)")
     radius_m: float = Field(gt=0, le=1e6)
 
     def inside(self, xy_m: np.ndarray) -> bool:
@@ -46,7 +60,13 @@ class SpoofGnss(_Zone):
 
     kind: Literal["spoof-gnss"] = "spoof-gnss"
     drift_mps: float = Field(0.5, gt=0, le=100)
-    heading_deg: float = 0.0
+    heading_deg: float = Field(0.0, ge=-360, le=360)
+
+
+class JamComms(_Zone):
+    """Vehicle-to-vehicle packets and ranging to and from vehicles inside the zone are lost."""
+
+    kind: Literal["jam-comms"] = "jam-comms"
 
 
 class Blackout(_Fault):
@@ -54,17 +74,102 @@ class Blackout(_Fault):
 
     kind: Literal["blackout"] = "blackout"
     vehicle: int = Field(ge=1, le=250)
-    sensor: Literal["imu", "odom", "gnss"]
+    sensor: Literal["imu", "odom", "gnss", "ranging"]
 
 
-PhysicalFault = Annotated[Union[JamGnss, SpoofGnss, Blackout], Field(discriminator="kind")]
+class Kill(_Fault):
+    """SIGKILL of a vehicle process at ``start_s``; restarted ``restart_after_s`` later (None: never)."""
+
+    kind: Literal["kill"] = "kill"
+    vehicle: int = Field(ge=1, le=250)
+    restart_after_s: float | None = Field(None, ge=0, le=1e7)
 
 
-def named(faults: list) -> list:
-    """The faults with empty names replaced by ``<kind>-<n>`` (n counts per kind, from 1)."""
-    counts: dict[str, int] = {}
+class _LinkFault(_Fault):
+    """Selects traffic by source, destination and topic (globs: ``v*``, ``v3``, ``gs``, ``mavlink``)."""
+
+    src: str = Field("*", pattern=GLOB, description="sending endpoint glob")
+    dst: str = Field("*", pattern=GLOB, description="receiving endpoint glob")
+    topic: str = Field("*", pattern=GLOB, description="topic glob: imu, odom, gnss, ranging, mavlink, ...")
+
+    def selects(self, src: str, dst: str, topic: str) -> bool:
+        return (fnmatch.fnmatchcase(src, self.src) and fnmatch.fnmatchcase(dst, self.dst)
+                and fnmatch.fnmatchcase(topic, self.topic))
+
+
+class Delay(_LinkFault):
+    """Every selected packet is late by ``delay_s`` +- ``jitter_s`` (uniform, normal with sigma
+    jitter_s, or pareto: heavy tail, minimum delay_s - jitter_s, mean delay_s). Jitter reorders."""
+
+    kind: Literal["delay"] = "delay"
+    delay_s: float = Field(ge=0, le=60)
+    jitter_s: float = Field(0.0, ge=0, le=60)
+    distribution: Literal["uniform", "normal", "pareto"] = "uniform"
+
+
+class Loss(_LinkFault):
+    """``percent`` of the selected packets are lost: independently, or with ``burst`` (mean burst
+    length in packets) in Gilbert-Elliott bursts with the same long-run loss rate."""
+
+    kind: Literal["loss"] = "loss"
+    percent: float = Field(ge=0, le=100)
+    burst: float | None = Field(None, ge=1, le=1e6)
+
+
+class Duplicate(_LinkFault):
+    """``percent`` of the selected packets arrive twice."""
+
+    kind: Literal["duplicate"] = "duplicate"
+    percent: float = Field(ge=0, le=100)
+
+
+class Reorder(_LinkFault):
+    """``percent`` of the selected packets are held back by ``gap_s`` so later ones overtake them."""
+
+    kind: Literal["reorder"] = "reorder"
+    percent: float = Field(ge=0, le=100)
+    gap_s: float = Field(0.1, gt=0, le=60)
+
+
+PHYSICAL_KINDS = ("jam-gnss", "spoof-gnss", "jam-comms", "blackout")
+LINK_KINDS = ("delay", "loss", "duplicate", "reorder")
+Fault = Annotated[Union[JamGnss, SpoofGnss, JamComms, Blackout, Kill, Delay, Loss, Duplicate, Reorder],
+                  Field(discriminator="kind")]
+LinkFault = Union[Delay, Loss, Duplicate, Reorder]
+FAULT_LIST = TypeAdapter(tuple[Fault, ...])
+
+
+def endpoints(vehicles: int) -> list[str]:
+    """Every endpoint name of a swarm of ``vehicles``: world, gs, v1 .. vN."""
+    return ["world", "gs", *(f"v{i}" for i in range(1, vehicles + 1))]
+
+
+def check_fault(fault: _Fault, vehicles: int) -> None:
+    """Raise ValueError when ``fault`` names a vehicle or endpoint that is not in the swarm."""
+    vehicle = getattr(fault, "vehicle", None)
+    if vehicle is not None and vehicle > vehicles:
+        raise ValueError(f"fault {fault.name or fault.kind}: vehicle {vehicle} does not exist ({vehicles} vehicles)")
+    if isinstance(fault, _LinkFault):
+        names = endpoints(vehicles)
+        for label, glob in (("--from", fault.src), ("--to", fault.dst)):
+            if not any(fnmatch.fnmatchcase(n, glob) for n in names):
+                hint = f"vehicles are v1..v{vehicles}" if re.fullmatch(r"v\d+", glob) else "endpoints are v<id>, gs, world"
+                raise ValueError(f"fault {fault.name or fault.kind}: {label} {glob!r} matches nothing ({hint})")
+        if not any(fnmatch.fnmatchcase(t, fault.topic) for t in LINK_TOPICS):
+            raise ValueError(f"fault {fault.name or fault.kind}: --topic {fault.topic!r} matches no topic "
+                             f"({', '.join(LINK_TOPICS)})")
+
+
+def named(faults: list, taken: set[str] | None = None) -> list:
+    """The faults with empty names replaced by ``<kind>-<n>`` (first n not in ``taken`` or used)."""
+    used = set(taken or ()) | {f.name for f in faults if f.name}
     out = []
     for fault in faults:
-        counts[fault.kind] = counts.get(fault.kind, 0) + 1
-        out.append(fault if fault.name else fault.model_copy(update={"name": f"{fault.kind}-{counts[fault.kind]}"}))
+        if not fault.name:
+            n = 1
+            while f"{fault.kind}-{n}" in used:
+                n += 1
+            fault = fault.model_copy(update={"name": f"{fault.kind}-{n}"})
+            used.add(fault.name)
+        out.append(fault)
     return out

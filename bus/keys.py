@@ -9,6 +9,8 @@ Layout under a configurable prefix (default ``swarm``)::
     <prefix>/ctl/clock               simulation clock ticks
     <prefix>/ctl/ack/<id>            lockstep acknowledgements
     <prefix>/ctl/end                 end of run
+    <prefix>/ctl/faults/plan         the fault plan (published by the ground station only)
+    <prefix>/ctl/faults/request      queryable of the ground station: add, remove, clear, list faults
     <prefix>/alive/<role>/<id>       liveliness tokens
 """
 
@@ -17,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 SENSOR_TOPICS = ("imu", "odom", "gnss", "prior", "camera", "ranging", "landmarks")
-ROLES = ("world", "vehicle", "groundstation", "router", "cli")
+ROLES = ("world", "vehicle", "groundstation", "router", "cli", "supervisor")
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,12 @@ class KeySpace:
 
     def end(self) -> str:
         return f"{self.prefix}/ctl/end"
+
+    def fault_plan(self) -> str:
+        return f"{self.prefix}/ctl/faults/plan"
+
+    def fault_request(self) -> str:
+        return f"{self.prefix}/ctl/faults/request"
 
     def alive(self, role: str, ident: int | str) -> str:
         if role not in ROLES:

@@ -124,7 +124,9 @@ class MavlinkEncoder:
         signing = self._mav.signing
         if signing.sign_outgoing:
             signing.timestamp = max(signing.timestamp, signing_now())
-        return bytes(message.pack(self._mav))
+        frame = bytes(message.pack(self._mav))
+        self._mav.seq = (self._mav.seq + 1) % 256  # pack() stamps the sequence number; send() would count it
+        return frame
 
     def odometry(self, est: StateEstimate) -> bytes:
         half = 0.5 * est.yaw_rad
@@ -235,3 +237,16 @@ def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate:
 def _full_covariance(upper: list[float]) -> np.ndarray:
     """21 floats (upper-right triangle, row-major) -> symmetric (6, 6)."""
     return np.asarray(upper, dtype=np.float64)[_SYMMETRIC_INDEX]
+
+
+def frame_header(frame: bytes) -> tuple[int, int, int, int | None] | None:
+    """(sysid, seq, msgid, time_usec or None) read from a raw MAVLink 2 frame without decoding it,
+    or None if it is not one. ``time_usec`` is the first field of ODOMETRY and ESTIMATOR_STATUS."""
+    if len(frame) < 12 or frame[0] != mavlink2.PROTOCOL_MARKER_V2:
+        return None
+    msgid = int.from_bytes(frame[7:10], "little")
+    stamp = None
+    if msgid in (mavlink2.MAVLINK_MSG_ID_ODOMETRY, mavlink2.MAVLINK_MSG_ID_ESTIMATOR_STATUS):
+        payload = bytes(frame[10:10 + min(frame[1], 8)])
+        stamp = int.from_bytes(payload.ljust(8, b"\0"), "little")  # MAVLink 2 trims trailing zeros
+    return frame[5], frame[4], msgid, stamp

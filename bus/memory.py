@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import queue
 import threading
 
 from bus.keys import KeySpace
-from bus.session import Envelope, Inbox, LivelinessEvent, check_subscription
+from bus.session import Envelope, Inbox, LivelinessEvent, Request, check_subscription
 
 
 def _intersects(a: str, b: str) -> bool:
@@ -23,6 +24,7 @@ class MemoryHub:
         self._subscriptions: list[tuple[str, Inbox]] = []
         self._watchers: list[tuple[str, Inbox]] = []
         self._tokens: dict[str, int] = {}
+        self._queryables: list[tuple[str, Inbox]] = []
 
     def connect(self, role: str) -> "MemoryBus":
         return MemoryBus(self, role=role)
@@ -43,6 +45,24 @@ class MemoryHub:
             alive = [key for key in self._tokens if _intersects(key_expr, key)]
         for key in alive:
             inbox.put(LivelinessEvent(key, True))
+
+    def add_queryable(self, key: str, inbox: Inbox) -> None:
+        with self._lock:
+            self._queryables.append((key, inbox))
+
+    def query(self, key: str, payload: bytes, timeout_s: float) -> list[bytes]:
+        with self._lock:
+            targets = [inbox for expr, inbox in self._queryables if _intersects(expr, key)]
+        replies: queue.SimpleQueue = queue.SimpleQueue()
+        for inbox in targets:
+            inbox.put(Request(key, payload, replies.put))
+        out = []
+        for _ in targets:
+            try:
+                out.append(replies.get(timeout=timeout_s))
+            except queue.Empty:
+                break
+        return out
 
     def set_token(self, key: str, alive: bool) -> None:
         with self._lock:
@@ -82,6 +102,12 @@ class MemoryBus:
 
     def watch_liveliness(self, key_expr: str, inbox: Inbox) -> None:
         self._hub.add_watcher(key_expr, inbox)
+
+    def queryable(self, key: str, inbox: Inbox) -> None:
+        self._hub.add_queryable(key, inbox)
+
+    def get(self, key: str, payload: bytes, timeout_s: float) -> list[bytes]:
+        return self._hub.query(key, payload, timeout_s)
 
     def close(self) -> None:
         for key in self._tokens:

@@ -89,6 +89,7 @@ class ClockTick:
     """World clock: every feed stamped up to ``stamp_us`` has been published for this tick.
 
     ``wall_ns`` is the world's wall clock at publication; ``final`` marks the end of the run.
+    ``comm_jammed`` lists the vehicles inside an active comm-jamming zone (their V2V traffic is lost).
     ``published`` counts, per vehicle, the samples published so far on each feed of ``FEEDS``:
     entry ``(id - 1) * len(FEEDS) + k``. Jamming and blackouts silence feeds, so a vehicle cannot
     infer from the rates alone what is still on its way; these counts tell it.
@@ -99,6 +100,7 @@ class ClockTick:
     wall_ns: Annotated[int, Int(0, 2**63 - 1)]
     final: Annotated[bool, Bool()]
     published: Annotated[tuple[int, ...], Counts(250 * 4)] = ()
+    comm_jammed: Annotated[tuple[int, ...], Counts(250, 250)] = ()
 
     def published_by(self, vehicle_id: int) -> dict[str, int]:
         """Samples published so far per feed for one vehicle (empty when the tick carries no counts)."""
@@ -128,6 +130,9 @@ class VehicleStatus:
     rejected_gnss: Annotated[int, Int(0, 2**53)]
     decode_errors: Annotated[int, Int(0, 2**53)]
     reset_counter: Annotated[int, Int(0, 255)]
+    duplicates: Annotated[int, Int(0, 2**53)] = 0
+    samples_lost: Annotated[int, Int(0, 2**53)] = 0
+    late_fused: Annotated[int, Int(0, 2**53)] = 0
 
 
 @dataclass(frozen=True)

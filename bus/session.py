@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import queue
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Callable, Protocol
 
 from bus.config import BusConfig
 from bus.errors import AccessDenied
@@ -22,6 +22,15 @@ Inbox = queue.SimpleQueue
 class Envelope:
     key: str
     payload: bytes
+
+
+@dataclass(frozen=True)
+class Request:
+    """A query to a queryable: the loop thread answers it once with ``respond(payload)``."""
+
+    key: str
+    payload: bytes
+    respond: Callable[[bytes], None]
 
 
 @dataclass(frozen=True)
@@ -42,6 +51,8 @@ class Bus(Protocol):
     def subscribe(self, key_expr: str, inbox: Inbox) -> None: ...
     def declare_token(self, key: str) -> None: ...
     def watch_liveliness(self, key_expr: str, inbox: Inbox) -> None: ...
+    def queryable(self, key: str, inbox: Inbox) -> None: ...
+    def get(self, key: str, payload: bytes, timeout_s: float) -> list[bytes]: ...
     def close(self) -> None: ...
 
 
@@ -100,6 +111,22 @@ class ZenohBus:
             inbox.put(LivelinessEvent(str(sample.key_expr), sample.kind == put_kind))
 
         self._keep.append(self._session.liveliness().declare_subscriber(key_expr, on_change, history=True))
+
+    def queryable(self, key: str, inbox: Inbox) -> None:
+        """Queries on ``key`` arrive in ``inbox`` as Request items (answered later by the loop thread)."""
+
+        def on_query(query) -> None:
+            def respond(payload: bytes) -> None:
+                query.reply(query.key_expr, payload)
+                query.drop()
+
+            inbox.put(Request(str(query.key_expr), query.payload.to_bytes() if query.payload else b"", respond))
+
+        self._keep.append(self._session.declare_queryable(key, on_query))
+
+    def get(self, key: str, payload: bytes, timeout_s: float) -> list[bytes]:
+        """Ask the queryables on ``key``; their replies (empty when nobody answers within the timeout)."""
+        return [r.ok.payload.to_bytes() for r in self._session.get(key, payload=payload, timeout=timeout_s) if r.ok]
 
     def close(self) -> None:
         if not self._session.is_closed():

@@ -11,9 +11,11 @@ from typing import Callable, Optional
 import typer
 
 from bus.errors import SwarmlocError
+from groundstation.fault_commands import fault_app
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="swarmloc: multi-process swarm localization over zenoh, with MAVLink 2 state packets.")
+app.add_typer(fault_app, name="fault")
 
 
 def _fail(message: str) -> None:
@@ -49,6 +51,7 @@ def up(
     out: Path = typer.Option(Path("runs"), help="parent folder of run directories"),
     name: Optional[str] = typer.Option(None, help="run directory name (a suffix is added if it exists) [default: the scenario's name, or run]"),
     quiet: bool = typer.Option(False, help="no progress display, only the final table"),
+    restart: str = typer.Option("no", help="no, or on-failure: start a vehicle or the ground station again when it dies"),
 ) -> None:
     """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table and write the report."""
     from bus.config import build_config
@@ -58,22 +61,26 @@ def up(
 
     if mode not in (None, "lockstep", "realtime"):
         _fail(f"unknown mode {mode!r}: use lockstep or realtime")
+    if restart not in ("no", "on-failure"):
+        _fail(f"unknown restart policy {restart!r}: use no or on-failure")
     try:
         base = load_scenario(scenario) if scenario else {}
         config = build_config(overlay(base, {"name": name, "world": {"vehicles": vehicles, "seed": seed},
                                              "clock": {"mode": mode, "speed": speed, "duration_s": duration, "tick_s": tick}}))
-        run_dir, failures = launch(config, out, show_progress=not quiet, stop=stop_on_signals())
+        run_dir, failures, notes = launch(config, out, show_progress=not quiet, stop=stop_on_signals(), restart=restart)
     except SwarmlocError as exc:
         _fail(str(exc))
-    _print_result(run_dir, failures)
+    _print_result(run_dir, failures, notes)
 
 
-def _print_result(run_dir: Path, failures: list[str]) -> None:
+def _print_result(run_dir: Path, failures: list[str], notes: list[str]) -> None:
     from rich.console import Console
 
     from groundstation.display import rmse_table
 
     console = Console()
+    for note in notes:
+        console.print(f"[yellow]swarm: {note}[/yellow]", highlight=False)
     for failure in failures:
         console.print(f"[red]swarm: {failure}[/red]")
     summary_path = run_dir / "summary.json"
@@ -136,11 +143,12 @@ def sim(config: Path = typer.Option(..., help="swarm config JSON")) -> None:
 
 @app.command()
 def vehicle(config: Path = typer.Option(..., help="swarm config JSON"),
-            id: int = typer.Option(..., "--id", min=1, max=250, help="vehicle id (MAVLink sysid)")) -> None:
+            id: int = typer.Option(..., "--id", min=1, max=250, help="vehicle id (MAVLink sysid)"),
+            restarts: int = typer.Option(0, min=0, max=255, help="how often this vehicle was started before (reset_counter)")) -> None:
     """Run one vehicle process: the fixed-rate estimator loop."""
-    from vehicle.node import run_vehicle
+    from vehicle.loops import run_vehicle
 
-    _run_node(config, "vehicle", lambda bus, cfg, stop: run_vehicle(bus, cfg, id, stop))
+    _run_node(config, "vehicle", lambda bus, cfg, stop: run_vehicle(bus, cfg, id, stop, restarts=restarts))
 
 
 @app.command()

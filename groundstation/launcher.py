@@ -4,7 +4,9 @@ watch them, and shut everything down cleanly on Ctrl-C/SIGTERM or when the run e
 
 from __future__ import annotations
 
+import json
 import os
+import queue
 import signal
 import socket
 import subprocess
@@ -14,10 +16,14 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from bus import messages as m
 from bus.config import SwarmConfig
-from bus.errors import SwarmlocError
+from bus.errors import DecodeError, SwarmlocError
+from bus.plan import FaultPlan, decode_json
+from groundstation.supervisor import KillSchedule
 
 SHUTDOWN_GRACE_S = 4.0
+SWARM_HANDLE = "swarm.json"  # in the run directory while `swarm up` runs: how `swarm fault` finds it
 
 
 class ChildFailed(SwarmlocError):
@@ -67,11 +73,21 @@ def unique_run_dir(out: Path, name: str) -> Path:
 
 
 class Swarm:
-    """The set of child processes of one run."""
+    """The set of child processes of one run, and the supervisor that executes kill faults and the
+    restart policy (``no`` or ``on-failure``: a vehicle or ground station that dies is started again)."""
 
-    def __init__(self, config: SwarmConfig, run_dir: Path, show_progress: bool) -> None:
-        self.config, self.run_dir, self.show_progress = config, run_dir, show_progress
+    def __init__(self, config: SwarmConfig, run_dir: Path, show_progress: bool, *, restart: str = "no") -> None:
+        self.config, self.run_dir, self.show_progress, self.restart = config, run_dir, show_progress, restart
+        self.config_path = str(run_dir / "config.json")
         self.children: list[Child] = []
+        self.notes: list[str] = []
+        self.restarts: dict[str, int] = {}
+        self.kills = KillSchedule()
+        self.kills.set_plan(config.faults)
+        self.planned_dead: set[str] = set()
+        self.bus = None
+        self.inbox: queue.SimpleQueue = queue.SimpleQueue()
+        self.now_us = 0
         (run_dir / "logs").mkdir(exist_ok=True)
 
     def spawn(self, name: str, args: list[str], *, essential: bool, inherit_stdout: bool = False) -> Child:
@@ -82,37 +98,93 @@ class Swarm:
                                        stdout=None if inherit_stdout else log, stderr=log,
                                        stdin=subprocess.DEVNULL, start_new_session=True)
         child = Child(name, process, log_path, essential)
-        self.children.append(child)
+        self.children = [c for c in self.children if c.name != name] + [child]
         return child
 
+    def spawn_vehicle(self, vid: int) -> Child:
+        name = f"vehicle-{vid}"
+        args = ["vehicle", "--config", self.config_path, "--id", str(vid), "--restarts", str(self.restarts.get(name, 0))]
+        return self.spawn(name, args, essential=False)
+
+    def spawn_groundstation(self) -> Child:
+        args = ["gs", "--config", self.config_path, "--run-dir", str(self.run_dir)]
+        return self.spawn("groundstation", args + ([] if self.show_progress else ["--quiet"]), essential=True,
+                          inherit_stdout=self.show_progress)
+
     def start(self) -> None:
-        config_path = str(self.run_dir / "config.json")
         port = int(self.config.bus.connect[0].rsplit(":", 1)[1])
         router = self.spawn("router", ["router", "--listen", f"tcp/127.0.0.1:{port}"], essential=True)
         wait_for_port(port, 15.0, router)
-        gs_args = ["gs", "--config", config_path, "--run-dir", str(self.run_dir)]
-        self.spawn("groundstation", gs_args + ([] if self.show_progress else ["--quiet"]), essential=True,
-                   inherit_stdout=self.show_progress)
+        self._open_supervisor_bus()
+        self.spawn_groundstation()
         for vid in range(1, self.config.world.vehicles + 1):
-            self.spawn(f"vehicle-{vid}", ["vehicle", "--config", config_path, "--id", str(vid)], essential=False)
-        self.spawn("world", ["sim", "--config", config_path], essential=True)
+            self.spawn_vehicle(vid)
+        self.spawn("world", ["sim", "--config", self.config_path], essential=True)
+
+    def _open_supervisor_bus(self) -> None:
+        """The supervisor's own zenoh session: it follows the clock and the fault plan (kill faults)."""
+        from bus.session import ZenohBus
+
+        self.bus = ZenohBus(self.config.bus, role="supervisor")
+        self.bus.subscribe(self.bus.keys.clock(), self.inbox)
+        self.bus.subscribe(self.bus.keys.fault_plan(), self.inbox)
+
+    def _follow_plan(self) -> None:
+        """Drain the supervisor inbox, then execute the kill faults that are due."""
+        while True:
+            try:
+                envelope = self.inbox.get_nowait()
+            except queue.Empty:
+                break
+            try:
+                if envelope.key == self.bus.keys.clock():
+                    self.now_us = max(self.now_us, m.decode(m.ClockTick, envelope.payload).stamp_us)
+                else:
+                    self.kills.set_plan(decode_json(FaultPlan, envelope.payload).faults)
+            except DecodeError:
+                continue
+        for action, vid, fault in self.kills.due(self.now_us):
+            self._execute(action, vid, fault)
+
+    def _execute(self, action: str, vid: int, fault: str) -> None:
+        name = f"vehicle-{vid}"
+        child = next((c for c in self.children if c.name == name), None)
+        if action == "kill":
+            self.planned_dead.add(name)
+            if child is not None and child.process.poll() is None:
+                child.process.kill()
+            self.notes.append(f"{name} killed by fault {fault} at {self.now_us * 1e-6:.2f} s")
+        elif name in self.planned_dead:
+            self.planned_dead.discard(name)
+            self.restarts[name] = self.restarts.get(name, 0) + 1
+            self.spawn_vehicle(vid)
+            self.notes.append(f"{name} restarted after fault {fault} at {self.now_us * 1e-6:.2f} s")
 
     def watch(self, stop: threading.Event) -> list[str]:
-        """Wait for the ground station to finish; returns failure reports of children that died."""
+        """Supervise until the ground station finishes; returns failure reports of children that died."""
         failures: list[str] = []
-        gs = next(c for c in self.children if c.name == "groundstation")
-        reported: set[str] = set()
-        while not stop.is_set() and gs.process.poll() is None:
-            for child in self.children:
+        handled: set[int] = set()
+        while not stop.is_set():
+            self._follow_plan()
+            for child in list(self.children):
                 code = child.process.poll()
-                if code not in (None, 0) and child.name not in reported and child is not gs:
-                    reported.add(child.name)
-                    failures.append(f"{child.name} died with exit status {code}; last log lines:\n{child.tail()}")
-                    if child.essential:
-                        return failures
+                if code is None or child.process.pid in handled:
+                    continue
+                handled.add(child.process.pid)
+                if child.name == "groundstation" and code == 0:
+                    return failures
+                if code == 0 or child.name in self.planned_dead:
+                    continue
+                report = f"{child.name} died with exit status {code}; last log lines:\n{child.tail()}"
+                if self.restart == "on-failure" and (child.name == "groundstation" or child.name.startswith("vehicle-")):
+                    self.notes.append(f"{report}\nrestarted (--restart on-failure)")
+                    self.restarts[child.name] = self.restarts.get(child.name, 0) + 1
+                    self.spawn_groundstation() if child.name == "groundstation" else self.spawn_vehicle(int(child.name[8:]))
+                    continue
+                failures.append(report)
+                if child.essential:
+                    return failures
             stop.wait(0.1)
-        if gs.process.returncode not in (None, 0):
-            failures.append(f"groundstation exited with status {gs.process.returncode}:\n{gs.tail()}")
         return failures
 
     def shutdown(self) -> None:
@@ -130,19 +202,25 @@ class Swarm:
             except subprocess.TimeoutExpired:
                 child.process.kill()
                 child.process.wait()
+        if self.bus is not None:
+            self.bus.close()
 
 
-def launch(config: SwarmConfig, out: Path, *, show_progress: bool, stop: threading.Event) -> tuple[Path, list[str]]:
-    """Run one swarm to completion; returns the run directory and failure reports."""
+def launch(config: SwarmConfig, out: Path, *, show_progress: bool, stop: threading.Event,
+           restart: str = "no") -> tuple[Path, list[str], list[str]]:
+    """Run one swarm to completion; returns the run directory, failure reports and notes (kills, restarts)."""
     port = free_port()
     config = config.model_copy(update={"bus": config.bus.model_copy(
         update={"mode": "client", "connect": (f"tcp/127.0.0.1:{port}",), "listen": ()})})
     run_dir = unique_run_dir(out, config.name)
     config.dump(run_dir / "config.json")
-    swarm = Swarm(config, run_dir, show_progress)
+    swarm = Swarm(config, run_dir, show_progress, restart=restart)
+    handle = run_dir / SWARM_HANDLE
+    handle.write_text(json.dumps({"connect": list(config.bus.connect), "prefix": config.bus.prefix, "pid": os.getpid()}))
     try:
         swarm.start()
         failures = swarm.watch(stop)
     finally:
+        handle.unlink(missing_ok=True)
         swarm.shutdown()
-    return run_dir, failures
+    return run_dir, failures, swarm.notes

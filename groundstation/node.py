@@ -1,5 +1,8 @@
-"""The ground-station process: scores every vehicle's MAVLink estimates against truth, logs events,
-and writes the run directory as it goes.
+"""The ground-station process: owns the fault plan, scores every vehicle's MAVLink estimates against
+truth, measures each MAVLink link, logs events, and writes the run directory as it goes.
+
+A restarted ground station appends to the same run directory and picks up the tallies and event
+counts already there, so summary.json still covers the whole run.
 """
 
 from __future__ import annotations
@@ -14,9 +17,13 @@ from pathlib import Path
 from bus import messages as m
 from bus.config import SwarmConfig
 from bus.errors import DecodeError
-from bus.mavlink_codec import EstimatorStatus, MavlinkDecoder, StateEstimate, StatusText
-from bus.session import Bus, Envelope, LivelinessEvent
-from groundstation.fault_log import FaultLog
+from bus.link_faults import Arrival, LinkFaultStage
+from bus.mavlink_codec import EstimatorStatus, MavlinkDecoder, StateEstimate, StatusText, frame_header
+from bus.plan import FaultReply, FaultRequest, decode_json, encode_json
+from bus.session import Bus, Envelope, LivelinessEvent, Request
+from groundstation.fault_control import FaultControl
+from groundstation.link_quality import StreamQuality
+from groundstation.resume import resume_events, resume_tallies
 from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
 from groundstation.summary import build_summary, build_timing
@@ -24,20 +31,24 @@ from groundstation.summary import build_summary, build_timing
 log = logging.getLogger("swarmloc.groundstation")
 REALTIME_LAG_US = 1_000_000
 END_GRACE_S = 0.3
+PLAN_REPEAT_S = 1.0
 
 
 class GroundStation:
-    def __init__(self, bus: Bus, config: SwarmConfig, run_dir: Path) -> None:
+    def __init__(self, bus: Bus, config: SwarmConfig, run_dir: Path, *, signing_key: bytes | None = None) -> None:
         self.bus, self.config = bus, config
         keys, prefix = bus.keys, bus.keys.prefix
         self.inbox: queue.SimpleQueue = queue.SimpleQueue()
         for expr in (f"{prefix}/v/*/truth", f"{prefix}/v/*/mavlink", f"{prefix}/v/*/status", keys.clock(), keys.end()):
             bus.subscribe(expr, self.inbox)
-        bus.watch_liveliness(f"{prefix}/alive/vehicle/*", self.inbox)
-        bus.declare_token(keys.alive("groundstation", 0))
+        bus.queryable(keys.fault_request(), self.inbox)
+        self._plan_pub = bus.publisher(keys.fault_plan())
         self.run = RunDirectory(run_dir)
         self.scorer = Scorer()
-        self.decoder = MavlinkDecoder()
+        self.decoder = MavlinkDecoder(signing_key=signing_key)
+        self.links = LinkFaultStage("gs", seed=config.world.seed, faults=config.faults)
+        self.quality: dict[int, StreamQuality] = {}
+        self.latency_us: dict[int, list[int]] = {}
         self.statuses: dict[int, m.VehicleStatus] = {}
         self.rejected: Counter[int] = Counter()
         self.events: Counter[str] = Counter()
@@ -50,10 +61,24 @@ class GroundStation:
         self.latest_estimate_us: dict[int, int] = {}
         self.latest_truth_us: dict[int, int] = {}
         self.gnss_glitch: dict[int, bool] = {}
-        self.fault_log = FaultLog(config.faults, self._fault_event)
+        self.faults = FaultControl(config.faults, vehicles=config.world.vehicles, log=self._fault_event)
+        self._resume(run_dir)
+        self._plan_sent_at = 0.0
         self.wall_start: float | None = None
         self.wall_end: float | None = None
         self.on_progress = lambda gs: None
+        bus.watch_liveliness(f"{prefix}/alive/vehicle/*", self.inbox)
+        bus.declare_token(keys.alive("groundstation", 0))
+
+    def _resume(self, run_dir: Path) -> None:
+        """Pick up a run directory a previous ground station of this run was writing."""
+        tallies, last_us = resume_tallies(run_dir / "metrics.csv", self.scorer.bounds)
+        if not tallies:
+            return
+        self.scorer.tallies, self.scorer.last_scored_us = tallies, last_us
+        self.events = resume_events(run_dir / "events.jsonl")
+        self.faults._announced = True  # the plan was announced by the first ground station
+        self.event("groundstation_restarted", scored_until_s=round(max(last_us.values()) * 1e-6, 6))
 
     def event(self, kind: str, **fields: object) -> None:
         """Log an event; departures after the final tick are logged but not counted in the summary
@@ -68,13 +93,39 @@ class GroundStation:
 
     def handle(self, item: object) -> None:
         if isinstance(item, LivelinessEvent):
-            vid = item.key.rsplit("/", 1)[-1]
-            kind = "vehicle_joined" if item.alive else ("vehicle_left" if self._completed(vid) else "vehicle_lost")
-            if vid.isdigit():
-                (self.active.add if item.alive else self.active.discard)(int(vid))
-                (self.departed.discard if item.alive else self.departed.add)(int(vid))
-            self.event(kind, vehicle=int(vid) if vid.isdigit() else vid)
-            return
+            self._on_liveliness(item)
+        elif isinstance(item, Request):
+            self._on_request(item)
+        elif item.key.endswith("/mavlink"):
+            self._offer_mavlink(item)
+        else:
+            self._on_envelope(item)
+
+    def _on_liveliness(self, item: LivelinessEvent) -> None:
+        vid = item.key.rsplit("/", 1)[-1]
+        kind = "vehicle_joined" if item.alive else ("vehicle_left" if self._completed(vid) else "vehicle_lost")
+        if vid.isdigit():
+            (self.active.add if item.alive else self.active.discard)(int(vid))
+            (self.departed.discard if item.alive else self.departed.add)(int(vid))
+        self.event(kind, vehicle=int(vid) if vid.isdigit() else vid)
+
+    def _on_request(self, request: Request) -> None:
+        """`swarm fault ...`: validate, apply, publish the new plan, answer with it."""
+        try:
+            reply = self.faults.request(decode_json(FaultRequest, request.payload))
+        except DecodeError as exc:
+            reply = FaultReply(ok=False, error=str(exc), plan=self.faults.plan())
+        request.respond(encode_json(reply))
+        if reply.ok:
+            self.publish_plan()
+
+    def publish_plan(self) -> None:
+        plan = self.faults.plan()
+        self.links.set_plan(plan.faults)
+        self._plan_pub.put(encode_json(plan))
+        self._plan_sent_at = time.monotonic()
+
+    def _on_envelope(self, item: Envelope) -> None:
         keys, key = self.bus.keys, item.key
         try:
             if key == keys.clock():
@@ -88,21 +139,35 @@ class GroundStation:
             elif key.endswith("/status"):
                 status = m.decode(m.VehicleStatus, item.payload)
                 self.statuses[status.vehicle_id] = status
-            elif key.endswith("/mavlink"):
-                self._on_mavlink(item)
         except DecodeError as exc:
             self.events["decode_error"] += 1
             log.warning("ground station dropped a payload on %s: %s", key, exc)
 
+    def _offer_mavlink(self, item: Envelope) -> None:
+        """MAVLink frames pass this process's link faults first (stamped with their time_usec)."""
+        header = frame_header(item.payload)
+        stamp = header[3] if header and header[3] is not None else self.sim_time_us
+        vid = self.bus.keys.vehicle_of(item.key)
+        for frame in self.links.offer(Arrival(item.key, f"v{vid}", "mavlink", stamp, item)):
+            self._on_mavlink(frame)
+
     def _on_mavlink(self, item: Envelope) -> None:
+        vid = self.bus.keys.vehicle_of(item.key)
+        header = frame_header(item.payload)
         try:
             decoded = self.decoder.decode(item.payload)
-        except DecodeError:
-            self.rejected[self.bus.keys.vehicle_of(item.key)] += 1
-            raise
+        except DecodeError as exc:
+            self.rejected[vid] += 1
+            self.events["decode_error"] += 1
+            log.warning("ground station rejected a MAVLink frame on %s: %s", item.key, exc)
+            return
+        self.quality.setdefault(vid, StreamQuality()).see(header[1])
         if isinstance(decoded, StateEstimate):
+            lat = self.latency_us.setdefault(vid, [0, 0, 0])  # count, sum, max (us)
+            delay = self.sim_time_us - decoded.time_usec
+            lat[0], lat[1], lat[2] = lat[0] + 1, lat[1] + delay, max(lat[2], delay)
             self.scorer.add_estimate(decoded)
-            self.latest_estimate_us[decoded.vehicle_id] = decoded.time_usec
+            self.latest_estimate_us[decoded.vehicle_id] = max(decoded.time_usec, self.latest_estimate_us.get(vid, -1))
         elif isinstance(decoded, EstimatorStatus):
             self._on_estimator_status(decoded)
         elif isinstance(decoded, StatusText):
@@ -128,12 +193,16 @@ class GroundStation:
             self.event("run_started", mode=self.config.clock.mode)
         self.final_seen = self.final_seen or tick.final
         self.sim_time_us = tick.stamp_us
-        self.fault_log.advance(tick.stamp_us)
+        self.faults.advance(tick.stamp_us)
+        for frame in self.links.release(tick.stamp_us):
+            self._on_mavlink(frame)
         if self.config.clock.mode == "lockstep" and self.previous_tick_us >= 0:
             self.run.write_scores(self.scorer.release(self._lockstep_watermark()))
         elif self.config.clock.mode == "realtime":
             self.run.write_scores(self.scorer.release(tick.stamp_us - REALTIME_LAG_US))
         self.previous_tick_us = tick.stamp_us
+        if time.monotonic() - self._plan_sent_at > PLAN_REPEAT_S:
+            self.publish_plan()  # repeated, so that restarted processes learn it
         self.on_progress(self)
 
     def _completed(self, vid: str) -> bool:
@@ -143,34 +212,38 @@ class GroundStation:
 
     def _lockstep_watermark(self) -> int:
         """Estimates up to here can be scored in (time, vehicle) order: every live vehicle has
-        published past it and truth covers it. Zenoh keeps order within a key, not across keys,
-        so each stream's own progress is what counts, not the clock tick alone."""
+        published past it, truth covers it, and no delay fault still holds an older estimate.
+        Zenoh keeps order within a key, not across keys, so each stream's own progress counts."""
         marks = [self.previous_tick_us, *self.latest_truth_us.values()]
         marks += [self.latest_estimate_us.get(vid, -1) for vid in self.active]
-        return min(marks)
+        held = self.links.held_min_stamp()
+        return min(marks) if held is None else min(*marks, held - 1)
 
     def finish(self, status: str) -> dict:
         """Score everything left, write summary.json and timing.json, close the files."""
+        for frame in self.links.release(2**62):
+            self._on_mavlink(frame)
         self.run.write_scores(self.scorer.release(float("inf")))
         lost = sorted(vid for vid in self.departed if not self._completed(str(vid)))
         if lost:
             self.events["vehicle_lost"] = len(lost)
         self.event("run_ended", status=status, vehicles_lost=lost)
         summary = build_summary(self.config, self.scorer, self.statuses, dict(self.rejected),
-                                dict(sorted(self.events.items())), status)
+                                dict(sorted(self.events.items())), status, self.faults.faults, self.quality)
         self.run.write_json("summary.json", summary)
         wall_s = (self.wall_end or time.perf_counter()) - (self.wall_start or time.perf_counter())
-        self.run.write_json("timing.json", build_timing(self.statuses, self.sim_time_us * 1e-6, wall_s))
+        self.run.write_json("timing.json", build_timing(self.statuses, self.sim_time_us * 1e-6, wall_s, self.latency_us))
         self.run.close()
         return summary
 
 
 def run_groundstation(bus: Bus, config: SwarmConfig, run_dir: Path, stop: threading.Event,
-                      on_progress=None) -> dict:
+                      on_progress=None, *, signing_key: bytes | None = None) -> dict:
     """Score until the world ends the run (or ``stop`` is set); returns the summary."""
-    gs = GroundStation(bus, config, run_dir)
+    gs = GroundStation(bus, config, run_dir, signing_key=signing_key)
     if on_progress is not None:
         gs.on_progress = on_progress
+    gs.publish_plan()
     while not gs.ended and not stop.is_set():
         try:
             gs.handle(gs.inbox.get(timeout=0.2))

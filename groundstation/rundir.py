@@ -23,6 +23,16 @@ def tum_line(stamp_us: int, x: float, y: float, z: float, yaw: float) -> str:
     return f"{stamp_us * 1e-6:.6f} {x:.6f} {y:.6f} {z:.6f} 0 0 {np.sin(yaw / 2):.9f} {np.cos(yaw / 2):.9f}\n"
 
 
+def drop_partial_line(path: Path) -> None:
+    """Cut a half-written last line (a killed writer) so that appended lines stay well formed."""
+    if not path.exists() or path.stat().st_size == 0:
+        return
+    with path.open("rb+") as handle:
+        data = handle.read()
+        if not data.endswith(b"\n"):
+            handle.truncate(data.rfind(b"\n") + 1)
+
+
 class RunDirectory:
     def __init__(self, path: Path, *, flush_period_s: float = 0.5) -> None:
         self.path = Path(path)
@@ -35,6 +45,7 @@ class RunDirectory:
 
     def _open(self, name: str, header: str = "") -> TextIO:
         path = self.path / name
+        drop_partial_line(path)
         fresh = not path.exists() or path.stat().st_size == 0
         handle = path.open("a", encoding="utf-8")
         if fresh and header:

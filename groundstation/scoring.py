@@ -110,6 +110,10 @@ class Scorer:
     pending: list[StateEstimate] = field(default_factory=list)
     tallies: dict[int, Tally] = field(default_factory=dict)
     unscored: int = 0
+    duplicates: int = 0
+    late: int = 0
+    last_scored_us: dict[int, int] = field(default_factory=dict)
+    _seen: set[tuple[int, int]] = field(default_factory=set)
     # two-sided 95% chi-square bounds for one NEES sample: inverse survival at 0.975 and 0.025
     bounds: tuple[float, float] = (float(chdtri(NEES_DOF, 0.975)), float(chdtri(NEES_DOF, 0.025)))
 
@@ -117,7 +121,16 @@ class Scorer:
         self.truth.setdefault(truth.vehicle_id, TruthTrack()).add(truth)
 
     def add_estimate(self, est: StateEstimate) -> None:
-        self.pending.append(est)
+        """Queue an estimate for scoring; a second copy (same vehicle and stamp) is counted and
+        ignored, and so is one older than what was already scored for its vehicle."""
+        ident = (est.vehicle_id, est.time_usec)
+        if ident in self._seen:
+            self.duplicates += 1
+        elif est.time_usec <= self.last_scored_us.get(est.vehicle_id, -1):
+            self.late += 1
+        else:
+            self._seen.add(ident)
+            self.pending.append(est)
 
     def release(self, watermark_us: float) -> list[Score]:
         """Score every pending estimate stamped <= watermark_us; the rest stay pending."""
@@ -135,8 +148,11 @@ class Scorer:
                 continue
             result = score(est, track.at(est.time_usec))
             self.tallies.setdefault(est.vehicle_id, Tally()).add(result, self.bounds)
+            self.last_scored_us[est.vehicle_id] = est.time_usec
             scores.append(result)
         if watermark_us != float("inf"):
             for track in self.truth.values():
                 track.forget_before(int(watermark_us) - 1_000_000)
+            if len(self._seen) > 50_000:
+                self._seen = {k for k in self._seen if k[1] >= watermark_us - 10_000_000}
         return scores

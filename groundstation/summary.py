@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections import Counter
+from typing import Any, Mapping, Sequence
 
 from bus.config import SwarmConfig
 from bus.messages import VehicleStatus
+from groundstation.link_quality import StreamQuality
 from groundstation.scoring import NEES_DOF, Scorer
 
 
@@ -15,8 +17,11 @@ def _round(value: float) -> float:
 
 
 def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, VehicleStatus],
-                  rejected: dict[int, int], events: dict[str, int], status: str) -> dict[str, Any]:
-    """Per-vehicle and swarm RMSE and NEES, counters, and how the run ended."""
+                  rejected: dict[int, int], events: dict[str, int], status: str, faults: Sequence = (),
+                  quality: Mapping[int, StreamQuality] | None = None) -> dict[str, Any]:
+    """Per-vehicle and swarm RMSE and NEES, counters, MAVLink link quality, the faults of the plan,
+    and how the run ended."""
+    quality = quality or {}
     vehicles: dict[str, Any] = {}
     total_sq, total_n, total_nees = 0.0, 0, 0.0
     for vid in sorted(set(scorer.tallies) | set(statuses)):
@@ -31,22 +36,35 @@ def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, Vehic
             total_sq, total_n, total_nees = total_sq + tally.sum_sq_position_m2, total_n + tally.samples, total_nees + tally.sum_nees
         if st is not None:
             entry.update(cycles=st.cycles, overruns=st.overruns, gnss_rejected=st.rejected_gnss,
-                         dropped_stale=st.dropped_stale, decode_errors=st.decode_errors)
+                         dropped_stale=st.dropped_stale, decode_errors=st.decode_errors, reset_counter=st.reset_counter,
+                         sensor_duplicates=st.duplicates, sensor_samples_lost=st.samples_lost, late_fused=st.late_fused)
         entry["mavlink_rejected"] = rejected.get(vid, 0)
+        if vid in quality:
+            entry["mavlink_link"] = quality[vid].as_dict()
         vehicles[str(vid)] = entry
     swarm = {"samples": total_n, "rmse_m": _round(math.sqrt(total_sq / total_n)) if total_n else None,
              "anees": _round(total_nees / total_n) if total_n else None, "nees_dof": NEES_DOF,
-             "nees_bounds_95": [_round(b) for b in scorer.bounds], "unscored": scorer.unscored}
+             "nees_bounds_95": [_round(b) for b in scorer.bounds], "unscored": scorer.unscored,
+             "duplicate_estimates": scorer.duplicates, "late_estimates": scorer.late}
+    fault_counts = dict(sorted(Counter(f.kind for f in faults).items()))
     return {"name": config.name, "status": status, "mode": config.clock.mode, "seed": config.world.seed,
-            "duration_s": config.clock.duration_s, "vehicles": vehicles, "swarm": swarm, "events": events}
+            "duration_s": config.clock.duration_s, "vehicles": vehicles, "swarm": swarm, "events": events,
+            "faults": {"total": len(faults), "by_kind": fault_counts, "names": [f.name for f in faults]}}
 
 
-def build_timing(statuses: dict[int, VehicleStatus], sim_s: float, wall_s: float) -> dict[str, Any]:
-    """Wall-clock loop statistics per vehicle and the run's real-time factor (sim s per wall s):
+def build_timing(statuses: dict[int, VehicleStatus], sim_s: float, wall_s: float,
+                 latency_us: Mapping[int, list[int]] | None = None) -> dict[str, Any]:
+    """Wall-clock loop statistics per vehicle, the MAVLink latency in sim time (arrival tick minus
+    time_usec, so quantised to the clock tick) and the run's real-time factor (sim s per wall s):
     never reproducible, so kept out of summary.json."""
+    latency_us = latency_us or {}
     vehicles = {str(vid): {"cycles": st.cycles, "overruns": st.overruns,
                        "overrun_rate": _round(st.overruns / st.cycles) if st.cycles else 0.0,
                        "jitter_p99_us": _round(st.jitter_p99_us), "cycle_p99_us": _round(st.cycle_p99_us)}
                 for vid, st in sorted(statuses.items())}
+    for vid, (count, total, worst) in latency_us.items():
+        if count:
+            vehicles.setdefault(str(vid), {}).update(mavlink_latency_mean_s=_round(total / count * 1e-6),
+                                                     mavlink_latency_max_s=_round(worst * 1e-6))
     return {"sim_s": _round(sim_s), "wall_s": _round(wall_s),
             "real_time_factor": _round(sim_s / wall_s) if wall_s > 0 else None, "vehicles": vehicles}

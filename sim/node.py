@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from bus import messages as m
 from bus.config import SwarmConfig
 from bus.errors import DecodeError, SwarmlocError
+from bus.plan import FaultPlan, decode_json
 from bus.process import Pacer
 from bus.session import Bus, Envelope, LivelinessEvent
 from sim.world import World
@@ -33,6 +34,7 @@ class Membership:
 
     expected: set[int]
     alive: set[int] = field(default_factory=set)
+    joining: set[int] = field(default_factory=set)  # restarted: in lockstep once their first ack arrives
     groundstation: bool = False
     acked: set[int] = field(default_factory=set)
     dead: set[int] = field(default_factory=set)
@@ -45,9 +47,14 @@ class Membership:
             self.groundstation = event.alive
         elif parts[1] == "vehicle" and parts[2].isdigit():
             vid = int(parts[2])
-            if event.alive and vid not in self.dead:
+            if event.alive and vid in self.dead:
+                log.info("vehicle %d is back; it joins the lockstep set with its first ack", vid)
+                self.dead.discard(vid)
+                self.joining.add(vid)
+            elif event.alive:
                 self.alive.add(vid)
-            elif not event.alive and vid in self.alive:
+            elif vid in self.alive or vid in self.joining:
+                self.joining.discard(vid)
                 self.declare_dead(vid, "liveliness lost")
 
     def declare_dead(self, vid: int, reason: str) -> None:
@@ -66,6 +73,8 @@ class WorldNode:
         self.inbox: queue.SimpleQueue = queue.SimpleQueue()
         bus.watch_liveliness(f"{bus.keys.prefix}/alive/**", self.inbox)
         bus.subscribe(f"{bus.keys.prefix}/ctl/ack/*", self.inbox)
+        bus.subscribe(bus.keys.fault_plan(), self.inbox)
+        self.plan_version = -1
         bus.declare_token(bus.keys.alive("world", 0))
         self.members = Membership(expected=set(self.world.vehicle_ids()))
         self._publishers: dict[str, object] = {}
@@ -87,12 +96,25 @@ class WorldNode:
         while True:
             if isinstance(item, LivelinessEvent):
                 self.members.on_liveliness(item, self.bus.keys.prefix)
+            elif isinstance(item, Envelope) and item.key == self.bus.keys.fault_plan():
+                self._on_plan(item)
             elif isinstance(item, Envelope):
                 self._on_ack(item, tick)
             try:
                 item = self.inbox.get_nowait()
             except queue.Empty:
                 return
+
+    def _on_plan(self, envelope: Envelope) -> None:
+        """A new fault plan from the ground station: the world applies its physical faults."""
+        try:
+            plan = decode_json(FaultPlan, envelope.payload)
+        except DecodeError as exc:
+            log.warning("world dropped a malformed fault plan: %s", exc)
+            return
+        if plan.version > self.plan_version:
+            self.plan_version = plan.version
+            self.world.faults.replace(plan.faults)
 
     def _on_ack(self, envelope: Envelope, tick: int | None) -> None:
         try:
@@ -102,6 +124,9 @@ class WorldNode:
             return
         if ack.tick == tick:
             self.members.acked.add(ack.vehicle_id)
+            if ack.vehicle_id in self.members.joining:
+                self.members.joining.discard(ack.vehicle_id)
+                self.members.alive.add(ack.vehicle_id)
 
     def wait_for_members(self, stop: threading.Event) -> None:
         deadline = time.monotonic() + self.config.clock.start_timeout_s
@@ -120,7 +145,8 @@ class WorldNode:
         for key, payload in self.world.advance(stamp):
             self.publish(key, payload)
         self.members.acked = set()
-        self.publish(self.bus.keys.clock(), m.encode(m.ClockTick(tick, stamp, time.time_ns(), final, self.world.published())))
+        self.publish(self.bus.keys.clock(), m.encode(m.ClockTick(tick, stamp, time.time_ns(), final, self.world.published(),
+                                                                 self.world.comm_jammed(stamp))))
 
     def await_acks(self, tick: int, stop: threading.Event, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s

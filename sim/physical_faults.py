@@ -5,17 +5,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from bus.faults import Blackout, JamGnss, SpoofGnss
+from bus.faults import PHYSICAL_KINDS, Blackout, JamComms, JamGnss, SpoofGnss
 
 
 class PhysicalFaults:
     def __init__(self, faults: tuple = ()) -> None:
-        self.faults = tuple(faults)
+        self.faults = tuple(f for f in faults if f.kind in PHYSICAL_KINDS)
         self._captured_us: dict[tuple[int, str], int] = {}  # (vehicle, spoof fault) -> capture time
 
     def replace(self, faults: tuple) -> None:
         """A new plan (from the ground station); capture times of spoofers that remain are kept."""
-        self.faults = tuple(faults)
+        self.faults = tuple(f for f in faults if f.kind in PHYSICAL_KINDS)
         names = {f.name for f in faults}
         self._captured_us = {k: v for k, v in self._captured_us.items() if k[1] in names}
 
@@ -30,6 +30,10 @@ class PhysicalFaults:
             if isinstance(f, JamGnss) and sensor == "gnss" and f.inside(pose[:2]):
                 return True
         return False
+
+    def comm_jammed(self, t_us: int, pose: np.ndarray) -> bool:
+        """True when a vehicle at ``pose`` is inside an active comm-jamming zone."""
+        return any(isinstance(f, JamComms) and f.active(t_us * 1e-6) and f.inside(pose[:2]) for f in self.faults)
 
     def spoof_offset_m(self, vehicle_id: int, t_us: int, pose: np.ndarray) -> np.ndarray:
         """(2,) metres added to the fix: drift_mps times the time since the vehicle was captured."""

@@ -68,6 +68,11 @@ class World:
         """Samples published so far per vehicle and feed, in the layout of ``ClockTick.published``."""
         return tuple(v.seq.get(feed, -1) + 1 for v in self.vehicles for feed in m.FEEDS)
 
+    def comm_jammed(self, t_us: int) -> tuple[int, ...]:
+        """Vehicles inside an active comm-jamming zone at ``t_us`` (their V2V traffic is lost)."""
+        return tuple(v.vehicle_id for v, pose in zip(self.vehicles, self.poses)
+                     if self.faults.comm_jammed(t_us, pose))
+
     def advance(self, until_us: int) -> list[tuple[str, bytes]]:
         """Emit every step stamped in (now, until_us]; returns (key, payload) pairs in stamp order."""
         out: list[tuple[str, bytes]] = []

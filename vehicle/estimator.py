@@ -5,6 +5,7 @@ Pure: no bus, no clock. The node feeds it messages and asks for an estimate once
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,11 +15,14 @@ from bus.config import SensorSpec
 from pymavlink.dialects.v20 import common as mavlink2
 from bus.mavlink_codec import EstimatorStatus, StateEstimate
 from vehicle import unicycle_ekf as ekf
+from vehicle.alignment import GnssAlignment
 from vehicle.ekf import gate_threshold
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 
 _GYRO_STALE_PERIODS = 5
 _NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch: constant altitude, level flight
+_MUTABLE = ("x", "P", "time_us", "_speed_mps", "_odom_yaw_rate", "_gyro_radps", "_gyro_stamp_us", "counters",
+            "gnss_health", "alignment")
 
 
 @dataclass
@@ -55,6 +59,7 @@ class VehicleEstimator:
         self._gyro_stamp_us: int | None = None
         self.counters = EstimatorCounters()
         self.gnss_health = GnssHealth(GnssHealthSpec(gate_probability=gate_probability))
+        self.alignment = GnssAlignment()
 
     @property
     def initialized(self) -> bool:
@@ -63,9 +68,10 @@ class VehicleEstimator:
     def handle(self, msg: object) -> None:
         """Apply one message; messages must come in non-decreasing stamp order (older ones are counted)."""
         if isinstance(msg, m.PosePrior):
-            self._initialise(msg)
+            self._initialise(msg.pose, msg.covariance, msg.stamp_us)
             return
         if self.x is None:
+            self._align(msg)
             return
         if msg.stamp_us < self.time_us:
             self.counters.stale += 1
@@ -78,12 +84,26 @@ class VehicleEstimator:
         elif isinstance(msg, m.GnssFix):
             self._fuse_gnss(msg)
 
-    def _initialise(self, prior: m.PosePrior) -> None:
-        self.x = np.append(prior.pose, 0.0)
+    def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
+        """Start the filter at ``pose`` (3,) with covariance (3, 3); the gyro bias from its datasheet spread."""
+        self.x = np.append(pose, 0.0)
         self.P = np.zeros((4, 4))
-        self.P[:3, :3] = prior.covariance
+        self.P[:3, :3] = covariance
         self.P[3, 3] = self._spec.gyro_bias_sigma_radps**2
-        self.time_us = prior.stamp_us
+        self.time_us = stamp_us
+
+    def _align(self, msg: object) -> None:
+        """No prior (a restart in flight): align from the GNSS track and the gyro (vehicle.alignment)."""
+        if isinstance(msg, m.ImuSample):
+            self.alignment.yaw_rate(msg.stamp_us, float(msg.gyro_radps[2]))
+            self._gyro_radps, self._gyro_stamp_us = float(msg.gyro_radps[2]), msg.stamp_us
+        elif isinstance(msg, m.WheelOdometry):
+            self._speed_mps, self._odom_yaw_rate = msg.speed_mps, msg.yaw_rate_radps
+        elif isinstance(msg, m.GnssFix):
+            aligned = self.alignment.fix(msg.stamp_us, msg.position_m, msg.covariance_m2)
+            if aligned is not None:
+                self._initialise(*aligned, msg.stamp_us)
+                self.gnss_health.last_fix_us = msg.stamp_us
 
     def propagate_to(self, stamp_us: int) -> None:
         """Predict with the held inputs from the current time to ``stamp_us`` (commits the filter)."""
@@ -137,6 +157,16 @@ class VehicleEstimator:
         if not (np.all(np.isfinite(self.x)) and np.all(np.isfinite(self.P))):
             return True
         return bool(np.any(np.linalg.eigvalsh(self.P) <= 0.0))
+
+    def snapshot(self) -> dict:
+        """A copy of everything that changes as measurements are fused (for the fusion horizon)."""
+        return {k: copy.deepcopy(v) for k, v in self.__dict__.items() if k in _MUTABLE}
+
+    def restore(self, snapshot: dict) -> None:
+        """Go back to a :meth:`snapshot` (health transitions already reported are not replayed)."""
+        transitions = self.gnss_health.transitions
+        self.__dict__.update(copy.deepcopy(snapshot))
+        self.gnss_health.transitions = transitions
 
     def reset_from(self, x: np.ndarray, P: np.ndarray) -> None:
         """Divergence guard: restart the filter from a last good state (4,) with covariance (4, 4)."""

@@ -1,30 +1,29 @@
 """The vehicle process: a fixed-rate loop in sim time around the estimator core.
 
-Callbacks only enqueue into the inbox; this thread decodes, buffers measurements in stamp order,
-runs one estimator cycle per loop period and publishes ODOMETRY (every cycle), HEARTBEAT (1 Hz)
-and its loop statistics. Lockstep: cycles run when the world's clock tick arrives, then the tick
-is acknowledged. Realtime: cycles run on wall-clock deadlines derived from the world's clock.
+Callbacks only enqueue into the inbox; the loop thread (``vehicle.loops``) files every item here:
+sensor payloads are decoded, counted, passed through the link faults of the fault plan (this
+process's bus layer), then handed to the fusion horizon, which fuses them in stamp order. Each loop
+cycle publishes ODOMETRY, and at 1 Hz HEARTBEAT, ESTIMATOR_STATUS and the loop statistics.
 """
 
 from __future__ import annotations
 
-import heapq
-import itertools
 import logging
 import queue
-import threading
-import time
 
 import numpy as np
 
 from bus import messages as m
 from bus.config import SwarmConfig
 from bus.errors import DecodeError
+from bus.link_faults import Arrival, LinkFaultStage
 from bus.mavlink_codec import MavlinkEncoder
-from bus.process import Pacer
+from bus.plan import FaultPlan, decode_json
 from bus.session import Bus, Envelope
 from vehicle.estimator import VehicleEstimator
+from vehicle.fusion import FusionHorizon
 from vehicle.loop_stats import LoopStats
+from vehicle.sequence import SequenceTracker
 
 log = logging.getLogger("swarmloc.vehicle")
 STATUS_WARNING, STATUS_INFO = 4, 6  # MAV_SEVERITY
@@ -33,25 +32,9 @@ DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^
 SENSOR_TYPES = {"imu": m.ImuSample, "odom": m.WheelOdometry, "gnss": m.GnssFix, "prior": m.PosePrior}
 
 
-class MeasurementBuffer:
-    """Decoded measurements ordered by (stamp, arrival); ``pop_until`` hands them out in order."""
-
-    def __init__(self) -> None:
-        self._heap: list[tuple[int, int, object]] = []
-        self._arrival = itertools.count()
-
-    def push(self, msg: object) -> None:
-        heapq.heappush(self._heap, (msg.stamp_us, next(self._arrival), msg))
-
-    def pop_until(self, stamp_us: int) -> list[object]:
-        out = []
-        while self._heap and self._heap[0][0] <= stamp_us:
-            out.append(heapq.heappop(self._heap)[2])
-        return out
-
-
 class VehicleNode:
-    def __init__(self, bus: Bus, config: SwarmConfig, vehicle_id: int, *, restarts: int = 0) -> None:
+    def __init__(self, bus: Bus, config: SwarmConfig, vehicle_id: int, *, restarts: int = 0,
+                 signing_key: bytes | None = None) -> None:
         self.bus, self.config, self.vehicle_id = bus, config, vehicle_id
         self.restarts = restarts  # a restarted vehicle re-initialises and counts up reset_counter
         self._last_good: tuple[np.ndarray, np.ndarray] | None = None
@@ -59,60 +42,92 @@ class VehicleNode:
         self.inbox: queue.SimpleQueue = queue.SimpleQueue()
         bus.subscribe(keys.sensors(vehicle_id), self.inbox)
         bus.subscribe(keys.clock(), self.inbox)
+        bus.subscribe(keys.fault_plan(), self.inbox)
         self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
         self._ack = bus.publisher(keys.ack(vehicle_id))
         self._status = bus.publisher(keys.status(vehicle_id))
         bus.declare_token(keys.alive("vehicle", vehicle_id))
-        self.encoder = MavlinkEncoder(vehicle_id=vehicle_id)
+        self.encoder = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key)
         self.estimator = VehicleEstimator(vehicle_id=vehicle_id, spec=config.sensors,
                                           gate_probability=config.vehicle.gate_probability,
                                           altitude_m=config.world.altitude_m)
-        self.buffer = MeasurementBuffer()
+        self.fusion = FusionHorizon(self.estimator, horizon_us=round(config.vehicle.fusion_horizon_s * 1e6))
+        self.links = LinkFaultStage(f"v{vehicle_id}", seed=config.world.seed, faults=config.faults)
+        self.plan_version = -1
+        self.sequences = SequenceTracker()
         self.stats = LoopStats()
         self.decode_errors = 0
         self.period_us = round(1e6 / config.vehicle.loop_rate_hz)
         self.next_cycle_us = 0
         self._next_heartbeat_us = 0
         self._next_status_us = 0
-        self.received: dict[str, int] = {}  # per topic: how many samples arrived (seq + 1)
+        self._reported_health_us = -1
+        self.received: dict[str, int] = {}  # per topic: samples that reached this process (seq + 1)
+        self.first_tick_seen = False
 
     def take(self, envelope: Envelope) -> m.ClockTick | None:
-        """File one inbox item: sensors go to the buffer; a clock tick is returned to the loop."""
+        """File one inbox item: sensors go through the link faults to the fusion horizon; the fault
+        plan is applied; a clock tick is returned to the loop."""
+        keys = self.bus.keys
         try:
-            if envelope.key == self.bus.keys.clock():
-                return m.decode(m.ClockTick, envelope.payload)
-            msg = m.decode(SENSOR_TYPES[self.bus.keys.topic_of(envelope.key)], envelope.payload)
+            if envelope.key == keys.clock():
+                return self._first_tick(m.decode(m.ClockTick, envelope.payload))
+            if envelope.key == keys.fault_plan():
+                self._apply_plan(decode_json(FaultPlan, envelope.payload))
+                return None
+            topic = keys.topic_of(envelope.key)
+            msg = m.decode(SENSOR_TYPES[topic], envelope.payload)
         except (DecodeError, KeyError) as exc:
             self.decode_errors += 1
             log.warning("vehicle %d dropped a payload on %s: %s", self.vehicle_id, envelope.key, exc)
             return None
         if msg.vehicle_id == self.vehicle_id:
-            self.buffer.push(msg)
-            topic = self.bus.keys.topic_of(envelope.key)
             self.received[topic] = max(self.received.get(topic, 0), msg.seq + 1)
+            arrival = Arrival(envelope.key, f"v{msg.vehicle_id}", topic, msg.stamp_us, (topic, msg))
+            for item in self.links.offer(arrival):
+                self._deliver(item)
         return None
+
+    def _deliver(self, item: tuple[str, object]) -> None:
+        topic, msg = item
+        self.sequences.see(topic, msg.seq)
+        self.fusion.push(topic, msg)
+
+    def _apply_plan(self, plan: FaultPlan) -> None:
+        if plan.version > self.plan_version:
+            self.plan_version = plan.version
+            self.links.set_plan(plan.faults)
+
+    def _first_tick(self, tick: m.ClockTick) -> m.ClockTick:
+        """A vehicle that joins a running swarm (a restart) waits only for samples published after it
+        joined: what the world published before its first tick either arrived or never will."""
+        if not self.first_tick_seen:
+            self.first_tick_seen = True
+            if tick.tick > 0:
+                for feed, count in tick.published_by(self.vehicle_id).items():
+                    self.received[feed] = max(self.received.get(feed, 0), count)
+                self.next_cycle_us = -(-tick.stamp_us // self.period_us) * self.period_us
+        return tick
 
     def feeds_complete(self, tick: m.ClockTick) -> bool:
         """True when every sample the world published up to ``tick`` has arrived (lockstep).
 
         Zenoh keeps order within a key but not across keys, so a clock tick can overtake the
         samples published before it; the tick's per-feed counts tell what is still on its way.
+        Samples held back by a delay fault have arrived: the link fault stage holds them.
         """
         return all(self.received.get(feed, 0) >= count for feed, count in tick.published_by(self.vehicle_id).items())
 
     def cycle(self, t_us: int) -> None:
         """One loop cycle at sim time t_us: fuse everything stamped <= t_us, publish the estimate."""
+        for item in self.links.release(t_us):
+            self._deliver(item)
         try:
-            for msg in self.buffer.pop_until(t_us):
-                self.estimator.handle(msg)
-            if self.estimator.initialized:
-                self.estimator.tick(t_us)
+            self.fusion.cycle(t_us, on_cycle=self._guard)
         except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
             self._recover(t_us, f"{type(exc).__name__}: {exc}")
         if not self.estimator.initialized:
             return
-        if self.estimator.diverged():
-            self._recover(t_us, "non-finite or indefinite covariance")
         self._last_good = (self.estimator.x.copy(), self.estimator.P.copy())
         self._report_gnss_health(t_us)
         self._mavlink.put(self.encoder.odometry(self.estimator.estimate(t_us, self.reset_counter)))
@@ -123,6 +138,11 @@ class VehicleNode:
         if t_us >= self._next_status_us:
             self.publish_status(t_us)
             self._next_status_us = t_us + round(self.config.vehicle.status_period_s * 1e6)
+
+    def _guard(self, t_us: int) -> None:
+        """Divergence guard, run inside the cycle before the fusion horizon's checkpoint."""
+        if self.estimator.initialized and self.estimator.diverged():
+            self._recover(t_us, "non-finite or indefinite covariance")
 
     @property
     def reset_counter(self) -> int:
@@ -138,20 +158,22 @@ class VehicleNode:
         self._mavlink.put(self.encoder.statustext(STATUS_WARNING, f"estimator reset: {why}"[:50]))
 
     def _report_gnss_health(self, t_us: int) -> None:
-        """Every GNSS health change goes out at once as STATUSTEXT and ESTIMATOR_STATUS."""
-        transitions = self.estimator.gnss_health.transitions
-        for _, healthy, reason in transitions:
+        """Every new GNSS health change goes out at once as STATUSTEXT and ESTIMATOR_STATUS."""
+        transitions = [t for t in self.estimator.gnss_health.transitions if t[0] > self._reported_health_us]
+        self.estimator.gnss_health.transitions.clear()
+        for stamp_us, healthy, reason in transitions:
             text = f"GNSS {'healthy' if healthy else 'unhealthy'}: {reason}"
             self._mavlink.put(self.encoder.statustext(STATUS_INFO if healthy else STATUS_WARNING, text[:50]))
+            self._reported_health_us = stamp_us
         if transitions:
             self._mavlink.put(self.encoder.estimator_status(self.estimator.status(t_us)))
-            transitions.clear()
 
     def publish_status(self, t_us: int) -> None:
-        c = self.estimator.counters
+        c, f = self.estimator.counters, self.fusion.counters
         self._status.put(m.encode(m.VehicleStatus(
             self.vehicle_id, t_us, self.stats.cycles, self.stats.overruns, self.stats.jitter_p99_us(),
-            self.stats.cycle_p99_us(), c.stale, c.gnss_rejected, self.decode_errors, 0)))
+            self.stats.cycle_p99_us(), c.stale + f.dropped_stale, c.gnss_rejected, self.decode_errors,
+            self.reset_counter % 256, f.duplicates, self.sequences.lost, f.late_fused)))
 
     def acknowledge(self, tick: m.ClockTick) -> None:
         self._ack.put(m.encode(m.TickAck(self.vehicle_id, tick.tick)))
@@ -162,72 +184,3 @@ class VehicleNode:
         if due:
             self.next_cycle_us = due[-1] + self.period_us
         return due
-
-
-def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
-    """Cycles follow the world's ticks; each tick is acknowledged once its cycles have run."""
-    while not stop.is_set():
-        try:
-            tick = node.take(node.inbox.get(timeout=0.2))
-        except queue.Empty:
-            continue
-        if tick is None:
-            continue
-        _wait_for_feeds(node, tick, stop)
-        for t_us in node.cycles_due(tick.stamp_us):
-            start = time.perf_counter()
-            node.cycle(t_us)
-            node.stats.record(jitter_us=0.0, cycle_us=(time.perf_counter() - start) * 1e6, overran=False)
-        if tick.final:
-            node.publish_status(tick.stamp_us)
-        node.acknowledge(tick)
-        if tick.final:
-            return
-
-
-def _wait_for_feeds(node: VehicleNode, tick: m.ClockTick, stop: threading.Event, timeout_s: float = 2.0) -> None:
-    """Keep filing inbox items until the feeds up to ``tick`` are complete (or time runs out)."""
-    deadline = time.monotonic() + timeout_s
-    while not node.feeds_complete(tick) and not stop.is_set() and time.monotonic() < deadline:
-        try:
-            node.take(node.inbox.get(timeout=0.05))
-        except queue.Empty:
-            pass
-    if not node.feeds_complete(tick):
-        log.warning("vehicle %d: feeds up to %d us incomplete; cycling without them", node.vehicle_id, tick.stamp_us)
-
-
-def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
-    """Cycles run on wall-clock deadlines mapped from sim time by the world's first clock tick."""
-    pacer: Pacer | None = None
-    speed = node.config.clock.speed
-    while not stop.is_set():
-        timeout = 0.2 if pacer is None else max(0.0, min(0.2, pacer.seconds_until(node.next_cycle_us)))
-        try:
-            tick = node.take(node.inbox.get(timeout=timeout))
-        except queue.Empty:
-            tick = None
-        if tick is not None:
-            pacer = pacer or Pacer(sim0_us=tick.stamp_us, wall0_ns=tick.wall_ns, speed=speed)
-            if tick.final:
-                node.publish_status(tick.stamp_us)
-                node.acknowledge(tick)
-                return
-        if pacer is not None and pacer.seconds_until(node.next_cycle_us) <= 0:
-            _realtime_cycle(node, pacer)
-
-
-def _realtime_cycle(node: VehicleNode, pacer: Pacer) -> None:
-    t_us = node.next_cycle_us
-    node.next_cycle_us += node.period_us
-    jitter_us = -pacer.seconds_until(t_us) * 1e6
-    start = time.perf_counter()
-    node.cycle(t_us)
-    cycle_us = (time.perf_counter() - start) * 1e6
-    node.stats.record(jitter_us=jitter_us, cycle_us=cycle_us, overran=pacer.seconds_until(node.next_cycle_us) < 0)
-
-
-def run_vehicle(bus: Bus, config: SwarmConfig, vehicle_id: int, stop: threading.Event) -> VehicleNode:
-    node = VehicleNode(bus, config, vehicle_id)
-    (run_lockstep if config.clock.mode == "lockstep" else run_realtime)(node, stop)
-    return node

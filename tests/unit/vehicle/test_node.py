@@ -8,7 +8,7 @@ from bus import messages as m
 from bus.config import SwarmConfig
 from bus.memory import MemoryHub
 from bus.session import Envelope
-from vehicle.node import MeasurementBuffer, VehicleNode
+from vehicle.node import VehicleNode
 
 
 def _node() -> tuple[VehicleNode, MemoryHub]:
@@ -49,14 +49,6 @@ def test_feeds_complete_needs_every_sample_up_to_the_tick():
     assert node.feeds_complete(tick)
     jammed = m.ClockTick(2, 40_000, 0, False, (1, 3, 2, 1))  # a silenced feed publishes nothing more
     assert node.feeds_complete(jammed)
-
-
-def test_measurements_come_out_in_stamp_order():
-    buffer = MeasurementBuffer()
-    for t in (30, 10, 20, 10):
-        buffer.push(m.WheelOdometry(1, t, t, 0.0, 0.0))
-    assert [msg.stamp_us for msg in buffer.pop_until(20)] == [10, 10, 20]
-    assert [msg.stamp_us for msg in buffer.pop_until(100)] == [30]
 
 
 def test_vehicle_subscriptions_never_reach_truth():

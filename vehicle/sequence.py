@@ -1,0 +1,35 @@
+"""Observed link quality of the sensor feeds: samples lost, from gaps in each feed's sequence numbers."""
+
+from __future__ import annotations
+
+WINDOW = 10_000  # sequence numbers remembered per topic to recognise duplicates
+
+
+class SequenceTracker:
+    """Per topic, the first and highest sequence number seen and how many distinct ones arrived."""
+
+    def __init__(self) -> None:
+        self._first: dict[str, int] = {}
+        self._highest: dict[str, int] = {}
+        self._distinct: dict[str, int] = {}
+        self._recent: dict[str, set[int]] = {}
+
+    def see(self, topic: str, seq: int) -> None:
+        recent = self._recent.setdefault(topic, set())
+        if seq in recent:
+            return
+        recent.add(seq)
+        self._first[topic] = min(self._first.get(topic, seq), seq)
+        self._highest[topic] = max(self._highest.get(topic, seq), seq)
+        self._distinct[topic] = self._distinct.get(topic, 0) + 1
+        if len(recent) > 2 * WINDOW:
+            floor = self._highest[topic] - WINDOW
+            self._recent[topic] = {s for s in recent if s >= floor}
+
+    @property
+    def lost(self) -> int:
+        """Samples missing between the first and highest sequence number, summed over topics."""
+        return sum(self._highest[t] - self._first[t] + 1 - self._distinct[t] for t in self._first)
+
+    def received(self, topic: str) -> int:
+        return self._distinct.get(topic, 0)
