@@ -67,6 +67,10 @@ class SensorSpec(_Strict):
     gnss_rate_hz: float = Field(5.0, gt=0, le=100)
     gnss_sigma_m: float = Field(1.5, gt=0)
     truth_rate_hz: float = Field(50.0, gt=0, le=1000)
+    ranging_rate_hz: float = Field(5.0, gt=0, le=100, description="vehicle-to-vehicle radio ranging")
+    ranging_max_m: float = Field(150.0, ge=0, description="ranging reaches vehicles this close (0: no ranging)")
+    range_sigma_m: float = Field(0.3, gt=0)
+    bearing_sigma_rad: float = Field(0.02, gt=0)
     prior_sigma_m: float = Field(0.5, gt=0, description="launch-pad survey of the start position")
     prior_heading_sigma_rad: float = Field(0.05, gt=0)
 
@@ -87,6 +91,8 @@ class VehicleConfig(_Strict):
     heartbeat_period_s: float = Field(1.0, gt=0)
     status_period_s: float = Field(1.0, gt=0)
     fusion_horizon_s: float = Field(0.5, ge=0, le=10, description="late measurements up to this old are still fused in order")
+    cooperative: bool = Field(True, description="fuse ranging to neighbours with their broadcast estimates (CI)")
+    v2v_latency_s: float = Field(0.1, ge=0, le=5, description="ranging waits this long for the neighbour's estimate")
 
 
 class SwarmConfig(_Strict):
@@ -113,6 +119,7 @@ class SwarmConfig(_Strict):
     def _rates_fit_the_world_step(self) -> "SwarmConfig":
         step_us = round(1e6 / self.sensors.imu_rate_hz)
         for label, rate in [("odom", self.sensors.odom_rate_hz), ("gnss", self.sensors.gnss_rate_hz),
+                            ("ranging", self.sensors.ranging_rate_hz),
                             ("truth", self.sensors.truth_rate_hz), ("tick", 1.0 / self.clock.tick_s)]:
             if round(1e6 / rate) % step_us:
                 raise ValueError(f"{label} period must be a multiple of the IMU period ({step_us} us)")

@@ -20,7 +20,7 @@ Seq = Annotated[int, Int(0, 2**63 - 1)]
 MAX_POSITION_M = 1e7
 
 __all__ = [
-    "ImuSample", "WheelOdometry", "GnssFix", "PosePrior", "Truth", "ClockTick", "TickAck",
+    "ImuSample", "WheelOdometry", "GnssFix", "PosePrior", "RangeBearing", "Truth", "ClockTick", "TickAck",
     "VehicleStatus", "RunEnd", "encode", "decode",
 ]
 
@@ -81,7 +81,21 @@ class Truth:
     yaw_rate_radps: Annotated[float, Float(100.0)]
 
 
-FEEDS = ("prior", "imu", "odom", "gnss")
+@dataclass(frozen=True)
+class RangeBearing:
+    """Radio ranging to another vehicle: range (m) and bearing (rad, from the heading, positive
+    towards east) of ``target_id`` seen from ``vehicle_id``, covariance (2, 2) over [range, bearing]."""
+
+    vehicle_id: VehicleId
+    stamp_us: StampUs
+    seq: Seq
+    target_id: VehicleId
+    range_m: Annotated[float, Float(1e6)]
+    bearing_rad: Annotated[float, Float(10.0)]
+    covariance: Annotated[np.ndarray, Covariance((2, 2), 1e8)]
+
+
+FEEDS = ("prior", "imu", "odom", "gnss", "ranging")
 
 
 @dataclass(frozen=True)
@@ -99,7 +113,7 @@ class ClockTick:
     stamp_us: StampUs
     wall_ns: Annotated[int, Int(0, 2**63 - 1)]
     final: Annotated[bool, Bool()]
-    published: Annotated[tuple[int, ...], Counts(250 * 4)] = ()
+    published: Annotated[tuple[int, ...], Counts(250 * 5)] = ()
     comm_jammed: Annotated[tuple[int, ...], Counts(250, 250)] = ()
 
     def published_by(self, vehicle_id: int) -> dict[str, int]:
@@ -133,6 +147,8 @@ class VehicleStatus:
     duplicates: Annotated[int, Int(0, 2**53)] = 0
     samples_lost: Annotated[int, Int(0, 2**53)] = 0
     late_fused: Annotated[int, Int(0, 2**53)] = 0
+    v2v_fused: Annotated[int, Int(0, 2**53)] = 0
+    v2v_missing: Annotated[int, Int(0, 2**53)] = 0
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,9 @@ KINDS = ("delay", "loss", "duplicate", "reorder", "jam-gnss", "spoof-gnss", "jam
 _UNITS_S = {"us": 1e-6, "ms": 1e-3, "s": 1.0, "min": 60.0, "": 1.0}
 _UNITS_M = {"m": 1.0, "km": 1000.0, "": 1.0}
 REPLY_TIMEOUT_S = 5.0
+FLAGS = {"delay_s": "--delay", "jitter_s": "--jitter", "gap_s": "--gap", "radius_m": "--radius", "center_m": "--center",
+         "drift_mps": "--drift", "heading_deg": "--heading", "for_s": "--for", "start_s": "--in", "dst": "--to",
+         "src": "--from", "restart_after_s": "--restart-after", "percent": "--percent", "burst": "--burst"}
 
 
 def _quantity(text: str, units: dict[str, float], what: str) -> float:
@@ -96,8 +99,8 @@ def ask(request: dict, out: Path, run: Optional[Path], connect: Optional[str]) -
         payload = encode_json(FaultRequest.model_validate(request))
     except ValidationError as exc:
         first = exc.errors()[0]
-        where = ".".join(str(p) for p in first["loc"] if not str(p).startswith(("function-", "tagged")))
-        raise ConfigError(f"invalid fault: {where}: {first['msg']}") from None
+        field = str(first["loc"][-1]) if first["loc"] else "fault"
+        raise ConfigError(f"invalid fault: {FLAGS.get(field, field)}: {first['msg']}") from None
     endpoints, prefix = find_swarm(out, run, connect)
     reply = _query(BusConfig(mode="client", connect=endpoints, prefix=prefix), payload)
     if reply is None:

@@ -46,3 +46,14 @@ def pose_prior(pose: np.ndarray, spec: SensorSpec, rng: np.random.Generator) -> 
     """Surveyed start pose (3,) and covariance (3, 3): what a vehicle knows before it moves."""
     sigmas = np.array([spec.prior_sigma_m, spec.prior_sigma_m, spec.prior_heading_sigma_rad])
     return pose + rng.normal(0.0, sigmas), np.diag(sigmas**2)
+
+
+def range_bearing(pose: np.ndarray, target_xy_m: np.ndarray, spec: SensorSpec,
+                  rng: np.random.Generator) -> tuple[float, float, np.ndarray]:
+    """Range (m) and bearing (rad from the heading) of a target (2,) seen from ``pose`` (3,), with
+    noise, and their covariance (2, 2)."""
+    d = target_xy_m - pose[:2]
+    noise = rng.normal(0.0, [spec.range_sigma_m, spec.bearing_sigma_rad])
+    bearing = np.arctan2(d[1], d[0]) - pose[2] + noise[1]
+    return (float(np.hypot(d[0], d[1]) + noise[0]), float((bearing + np.pi) % (2 * np.pi) - np.pi),
+            np.diag([spec.range_sigma_m**2, spec.bearing_sigma_rad**2]))

@@ -25,6 +25,7 @@ class _Vehicle:
     trajectory: object
     rng: np.random.Generator
     gyro_bias: np.ndarray
+    ranging_rng: np.random.Generator
     last_speed_mps: float = 0.0
     seq: dict[str, int] = field(default_factory=dict)
 
@@ -56,7 +57,8 @@ class World:
             trajectory, start = make_trajectory(kind, centre_m=pads[index], speed_mps=wc.speed_mps,
                                                 radius_m=wc.radius_m, rng=layout_rng)
             rng = np.random.default_rng([wc.seed, vid])
-            self.vehicles.append(_Vehicle(vid, trajectory, rng, sensors.initial_gyro_bias(spec, rng)))
+            self.vehicles.append(_Vehicle(vid, trajectory, rng, sensors.initial_gyro_bias(spec, rng),
+                                          np.random.default_rng([wc.seed, vid, 2])))
             poses.append(start)
         self.poses = np.array(poses)
         self.faults = PhysicalFaults(config.faults)
@@ -89,10 +91,28 @@ class World:
         spec, dt = self.config.sensors, self.step_us * 1e-6
         inputs = np.array([v.trajectory.inputs(t_us * 1e-6, pose) for v, pose in zip(self.vehicles, self.poses)])
         out: list[tuple[str, bytes]] = []
+        jammed = set(self.comm_jammed(t_us)) if self._due(t_us, spec.ranging_rate_hz) else set()
         for vehicle, pose, (speed, yaw_rate) in zip(self.vehicles, self.poses, inputs):
             out.extend(self._samples(vehicle, t_us, pose, float(speed), float(yaw_rate)))
+            if self._due(t_us, spec.ranging_rate_hz):
+                out.extend(self._ranging(vehicle, t_us, pose, jammed))
             vehicle.gyro_bias = sensors.walk_gyro_bias(vehicle.gyro_bias, spec, dt, vehicle.rng)
         self.poses = unicycle_step(self.poses, inputs[:, 0], inputs[:, 1], dt)
+        return out
+
+    def _ranging(self, v: _Vehicle, t_us: int, pose: np.ndarray, jammed: set[int]) -> list[tuple[str, bytes]]:
+        """Radio ranging to every other vehicle in reach; nothing to or from a comm-jammed vehicle.
+        Noise is drawn for every pair, so faults and distances never shift the noise stream."""
+        spec, out = self.config.sensors, []
+        silent = v.vehicle_id in jammed or self.faults.silenced(v.vehicle_id, "ranging", t_us, pose)
+        for other, other_pose in zip(self.vehicles, self.poses):
+            if other is v:
+                continue
+            rng_m, bearing, cov = sensors.range_bearing(pose, other_pose[:2], spec, v.ranging_rng)
+            if silent or other.vehicle_id in jammed or rng_m > spec.ranging_max_m:
+                continue
+            msg = m.RangeBearing(v.vehicle_id, t_us, v.next_seq("ranging"), other.vehicle_id, rng_m, bearing, cov)
+            out.append((self.keys.sensor(v.vehicle_id, "ranging"), m.encode(msg)))
         return out
 
     def _samples(self, v: _Vehicle, t_us: int, pose: np.ndarray, speed: float, yaw_rate: float) -> list[tuple[str, bytes]]:

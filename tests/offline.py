@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import queue
+
 import numpy as np
 
 from bus import messages as m
@@ -63,3 +65,44 @@ def gnss_fault_run(seed: int, *, duration_s: float, faults: list[dict], monitor:
             errors.append(float(np.hypot(*(x[:2] - msg.pose[:2]))))
             healthy.append(estimator.gnss_health.healthy)
     return {"t_s": np.array(t), "error_m": np.array(errors), "healthy": np.array(healthy)}
+
+
+def swarm_in_memory(config, *, sample_every_us: int = 200_000) -> dict[int, dict[str, np.ndarray]]:
+    """The real vehicle nodes (V2V, link faults, fusion horizon) and the world in one process over
+    the in-memory bus, in lockstep. Returns per vehicle: t_s, position error (m) and pose NEES of the
+    published estimates, sampled every ``sample_every_us``."""
+    from bus.mavlink_codec import MavlinkDecoder, StateEstimate
+    from bus.memory import MemoryHub
+    from groundstation.scoring import score
+    from vehicle.node import VehicleNode
+
+    hub = MemoryHub(config.bus.prefix)
+    world, keys, world_bus = World(config), KeySpace(config.bus.prefix), hub.connect("world")
+    listener = hub.connect("groundstation")
+    estimates: queue.SimpleQueue = queue.SimpleQueue()
+    listener.subscribe(f"{keys.prefix}/v/*/mavlink", estimates)
+    nodes = [VehicleNode(hub.connect("vehicle"), config, vid) for vid in world.vehicle_ids()]
+    truth: dict[tuple[int, int], np.ndarray] = {}
+    tick_us = round(config.clock.tick_s * 1e6)
+    for k in range(round(config.clock.duration_s * 1e6) // tick_us + 1):
+        stamp = k * tick_us
+        for key, payload in world.advance(stamp):
+            if key.endswith("/truth"):
+                t = m.decode(m.Truth, payload)
+                truth[(t.vehicle_id, t.stamp_us)] = t.pose
+            else:
+                world_bus.publisher(key).put(payload)
+        world_bus.publisher(keys.clock()).put(m.encode(m.ClockTick(k, stamp, 0, False, world.published(),
+                                                                   world.comm_jammed(stamp))))
+        for node in nodes:
+            while not node.inbox.empty():
+                node.take(node.inbox.get())
+            for t_us in node.cycles_due(stamp):
+                node.cycle(t_us)
+    decoder, out = MavlinkDecoder(), {}
+    while not estimates.empty():
+        est = decoder.decode(estimates.get().payload)
+        if isinstance(est, StateEstimate) and est.time_usec % sample_every_us == 0:
+            s = score(est, truth[(est.vehicle_id, est.time_usec)])
+            out.setdefault(est.vehicle_id, []).append((est.time_usec * 1e-6, s.position_error_m, s.nees))
+    return {vid: dict(zip(("t_s", "error_m", "nees"), map(np.array, zip(*rows)))) for vid, rows in out.items()}

@@ -6,6 +6,7 @@ Pure: no bus, no clock. The node feeds it messages and asks for an estimate once
 from __future__ import annotations
 
 import copy
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,6 +17,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from bus.mavlink_codec import EstimatorStatus, StateEstimate
 from vehicle import unicycle_ekf as ekf
 from vehicle.alignment import GnssAlignment
+from vehicle.cooperative import CooperativeFix, cooperative_update
 from vehicle.ekf import gate_threshold
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 
@@ -31,8 +33,22 @@ class EstimatorCounters:
     gnss_rejected: int = 0
     stale: int = 0
     resets: int = 0
+    v2v_fused: int = 0
+    v2v_rejected: int = 0
     last_gnss_test_ratio: float = 0.0
     last_gnss_mean_test_ratio: float = 0.0
+
+
+def _copy_state(state: dict) -> dict:
+    """Copies of the mutable parts (arrays, counters, health monitor, alignment); scalars are shared."""
+    out = dict(state)
+    for key in ("x", "P"):
+        if out[key] is not None:
+            out[key] = out[key].copy()
+    out["counters"] = dataclasses.replace(state["counters"])
+    out["gnss_health"] = state["gnss_health"].copy()
+    out["alignment"] = copy.copy(state["alignment"])
+    return out
 
 
 class VehicleEstimator:
@@ -83,6 +99,12 @@ class VehicleEstimator:
             self._speed_mps, self._odom_yaw_rate = msg.speed_mps, msg.yaw_rate_radps
         elif isinstance(msg, m.GnssFix):
             self._fuse_gnss(msg)
+        elif isinstance(msg, CooperativeFix):
+            self.x, self.P, result = cooperative_update(self.x, self.P, msg, self._gate)
+            if result.accepted:
+                self.counters.v2v_fused += 1
+            else:
+                self.counters.v2v_rejected += 1
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
         """Start the filter at ``pose`` (3,) with covariance (3, 3); the gyro bias from its datasheet spread."""
@@ -160,12 +182,12 @@ class VehicleEstimator:
 
     def snapshot(self) -> dict:
         """A copy of everything that changes as measurements are fused (for the fusion horizon)."""
-        return {k: copy.deepcopy(v) for k, v in self.__dict__.items() if k in _MUTABLE}
+        return _copy_state({k: self.__dict__[k] for k in _MUTABLE})
 
     def restore(self, snapshot: dict) -> None:
         """Go back to a :meth:`snapshot` (health transitions already reported are not replayed)."""
         transitions = self.gnss_health.transitions
-        self.__dict__.update(copy.deepcopy(snapshot))
+        self.__dict__.update(_copy_state(snapshot))
         self.gnss_health.transitions = transitions
 
     def reset_from(self, x: np.ndarray, P: np.ndarray) -> None:

@@ -17,6 +17,7 @@ to 3 sigma (so a spoofer far away cannot capture the filter), and the position j
 
 from __future__ import annotations
 
+import copy
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -59,6 +60,12 @@ class GnssHealth:
     _window: deque = field(default_factory=deque)
     _outage: deque = field(default_factory=deque)  # (innovation (2,), R (2, 2)) while unhealthy
     transitions: list[tuple[int, bool, str]] = field(default_factory=list)  # (stamp, healthy, reason) to report
+
+    def copy(self) -> "GnssHealth":
+        """An independent copy (the windows are copied; their entries are never changed in place)."""
+        twin = copy.copy(self)
+        twin._window, twin._outage, twin.transitions = deque(self._window), deque(self._outage), list(self.transitions)
+        return twin
 
     def check(self, stamp_us: int, innovation: np.ndarray, S: np.ndarray, R: np.ndarray) -> FixVerdict:
         """Judge one fix: innovation (2,), its covariance S (2, 2) and the fix's own R (2, 2) (m, m^2)."""

@@ -17,19 +17,21 @@ from bus import messages as m
 from bus.config import SwarmConfig
 from bus.errors import DecodeError
 from bus.link_faults import Arrival, LinkFaultStage
-from bus.mavlink_codec import MavlinkEncoder
+from bus.mavlink_codec import MavlinkEncoder, frame_header
 from bus.plan import FaultPlan, decode_json
 from bus.session import Bus, Envelope
 from vehicle.estimator import VehicleEstimator
 from vehicle.fusion import FusionHorizon
 from vehicle.loop_stats import LoopStats
 from vehicle.sequence import SequenceTracker
+from vehicle.v2v import V2V
 
 log = logging.getLogger("swarmloc.vehicle")
 STATUS_WARNING, STATUS_INFO = 4, 6  # MAV_SEVERITY
 DIVERGENCE_INFLATION = 10.0
 DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^2
-SENSOR_TYPES = {"imu": m.ImuSample, "odom": m.WheelOdometry, "gnss": m.GnssFix, "prior": m.PosePrior}
+SENSOR_TYPES = {"imu": m.ImuSample, "odom": m.WheelOdometry, "gnss": m.GnssFix, "prior": m.PosePrior,
+                "ranging": m.RangeBearing}
 
 
 class VehicleNode:
@@ -43,6 +45,8 @@ class VehicleNode:
         bus.subscribe(keys.sensors(vehicle_id), self.inbox)
         bus.subscribe(keys.clock(), self.inbox)
         bus.subscribe(keys.fault_plan(), self.inbox)
+        if config.vehicle.cooperative:
+            bus.subscribe(f"{keys.prefix}/v/*/mavlink", self.inbox)  # neighbours' broadcasts (V2V)
         self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
         self._ack = bus.publisher(keys.ack(vehicle_id))
         self._status = bus.publisher(keys.status(vehicle_id))
@@ -54,6 +58,7 @@ class VehicleNode:
         self.fusion = FusionHorizon(self.estimator, horizon_us=round(config.vehicle.fusion_horizon_s * 1e6))
         self.links = LinkFaultStage(f"v{vehicle_id}", seed=config.world.seed, faults=config.faults)
         self.plan_version = -1
+        self.v2v = V2V(vehicle_id, latency_us=round(config.vehicle.v2v_latency_s * 1e6), signing_key=signing_key)
         self.sequences = SequenceTracker()
         self.stats = LoopStats()
         self.decode_errors = 0
@@ -76,6 +81,9 @@ class VehicleNode:
                 self._apply_plan(decode_json(FaultPlan, envelope.payload))
                 return None
             topic = keys.topic_of(envelope.key)
+            if topic == "mavlink":
+                self._take_v2v(envelope)
+                return None
             msg = m.decode(SENSOR_TYPES[topic], envelope.payload)
         except (DecodeError, KeyError) as exc:
             self.decode_errors += 1
@@ -88,9 +96,25 @@ class VehicleNode:
                 self._deliver(item)
         return None
 
+    def _take_v2v(self, envelope: Envelope) -> None:
+        """A neighbour's MAVLink frame: through the link faults, then to the V2V side."""
+        sender = self.bus.keys.vehicle_of(envelope.key)
+        header = frame_header(envelope.payload)
+        if sender == self.vehicle_id or header is None or header[3] is None:
+            return  # our own stream, or not an estimate
+        for frame in self.links.offer(Arrival(envelope.key, f"v{sender}", "mavlink", header[3], ("v2v", envelope))):
+            self._deliver(frame)
+
     def _deliver(self, item: tuple[str, object]) -> None:
         topic, msg = item
+        if topic == "v2v":
+            self.v2v.hear(self.bus.keys.vehicle_of(msg.key), frame_header(msg.payload)[3], msg.payload)
+            return
         self.sequences.see(topic, msg.seq)
+        if topic == "ranging":
+            if self.config.vehicle.cooperative:
+                self.v2v.hold(msg)
+            return
         self.fusion.push(topic, msg)
 
     def _apply_plan(self, plan: FaultPlan) -> None:
@@ -101,6 +125,7 @@ class VehicleNode:
     def _first_tick(self, tick: m.ClockTick) -> m.ClockTick:
         """A vehicle that joins a running swarm (a restart) waits only for samples published after it
         joined: what the world published before its first tick either arrived or never will."""
+        self.v2v.on_tick(tick)
         if not self.first_tick_seen:
             self.first_tick_seen = True
             if tick.tick > 0:
@@ -122,6 +147,8 @@ class VehicleNode:
         """One loop cycle at sim time t_us: fuse everything stamped <= t_us, publish the estimate."""
         for item in self.links.release(t_us):
             self._deliver(item)
+        for fix in self.v2v.mature(t_us):
+            self.fusion.push("ranging", fix)
         try:
             self.fusion.cycle(t_us, on_cycle=self._guard)
         except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
@@ -173,7 +200,7 @@ class VehicleNode:
         self._status.put(m.encode(m.VehicleStatus(
             self.vehicle_id, t_us, self.stats.cycles, self.stats.overruns, self.stats.jitter_p99_us(),
             self.stats.cycle_p99_us(), c.stale + f.dropped_stale, c.gnss_rejected, self.decode_errors,
-            self.reset_counter % 256, f.duplicates, self.sequences.lost, f.late_fused)))
+            self.reset_counter % 256, f.duplicates, self.sequences.lost, f.late_fused, c.v2v_fused, self.v2v.missing)))
 
     def acknowledge(self, tick: m.ClockTick) -> None:
         self._ack.put(m.encode(m.TickAck(self.vehicle_id, tick.tick)))

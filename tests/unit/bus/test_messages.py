@@ -5,7 +5,7 @@ import math
 import msgpack
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from bus import messages as m
@@ -19,8 +19,10 @@ SAMPLES = [
     m.Truth(5, 40, 3, np.array([1.0, 2.0, -3.0]), 4.0, 0.2),
     m.ClockTick(7, 140_000, 1_700_000_000_000_000_000, False),
     m.ClockTick(8, 160_000, 1_700_000_000_000_000_000, True, (1, 16, 8, 0, 1, 16, 8, 1)),
+    m.ClockTick(9, 180_000, 1_700_000_000_000_000_000, False, (1, 16, 8, 0, 2), (1, 3)),
+    m.RangeBearing(2, 200_000, 4, 3, 42.5, -0.3, np.diag([0.09, 0.0004])),
     m.TickAck(9, 7),
-    m.VehicleStatus(1, 100, 5, 0, 12.5, 300.0, 0, 1, 0, 0),
+    m.VehicleStatus(1, 100, 5, 0, 12.5, 300.0, 0, 1, 0, 0, 3, 4, 5, 6, 7),
     m.RunEnd(3001, 60_000_000, 5),
 ]
 
@@ -75,17 +77,15 @@ def test_payload_of_another_type_is_rejected():
         m.decode(m.GnssFix, m.encode(SAMPLES[0]))
 
 
-@settings(max_examples=300, deadline=None)
 @given(st.binary(max_size=400))
 def test_garbage_bytes_raise_decode_error_only(payload):
-    for cls in (m.ImuSample, m.GnssFix, m.ClockTick):
+    for cls in (m.ImuSample, m.GnssFix, m.ClockTick, m.RangeBearing, m.VehicleStatus):
         try:
             m.decode(cls, payload)
         except DecodeError:
             pass
 
 
-@settings(max_examples=300, deadline=None)
 @given(st.sampled_from(SAMPLES), st.data())
 def test_mutated_valid_payloads_decode_or_raise_decode_error(msg, data):
     payload = bytearray(m.encode(msg))
@@ -106,7 +106,6 @@ json_like = st.recursive(
 )
 
 
-@settings(max_examples=300, deadline=None)
 @given(st.sampled_from(SAMPLES), st.text(max_size=15), json_like)
 def test_well_formed_msgpack_with_wrong_values_raises_decode_error(msg, field, value):
     body = _body(msg)

@@ -31,7 +31,7 @@ def test_sensor_rates_follow_the_config():
     world = World(build_config({"world": {"vehicles": 2}}))
     topics = [KeySpace().topic_of(key) for key, _ in world.advance(999_999)]  # exactly one second of stamps
     per_vehicle = {t: topics.count(t) / 2 for t in set(topics)}
-    assert per_vehicle == {"imu": 100, "odom": 50, "gnss": 5, "truth": 50, "prior": 1}
+    assert per_vehicle == {"imu": 100, "odom": 50, "gnss": 5, "truth": 50, "prior": 1, "ranging": 5}  # one peer each
 
 
 def test_vehicles_never_come_close_to_each_other():

@@ -43,11 +43,11 @@ def test_feeds_complete_needs_every_sample_up_to_the_tick():
         node.take(Envelope(keys.sensor(1, "imu"), m.encode(m.ImuSample(1, t, seq, np.zeros(3), np.zeros(3)))))
     node.take(Envelope(keys.sensor(1, "gnss"), m.encode(m.GnssFix(1, 0, 0, np.zeros(2), np.eye(2)))))
     node.take(Envelope(keys.sensor(1, "odom"), m.encode(m.WheelOdometry(1, 0, 0, 1.0, 0.0))))
-    tick = m.ClockTick(1, 20_000, 0, False, (1, 3, 2, 1, 1, 3, 2, 1))  # vehicles 1 and 2: prior, imu, odom, gnss
+    tick = m.ClockTick(1, 20_000, 0, False, (1, 3, 2, 1, 0, 1, 3, 2, 1, 0))  # vehicles 1, 2: prior, imu, odom, gnss, ranging
     assert not node.feeds_complete(tick)  # odometry of 20 ms still on its way
     node.take(Envelope(keys.sensor(1, "odom"), m.encode(m.WheelOdometry(1, 20_000, 1, 1.0, 0.0))))
     assert node.feeds_complete(tick)
-    jammed = m.ClockTick(2, 40_000, 0, False, (1, 3, 2, 1))  # a silenced feed publishes nothing more
+    jammed = m.ClockTick(2, 40_000, 0, False, (1, 3, 2, 1, 0))  # a silenced feed publishes nothing more
     assert node.feeds_complete(jammed)
 
 

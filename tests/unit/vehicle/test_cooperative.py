@@ -1,0 +1,73 @@
+"""Cooperative localization: the Covariance Intersection update stays consistent when the
+neighbour's estimate shares our errors (where a plain EKF update becomes over-confident), and in a
+swarm a vehicle whose GNSS is jammed stays localized through its neighbours, unless its radio is
+jammed too."""
+
+import numpy as np
+from scipy.stats import chi2
+
+from bus.angles import wrap_angle
+from bus.config import build_config
+from tests.offline import swarm_in_memory
+from vehicle.cooperative import CooperativeFix, cooperative_update, relative_model
+from vehicle.ekf import gated_update
+
+RUNS = 3000
+P = np.diag([1.0, 1.0, 0.01, 1e-6])
+R = np.diag([0.09, 0.0004])
+TRUTH = np.array([0.0, 0.0, 0.3, 0.0])
+NEIGHBOUR = np.array([30.0, 10.0])
+
+
+def _anees(shared: float, seed: int = 1) -> tuple[float, float]:
+    """Average pose NEES after one update, CI and plain EKF, when a share of the neighbour's position
+    error is our own error (data incest)."""
+    rng = np.random.default_rng(seed)
+    nees_ci, nees_ekf = [], []
+    for _ in range(RUNS):
+        e = rng.multivariate_normal(np.zeros(4), P)
+        x = TRUTH + e
+        own = rng.multivariate_normal(np.zeros(2), P[:2, :2])
+        neighbour = NEIGHBOUR + shared * e[:2] + np.sqrt(1 - shared**2) * own
+        h, _, _ = relative_model(TRUTH, NEIGHBOUR)
+        z = h + rng.multivariate_normal(np.zeros(2), R)
+        fix = CooperativeFix(1, 0, 0, 2, z[0], z[1], R, neighbour, P[:2, :2])
+        x_ci, P_ci, _ = cooperative_update(x, P, fix, gate=1e9)
+        predicted, H, Hj = relative_model(x, neighbour)
+        y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
+        x_ekf, P_ekf, _ = gated_update(x, P, y, H, R + Hj @ P[:2, :2] @ Hj.T, gate=1e9)
+        for out, (xx, PP) in ((nees_ci, (x_ci, P_ci)), (nees_ekf, (x_ekf, P_ekf))):
+            d = (xx - TRUTH)[:3]
+            out.append(float(d @ np.linalg.solve(PP[:3, :3], d)))
+    return float(np.mean(nees_ci)), float(np.mean(nees_ekf))
+
+
+def test_covariance_intersection_stays_consistent_where_the_plain_ekf_does_not():
+    upper = chi2.ppf(0.975, 3 * RUNS) / RUNS  # two-sided 95% band of the average of RUNS 3-dof NEES
+    ci_independent, ekf_independent = _anees(shared=0.0)
+    ci_shared, ekf_shared = _anees(shared=1.0)
+    assert ekf_independent < upper  # control: with independent errors the plain update is fine
+    assert ekf_shared > upper       # data incest: the plain update is over-confident
+    assert ci_shared < upper and ci_independent < upper
+
+
+def _jammed_vehicle_rmse(cooperative: bool, comms_jammed: bool) -> tuple[float, float]:
+    faults = [{"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 40.0, "start_s": 8.0}]
+    if comms_jammed:
+        faults.append({"kind": "jam-comms", "center_m": [0.0, 0.0], "radius_m": 40.0, "start_s": 8.0})
+    config = build_config({"world": {"vehicles": 3, "seed": 5}, "clock": {"duration_s": 32},
+                           "vehicle": {"cooperative": cooperative}, "faults": faults})
+    runs = swarm_in_memory(config)
+    v1 = runs[1]
+    jammed = v1["t_s"] >= 8.0
+    nees = np.concatenate([r["nees"] for r in runs.values()])
+    return float(np.sqrt(np.mean(v1["error_m"][jammed] ** 2))), float(nees.mean())
+
+
+def test_neighbours_keep_a_gnss_jammed_vehicle_localized_unless_the_radio_is_jammed_too():
+    alone, _ = _jammed_vehicle_rmse(cooperative=False, comms_jammed=False)
+    helped, anees = _jammed_vehicle_rmse(cooperative=True, comms_jammed=False)
+    cut_off, _ = _jammed_vehicle_rmse(cooperative=True, comms_jammed=True)
+    assert helped < 0.5 and helped < alone / 4
+    assert cut_off > 2 * helped
+    assert anees < 3.0  # CI is conservative: never over-confident
