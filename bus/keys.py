@@ -4,7 +4,8 @@ Layout under a configurable prefix (default ``swarm``)::
 
     <prefix>/v/<id>/sensor/<topic>   sensor feeds (imu, odom, gnss, prior, ...)
     <prefix>/v/<id>/truth            ground truth (world and ground station only)
-    <prefix>/v/<id>/mavlink          MAVLink 2 state packets
+    <prefix>/v/<id>/mavlink          MAVLink 2 state packets (every cycle; the ground station's feed)
+    <prefix>/v/<id>/v2v              the V2V broadcast: ODOMETRY at the ranging epochs, for neighbours
     <prefix>/v/<id>/status           vehicle loop statistics
     <prefix>/ctl/clock               simulation clock ticks
     <prefix>/ctl/ack/<id>            lockstep acknowledgements
@@ -41,6 +42,9 @@ class KeySpace:
 
     def mavlink(self, vehicle_id: int | str) -> str:
         return f"{self.prefix}/v/{vehicle_id}/mavlink"
+
+    def v2v(self, vehicle_id: int | str) -> str:
+        return f"{self.prefix}/v/{vehicle_id}/v2v"
 
     def status(self, vehicle_id: int | str) -> str:
         return f"{self.prefix}/v/{vehicle_id}/status"

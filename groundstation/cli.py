@@ -52,6 +52,7 @@ def up(
     name: Optional[str] = typer.Option(None, help="run directory name (a suffix is added if it exists) [default: the scenario's name, or run]"),
     quiet: bool = typer.Option(False, help="no progress display, only the final table"),
     restart: str = typer.Option("no", help="no, or on-failure: start a vehicle or the ground station again when it dies"),
+    chaos: Optional[int] = typer.Option(None, help="add a random fault timeline of every kind, drawn from this seed"),
 ) -> None:
     """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table and write the report."""
     from bus.config import build_config
@@ -67,10 +68,23 @@ def up(
         base = load_scenario(scenario) if scenario else {}
         config = build_config(overlay(base, {"name": name, "world": {"vehicles": vehicles, "seed": seed},
                                              "clock": {"mode": mode, "speed": speed, "duration_s": duration, "tick_s": tick}}))
+        if chaos is not None:
+            config = with_chaos(config, chaos)
         run_dir, failures, notes = launch(config, out, show_progress=not quiet, stop=stop_on_signals(), restart=restart)
     except SwarmlocError as exc:
         _fail(str(exc))
     _print_result(run_dir, failures, notes)
+
+
+def with_chaos(config, seed: int):
+    """``config`` with a chaos fault timeline (every kind of fault) added to its own faults."""
+    from bus.config import build_config
+    from groundstation.chaos import chaos_faults
+
+    data = config.model_dump(mode="json")
+    data["faults"] = data["faults"] + chaos_faults(seed, vehicles=config.world.vehicles, duration_s=config.clock.duration_s,
+                                                   spacing_m=config.world.spacing_m)
+    return build_config(data)
 
 
 def _print_result(run_dir: Path, failures: list[str], notes: list[str]) -> None:

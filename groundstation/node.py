@@ -62,6 +62,7 @@ class GroundStation:
         self.latest_truth_us: dict[int, int] = {}
         self.gnss_glitch: dict[int, bool] = {}
         self.faults = FaultControl(config.faults, vehicles=config.world.vehicles, log=self._fault_event)
+        self.resumed = False
         self._resume(run_dir)
         self._plan_sent_at = 0.0
         self.wall_start: float | None = None
@@ -78,7 +79,9 @@ class GroundStation:
         self.scorer.tallies, self.scorer.last_scored_us = tallies, last_us
         self.events = resume_events(run_dir / "events.jsonl")
         self.faults._announced = True  # the plan was announced by the first ground station
-        self.event("groundstation_restarted", scored_until_s=round(max(last_us.values()) * 1e-6, 6))
+        self.resumed = True
+        self.sim_time_us = max(last_us.values())
+        self.event("groundstation_restarted", scored_until_s=round(self.sim_time_us * 1e-6, 6))
 
     def event(self, kind: str, **fields: object) -> None:
         """Log an event; departures after the final tick are logged but not counted in the summary
@@ -103,6 +106,9 @@ class GroundStation:
 
     def _on_liveliness(self, item: LivelinessEvent) -> None:
         vid = item.key.rsplit("/", 1)[-1]
+        if self.resumed and self.previous_tick_us < 0 and item.alive and vid.isdigit():
+            self.active.add(int(vid))  # a restarted ground station meets vehicles that joined long ago
+            return
         kind = "vehicle_joined" if item.alive else ("vehicle_left" if self._completed(vid) else "vehicle_lost")
         if vid.isdigit():
             (self.active.add if item.alive else self.active.discard)(int(vid))

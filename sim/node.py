@@ -75,6 +75,7 @@ class WorldNode:
         bus.subscribe(f"{bus.keys.prefix}/ctl/ack/*", self.inbox)
         bus.subscribe(bus.keys.fault_plan(), self.inbox)
         self.plan_version = -1
+        self.gave_up_on_groundstation = False
         bus.declare_token(bus.keys.alive("world", 0))
         self.members = Membership(expected=set(self.world.vehicle_ids()))
         self._publishers: dict[str, object] = {}
@@ -156,6 +157,18 @@ class WorldNode:
                     self.members.declare_dead(vid, f"no ack for tick {tick} within {timeout_s:g} s")
                 return
             self.drain(0.05, tick)
+        self.await_groundstation(stop)
+
+    def await_groundstation(self, stop: threading.Event) -> None:
+        """Lockstep pauses while the ground station is away (a restart), so that nothing goes
+        unscored; after ``start_timeout_s`` the run goes on without it."""
+        if self.members.groundstation or self.gave_up_on_groundstation:
+            return
+        log.warning("ground station gone; lockstep waits up to %g s for it", self.config.clock.start_timeout_s)
+        deadline = time.monotonic() + self.config.clock.start_timeout_s
+        while not stop.is_set() and not self.members.groundstation and time.monotonic() < deadline:
+            self.drain(0.05)
+        self.gave_up_on_groundstation = not self.members.groundstation
 
 
 def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode:

@@ -46,7 +46,9 @@ class VehicleNode:
         bus.subscribe(keys.clock(), self.inbox)
         bus.subscribe(keys.fault_plan(), self.inbox)
         if config.vehicle.cooperative:
-            bus.subscribe(f"{keys.prefix}/v/*/mavlink", self.inbox)  # neighbours' broadcasts (V2V)
+            bus.subscribe(keys.v2v("*"), self.inbox)  # neighbours' broadcasts
+        self._v2v = bus.publisher(keys.v2v(vehicle_id))
+        self._v2v_period_us = round(1e6 / config.sensors.ranging_rate_hz)
         self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
         self._ack = bus.publisher(keys.ack(vehicle_id))
         self._status = bus.publisher(keys.status(vehicle_id))
@@ -81,7 +83,7 @@ class VehicleNode:
                 self._apply_plan(decode_json(FaultPlan, envelope.payload))
                 return None
             topic = keys.topic_of(envelope.key)
-            if topic == "mavlink":
+            if topic == "v2v":
                 self._take_v2v(envelope)
                 return None
             msg = m.decode(SENSOR_TYPES[topic], envelope.payload)
@@ -157,7 +159,10 @@ class VehicleNode:
             return
         self._last_good = (self.estimator.x.copy(), self.estimator.P.copy())
         self._report_gnss_health(t_us)
-        self._mavlink.put(self.encoder.odometry(self.estimator.estimate(t_us, self.reset_counter)))
+        odometry = self.encoder.odometry(self.estimator.estimate(t_us, self.reset_counter))
+        self._mavlink.put(odometry)
+        if t_us % self._v2v_period_us == 0:
+            self._v2v.put(odometry)  # the V2V packet {id, x_hat, P, t}, at the ranging epochs
         if t_us >= self._next_heartbeat_us:
             self._mavlink.put(self.encoder.heartbeat())
             self._mavlink.put(self.encoder.estimator_status(self.estimator.status(t_us)))

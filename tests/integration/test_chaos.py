@@ -1,0 +1,34 @@
+"""Chaos run: 6 vehicles, 120 s of lockstep, a seeded random fault timeline with every kind of fault
+(link delay, loss, duplication, reordering; GNSS jamming and spoofing; comm jamming; a sensor
+blackout; a vehicle kill and restart). No process dies unexpectedly, the run directory is complete,
+and summary.json counts every fault."""
+
+import json
+
+import pytest
+
+from groundstation.chaos import ALL_KINDS
+from tests.integration.conftest import read_summary, run_swarm
+
+pytestmark = pytest.mark.integration
+
+
+def test_chaos_run_survives_every_kind_of_fault(tmp_path):
+    result = run_swarm(tmp_path, "--vehicles", "6", "--duration", "120", "--chaos", "7", "--name", "chaos",
+                       timeout_s=600)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "died" not in result.stdout  # the planned kill is reported as a kill, nothing else died
+    run = tmp_path / "chaos"
+    for name in ("config.json", "metrics.csv", "events.jsonl", "summary.json", "timing.json", "report.html"):
+        assert (run / name).stat().st_size > 0, name
+    summary = read_summary(run)
+    planned = json.loads((run / "config.json").read_text())["faults"]
+    assert summary["status"] == "complete"
+    assert set(summary["faults"]["by_kind"]) == set(ALL_KINDS)
+    assert summary["faults"]["total"] == len(planned) and summary["faults"]["names"] == [f["name"] for f in planned]
+    assert summary["events"]["fault_added"] == summary["events"]["fault_started"] == len(planned)
+    assert summary["events"]["fault_expired"] == len(planned)  # every chaos fault ends inside the run
+    for vid in map(str, range(1, 7)):
+        assert summary["vehicles"][vid]["samples"] > 0.8 * 120 * 50, vid
+    for vid in map(str, range(1, 7)):
+        assert len((run / "tum" / f"est_v{vid}.tum").read_text().splitlines()) == summary["vehicles"][vid]["samples"]
