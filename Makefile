@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test unit integration bench fuzz clean
+.PHONY: demo test unit integration fuzz test-docker bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,12 @@ unit: $(STAMP)
 
 integration: $(STAMP)
 	$(BIN)/python -m pytest -q tests/integration
+
+fuzz: $(STAMP)
+	$(BIN)/python -m pytest -q tests/unit/bus --hypothesis-profile=fuzz-long -k "garbage or mutated or arbitrary or wrong_values"
+
+test-docker: $(STAMP)
+	$(BIN)/python -m pytest -q -m docker tests/docker
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.run_all

@@ -15,3 +15,7 @@ class AccessDenied(SwarmlocError):
 
 class ConfigError(SwarmlocError):
     """A configuration value or command-line argument is invalid."""
+
+
+class BusUnavailable(SwarmlocError):
+    """The zenoh session could not be opened: no router answers, or the login or TLS was refused."""

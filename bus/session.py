@@ -7,12 +7,13 @@ process's loop thread drains. Roles are enforced here: a vehicle may not subscri
 from __future__ import annotations
 
 import json
+import os
 import queue
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
 from bus.config import BusConfig
-from bus.errors import AccessDenied
+from bus.errors import AccessDenied, BusUnavailable
 from bus.keys import KeySpace
 
 Inbox = queue.SimpleQueue
@@ -62,28 +63,69 @@ def check_subscription(role: str, keys: KeySpace, key_expr: str) -> None:
         raise AccessDenied(f"role 'vehicle' may not subscribe to truth ({key_expr!r})")
 
 
-def zenoh_config(conf: BusConfig):
-    """A zenoh.Config from our BusConfig: explicit endpoints, multicast scouting off."""
+@dataclass(frozen=True)
+class Transport:
+    """How a process authenticates and encrypts: zenoh user/password, TLS files (PEM paths).
+
+    Clients need ``tls_root_ca`` to reach a ``tls/...`` endpoint; routers listening on TLS need
+    ``tls_certificate`` and ``tls_private_key``; a router enforcing logins needs ``credentials_file``
+    (``user:password`` lines) and usually ``acl`` (see bus.access)."""
+
+    user: str | None = None
+    password: str | None = None
+    tls_root_ca: str | None = None
+    tls_certificate: str | None = None
+    tls_private_key: str | None = None
+    credentials_file: str | None = None
+    acl: dict | None = None
+
+    @classmethod
+    def from_env(cls, env: dict[str, str] | None = None) -> "Transport":
+        """User, password and TLS root CA from ``SWARMLOC_ZENOH_*`` (see bus.secrets)."""
+        from bus.secrets import zenoh_login_from_env
+
+        env = os.environ if env is None else env
+        login = zenoh_login_from_env(env)
+        return cls(*(login or (None, None)), tls_root_ca=env.get("SWARMLOC_ZENOH_TLS_ROOT_CA") or None)
+
+
+def zenoh_config(conf: BusConfig, transport: Transport = Transport()):
+    """A zenoh.Config from our BusConfig: explicit endpoints, multicast scouting off, and the
+    transport's login, TLS files, credentials dictionary and access control."""
     import zenoh
 
     zconf = zenoh.Config()
-    zconf.insert_json5("mode", json.dumps(conf.mode))
-    zconf.insert_json5("connect/endpoints", json.dumps(list(conf.connect)))
-    zconf.insert_json5("listen/endpoints", json.dumps(list(conf.listen)))
-    zconf.insert_json5("scouting/multicast/enabled", "false")
+    settings: dict[str, object] = {"mode": conf.mode, "connect/endpoints": list(conf.connect),
+                                   "listen/endpoints": list(conf.listen), "scouting/multicast/enabled": False}
+    if transport.user:
+        settings["transport/auth/usrpwd"] = {"user": transport.user, "password": transport.password,
+                                             **({"dictionary_file": transport.credentials_file}
+                                                if transport.credentials_file else {})}
+    for key, value in (("root_ca_certificate", transport.tls_root_ca), ("listen_certificate", transport.tls_certificate),
+                       ("listen_private_key", transport.tls_private_key)):
+        if value:
+            settings[f"transport/link/tls/{key}"] = value
+    if transport.acl is not None:
+        settings["access_control"] = transport.acl
+    for key, value in settings.items():
+        zconf.insert_json5(key, json.dumps(value))
     return zconf
 
 
 class ZenohBus:
     """A zenoh session with swarmloc's role checks; use as a context manager so it always closes."""
 
-    def __init__(self, conf: BusConfig, *, role: str) -> None:
+    def __init__(self, conf: BusConfig, *, role: str, transport: Transport = Transport()) -> None:
         import zenoh
 
         self._zenoh = zenoh
         self.keys = KeySpace(conf.prefix)
         self.role = role
-        self._session = zenoh.open(zenoh_config(conf))
+        try:
+            self._session = zenoh.open(zenoh_config(conf, transport))
+        except zenoh.ZError as exc:
+            raise BusUnavailable(f"cannot join the swarm at {', '.join(conf.connect) or 'no endpoint'} as "
+                                 f"{transport.user or 'anonymous'}: {str(exc).split(' at ')[0]}") from None
         self._keep: list[object] = []
 
     def publisher(self, key: str) -> Publisher:

@@ -27,13 +27,13 @@ def _run_node(config_path: Path, role: str, body: Callable) -> None:
     """Load the config, open the bus for ``role``, run ``body(bus, config, stop)``, always close."""
     from bus.config import load_config
     from bus.process import stop_on_signals
-    from bus.session import ZenohBus
+    from bus.session import Transport, ZenohBus
 
     logging.basicConfig(level=logging.INFO, format=f"%(asctime)s {role} %(levelname)s %(message)s")
     stop = stop_on_signals()
     try:
         config = load_config(config_path)
-        with ZenohBus(config.bus.with_env(), role=role) as bus:
+        with ZenohBus(config.bus.with_env(), role=role, transport=Transport.from_env()) as bus:
             body(bus, config, stop)
     except SwarmlocError as exc:
         _fail(str(exc))
@@ -53,24 +53,37 @@ def up(
     quiet: bool = typer.Option(False, help="no progress display, only the final table"),
     restart: str = typer.Option("no", help="no, or on-failure: start a vehicle or the ground station again when it dies"),
     chaos: Optional[int] = typer.Option(None, help="add a random fault timeline of every kind, drawn from this seed"),
+    insecure: bool = typer.Option(False, help="no zenoh logins, no access control, no MAVLink signing"),
+    mavlink_out: Optional[str] = typer.Option(None, help="forward every vehicle's MAVLink to a GCS: udpout:HOST[:PORT]"),
+    tls_cert: Optional[Path] = typer.Option(None, help="run the bus over TLS: the router's PEM certificate (for localhost)"),
+    tls_key: Optional[Path] = typer.Option(None, help="TLS: the router's PEM private key"),
+    tls_ca: Optional[Path] = typer.Option(None, help="TLS: the PEM CA that signed the certificate"),
 ) -> None:
     """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table and write the report."""
     from bus.config import build_config
     from bus.process import stop_on_signals
-    from groundstation.launcher import launch
+    from groundstation.launcher import Security, launch
+    from groundstation.mavlink_out import parse_udpout
     from groundstation.scenario import load_scenario, overlay
 
     if mode not in (None, "lockstep", "realtime"):
         _fail(f"unknown mode {mode!r}: use lockstep or realtime")
     if restart not in ("no", "on-failure"):
         _fail(f"unknown restart policy {restart!r}: use no or on-failure")
+    tls = [tls_cert, tls_key, tls_ca]
+    if any(tls) and not all(p is not None and p.is_file() for p in tls):
+        _fail("TLS needs --tls-cert, --tls-key and --tls-ca, all existing PEM files")
     try:
         base = load_scenario(scenario) if scenario else {}
         config = build_config(overlay(base, {"name": name, "world": {"vehicles": vehicles, "seed": seed},
                                              "clock": {"mode": mode, "speed": speed, "duration_s": duration, "tick_s": tick}}))
         if chaos is not None:
             config = with_chaos(config, chaos)
-        run_dir, failures, notes = launch(config, out, show_progress=not quiet, stop=stop_on_signals(), restart=restart)
+        if mavlink_out:
+            parse_udpout(mavlink_out)
+        security = Security(tls_certificate=tls_cert, tls_private_key=tls_key, tls_root_ca=tls_ca, mavlink_out=mavlink_out)
+        run_dir, failures, notes = launch(config, out, show_progress=not quiet, stop=stop_on_signals(), restart=restart,
+                                          secure=not insecure, security=security)
     except SwarmlocError as exc:
         _fail(str(exc))
     _print_result(run_dir, failures, notes)
@@ -139,12 +152,45 @@ def report(run_dir: Path = typer.Argument(..., help="a run directory written by 
 
 
 @app.command()
-def router(listen: list[str] = typer.Option(["tcp/0.0.0.0:7447"], help="zenoh endpoint(s) to listen on")) -> None:
+def router(listen: list[str] = typer.Option(["tcp/0.0.0.0:7447"], help="zenoh endpoint(s) to listen on (tcp/... or tls/...)"),
+           connect: list[str] = typer.Option([], help="other routers to join (multi-host deployments)"),
+           credentials: Optional[Path] = typer.Option(None, help="user:password lines; logins become mandatory"),
+           acl: bool = typer.Option(True, help="with --credentials: enforce the swarm's access control (bus.access)"),
+           prefix: str = typer.Option("swarm", help="key prefix the access control protects"),
+           tls_cert: Optional[Path] = typer.Option(None, help="PEM certificate for tls/ endpoints"),
+           tls_key: Optional[Path] = typer.Option(None, help="PEM private key for tls/ endpoints")) -> None:
     """Run a zenoh router (what vehicles, world and ground station connect to)."""
+    from bus.access import acl_policy
     from bus.process import stop_on_signals
+    from bus.session import Transport
     from groundstation.router import run_router
 
-    run_router(tuple(listen), stop_on_signals())
+    try:
+        base = Transport.from_env()
+    except SwarmlocError as exc:
+        _fail(str(exc))
+    if credentials is not None and not credentials.is_file():
+        _fail(f"credentials file {credentials} does not exist")
+    if (tls_cert is None) != (tls_key is None):
+        _fail("--tls-cert and --tls-key go together")
+    transport = Transport(user=base.user or ("router" if credentials else None),
+                          password=base.password or (_router_password(credentials) if credentials else None),
+                          tls_root_ca=base.tls_root_ca, tls_certificate=str(tls_cert) if tls_cert else None,
+                          tls_private_key=str(tls_key) if tls_key else None,
+                          credentials_file=str(credentials) if credentials else None,
+                          acl=acl_policy(prefix) if credentials and acl else None)
+    try:
+        run_router(tuple(listen), stop_on_signals(), connect=tuple(connect), transport=transport)
+    except Exception as exc:  # zenoh reports bad endpoints, certificates and configs as ZError
+        _fail(f"router: {str(exc).split(' at ')[0]}")
+
+
+def _router_password(credentials: Path) -> str:
+    """The router's own password: the `router:` line of the credentials file (or any value)."""
+    for line in credentials.read_text().splitlines():
+        if line.startswith("router:"):
+            return line.split(":", 1)[1]
+    return "router"
 
 
 @app.command()
@@ -159,23 +205,33 @@ def sim(config: Path = typer.Option(..., help="swarm config JSON")) -> None:
 def vehicle(config: Path = typer.Option(..., help="swarm config JSON"),
             id: int = typer.Option(..., "--id", min=1, max=250, help="vehicle id (MAVLink sysid)"),
             restarts: int = typer.Option(0, min=0, max=255, help="how often this vehicle was started before (reset_counter)")) -> None:
-    """Run one vehicle process: the fixed-rate estimator loop."""
+    """Run one vehicle process: the fixed-rate estimator loop. Signs its MAVLink stream with the key
+    in $SWARMLOC_MAVLINK_KEY or $SWARMLOC_MAVLINK_KEY_FILE."""
+    from bus.secrets import signing_key_from_env
     from vehicle.loops import run_vehicle
 
-    _run_node(config, "vehicle", lambda bus, cfg, stop: run_vehicle(bus, cfg, id, stop, restarts=restarts))
+    def body(bus, cfg, stop) -> None:
+        run_vehicle(bus, cfg, id, stop, restarts=restarts, signing_key=signing_key_from_env())
+
+    _run_node(config, "vehicle", body)
 
 
 @app.command()
 def gs(config: Path = typer.Option(..., help="swarm config JSON"),
        run_dir: Path = typer.Option(..., help="run directory to write (appended if it exists)"),
-       quiet: bool = typer.Option(False, help="no live display")) -> None:
-    """Run the ground station: score estimates against truth and write the run directory."""
+       quiet: bool = typer.Option(False, help="no live display"),
+       mavlink_out: Optional[str] = typer.Option(None, help="forward every vehicle's MAVLink to a GCS: udpout:HOST[:PORT] (port 14550)")) -> None:
+    """Run the ground station: own the fault plan, score estimates against truth and write the run
+    directory. With a signing key ($SWARMLOC_MAVLINK_KEY[_FILE]) it accepts only signed MAVLink."""
+    from bus.secrets import signing_key_from_env
     from groundstation.display import live_display
+    from groundstation.mavlink_out import MavlinkForwarder
     from groundstation.node import run_groundstation
 
     def body(bus, cfg, stop) -> None:
+        forwarder = MavlinkForwarder(mavlink_out) if mavlink_out else None
         with live_display(cfg.clock.mode, cfg.clock.duration_s, quiet) as on_progress:
-            run_groundstation(bus, cfg, run_dir, stop, on_progress)
+            run_groundstation(bus, cfg, run_dir, stop, on_progress, signing_key=signing_key_from_env(), forwarder=forwarder)
 
     _run_node(config, "groundstation", body)
 

@@ -68,14 +68,16 @@ def vehicle_number(text: str) -> int:
     return int(match.group(1))
 
 
-def find_swarm(out: Path, run: Optional[Path], connect: Optional[str]) -> tuple[tuple[str, ...], str]:
-    """Endpoints and key prefix of the swarm to talk to: --connect, --run, $SWARMLOC_ZENOH_CONNECT,
-    or the newest run under ``out`` whose `swarm up` is still running."""
+def find_swarm(out: Path, run: Optional[Path], connect: Optional[str]) -> tuple[tuple[str, ...], str, dict[str, str]]:
+    """Endpoints, key prefix and login environment of the swarm to talk to: --connect, --run,
+    $SWARMLOC_ZENOH_CONNECT, or the newest run under ``out`` whose `swarm up` is still running
+    (its handle names the CLI's credentials). Logins otherwise come from $SWARMLOC_ZENOH_USER etc."""
     prefix = os.environ.get("SWARMLOC_PREFIX") or "swarm"
+    env = dict(os.environ)
     if connect:
-        return tuple(c.strip() for c in connect.split(",")), prefix
+        return tuple(c.strip() for c in connect.split(",")), prefix, env
     if run is None and os.environ.get("SWARMLOC_ZENOH_CONNECT"):
-        return tuple(c.strip() for c in os.environ["SWARMLOC_ZENOH_CONNECT"].split(",")), prefix
+        return tuple(c.strip() for c in os.environ["SWARMLOC_ZENOH_CONNECT"].split(",")), prefix, env
     handles = [run / "swarm.json"] if run else sorted(out.glob("*/swarm.json"), key=lambda p: p.stat().st_mtime)
     for handle in reversed(handles):
         try:
@@ -83,7 +85,7 @@ def find_swarm(out: Path, run: Optional[Path], connect: Optional[str]) -> tuple[
             os.kill(int(info["pid"]), 0)
         except (OSError, ValueError, KeyError, TypeError):
             continue
-        return tuple(info["connect"]), str(info.get("prefix", prefix))
+        return tuple(info["connect"]), str(info.get("prefix", prefix)), {**env, **info.get("env", {})}
     where = str(run) if run else f"{out}/*/swarm.json"
     raise SwarmlocError(f"no swarm running ({where}: no live `swarm up`); start one or give --connect")
 
@@ -101,8 +103,8 @@ def ask(request: dict, out: Path, run: Optional[Path], connect: Optional[str]) -
         first = exc.errors()[0]
         field = str(first["loc"][-1]) if first["loc"] else "fault"
         raise ConfigError(f"invalid fault: {FLAGS.get(field, field)}: {first['msg']}") from None
-    endpoints, prefix = find_swarm(out, run, connect)
-    reply = _query(BusConfig(mode="client", connect=endpoints, prefix=prefix), payload)
+    endpoints, prefix, env = find_swarm(out, run, connect)
+    reply = _query(BusConfig(mode="client", connect=endpoints, prefix=prefix), payload, env)
     if reply is None:
         raise SwarmlocError(f"no swarm answered at {', '.join(endpoints)} (is its ground station running?)")
     try:
@@ -111,13 +113,14 @@ def ask(request: dict, out: Path, run: Optional[Path], connect: Optional[str]) -
         raise SwarmlocError(f"the ground station sent a malformed reply: {exc}") from None
 
 
-def _query(conf, payload: bytes) -> bytes | None:
-    from bus.session import ZenohBus
+def _query(conf, payload: bytes, env: dict[str, str]) -> bytes | None:
+    from bus.errors import BusUnavailable
+    from bus.session import Transport, ZenohBus
 
     try:
-        bus = ZenohBus(conf, role="cli")
-    except Exception as exc:  # zenoh raises ZError when no router answers
-        raise SwarmlocError(f"no swarm running at {', '.join(conf.connect)} ({str(exc).splitlines()[0]})") from None
+        bus = ZenohBus(conf, role="cli", transport=Transport.from_env(env))
+    except BusUnavailable as exc:
+        raise SwarmlocError(f"no swarm reachable: {exc}") from None
     with bus:
         replies = bus.get(bus.keys.fault_request(), payload, REPLY_TIMEOUT_S)
     return replies[0] if replies else None

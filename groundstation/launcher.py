@@ -4,6 +4,7 @@ watch them, and shut everything down cleanly on Ctrl-C/SIGTERM or when the run e
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import queue
@@ -20,6 +21,7 @@ from bus import messages as m
 from bus.config import SwarmConfig
 from bus.errors import DecodeError, SwarmlocError
 from bus.plan import FaultPlan, decode_json
+from bus.secrets import role_env, write_secrets
 from groundstation.supervisor import KillSchedule
 
 SHUTDOWN_GRACE_S = 4.0
@@ -28,6 +30,31 @@ SWARM_HANDLE = "swarm.json"  # in the run directory while `swarm up` runs: how `
 
 class ChildFailed(SwarmlocError):
     """A process of the swarm failed to start or died."""
+
+
+@dataclass(frozen=True)
+class Security:
+    """How `swarm up` protects a run: fresh secrets in ``secrets_dir`` (zenoh logins with access
+    control, MAVLink signing), optional TLS files (PEM paths) for the router and its clients, and a
+    MAVLink forward to ground-control software."""
+
+    secrets_dir: Path | None = None
+    tls_certificate: Path | None = None
+    tls_private_key: Path | None = None
+    tls_root_ca: Path | None = None
+    mavlink_out: str | None = None
+
+    def env(self, role: str) -> dict[str, str]:
+        out = role_env(self.secrets_dir, role) if self.secrets_dir else {}
+        if self.tls_root_ca:
+            out["SWARMLOC_ZENOH_TLS_ROOT_CA"] = str(self.tls_root_ca)
+        return out
+
+    def router_args(self) -> list[str]:
+        args = ["--credentials", str(self.secrets_dir / "credentials.txt")] if self.secrets_dir else []
+        if self.tls_certificate:
+            args += ["--tls-cert", str(self.tls_certificate), "--tls-key", str(self.tls_private_key)]
+        return args
 
 
 @dataclass
@@ -76,8 +103,10 @@ class Swarm:
     """The set of child processes of one run, and the supervisor that executes kill faults and the
     restart policy (``no`` or ``on-failure``: a vehicle or ground station that dies is started again)."""
 
-    def __init__(self, config: SwarmConfig, run_dir: Path, show_progress: bool, *, restart: str = "no") -> None:
+    def __init__(self, config: SwarmConfig, run_dir: Path, show_progress: bool, *, restart: str = "no",
+                 security: Security = Security()) -> None:
         self.config, self.run_dir, self.show_progress, self.restart = config, run_dir, show_progress, restart
+        self.security = security
         self.config_path = str(run_dir / "config.json")
         self.children: list[Child] = []
         self.notes: list[str] = []
@@ -92,7 +121,8 @@ class Swarm:
 
     def spawn(self, name: str, args: list[str], *, essential: bool, inherit_stdout: bool = False) -> Child:
         log_path = self.run_dir / "logs" / f"{name}.log"
-        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        role = name.split("-")[0]
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", **(self.security.env(role) if role != "router" else {})}
         with log_path.open("ab") as log:
             process = subprocess.Popen([sys.executable, "-m", "groundstation.cli", *args], env=env,
                                        stdout=None if inherit_stdout else log, stderr=log,
@@ -108,12 +138,16 @@ class Swarm:
 
     def spawn_groundstation(self) -> Child:
         args = ["gs", "--config", self.config_path, "--run-dir", str(self.run_dir)]
+        if self.security.mavlink_out:
+            args += ["--mavlink-out", self.security.mavlink_out]
         return self.spawn("groundstation", args + ([] if self.show_progress else ["--quiet"]), essential=True,
                           inherit_stdout=self.show_progress)
 
     def start(self) -> None:
         port = int(self.config.bus.connect[0].rsplit(":", 1)[1])
-        router = self.spawn("router", ["router", "--listen", f"tcp/127.0.0.1:{port}"], essential=True)
+        listen = self.config.bus.connect[0].replace("localhost", "127.0.0.1")
+        router = self.spawn("router", ["router", "--listen", listen, "--prefix", self.config.bus.prefix,
+                                       *self.security.router_args()], essential=True)
         wait_for_port(port, 15.0, router)
         self._open_supervisor_bus()
         self.spawn_groundstation()
@@ -123,9 +157,9 @@ class Swarm:
 
     def _open_supervisor_bus(self) -> None:
         """The supervisor's own zenoh session: it follows the clock and the fault plan (kill faults)."""
-        from bus.session import ZenohBus
+        from bus.session import Transport, ZenohBus
 
-        self.bus = ZenohBus(self.config.bus, role="supervisor")
+        self.bus = ZenohBus(self.config.bus, role="supervisor", transport=Transport.from_env(self.security.env("supervisor")))
         self.bus.subscribe(self.bus.keys.clock(), self.inbox)
         self.bus.subscribe(self.bus.keys.fault_plan(), self.inbox)
 
@@ -206,17 +240,23 @@ class Swarm:
             self.bus.close()
 
 
-def launch(config: SwarmConfig, out: Path, *, show_progress: bool, stop: threading.Event,
-           restart: str = "no") -> tuple[Path, list[str], list[str]]:
-    """Run one swarm to completion; returns the run directory, failure reports and notes (kills, restarts)."""
+def launch(config: SwarmConfig, out: Path, *, show_progress: bool, stop: threading.Event, restart: str = "no",
+           secure: bool = True, security: Security = Security()) -> tuple[Path, list[str], list[str]]:
+    """Run one swarm to completion; returns the run directory, failure reports and notes (kills, restarts).
+
+    ``secure``: fresh secrets in ``<run>/secrets`` (zenoh logins with access control, MAVLink signing)."""
     port = free_port()
+    scheme, host = ("tls", "localhost") if security.tls_certificate else ("tcp", "127.0.0.1")
     config = config.model_copy(update={"bus": config.bus.model_copy(
-        update={"mode": "client", "connect": (f"tcp/127.0.0.1:{port}",), "listen": ()})})
+        update={"mode": "client", "connect": (f"{scheme}/{host}:{port}",), "listen": ()})})
     run_dir = unique_run_dir(out, config.name)
     config.dump(run_dir / "config.json")
-    swarm = Swarm(config, run_dir, show_progress, restart=restart)
+    if secure:
+        security = dataclasses.replace(security, secrets_dir=write_secrets(run_dir / "secrets"))
+    swarm = Swarm(config, run_dir, show_progress, restart=restart, security=security)
     handle = run_dir / SWARM_HANDLE
-    handle.write_text(json.dumps({"connect": list(config.bus.connect), "prefix": config.bus.prefix, "pid": os.getpid()}))
+    handle.write_text(json.dumps({"connect": list(config.bus.connect), "prefix": config.bus.prefix, "pid": os.getpid(),
+                                  "env": security.env("cli")}))
     try:
         swarm.start()
         failures = swarm.watch(stop)

@@ -23,6 +23,7 @@ from bus.plan import FaultReply, FaultRequest, decode_json, encode_json
 from bus.session import Bus, Envelope, LivelinessEvent, Request
 from groundstation.fault_control import FaultControl
 from groundstation.link_quality import StreamQuality
+from groundstation.mavlink_out import MavlinkForwarder
 from groundstation.resume import resume_events, resume_tallies
 from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
@@ -35,7 +36,8 @@ PLAN_REPEAT_S = 1.0
 
 
 class GroundStation:
-    def __init__(self, bus: Bus, config: SwarmConfig, run_dir: Path, *, signing_key: bytes | None = None) -> None:
+    def __init__(self, bus: Bus, config: SwarmConfig, run_dir: Path, *, signing_key: bytes | None = None,
+                 forwarder: MavlinkForwarder | None = None) -> None:
         self.bus, self.config = bus, config
         keys, prefix = bus.keys, bus.keys.prefix
         self.inbox: queue.SimpleQueue = queue.SimpleQueue()
@@ -46,6 +48,7 @@ class GroundStation:
         self.run = RunDirectory(run_dir)
         self.scorer = Scorer()
         self.decoder = MavlinkDecoder(signing_key=signing_key)
+        self.forwarder = forwarder
         self.links = LinkFaultStage("gs", seed=config.world.seed, faults=config.faults)
         self.quality: dict[int, StreamQuality] = {}
         self.latency_us: dict[int, list[int]] = {}
@@ -160,6 +163,8 @@ class GroundStation:
     def _on_mavlink(self, item: Envelope) -> None:
         vid = self.bus.keys.vehicle_of(item.key)
         header = frame_header(item.payload)
+        if header is not None:
+            self.quality.setdefault(vid, StreamQuality()).see(header[1])  # as a GCS counts its link
         try:
             decoded = self.decoder.decode(item.payload)
         except DecodeError as exc:
@@ -167,7 +172,8 @@ class GroundStation:
             self.events["decode_error"] += 1
             log.warning("ground station rejected a MAVLink frame on %s: %s", item.key, exc)
             return
-        self.quality.setdefault(vid, StreamQuality()).see(header[1])
+        if self.forwarder is not None:
+            self.forwarder.forward(item.payload)
         if isinstance(decoded, StateEstimate):
             lat = self.latency_us.setdefault(vid, [0, 0, 0])  # count, sum, max (us)
             delay = self.sim_time_us - decoded.time_usec
@@ -236,6 +242,7 @@ class GroundStation:
         self.event("run_ended", status=status, vehicles_lost=lost)
         summary = build_summary(self.config, self.scorer, self.statuses, dict(self.rejected),
                                 dict(sorted(self.events.items())), status, self.faults.faults, self.quality)
+        summary["mavlink_rejected_by_reason"] = dict(sorted(self.decoder.rejected.items()))
         self.run.write_json("summary.json", summary)
         wall_s = (self.wall_end or time.perf_counter()) - (self.wall_start or time.perf_counter())
         self.run.write_json("timing.json", build_timing(self.statuses, self.sim_time_us * 1e-6, wall_s, self.latency_us))
@@ -244,9 +251,10 @@ class GroundStation:
 
 
 def run_groundstation(bus: Bus, config: SwarmConfig, run_dir: Path, stop: threading.Event,
-                      on_progress=None, *, signing_key: bytes | None = None) -> dict:
+                      on_progress=None, *, signing_key: bytes | None = None,
+                      forwarder: MavlinkForwarder | None = None) -> dict:
     """Score until the world ends the run (or ``stop`` is set); returns the summary."""
-    gs = GroundStation(bus, config, run_dir, signing_key=signing_key)
+    gs = GroundStation(bus, config, run_dir, signing_key=signing_key, forwarder=forwarder)
     if on_progress is not None:
         gs.on_progress = on_progress
     gs.publish_plan()

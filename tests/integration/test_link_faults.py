@@ -1,6 +1,10 @@
 """Link faults applied by the receiving processes' bus layers, measured end to end over real
 processes: each fault's observed effect is within tolerance of what was asked, and the swarm keeps
-running (every vehicle is scored to the end)."""
+running (every vehicle is scored to the end).
+
+MAVLink streams are signed, and MAVLink 2 signing has no replay window: a frame that arrives after
+a newer one of its stream is rejected as a replay. Reordering on a signed link therefore costs the
+overtaken frames, exactly as pymavlink or an autopilot would treat them."""
 
 import json
 
@@ -74,10 +78,13 @@ def run(tmp_path_factory):
 
 def test_the_swarm_keeps_running_and_every_vehicle_is_scored(run):
     summary = read_summary(run)
+    estimates = DURATION_S * 50 + 1
     assert summary["status"] == "complete" and summary["faults"]["total"] == 6
-    for vid in ("1", "3"):
-        assert summary["vehicles"][vid]["samples"] == DURATION_S * 50 + 1
-    assert summary["vehicles"]["2"]["samples"] > 0.6 * DURATION_S * 50
+    assert summary["vehicles"]["2"]["samples"] > 0.6 * estimates
+    for vid in ("1", "3"):  # reordered by jitter or held back: overtaken frames are rejected as replays
+        vehicle = summary["vehicles"][vid]
+        assert 0.5 * estimates < vehicle["samples"] < estimates <= vehicle["samples"] + vehicle["mavlink_rejected"]
+    assert set(summary["mavlink_rejected_by_reason"]) == {"replay"}
     assert summary["swarm"]["rmse_m"] < 1.0
 
 

@@ -1,0 +1,170 @@
+"""Security of a swarm: zenoh logins and access control enforced by the router, TLS, MAVLink
+signing (unsigned, forged and replayed frames are rejected and counted, never fused, and one forged
+frame with a far-future timestamp does not block the genuine stream), and the MAVLink forward to
+ground-control software."""
+
+import os
+import queue
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import trustme
+
+from bus.config import BusConfig
+from bus.errors import BusUnavailable
+from bus.mavlink_codec import MavlinkEncoder, StateEstimate, signing_now
+from bus.secrets import write_secrets
+from bus.session import Transport, ZenohBus
+from groundstation.launcher import free_port, wait_for_port, Child
+from tests.integration.conftest import read_summary, run_swarm, swarm_command
+
+pytestmark = pytest.mark.integration
+
+
+def _router(tmp_path, *args: str) -> tuple[subprocess.Popen, int]:
+    port = free_port()
+    scheme = "tls" if "--tls-cert" in args else "tcp"
+    process = subprocess.Popen([sys.executable, "-m", "groundstation.cli", "router", "--listen",
+                                f"{scheme}/127.0.0.1:{port}", *args], stdout=subprocess.DEVNULL,
+                               stderr=open(tmp_path / f"router-{port}.log", "wb"))
+    wait_for_port(port, 15.0, Child("router", process, tmp_path / f"router-{port}.log", True))
+    return process, port
+
+
+def _login(secrets, user: str, password: str | None = None, **tls) -> Transport:
+    return Transport(user=user, password=password or (secrets / f"{user}.password").read_text().strip(), **tls)
+
+
+def _bus(port: int, transport: Transport, scheme: str = "tcp") -> ZenohBus:
+    # role "groundstation" switches off our in-process check, so that only the router's ACL decides
+    return ZenohBus(BusConfig(connect=(f"{scheme}/127.0.0.1:{port}",)), role="groundstation", transport=transport)
+
+
+def _received(inbox: queue.SimpleQueue, wait_s: float = 0.6) -> list[bytes]:
+    time.sleep(wait_s)
+    out = []
+    while not inbox.empty():
+        out.append(inbox.get().payload)
+    return out
+
+
+def test_router_refuses_bad_logins_and_enforces_access_control(tmp_path):
+    secrets = write_secrets(tmp_path / "secrets")
+    router, port = _router(tmp_path, "--credentials", str(secrets / "credentials.txt"))
+    try:
+        for transport in (_login(secrets, "vehicle", "wrong-password"), Transport()):
+            with pytest.raises(BusUnavailable, match="cannot join"):
+                _bus(port, transport)
+        with _bus(port, _login(secrets, "world")) as world, _bus(port, _login(secrets, "vehicle")) as vehicle, \
+                _bus(port, _login(secrets, "vehicle")) as rogue, _bus(port, _login(secrets, "groundstation")) as gs:
+            at_vehicle, at_gs = queue.SimpleQueue(), queue.SimpleQueue()
+            vehicle.subscribe("swarm/v/1/truth", at_vehicle)
+            vehicle.subscribe("swarm/ctl/faults/plan", at_vehicle)
+            vehicle.subscribe("swarm/v/1/sensor/gnss", at_vehicle)
+            gs.subscribe("swarm/v/1/truth", at_gs)
+            gs.subscribe("swarm/ctl/faults/plan", at_gs)
+            time.sleep(0.5)
+            world.publisher("swarm/v/1/truth").put(b"truth")
+            rogue.publisher("swarm/ctl/faults/plan").put(b"forged plan")
+            world.publisher("swarm/ctl/faults/plan").put(b"forged plan")
+            rogue.publisher("swarm/v/1/sensor/gnss").put(b"forged fix")
+            gs.publisher("swarm/ctl/faults/plan").put(b"plan")
+            assert sorted(_received(at_gs)) == [b"plan", b"truth"]  # nothing forged reached the ground station
+            assert _received(at_vehicle) == [b"plan"]                # vehicles get the plan, never truth
+    finally:
+        router.terminate()
+        router.wait(10)
+
+
+def test_the_bus_runs_over_tls_and_refuses_untrusted_peers(tmp_path):
+    ca, stranger = trustme.CA(), trustme.CA()
+    cert = ca.issue_cert("localhost", "127.0.0.1")
+    for pem, name in ((cert.private_key_pem, "key.pem"), (cert.cert_chain_pems[0], "cert.pem"),
+                      (ca.cert_pem, "ca.pem"), (stranger.cert_pem, "stranger.pem")):
+        pem.write_to_path(str(tmp_path / name))
+    router, port = _router(tmp_path, "--tls-cert", str(tmp_path / "cert.pem"), "--tls-key", str(tmp_path / "key.pem"))
+    try:
+        with pytest.raises(BusUnavailable):
+            _bus(port, Transport(tls_root_ca=str(tmp_path / "stranger.pem")), "tls")
+        with pytest.raises(BusUnavailable):
+            _bus(port, Transport())  # plain tcp to a TLS endpoint
+        with _bus(port, Transport(tls_root_ca=str(tmp_path / "ca.pem")), "tls") as a, \
+                _bus(port, Transport(tls_root_ca=str(tmp_path / "ca.pem")), "tls") as b:
+            inbox = queue.SimpleQueue()
+            b.subscribe("swarm/test", inbox)
+            time.sleep(0.3)
+            a.publisher("swarm/test").put(b"over tls")
+            assert _received(inbox) == [b"over tls"]
+    finally:
+        router.terminate()
+        router.wait(10)
+    result = run_swarm(tmp_path, "--vehicles", "2", "--duration", "5", "--name", "tls", "--tls-cert",
+                       str(tmp_path / "cert.pem"), "--tls-key", str(tmp_path / "key.pem"), "--tls-ca", str(tmp_path / "ca.pem"))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert read_summary(tmp_path / "tls")["vehicles"]["2"]["samples"] == 5 * 50 + 1
+
+
+def _forge(process_env_secrets, port: int, genuine: list[bytes]) -> None:
+    """As a compromised vehicle (valid zenoh login, no signing key): an unsigned frame, a frame signed
+    with a wrong key and a far-future timestamp, and a replay of a genuine frame, all as vehicle 2."""
+    estimate = StateEstimate(2, 1_000_000, np.array([1e5, 1e5, -30.0]), 0.0, np.zeros(3), 0.0, np.eye(6), np.eye(6))
+    unsigned = MavlinkEncoder(vehicle_id=2).odometry(estimate)
+    forger = MavlinkEncoder(vehicle_id=2, signing_key=os.urandom(32))
+    forger._mav.signing.timestamp = signing_now() + 100 * 86_400 * 100_000  # 100 days ahead
+    future = forger.odometry(estimate)
+    with _bus(port, _login(process_env_secrets, "vehicle")) as attacker:
+        publish = attacker.publisher("swarm/v/2/mavlink")
+        for frame in (unsigned, future, genuine[0]):
+            publish.put(frame)
+
+
+def test_unsigned_forged_and_replayed_mavlink_is_rejected_and_the_genuine_stream_survives(tmp_path):
+    process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "3", "--duration", "40", "--name", "signed"),
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    run = tmp_path / "signed"
+    deadline = time.monotonic() + 120
+    while not ((run / "metrics.csv").exists() and (run / "metrics.csv").stat().st_size > 20_000):
+        assert time.monotonic() < deadline, "the run never started"
+        time.sleep(0.2)
+    port = int(read_json(run / "swarm.json")["connect"][0].rsplit(":", 1)[1])
+    with _bus(port, _login(run / "secrets", "vehicle")) as spy:
+        inbox = queue.SimpleQueue()
+        spy.subscribe("swarm/v/2/mavlink", inbox)
+        genuine = [inbox.get(timeout=10).payload]
+    _forge(run / "secrets", port, genuine)
+    output, _ = process.communicate(timeout=240)
+    assert process.returncode == 0, output
+    summary = read_summary(run)
+    assert summary["mavlink_rejected_by_reason"] == {"bad_signature": 1, "replay": 1, "unsigned": 1}
+    assert summary["vehicles"]["2"]["mavlink_rejected"] == 3
+    assert summary["vehicles"]["2"]["samples"] == 40 * 50 + 1  # every genuine estimate, after the forged one too
+    assert summary["vehicles"]["2"]["max_error_m"] < 5.0        # the forged position was never scored
+
+
+def read_json(path):
+    import json
+
+    return json.loads(path.read_text())
+
+
+def test_ground_control_software_sees_every_vehicle_over_udp(tmp_path):
+    from pymavlink import mavutil
+
+    port = free_port()
+    gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=255)
+    result = run_swarm(tmp_path, "--vehicles", "3", "--duration", "5", "--name", "gcs",
+                       "--mavlink-out", f"udpout:127.0.0.1:{port}")
+    assert result.returncode == 0, result.stdout + result.stderr
+    heartbeats, odometry = set(), {}
+    while (message := gcs.recv_match(blocking=True, timeout=1.0)) is not None:
+        if message.get_type() == "HEARTBEAT":
+            heartbeats.add(message.get_srcSystem())
+        elif message.get_type() == "ODOMETRY":
+            odometry[message.get_srcSystem()] = message
+    gcs.close()
+    assert heartbeats == {1, 2, 3} and set(odometry) == {1, 2, 3}
+    for message in odometry.values():
+        assert len(message.pose_covariance) == 21 and 0 < message.pose_covariance[0] < 10  # x variance, m^2
