@@ -1,0 +1,73 @@
+"""A swarm across hosts: a router host, a ground-station host (world and ground station), and two
+vehicle hosts, as network namespaces joined by veth links. Vehicle host A runs a second zenoh
+router joined to the first (the two-router deployment of the README); its vehicles connect to it
+locally, while vehicle host B connects to the main router. Logins, access control and signing on.
+Every vehicle is scored."""
+
+import os
+import sys
+
+import pytest
+
+from bus.config import build_config
+from bus.secrets import role_env, write_secrets
+from tests.integration.conftest import read_summary
+from tests.integration.netns import Lab, netns_unavailable
+
+pytestmark = pytest.mark.integration
+DURATION_S = 15
+
+
+@pytest.fixture
+def lab():
+    reason = netns_unavailable()
+    if reason:
+        pytest.skip(f"multi-host test needs network namespaces: {reason}")
+    lab = Lab(["rtr", "gs", "va", "vb"])
+    yield lab
+    lab.close()
+
+
+def test_swarm_across_four_hosts_and_two_routers(lab, tmp_path):
+    secrets = write_secrets(tmp_path / "secrets")
+    main = f"tcp/{lab.addresses['rtr']}:7447"
+    config = build_config({"name": "multihost", "world": {"vehicles": 3, "seed": 3},
+                           "clock": {"duration_s": DURATION_S, "start_timeout_s": 90}})
+    config.dump(tmp_path / "config.json")
+    cli = [sys.executable, "-m", "groundstation.cli"]
+    processes = []
+
+    def start(host: str, name: str, args: list[str], role: str, connect: str | None = None):
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", **role_env(secrets, role)}
+        if connect:
+            env["SWARMLOC_ZENOH_CONNECT"] = connect
+        log = open(tmp_path / f"{name}.log", "wb")
+        processes.append((name, lab.run(host, cli + args, env=env, log=log)))
+
+    creds = ["--credentials", str(secrets / "credentials.txt")]
+    start("rtr", "router-a", ["router", "--listen", f"tcp/0.0.0.0:7447", *creds], "router")
+    start("va", "router-b", ["router", "--listen", "tcp/127.0.0.1:7448", "--connect", main, *creds], "router")
+    conf = str(tmp_path / "config.json")
+    run_dir = tmp_path / "run"
+    start("gs", "groundstation", ["gs", "--config", conf, "--run-dir", str(run_dir), "--quiet"], "groundstation", main)
+    start("va", "vehicle-1", ["vehicle", "--config", conf, "--id", "1"], "vehicle", "tcp/127.0.0.1:7448")
+    start("va", "vehicle-2", ["vehicle", "--config", conf, "--id", "2"], "vehicle", "tcp/127.0.0.1:7448")
+    start("vb", "vehicle-3", ["vehicle", "--config", conf, "--id", "3"], "vehicle", main)
+    start("gs", "world", ["sim", "--config", conf], "world", main)
+    try:
+        gs = dict(processes)["groundstation"]
+        assert gs.wait(timeout=240) == 0, (tmp_path / "groundstation.log").read_text()[-2000:]
+    finally:
+        for _, process in processes:
+            if process.poll() is None:
+                process.terminate()
+        for _, process in processes:
+            try:
+                process.wait(timeout=10)
+            except Exception:
+                process.kill()
+    summary = read_summary(run_dir)
+    assert summary["status"] == "complete"
+    for vid in ("1", "2", "3"):
+        assert summary["vehicles"][vid]["samples"] == DURATION_S * 50 + 1, vid
+        assert summary["vehicles"][vid]["rmse_m"] < 1.5 and summary["vehicles"][vid]["mavlink_rejected"] == 0
