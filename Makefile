@@ -25,7 +25,7 @@ integration: $(STAMP)
 	$(BIN)/python -m pytest -q tests/integration
 
 fuzz: $(STAMP)
-	$(BIN)/python -m pytest -q tests/unit/bus --hypothesis-profile=fuzz-long -k "garbage or mutated or arbitrary or wrong_values"
+	$(BIN)/python -m pytest -q tests/unit/bus --hypothesis-profile=fuzz-long -k "garbage or mutated or arbitrary or wrong_values or claim_decoders"
 
 test-docker: $(STAMP)
 	$(BIN)/python -m pytest -q -m docker tests/docker

@@ -1,7 +1,7 @@
 """Zenoh access control for a swarm (the router enforces it): one user per role.
 
 - only the world publishes sensor feeds, truth and the clock;
-- only the ground station publishes fault-control keys and answers fault requests;
+- only the ground station publishes fault-control keys and answers fault requests and id claims;
 - vehicles, the supervisor and the CLI can neither subscribe to truth nor receive it.
 Everything else is allowed (default permission "allow"); vehicles' MAVLink streams are protected
 by MAVLink signing instead.
@@ -20,7 +20,7 @@ def acl_policy(prefix: str) -> dict:
         {"id": "no-truth", "permission": "deny", "flows": ["ingress", "egress"],
          "messages": ["declare_subscriber", "put", "query", "declare_queryable"], "key_exprs": truth},
         {"id": "no-fault-control", "permission": "deny", "flows": ["ingress"],
-         "messages": ["put", "delete", "declare_queryable"], "key_exprs": [f"{prefix}/ctl/faults/**"]},
+         "messages": ["put", "delete", "declare_queryable"], "key_exprs": [f"{prefix}/ctl/faults/**", f"{prefix}/ctl/claim"]},
         {"id": "no-world-output", "permission": "deny", "flows": ["ingress"],
          "messages": ["put", "delete"], "key_exprs": world_output},
     ]

@@ -143,10 +143,16 @@ def build_config(data: dict) -> SwarmConfig:
     return _validated(SwarmConfig, data)
 
 
-def load_config(path: Path) -> SwarmConfig:
-    """Read a config JSON written by :meth:`SwarmConfig.dump` (or by hand)."""
+def load_config(path: Path, env: dict[str, str] | None = None) -> SwarmConfig:
+    """Read a config JSON written by :meth:`SwarmConfig.dump` (or by hand); ``SWARMLOC_VEHICLES``
+    overrides the swarm size (compose deployments scale the vehicle service with it)."""
+    env = os.environ if env is None else env
     try:
         data = json.loads(Path(path).read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise ConfigError(f"cannot read config {path}: {exc}") from None
+    if env.get("SWARMLOC_VEHICLES"):
+        if not isinstance(data, dict) or not env["SWARMLOC_VEHICLES"].isdigit():
+            raise ConfigError(f"SWARMLOC_VEHICLES must be a number of vehicles, got {env['SWARMLOC_VEHICLES']!r}")
+        data.setdefault("world", {})["vehicles"] = int(env["SWARMLOC_VEHICLES"])
     return build_config(data)

@@ -12,6 +12,7 @@ Layout under a configurable prefix (default ``swarm``)::
     <prefix>/ctl/end                 end of run
     <prefix>/ctl/faults/plan         the fault plan (published by the ground station only)
     <prefix>/ctl/faults/request      queryable of the ground station: add, remove, clear, list faults
+    <prefix>/ctl/claim               queryable of the ground station: vehicle ids for `--id auto`
     <prefix>/alive/<role>/<id>       liveliness tokens
 """
 
@@ -63,6 +64,9 @@ class KeySpace:
 
     def fault_request(self) -> str:
         return f"{self.prefix}/ctl/faults/request"
+
+    def claim(self) -> str:
+        return f"{self.prefix}/ctl/claim"
 
     def alive(self, role: str, ident: int | str) -> str:
         if role not in ROLES:

@@ -152,6 +152,23 @@ def report(run_dir: Path = typer.Argument(..., help="a run directory written by 
 
 
 @app.command()
+def secrets(out: Path = typer.Option(..., help="directory for the secrets (created, owner-only)"),
+            keep: bool = typer.Option(True, help="leave an existing set alone (containers share one)")) -> None:
+    """Write a fresh MAVLink signing key and one zenoh password per role, plus the router's
+    credentials file: what `swarm up` does for every run, for deployments (compose) to share."""
+    from bus.secrets import write_secrets
+
+    if keep and (out / "credentials.txt").exists():
+        typer.echo(f"secrets in {out} exist; kept")
+        return
+    try:
+        write_secrets(out)
+    except OSError as exc:
+        _fail(f"cannot write secrets to {out}: {exc.strerror or exc}")
+    typer.echo(f"secrets written to {out}")
+
+
+@app.command()
 def router(listen: list[str] = typer.Option(["tcp/0.0.0.0:7447"], help="zenoh endpoint(s) to listen on (tcp/... or tls/...)"),
            connect: list[str] = typer.Option([], help="other routers to join (multi-host deployments)"),
            credentials: Optional[Path] = typer.Option(None, help="user:password lines; logins become mandatory"),
@@ -203,17 +220,47 @@ def sim(config: Path = typer.Option(..., help="swarm config JSON")) -> None:
 
 @app.command()
 def vehicle(config: Path = typer.Option(..., help="swarm config JSON"),
-            id: int = typer.Option(..., "--id", min=1, max=250, help="vehicle id (MAVLink sysid)"),
+            id: str = typer.Option(..., "--id", help="vehicle id (MAVLink sysid, 1-250), or auto: claim one from the swarm"),
             restarts: int = typer.Option(0, min=0, max=255, help="how often this vehicle was started before (reset_counter)")) -> None:
     """Run one vehicle process: the fixed-rate estimator loop. Signs its MAVLink stream with the key
-    in $SWARMLOC_MAVLINK_KEY or $SWARMLOC_MAVLINK_KEY_FILE."""
+    in $SWARMLOC_MAVLINK_KEY or $SWARMLOC_MAVLINK_KEY_FILE. With --id auto the ground station assigns
+    the id (unique, even for vehicles starting together; the same again after a restart), keyed by
+    $SWARMLOC_VEHICLE_NAME or the host name."""
     from bus.secrets import signing_key_from_env
     from vehicle.loops import run_vehicle
 
+    if id != "auto" and not (id.isdigit() and 1 <= int(id) <= 250):
+        _fail(f"--id must be 1-250 or auto, got {id!r}")
+
     def body(bus, cfg, stop) -> None:
-        run_vehicle(bus, cfg, id, stop, restarts=restarts, signing_key=signing_key_from_env())
+        vid, count = (int(id), restarts) if id != "auto" else _claim_id(bus, stop)
+        run_vehicle(bus, cfg, vid, stop, restarts=count, signing_key=signing_key_from_env())
 
     _run_node(config, "vehicle", body)
+
+
+def _claim_id(bus, stop, timeout_s: float = 120.0) -> tuple[int, int]:
+    """Ask the ground station for this host's vehicle id until it answers (it may start later)."""
+    import os
+    import socket
+    import time
+
+    from bus.claims import ClaimReply, ClaimRequest
+    from bus.plan import decode_json, encode_json
+
+    host = os.environ.get("SWARMLOC_VEHICLE_NAME") or socket.gethostname()
+    payload = encode_json(ClaimRequest(host=host))
+    deadline = time.monotonic() + timeout_s
+    while not stop.is_set() and time.monotonic() < deadline:
+        for raw in bus.get(bus.keys.claim(), payload, 2.0):
+            reply = decode_json(ClaimReply, raw)
+            if not reply.ok:
+                raise SwarmlocError(f"no vehicle id for {host}: {reply.error}")
+            logging.getLogger("swarmloc.vehicle").info("%s claimed vehicle id %d (restarts %d)", host,
+                                                       reply.vehicle_id, reply.restarts)
+            return reply.vehicle_id, reply.restarts
+        time.sleep(0.5)
+    raise SwarmlocError(f"no ground station answered the id claim of {host} within {timeout_s:g} s")
 
 
 @app.command()

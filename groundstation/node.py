@@ -21,6 +21,8 @@ from bus.link_faults import Arrival, LinkFaultStage
 from bus.mavlink_codec import EstimatorStatus, MavlinkDecoder, StateEstimate, StatusText, frame_header
 from bus.plan import FaultReply, FaultRequest, decode_json, encode_json
 from bus.session import Bus, Envelope, LivelinessEvent, Request
+from bus.claims import ClaimReply, ClaimRequest
+from groundstation.claims import IdRegister
 from groundstation.fault_control import FaultControl
 from groundstation.link_quality import StreamQuality
 from groundstation.mavlink_out import MavlinkForwarder
@@ -44,8 +46,10 @@ class GroundStation:
         for expr in (f"{prefix}/v/*/truth", f"{prefix}/v/*/mavlink", f"{prefix}/v/*/status", keys.clock(), keys.end()):
             bus.subscribe(expr, self.inbox)
         bus.queryable(keys.fault_request(), self.inbox)
+        bus.queryable(keys.claim(), self.inbox)
         self._plan_pub = bus.publisher(keys.fault_plan())
         self.run = RunDirectory(run_dir)
+        self.ids = IdRegister(vehicles=config.world.vehicles, path=run_dir / "claims.json")
         self.scorer = Scorer()
         self.decoder = MavlinkDecoder(signing_key=signing_key)
         self.forwarder = forwarder
@@ -119,7 +123,16 @@ class GroundStation:
         self.event(kind, vehicle=int(vid) if vid.isdigit() else vid)
 
     def _on_request(self, request: Request) -> None:
-        """`swarm fault ...`: validate, apply, publish the new plan, answer with it."""
+        """`swarm fault ...`: validate, apply, publish the new plan, answer with it. Id claims too."""
+        if request.key == self.bus.keys.claim():
+            try:
+                reply = self.ids.claim(decode_json(ClaimRequest, request.payload))
+            except DecodeError as exc:
+                reply = ClaimReply(ok=False, error=str(exc))
+            request.respond(encode_json(reply))
+            if reply.ok:
+                self.run.event("vehicle_claimed", self.sim_time_us, vehicle=reply.vehicle_id, restarts=reply.restarts)
+            return
         try:
             reply = self.faults.request(decode_json(FaultRequest, request.payload))
         except DecodeError as exc:

@@ -83,3 +83,14 @@ def test_mutated_plans_decode_or_raise_decode_error(data):
         decode_json(FaultPlan, bytes(payload))
     except DecodeError:
         pass
+
+
+@given(st.binary(max_size=200) | st.builds(lambda h: json.dumps({"host": h}).encode(), st.text(max_size=140)))
+def test_claim_decoders_raise_decode_error_only(payload):
+    from bus.claims import ClaimReply, ClaimRequest
+
+    for cls in (ClaimRequest, ClaimReply):
+        try:
+            decode_json(cls, payload)
+        except DecodeError:
+            pass

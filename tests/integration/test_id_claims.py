@@ -1,0 +1,48 @@
+"""Vehicles started together with `--id auto` (as compose replicas are) claim distinct ids from the
+ground station, and the swarm runs with them."""
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from bus.config import build_config
+from bus.secrets import role_env, write_secrets
+from groundstation.launcher import Child, free_port, wait_for_port
+from tests.integration.conftest import read_summary
+
+pytestmark = pytest.mark.integration
+
+
+def test_vehicles_starting_together_claim_distinct_ids(tmp_path):
+    secrets, port = write_secrets(tmp_path / "secrets"), free_port()
+    build_config({"world": {"vehicles": 3, "seed": 2}, "clock": {"duration_s": 6}}).dump(tmp_path / "config.json")
+    cli, conf, run_dir = [sys.executable, "-m", "groundstation.cli"], str(tmp_path / "config.json"), tmp_path / "run"
+    processes = []
+
+    def start(name: str, args: list[str], role: str, **extra: str) -> subprocess.Popen:
+        env = {**os.environ, **role_env(secrets, role), "SWARMLOC_ZENOH_CONNECT": f"tcp/127.0.0.1:{port}", **extra}
+        process = subprocess.Popen(cli + args, env=env, stdout=subprocess.DEVNULL, stderr=open(tmp_path / f"{name}.log", "wb"))
+        processes.append(process)
+        return process
+
+    router = start("router", ["router", "--listen", f"tcp/127.0.0.1:{port}", "--credentials",
+                              str(secrets / "credentials.txt")], "router")
+    wait_for_port(port, 15.0, Child("router", router, tmp_path / "router.log", True))
+    for name in ("alpha", "bravo", "charlie"):  # before the ground station: they retry until it answers
+        start(name, ["vehicle", "--config", conf, "--id", "auto"], "vehicle", SWARMLOC_VEHICLE_NAME=name)
+    gs = start("gs", ["gs", "--config", conf, "--run-dir", str(run_dir), "--quiet"], "groundstation")
+    start("world", ["sim", "--config", conf], "world")
+    try:
+        assert gs.wait(timeout=120) == 0, (tmp_path / "gs.log").read_text()[-2000:]
+    finally:
+        for process in processes:
+            if process.poll() is None:
+                process.terminate()
+            process.wait(timeout=10)
+    claims = json.loads((run_dir / "claims.json").read_text())
+    assert sorted(claims["ids"].values()) == [1, 2, 3] and set(claims["ids"]) == {"alpha", "bravo", "charlie"}
+    summary = read_summary(run_dir)
+    assert {vid: v["samples"] for vid, v in summary["vehicles"].items()} == {"1": 301, "2": 301, "3": 301}
