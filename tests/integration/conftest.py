@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -18,6 +19,14 @@ def swarm_command(out: Path, *args: str) -> list[str]:
 def run_swarm(out: Path, *args: str, timeout_s: float = 240) -> subprocess.CompletedProcess:
     return subprocess.run(swarm_command(out, *args), capture_output=True, text=True, timeout=timeout_s,
                           env={**os.environ, "COLUMNS": "200"})
+
+
+def wait_for_metrics(run_dir: Path, min_bytes: int, timeout_s: float = 120) -> None:
+    """Wait until the run's metrics.csv has grown past ``min_bytes`` (scoring is under way)."""
+    metrics, deadline = run_dir / "metrics.csv", time.monotonic() + timeout_s
+    while not (metrics.exists() and metrics.stat().st_size > min_bytes):
+        assert time.monotonic() < deadline, f"the run in {run_dir} never got that far"
+        time.sleep(0.2)
 
 
 def read_summary(run_dir: Path) -> dict:

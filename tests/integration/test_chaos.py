@@ -28,7 +28,7 @@ def test_chaos_run_survives_every_kind_of_fault(tmp_path):
     assert summary["faults"]["total"] == len(planned) and summary["faults"]["names"] == [f["name"] for f in planned]
     assert summary["events"]["fault_added"] == summary["events"]["fault_started"] == len(planned)
     assert summary["events"]["fault_expired"] == len(planned)  # every chaos fault ends inside the run
-    for vid in map(str, range(1, 7)):
-        assert summary["vehicles"][vid]["samples"] > 0.8 * 120 * 50, vid
-    for vid in map(str, range(1, 7)):
-        assert len((run / "tum" / f"est_v{vid}.tum").read_text().splitlines()) == summary["vehicles"][vid]["samples"]
+    for vid in map(str, range(1, 7)):  # scored to the end (MAVLink loss and replays cost some samples)
+        assert summary["vehicles"][vid]["samples"] > 0.6 * 120 * 50, vid
+        track = (run / "tum" / f"est_v{vid}.tum").read_text().splitlines()
+        assert len(track) == summary["vehicles"][vid]["samples"] and float(track[-1].split()[0]) > 119.0

@@ -45,7 +45,7 @@ def test_swarm_across_four_hosts_and_two_routers(lab, tmp_path):
         processes.append((name, lab.run(host, cli + args, env=env, log=log)))
 
     creds = ["--credentials", str(secrets / "credentials.txt")]
-    start("rtr", "router-a", ["router", "--listen", f"tcp/0.0.0.0:7447", *creds], "router")
+    start("rtr", "router-a", ["router", "--listen", "tcp/0.0.0.0:7447", *creds], "router")
     start("va", "router-b", ["router", "--listen", "tcp/127.0.0.1:7448", "--connect", main, *creds], "router")
     conf = str(tmp_path / "config.json")
     run_dir = tmp_path / "run"

@@ -8,11 +8,10 @@ import json
 import os
 import signal
 import subprocess
-import time
 
 import pytest
 
-from tests.integration.conftest import processes_matching, read_summary, run_swarm, swarm_command
+from tests.integration.conftest import processes_matching, read_summary, run_swarm, swarm_command, wait_for_metrics
 
 pytestmark = pytest.mark.integration
 KILL = """
@@ -54,21 +53,14 @@ def test_killed_vehicle_is_restarted_and_rejoins_with_reset_counter(tmp_path):
             and e["event"] != "vehicle_message"][:3] == ["vehicle_joined", "vehicle_lost", "vehicle_joined"]
 
 
-def _wait_for_metrics(run, size: int) -> None:
-    deadline = time.monotonic() + 120
-    while not ((run / "metrics.csv").exists() and (run / "metrics.csv").stat().st_size > size):
-        assert time.monotonic() < deadline, "the run never got that far"
-        time.sleep(0.2)
-
-
 def test_restart_on_failure_brings_back_a_vehicle_and_the_ground_station(tmp_path):
     process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "3", "--duration", "40", "--name", "phoenix",
                                              "--restart", "on-failure"),
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     run = tmp_path / "phoenix"
-    _wait_for_metrics(run, 30_000)
+    wait_for_metrics(run, 30_000)
     os.kill(processes_matching(f"{run}/config.json --id 3")[0], signal.SIGKILL)
-    _wait_for_metrics(run, 60_000)
+    wait_for_metrics(run, 60_000)
     gs = processes_matching(f"gs --config {run}/config.json")
     os.kill(gs[0], signal.SIGKILL)
     output, _ = process.communicate(timeout=240)

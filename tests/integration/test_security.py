@@ -3,6 +3,7 @@ signing (unsigned, forged and replayed frames are rejected and counted, never fu
 frame with a far-future timestamp does not block the genuine stream), and the MAVLink forward to
 ground-control software."""
 
+import json
 import os
 import queue
 import subprocess
@@ -19,7 +20,7 @@ from bus.mavlink_codec import MavlinkEncoder, StateEstimate, signing_now
 from bus.secrets import write_secrets
 from bus.session import Transport, ZenohBus
 from groundstation.launcher import free_port, wait_for_port, Child
-from tests.integration.conftest import read_summary, run_swarm, swarm_command
+from tests.integration.conftest import read_summary, run_swarm, swarm_command, wait_for_metrics
 
 pytestmark = pytest.mark.integration
 
@@ -125,11 +126,8 @@ def test_unsigned_forged_and_replayed_mavlink_is_rejected_and_the_genuine_stream
     process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "3", "--duration", "40", "--name", "signed"),
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     run = tmp_path / "signed"
-    deadline = time.monotonic() + 120
-    while not ((run / "metrics.csv").exists() and (run / "metrics.csv").stat().st_size > 20_000):
-        assert time.monotonic() < deadline, "the run never started"
-        time.sleep(0.2)
-    port = int(read_json(run / "swarm.json")["connect"][0].rsplit(":", 1)[1])
+    wait_for_metrics(run, 20_000)
+    port = int(json.loads((run / "swarm.json").read_text())["connect"][0].rsplit(":", 1)[1])
     with _bus(port, _login(run / "secrets", "vehicle")) as spy:
         inbox = queue.SimpleQueue()
         spy.subscribe("swarm/v/2/mavlink", inbox)
@@ -142,12 +140,6 @@ def test_unsigned_forged_and_replayed_mavlink_is_rejected_and_the_genuine_stream
     assert summary["vehicles"]["2"]["mavlink_rejected"] == 3
     assert summary["vehicles"]["2"]["samples"] == 40 * 50 + 1  # every genuine estimate, after the forged one too
     assert summary["vehicles"]["2"]["max_error_m"] < 5.0        # the forged position was never scored
-
-
-def read_json(path):
-    import json
-
-    return json.loads(path.read_text())
 
 
 def test_ground_control_software_sees_every_vehicle_over_udp(tmp_path):

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from tests.integration.conftest import processes_matching, read_summary, run_swarm, swarm_command
+from tests.integration.conftest import processes_matching, read_summary, run_swarm, swarm_command, wait_for_metrics
 
 pytestmark = pytest.mark.integration
 GNSS_SIGMA_M = 1.5  # the default SensorSpec.gnss_sigma_m
@@ -71,10 +71,7 @@ def test_sigint_shuts_everything_down_and_leaves_a_summary(tmp_path):
     process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "2", "--duration", "600", "--name", "stop"),
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     run = tmp_path / "stop"
-    deadline = time.monotonic() + 120
-    while not ((run / "metrics.csv").exists() and (run / "metrics.csv").stat().st_size > 2_000):
-        assert time.monotonic() < deadline, "the run never started"
-        time.sleep(0.2)
+    wait_for_metrics(run, 2_000)
     process.send_signal(signal.SIGINT)
     process.communicate(timeout=30)
     assert read_summary(run)["status"] == "interrupted"

@@ -1,6 +1,5 @@
 """The vehicle node over the in-memory bus: garbage is counted, never fatal; cycles at a fixed rate."""
 
-import threading
 
 import numpy as np
 
