@@ -1,10 +1,10 @@
 # One image for every role of a swarm: router, sim, groundstation, vehicle (see docker-compose.yml).
 FROM python:3.11-slim
 
-ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
-RUN useradd --create-home --uid 1000 swarm \
- && mkdir -p /runs /secrets \
- && chown swarm:swarm /runs /secrets
+ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1 \
+    HOME=/home/swarm MPLCONFIGDIR=/tmp/matplotlib
+# the unprivileged user is uid 1000 (numeric, so the image needs no passwd tools)
+RUN mkdir -p /runs /secrets /home/swarm && chown 1000:1000 /runs /secrets /home/swarm
 WORKDIR /app
 COPY pyproject.toml README.md ./
 COPY bus ./bus
@@ -14,6 +14,6 @@ COPY groundstation ./groundstation
 COPY deploy ./deploy
 RUN pip install --no-compile . && rm -rf /root/.cache
 
-USER swarm
+USER 1000:1000
 ENTRYPOINT ["swarm"]
 CMD ["--help"]
