@@ -55,6 +55,7 @@ class GroundStation:
         self.forwarder = forwarder
         self.links = LinkFaultStage("gs", seed=config.world.seed, faults=config.faults)
         self.quality: dict[int, StreamQuality] = {}
+        self._stream_stamp_us: dict[int, int] = {}
         self.latency_us: dict[int, list[int]] = {}
         self.statuses: dict[int, m.VehicleStatus] = {}
         self.rejected: Counter[int] = Counter()
@@ -166,10 +167,14 @@ class GroundStation:
             log.warning("ground station dropped a payload on %s: %s", key, exc)
 
     def _offer_mavlink(self, item: Envelope) -> None:
-        """MAVLink frames pass this process's link faults first (stamped with their time_usec)."""
+        """MAVLink frames pass this process's link faults first, stamped with their time_usec; frames
+        without one (HEARTBEAT, STATUSTEXT) take the last stamp of their stream, so that what the
+        faults do never depends on when a frame happened to arrive (lockstep stays reproducible)."""
         header = frame_header(item.payload)
-        stamp = header[3] if header and header[3] is not None else self.sim_time_us
         vid = self.bus.keys.vehicle_of(item.key)
+        if header and header[3] is not None:
+            self._stream_stamp_us[vid] = header[3]
+        stamp = self._stream_stamp_us.get(vid, 0)
         for frame in self.links.offer(Arrival(item.key, f"v{vid}", "mavlink", stamp, item)):
             self._on_mavlink(frame)
 

@@ -67,13 +67,28 @@ gap_s = 0.06
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("links")
-    scenario = out / "links.toml"
-    scenario.write_text(SCENARIO)
-    result = run_swarm(out, str(scenario))
-    assert result.returncode == 0, result.stdout + result.stderr
-    return out / "links"
+def runs(tmp_path_factory):
+    """The scenario twice, with the same seed."""
+    dirs = []
+    for _ in range(2):
+        out = tmp_path_factory.mktemp("links")
+        scenario = out / "links.toml"
+        scenario.write_text(SCENARIO)
+        result = run_swarm(out, str(scenario))
+        assert result.returncode == 0, result.stdout + result.stderr
+        dirs.append(out / "links")
+    return dirs
+
+
+@pytest.fixture(scope="module")
+def run(runs):
+    return runs[0]
+
+
+def test_runs_with_link_faults_are_reproducible(runs):
+    a, b = runs
+    assert (a / "summary.json").read_text() == (b / "summary.json").read_text()
+    assert (a / "metrics.csv").read_bytes() == (b / "metrics.csv").read_bytes()
 
 
 def test_the_swarm_keeps_running_and_every_vehicle_is_scored(run):
