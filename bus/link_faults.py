@@ -2,8 +2,8 @@
 
 Every arriving packet is offered with its key, sending endpoint, topic and sim-time stamp. Each
 active fault that selects it may drop it (random or Gilbert-Elliott loss), duplicate it, or hold it
-back (delay with jitter, reordering). Held packets come out of :meth:`LinkFaultStage.release` once
-the receiver's sim time reaches ``stamp + delay``.
+back (delay with jitter, reordering). Selected packets come out of :meth:`LinkFaultStage.release`
+once the receiver's sim time reaches ``stamp + delay``, in that order.
 
 Reproducible: every random draw is a hash of (seed, fault name, key, n, slot), where n counts the
 packets that arrived on that key. Zenoh keeps order within a key, so n names the same packet in
@@ -19,7 +19,7 @@ import itertools
 import math
 from collections import Counter
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 from bus.faults import Delay, Duplicate, Loss, Reorder, _LinkFault
 
@@ -77,7 +77,9 @@ class LinkFaultStage:
         self.faults = tuple(f for f in faults if isinstance(f, _LinkFault) and fnmatch.fnmatchcase(self.receiver, f.dst))
 
     def offer(self, arrival: Arrival) -> list[Any]:
-        """Take one arriving packet; returns the items to deliver now (0, 1 or 2 of them)."""
+        """Take one arriving packet. One that no active fault selects is returned at once; otherwise
+        its copies (0, 1 or 2) come out of :meth:`release` at stamp + delay, in that order, so that
+        what a receiver sees never depends on how arrivals interleave with its clock."""
         n = self._arrivals[arrival.key]
         self._arrivals[arrival.key] = n + 1
         t_s = arrival.stamp_us * 1e-6
@@ -101,11 +103,10 @@ class LinkFaultStage:
             elif isinstance(fault, Reorder) and uniform(self.seed, *tag, "reorder") < fault.percent / 100.0:
                 extra_us = [e + round(1e6 * fault.gap_s) for e in extra_us]
                 self.delayed[fault.name] += len(extra_us)
-        now = [arrival.item for e in extra_us if e == 0]
-        for e in extra_us:
-            if e > 0 and len(self._held) < MAX_HELD:
+        for e in extra_us:  # even undelayed copies wait for release(): delivery follows stamps, not arrival
+            if len(self._held) < MAX_HELD:
                 heapq.heappush(self._held, (arrival.stamp_us + e, next(self._order), arrival))
-        return now
+        return []
 
     def _lost(self, fault: Loss, key: str, n: int) -> bool:
         u = uniform(self.seed, fault.name, key, n, "loss")
@@ -119,11 +120,19 @@ class LinkFaultStage:
         self._bad[(fault.name, key)] = bad
         return bad
 
-    def release(self, now_us: int) -> list[Any]:
-        """Held items due at or before ``now_us``, in due order."""
-        out = []
+    def release(self, now_us: int, ready: Callable[[Arrival, int], bool] | None = None) -> list[Any]:
+        """Held items due at or before ``now_us``, in due order. ``ready(arrival, due_us)`` may keep an
+        item back: a receiver that cannot tell whether earlier packets of a stream are still on
+        their way (the ground station) releases an item only once its stream has passed its due time."""
+        out, waiting = [], []
         while self._held and self._held[0][0] <= now_us:
-            out.append(heapq.heappop(self._held)[2].item)
+            entry = heapq.heappop(self._held)
+            if ready is None or ready(entry[2], entry[0]):
+                out.append(entry[2].item)
+            else:
+                waiting.append(entry)
+        for entry in waiting:
+            heapq.heappush(self._held, entry)
         return out
 
     def held_min_stamp(self, key: str | None = None) -> int | None:

@@ -224,7 +224,7 @@ class GroundStation:
         self.final_seen = self.final_seen or tick.final
         self.sim_time_us = tick.stamp_us
         self.faults.advance(tick.stamp_us)
-        for frame in self.links.release(tick.stamp_us):
+        for frame in self.links.release(tick.stamp_us, self._stream_passed):
             self._on_mavlink(frame)
         if self.config.clock.mode == "lockstep" and self.previous_tick_us >= 0:
             self.run.write_scores(self.scorer.release(self._lockstep_watermark()))
@@ -234,6 +234,13 @@ class GroundStation:
         if time.monotonic() - self._plan_sent_at > PLAN_REPEAT_S:
             self.publish_plan()  # repeated, so that restarted processes learn it
         self.on_progress(self)
+
+    def _stream_passed(self, arrival: Arrival, due_us: int) -> bool:
+        """A held frame comes out once its stream has delivered a frame stamped at or after its due
+        time (zenoh keeps order within a key, so nothing earlier is still on its way), or once its
+        vehicle has left. Release order then never depends on when frames arrived."""
+        vid = self.bus.keys.vehicle_of(arrival.key)
+        return self._stream_stamp_us.get(vid, -1) >= due_us or vid not in self.active
 
     def _completed(self, vid: str) -> bool:
         """A vehicle whose estimates reached the end of the run left normally; otherwise it was lost."""

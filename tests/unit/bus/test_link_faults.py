@@ -68,22 +68,41 @@ def test_reorder_holds_back_the_asked_share_so_later_packets_overtake():
     assert overtaken.mean() == pytest.approx(0.25, abs=0.015)
 
 
+def _kept(stage: LinkFaultStage, order: list[tuple[str, int]]) -> dict[str, list[int]]:
+    """Offer packets (key, number) in ``order``; which numbers come out, per key."""
+    for key, i in order:
+        stage.offer(Arrival(key, "v1", "imu", i, (key, i)))
+    out: dict[str, list[int]] = {}
+    for key, i in stage.release(10**12):
+        out.setdefault(key, []).append(i)
+    return {k: sorted(v) for k, v in out.items()}
+
+
 def test_decisions_are_reproducible_and_independent_of_key_interleaving():
     faults = (Loss(name="l", percent=40),)
-    a, b = LinkFaultStage("v1", seed=9, faults=faults), LinkFaultStage("v1", seed=9, faults=faults)
-    kept_a = [bool(a.offer(Arrival(k, "v1", "imu", i, (k, i)))) for i in range(500) for k in ("x", "y")]
-    kept_b = [bool(b.offer(Arrival(k, "v1", "imu", i, (k, i)))) for k in ("y", "x") for i in range(500)]
-    by_key_a = {k: [kept_a[2 * i + j] for i in range(500)] for j, k in enumerate(("x", "y"))}
-    by_key_b = {k: kept_b[j * 500:(j + 1) * 500] for j, k in enumerate(("y", "x"))}
-    assert by_key_a == by_key_b
-    c = LinkFaultStage("v1", seed=10, faults=faults)
-    assert [bool(c.offer(Arrival("x", "v1", "imu", i, i))) for i in range(500)] != by_key_a["x"]
+    interleaved = [(k, i) for i in range(500) for k in ("x", "y")]
+    one_after_other = [(k, i) for k in ("y", "x") for i in range(500)]
+    kept = _kept(LinkFaultStage("v1", seed=9, faults=faults), interleaved)
+    assert kept == _kept(LinkFaultStage("v1", seed=9, faults=faults), one_after_other)
+    assert 0.5 < len(kept["x"]) / 500 < 0.7
+    assert kept != _kept(LinkFaultStage("v1", seed=10, faults=faults), interleaved)
+
+
+def test_selected_packets_come_out_in_stamp_order_whatever_their_arrival():
+    stage = LinkFaultStage("gs", seed=1, faults=(Duplicate(name="d", percent=0),))
+    for stamp in (30, 10, 20):
+        assert stage.offer(Arrival("k", "v1", "mavlink", stamp, stamp)) == []
+    assert stage.release(20) == [10, 20] and stage.release(100) == [30]
+    assert LinkFaultStage("gs", seed=1).offer(Arrival("k", "v1", "mavlink", 5, "now")) == ["now"]  # no fault: at once
 
 
 def test_faults_select_by_source_destination_topic_and_time():
     fault = Loss(name="l", src="v[12]", dst="gs", topic="mav*", percent=100, start_s=1.0, for_s=1.0)
     stage = LinkFaultStage("gs", seed=0, faults=(fault,))
-    offer = lambda src, topic, t_s: bool(stage.offer(Arrival(f"{src}/{topic}", src, topic, round(t_s * 1e6), 0)))
+    def offer(src: str, topic: str, t_s: float) -> bool:
+        now = stage.offer(Arrival(f"{src}/{topic}", src, topic, round(t_s * 1e6), 0))
+        return bool(now + stage.release(10**12))
+
     assert not offer("v1", "mavlink", 1.5) and not offer("v2", "mavlink", 1.0)
     assert offer("v3", "mavlink", 1.5) and offer("v1", "imu", 1.5)
     assert offer("v1", "mavlink", 0.9) and offer("v1", "mavlink", 2.0)
