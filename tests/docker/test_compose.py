@@ -31,10 +31,7 @@ def compose(tmp_path):
         pytest.skip(f"no Docker engine answers ({(info.stderr.strip().splitlines() or ['docker info failed'])[-1]})")
     project = f"swarmloc-test-{os.getpid()}"
     env = {**os.environ, "VEHICLES": "3", "COMPOSE_PROJECT_NAME": project}
-    runs = ROOT / "runs"
-    runs.mkdir(exist_ok=True)
-    runs.chmod(0o777)
-    shutil.rmtree(runs / "compose", ignore_errors=True)
+    shutil.rmtree(ROOT / "runs" / "compose", ignore_errors=True)
     yield [*command, "-f", str(ROOT / "docker-compose.yml")], env
     subprocess.run([*command, "-f", str(ROOT / "docker-compose.yml"), "down", "-v", "--remove-orphans"],
                    env=env, capture_output=True, cwd=ROOT, timeout=300)
