@@ -10,16 +10,12 @@ from typing import Callable, Optional
 import typer
 
 from bus.errors import SwarmlocError
+from groundstation.cli_errors import fail
 from groundstation.fault_commands import fault_app
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="swarmloc: multi-process swarm localization over zenoh, with MAVLink 2 state packets.")
 app.add_typer(fault_app, name="fault")
-
-
-def _fail(message: str) -> None:
-    typer.echo(f"swarm: error: {message}", err=True)
-    raise typer.Exit(1)
 
 
 def _run_node(config_path: Path, role: str, body: Callable) -> None:
@@ -35,7 +31,7 @@ def _run_node(config_path: Path, role: str, body: Callable) -> None:
         with ZenohBus(config.bus.with_env(), role=role, transport=Transport.from_env()) as bus:
             body(bus, config, stop)
     except SwarmlocError as exc:
-        _fail(str(exc))
+        fail(str(exc))
 
 
 @app.command()
@@ -66,12 +62,12 @@ def up(
     from groundstation.scenario import load_scenario, overlay
 
     if mode not in (None, "lockstep", "realtime"):
-        _fail(f"unknown mode {mode!r}: use lockstep or realtime")
+        fail(f"unknown mode {mode!r}: use lockstep or realtime")
     if restart not in ("no", "on-failure"):
-        _fail(f"unknown restart policy {restart!r}: use no or on-failure")
+        fail(f"unknown restart policy {restart!r}: use no or on-failure")
     tls = [tls_cert, tls_key, tls_ca]
     if any(tls) and not all(p is not None and p.is_file() for p in tls):
-        _fail("TLS needs --tls-cert, --tls-key and --tls-ca, all existing PEM files")
+        fail("TLS needs --tls-cert, --tls-key and --tls-ca, all existing PEM files")
     try:
         base = load_scenario(scenario) if scenario else {}
         config = build_config(overlay(base, {"name": name, "world": {"vehicles": vehicles, "seed": seed},
@@ -84,7 +80,7 @@ def up(
         run_dir, failures, notes = launch(config, out, show_progress=not quiet, stop=stop_on_signals(), restart=restart,
                                           secure=not insecure, security=security)
     except SwarmlocError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     _print_result(run_dir, failures, notes)
 
 
@@ -163,7 +159,7 @@ def secrets(out: Path = typer.Option(..., help="directory for the secrets (creat
     try:
         write_secrets(out)
     except OSError as exc:
-        _fail(f"cannot write secrets to {out}: {exc.strerror or exc}")
+        fail(f"cannot write secrets to {out}: {exc.strerror or exc}")
     typer.echo(f"secrets written to {out}")
 
 
@@ -184,11 +180,11 @@ def router(listen: list[str] = typer.Option(["tcp/0.0.0.0:7447"], help="zenoh en
     try:
         base = Transport.from_env()
     except SwarmlocError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     if credentials is not None and not credentials.is_file():
-        _fail(f"credentials file {credentials} does not exist")
+        fail(f"credentials file {credentials} does not exist")
     if (tls_cert is None) != (tls_key is None):
-        _fail("--tls-cert and --tls-key go together")
+        fail("--tls-cert and --tls-key go together")
     transport = Transport(user=base.user or ("router" if credentials else None),
                           password=base.password or (_router_password(credentials) if credentials else None),
                           tls_root_ca=base.tls_root_ca, tls_certificate=str(tls_cert) if tls_cert else None,
@@ -198,7 +194,7 @@ def router(listen: list[str] = typer.Option(["tcp/0.0.0.0:7447"], help="zenoh en
     try:
         run_router(tuple(listen), stop_on_signals(), connect=tuple(connect), transport=transport)
     except Exception as exc:  # zenoh reports bad endpoints, certificates and configs as ZError
-        _fail(f"router: {str(exc).split(' at ')[0]}")
+        fail(f"router: {str(exc).split(' at ')[0]}")
 
 
 def _router_password(credentials: Path) -> str:
@@ -229,7 +225,7 @@ def vehicle(config: Path = typer.Option(..., help="swarm config JSON"),
     from vehicle.loops import run_vehicle
 
     if id != "auto" and not (id.isdigit() and 1 <= int(id) <= 250):
-        _fail(f"--id must be 1-250 or auto, got {id!r}")
+        fail(f"--id must be 1-250 or auto, got {id!r}")
 
     def body(bus, cfg, stop) -> None:
         vid, count = (int(id), restarts) if id != "auto" else _claim_id(bus, stop)
@@ -272,7 +268,7 @@ def gs(config: Path = typer.Option(..., help="swarm config JSON"),
     from bus.secrets import signing_key_from_env
     from groundstation.display import live_display
     from groundstation.mavlink_out import MavlinkForwarder
-    from groundstation.node import run_groundstation
+    from groundstation.station_loop import run_groundstation
 
     def body(bus, cfg, stop) -> None:
         forwarder = MavlinkForwarder(mavlink_out) if mavlink_out else None

@@ -21,6 +21,7 @@ from typing import Optional
 import typer
 
 from bus.errors import ConfigError, SwarmlocError
+from groundstation.cli_errors import fail
 
 fault_app = typer.Typer(no_args_is_help=True, help="Inspect and change the fault plan of a running swarm.")
 KINDS = ("delay", "loss", "duplicate", "reorder", "jam-gnss", "spoof-gnss", "jam-comms", "blackout")
@@ -131,8 +132,7 @@ def _finish(reply: dict, *, show_plan: bool) -> None:
     from rich.table import Table
 
     if not reply["ok"]:
-        typer.echo(f"swarm: error: {reply['error']}", err=True)
-        raise typer.Exit(1)
+        fail(reply["error"])
     if not show_plan:
         typer.echo(f"ok (plan version {reply['plan']['version']}, sim time {reply['sim_time_s']:.2f} s)")
         return
@@ -148,8 +148,7 @@ def _run(request: dict, out: Path, run: Optional[Path], connect: Optional[str], 
     try:
         reply = ask(request, out, run, connect)
     except SwarmlocError as exc:
-        typer.echo(f"swarm: error: {exc}", err=True)
-        raise typer.Exit(1)
+        fail(str(exc))
     _finish(reply, show_plan=show_plan)
 
 
@@ -193,8 +192,7 @@ def add(
                   "vehicle": vehicle_number(vehicle) if vehicle else None,
                   "start_s": seconds(in_, "--in"), "for_s": seconds(for_, "--for")}
     except ConfigError as exc:
-        typer.echo(f"swarm: error: {exc}", err=True)
-        raise typer.Exit(1)
+        fail(str(exc))
     fault = {k: v for k, v in fields.items() if v is not None}
     _run({"op": "add", "fault": fault, "relative": True}, out, run, connect)
 
@@ -212,8 +210,7 @@ def kill(
         fault = {"kind": "kill", "vehicle": vehicle_number(vehicle), "name": name,
                  "restart_after_s": seconds(restart_after, "--restart-after"), "start_s": seconds(in_, "--in")}
     except ConfigError as exc:
-        typer.echo(f"swarm: error: {exc}", err=True)
-        raise typer.Exit(1)
+        fail(str(exc))
     _run({"op": "add", "fault": {k: v for k, v in fault.items() if v is not None}, "relative": True}, out, run, connect)
 
 

@@ -41,6 +41,15 @@ class FaultControl:
         self._ended: set[str] = set()
         self._announced = False
 
+    def resume(self, stamp_us: int) -> None:
+        """A restarted ground station: the plan was announced by its predecessor, and what had
+        started or ended by ``stamp_us`` was logged already."""
+        self._announced = True
+        t_s = stamp_us * 1e-6
+        self._started = {f.name for f in self.faults if t_s >= f.start_s}
+        self._ended = {f.name for f in self.faults if (_end_s(f) is not None and t_s >= _end_s(f))}
+        self.now_us = stamp_us
+
     def plan(self) -> FaultPlan:
         return FaultPlan(version=self.version, faults=tuple(self.faults))
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import logging
 import queue
-import threading
 import time
 from collections import Counter
 from pathlib import Path
@@ -33,7 +32,6 @@ from groundstation.summary import build_summary, build_timing
 
 log = logging.getLogger("swarmloc.groundstation")
 REALTIME_LAG_US = 1_000_000
-END_GRACE_S = 0.3
 PLAN_REPEAT_S = 1.0
 
 
@@ -86,9 +84,9 @@ class GroundStation:
             return
         self.scorer.tallies, self.scorer.last_scored_us = tallies, last_us
         self.events = resume_events(run_dir / "events.jsonl")
-        self.faults._announced = True  # the plan was announced by the first ground station
         self.resumed = True
         self.sim_time_us = max(last_us.values())
+        self.faults.resume(self.sim_time_us)
         self.event("groundstation_restarted", scored_until_s=round(self.sim_time_us * 1e-6, 6))
 
     def event(self, kind: str, **fields: object) -> None:
@@ -273,29 +271,3 @@ class GroundStation:
         self.run.write_json("timing.json", build_timing(self.statuses, self.sim_time_us * 1e-6, wall_s, self.latency_us))
         self.run.close()
         return summary
-
-
-def run_groundstation(bus: Bus, config: SwarmConfig, run_dir: Path, stop: threading.Event,
-                      on_progress=None, *, signing_key: bytes | None = None,
-                      forwarder: MavlinkForwarder | None = None) -> dict:
-    """Score until the world ends the run (or ``stop`` is set); returns the summary."""
-    gs = GroundStation(bus, config, run_dir, signing_key=signing_key, forwarder=forwarder)
-    if on_progress is not None:
-        gs.on_progress = on_progress
-    gs.publish_plan()
-    while not gs.ended and not stop.is_set():
-        try:
-            gs.handle(gs.inbox.get(timeout=0.2))
-        except queue.Empty:
-            gs.run.maybe_flush()
-    _drain(gs, END_GRACE_S)  # keys are not ordered among each other: let stragglers land
-    return gs.finish("complete" if gs.ended else "interrupted")
-
-
-def _drain(gs: GroundStation, seconds: float) -> None:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        try:
-            gs.handle(gs.inbox.get(timeout=max(0.0, deadline - time.monotonic())))
-        except queue.Empty:
-            return
