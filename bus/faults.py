@@ -19,7 +19,7 @@ import re
 from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
+from pydantic import BaseModel, ConfigDict, Field
 
 GLOB = r"^[A-Za-z0-9_*?\[\]\-]{1,32}$"
 NAME = r"^[A-Za-z0-9_.\-]{0,64}$"
@@ -135,8 +135,6 @@ PHYSICAL_KINDS = ("jam-gnss", "spoof-gnss", "jam-comms", "blackout")
 LINK_KINDS = ("delay", "loss", "duplicate", "reorder")
 Fault = Annotated[Union[JamGnss, SpoofGnss, JamComms, Blackout, Kill, Delay, Loss, Duplicate, Reorder],
                   Field(discriminator="kind")]
-LinkFault = Union[Delay, Loss, Duplicate, Reorder]
-FAULT_LIST = TypeAdapter(tuple[Fault, ...])
 
 
 def endpoints(vehicles: int) -> list[str]:

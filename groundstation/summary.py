@@ -37,7 +37,8 @@ def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, Vehic
         if st is not None:
             entry.update(cycles=st.cycles, overruns=st.overruns, gnss_rejected=st.rejected_gnss,
                          dropped_stale=st.dropped_stale, decode_errors=st.decode_errors, reset_counter=st.reset_counter,
-                         sensor_duplicates=st.duplicates, sensor_samples_lost=st.samples_lost, late_fused=st.late_fused)
+                         sensor_duplicates=st.duplicates, sensor_samples_lost=st.samples_lost, late_fused=st.late_fused,
+                         v2v_fused=st.v2v_fused, v2v_missing=st.v2v_missing)
         entry["mavlink_rejected"] = rejected.get(vid, 0)
         if vid in quality:
             entry["mavlink_link"] = quality[vid].as_dict()

@@ -8,7 +8,7 @@ from collections import deque
 import numpy as np
 
 from bus.errors import DecodeError
-from bus.mavlink_codec import MavlinkDecoder, StateEstimate, frame_header
+from bus.mavlink_codec import MavlinkDecoder, StateEstimate
 
 HISTORY = 250  # frames per neighbour (5 s of ODOMETRY at 50 Hz)
 
@@ -19,12 +19,9 @@ class Neighbours:
         self._decoder = MavlinkDecoder(signing_key=signing_key)
         self.rejected = 0
 
-    def hear(self, vehicle_id: int, frame: bytes) -> None:
-        """File one V2V frame (only ODOMETRY is kept)."""
-        header = frame_header(frame)
-        if header is None or header[3] is None or header[2] != 331:
-            return
-        self._frames.setdefault(vehicle_id, deque(maxlen=HISTORY)).append((header[3], frame))
+    def hear(self, vehicle_id: int, time_usec: int, frame: bytes) -> None:
+        """File one V2V frame: an ODOMETRY stamped ``time_usec`` (checked by the caller)."""
+        self._frames.setdefault(vehicle_id, deque(maxlen=HISTORY)).append((time_usec, frame))
 
     def estimate_at(self, vehicle_id: int, stamp_us: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Neighbour's position (2,) m and covariance (2, 2) m^2 at exactly ``stamp_us``, if heard."""

@@ -30,6 +30,7 @@ log = logging.getLogger("swarmloc.vehicle")
 STATUS_WARNING, STATUS_INFO = 4, 6  # MAV_SEVERITY
 DIVERGENCE_INFLATION = 10.0
 DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^2
+ODOMETRY_ID = 331  # MAVLINK_MSG_ID_ODOMETRY: the V2V packet
 SENSOR_TYPES = {"imu": m.ImuSample, "odom": m.WheelOdometry, "gnss": m.GnssFix, "prior": m.PosePrior,
                 "ranging": m.RangeBearing}
 
@@ -102,15 +103,16 @@ class VehicleNode:
         """A neighbour's MAVLink frame: through the link faults, then to the V2V side."""
         sender = self.bus.keys.vehicle_of(envelope.key)
         header = frame_header(envelope.payload)
-        if sender == self.vehicle_id or header is None or header[3] is None:
+        if sender == self.vehicle_id or header is None or header[2] != ODOMETRY_ID:
             return  # our own stream, or not an estimate
-        for frame in self.links.offer(Arrival(envelope.key, f"v{sender}", "mavlink", header[3], ("v2v", envelope))):
+        packet = (sender, header[3], envelope.payload)
+        for frame in self.links.offer(Arrival(envelope.key, f"v{sender}", "mavlink", header[3], ("v2v", packet))):
             self._deliver(frame)
 
     def _deliver(self, item: tuple[str, object]) -> None:
         topic, msg = item
         if topic == "v2v":
-            self.v2v.hear(self.bus.keys.vehicle_of(msg.key), frame_header(msg.payload)[3], msg.payload)
+            self.v2v.hear(*msg)
             return
         self.sequences.see(topic, msg.seq)
         if topic == "ranging":

@@ -48,7 +48,7 @@ class V2V:
         if sender in jammed or self.vehicle_id in jammed:
             self.jammed += 1
             return
-        self.neighbours.hear(sender, frame)
+        self.neighbours.hear(sender, stamp_us, frame)
 
     def hold(self, measurement: m.RangeBearing) -> None:
         heapq.heappush(self._waiting, (measurement.stamp_us, next(self._order), measurement))
