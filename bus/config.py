@@ -1,9 +1,12 @@
-"""The swarm configuration: one pydantic model tree shared by every process (written to the run
-directory as ``config.json`` and passed to each child with ``--config``).
+"""The swarm configuration: one pydantic model tree for the world and the ground station (written
+to the run directory as ``config.json``), and the much smaller :class:`VehicleProcessConfig` that is
+all a vehicle process is given (``vehicle.json``): its sensors' datasheet, its estimator settings and
+the link faults of the plan; never the world seed, the trajectories or anything else that determines
+truth.
 
 Units are in the field names. Bus endpoints can be overridden from the environment
-(``SWARMLOC_ZENOH_MODE``, ``SWARMLOC_ZENOH_CONNECT``, ``SWARMLOC_ZENOH_LISTEN``, ``SWARMLOC_PREFIX``;
-lists are comma separated), as containers need.
+(``SWARMLOC_ZENOH_MODE``, ``SWARMLOC_ZENOH_CONNECT``, ``SWARMLOC_ZENOH_LISTEN``, ``SWARMLOC_PREFIX``,
+``SWARMLOC_ZENOH_CONNECT_TIMEOUT_S``; lists are comma separated), as containers need.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from bus.errors import ConfigError
-from bus.faults import Fault, check_fault, named
+from bus.faults import LINK_KINDS, Fault, check_fault, named
 
 
 class _Strict(BaseModel):
@@ -28,6 +31,7 @@ class BusConfig(_Strict):
     mode: Literal["peer", "client", "router"] = "client"
     connect: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
     listen: tuple[str, ...] = ()
+    connect_timeout_s: float = Field(180.0, gt=0, le=86400, description="a client waits this long for its router")
 
     def with_env(self, env: dict[str, str] | None = None) -> "BusConfig":
         """This config with ``SWARMLOC_*`` environment overrides applied."""
@@ -41,16 +45,28 @@ class BusConfig(_Strict):
                 updates[name] = tuple(e.strip() for e in value.split(",") if e.strip())
         if env.get("SWARMLOC_PREFIX"):
             updates["prefix"] = env["SWARMLOC_PREFIX"]
+        if env.get("SWARMLOC_ZENOH_CONNECT_TIMEOUT_S"):
+            updates["connect_timeout_s"] = env["SWARMLOC_ZENOH_CONNECT_TIMEOUT_S"]
         return _validated(BusConfig, {**self.model_dump(), **updates})
 
 
 class ClockConfig(_Strict):
     mode: Literal["lockstep", "realtime"] = "lockstep"
     speed: float = Field(1.0, gt=0, le=1000, description="realtime: sim seconds per wall second")
-    tick_s: float = Field(0.02, gt=0, le=1.0, description="sim time the world advances per clock tick")
+    tick_s: float | None = Field(None, gt=0, le=1.0, description="sim time per clock tick (lockstep barrier): "
+                                 "default 0.1 in lockstep, 0.02 in realtime")
     duration_s: float = Field(60.0, gt=0, le=86400)
     ack_timeout_s: float = Field(10.0, gt=0, description="lockstep: wall time before a silent vehicle is dead")
-    start_timeout_s: float = Field(30.0, gt=0, description="wall time to wait for every process to join")
+    start_timeout_s: float = Field(60.0, gt=0, description="wall time to wait for every process to join")
+    gone_timeout_s: float = Field(30.0, gt=0, description="wall time the world and the ground station wait for "
+                                  "each other after one disappears, before ending the run")
+    gs_lag_ticks: int = Field(20, ge=1, le=10_000, description="lockstep: how many ticks the ground station may lag")
+
+    @model_validator(mode="after")
+    def _default_tick(self) -> "ClockConfig":
+        if self.tick_s is None:
+            object.__setattr__(self, "tick_s", 0.1 if self.mode == "lockstep" else 0.02)
+        return self
 
 
 class SensorSpec(_Strict):
@@ -69,6 +85,7 @@ class SensorSpec(_Strict):
     truth_rate_hz: float = Field(50.0, gt=0, le=1000)
     ranging_rate_hz: float = Field(5.0, gt=0, le=100, description="vehicle-to-vehicle radio ranging")
     ranging_max_m: float = Field(150.0, ge=0, description="ranging reaches vehicles this close (0: no ranging)")
+    ranging_max_peers: int = Field(4, ge=0, le=249, description="the radio ranges at most this many peers, the nearest")
     range_sigma_m: float = Field(0.3, gt=0)
     bearing_sigma_rad: float = Field(0.02, gt=0)
     prior_sigma_m: float = Field(0.5, gt=0, description="launch-pad survey of the start position")
@@ -86,6 +103,7 @@ class WorldConfig(_Strict):
 
 
 class VehicleConfig(_Strict):
+    estimator: Literal["ekf"] = Field("ekf", description="the estimator every vehicle runs (vehicle.estimators)")
     loop_rate_hz: float = Field(50.0, gt=0, le=1000)
     gate_probability: float = Field(0.9995, gt=0.5, lt=1.0, description="chi-square gate for GNSS")
     heartbeat_period_s: float = Field(1.0, gt=0)
@@ -93,6 +111,9 @@ class VehicleConfig(_Strict):
     fusion_horizon_s: float = Field(0.5, ge=0, le=10, description="late measurements up to this old are still fused in order")
     cooperative: bool = Field(True, description="fuse ranging to neighbours with their broadcast estimates (CI)")
     v2v_latency_s: float = Field(0.1, ge=0, le=5, description="ranging waits this long for the neighbour's estimate")
+    mavlink_rate_hz: float = Field(50.0, gt=0, le=1000, description="ODOMETRY to the ground station (<= loop rate)")
+    realtime_allowance_s: float = Field(0.005, ge=0, le=1, description="realtime: a cycle waits this long past its "
+                                        "deadline for the tick's sensor batch")
 
 
 class SwarmConfig(_Strict):
@@ -103,6 +124,8 @@ class SwarmConfig(_Strict):
     sensors: SensorSpec = SensorSpec()
     vehicle: VehicleConfig = VehicleConfig()
     faults: tuple[Fault, ...] = Field((), description="fault timeline (physical, link and kill faults)")
+    fault_seed: int = Field(1, ge=0, le=2**63 - 1, description="seed of link-fault decisions; independent of "
+                            "world.seed, which vehicles never see")
 
     @model_validator(mode="after")
     def _faults_are_named_and_valid(self) -> "SwarmConfig":
@@ -125,6 +148,50 @@ class SwarmConfig(_Strict):
                 raise ValueError(f"{label} period must be a multiple of the IMU period ({step_us} us)")
         return self
 
+    @model_validator(mode="after")
+    def _cycles_fit_the_tick(self) -> "SwarmConfig":
+        period_us = round(1e6 / self.vehicle.loop_rate_hz)
+        if round(self.clock.tick_s * 1e6) % period_us or round(1e6 / self.vehicle.mavlink_rate_hz) % period_us:
+            raise ValueError(f"the tick and the MAVLink period must be multiples of the loop period ({period_us} us)")
+        if self.clock.mode == "lockstep" and self.vehicle.cooperative and \
+                self.clock.tick_s > self.vehicle.v2v_latency_s + 1e-9:
+            raise ValueError("lockstep with cooperation needs tick_s <= vehicle.v2v_latency_s (neighbours' "
+                             "broadcasts of one tick are heard by the next)")
+        return self
+
+    def dump(self, path: Path) -> None:
+        path.write_text(json.dumps(self.model_dump(mode="json"), indent=2) + "\n")
+
+    def for_vehicle(self) -> "VehicleProcessConfig":
+        """All a vehicle process is given: nothing here determines truth (no world seed, no
+        trajectories, no start pads); the same for every world seed."""
+        return VehicleProcessConfig(
+            name=self.name, vehicles=self.world.vehicles, bus=self.bus,
+            clock=VehicleClock(mode=self.clock.mode, speed=self.clock.speed), sensors=self.sensors,
+            vehicle=self.vehicle, altitude_m=self.world.altitude_m, fault_seed=self.fault_seed,
+            faults=tuple(f for f in self.faults if f.kind in LINK_KINDS))
+
+
+class VehicleClock(_Strict):
+    mode: Literal["lockstep", "realtime"] = "lockstep"
+    speed: float = Field(1.0, gt=0, le=1000)
+
+
+class VehicleProcessConfig(_Strict):
+    """One vehicle process's configuration: its sensors' datasheet (``sensors``), its estimator and
+    loop settings, the flight altitude, the swarm size (valid neighbour ids) and the link faults of
+    the plan with their seed. Launch prior, sensor data and the rest of the plan come over the bus."""
+
+    name: str = Field("run", pattern=r"^[A-Za-z0-9_.\-]+$")
+    vehicles: int = Field(5, ge=1, le=250)
+    bus: BusConfig = BusConfig()
+    clock: VehicleClock = VehicleClock()
+    sensors: SensorSpec = SensorSpec()
+    vehicle: VehicleConfig = VehicleConfig()
+    altitude_m: float = Field(30.0, ge=0)
+    fault_seed: int = Field(1, ge=0, le=2**63 - 1)
+    faults: tuple[Fault, ...] = ()
+
     def dump(self, path: Path) -> None:
         path.write_text(json.dumps(self.model_dump(mode="json"), indent=2) + "\n")
 
@@ -143,16 +210,34 @@ def build_config(data: dict) -> SwarmConfig:
     return _validated(SwarmConfig, data)
 
 
-def load_config(path: Path, env: dict[str, str] | None = None) -> SwarmConfig:
-    """Read a config JSON written by :meth:`SwarmConfig.dump` (or by hand); ``SWARMLOC_VEHICLES``
-    overrides the swarm size (compose deployments scale the vehicle service with it)."""
-    env = os.environ if env is None else env
+def _read_json(path: Path, env: dict[str, str], vehicles_at: tuple[str, ...]) -> dict:
+    """A config file as a dict, with ``SWARMLOC_VEHICLES`` (compose scales the vehicle service with
+    it) written at ``vehicles_at``."""
     try:
         data = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot read config {path}: {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"config {path} must hold a JSON object")
     if env.get("SWARMLOC_VEHICLES"):
-        if not isinstance(data, dict) or not env["SWARMLOC_VEHICLES"].isdigit():
+        if not (env["SWARMLOC_VEHICLES"].isascii() and env["SWARMLOC_VEHICLES"].isdigit()):
             raise ConfigError(f"SWARMLOC_VEHICLES must be a number of vehicles, got {env['SWARMLOC_VEHICLES']!r}")
-        data.setdefault("world", {})["vehicles"] = int(env["SWARMLOC_VEHICLES"])
-    return build_config(data)
+        target = data
+        for part in vehicles_at[:-1]:
+            target = target.setdefault(part, {})
+            if not isinstance(target, dict):
+                raise ConfigError(f"config {path}: {part} must be an object")
+        target[vehicles_at[-1]] = int(env["SWARMLOC_VEHICLES"])
+    return data
+
+
+def load_config(path: Path, env: dict[str, str] | None = None) -> SwarmConfig:
+    """Read a swarm config JSON written by :meth:`SwarmConfig.dump` (or by hand)."""
+    env = os.environ if env is None else env
+    return build_config(_read_json(path, env, ("world", "vehicles")))
+
+
+def load_vehicle_config(path: Path, env: dict[str, str] | None = None) -> VehicleProcessConfig:
+    """Read a vehicle process config JSON written by :meth:`VehicleProcessConfig.dump`."""
+    env = os.environ if env is None else env
+    return _validated(VehicleProcessConfig, _read_json(path, env, ("vehicles",)))

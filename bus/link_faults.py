@@ -64,13 +64,14 @@ class LinkFaultStage:
         self.receiver, self.seed = receiver, seed
         self.faults: tuple[_LinkFault, ...] = ()
         self.set_plan(faults)
-        self._arrivals: Counter[str] = Counter()
+        self._arrivals: Counter[str] = Counter()  # per key: bounded by the keys a receiver listens to
         self._bad: dict[tuple[str, str], bool] = {}  # Gilbert-Elliott state per (fault, key)
         self._held: list[tuple[int, int, Arrival]] = []
         self._order = itertools.count()
         self.dropped: Counter[str] = Counter()
         self.duplicated: Counter[str] = Counter()
         self.delayed: Counter[str] = Counter()
+        self.dropped_full = 0  # copies refused at MAX_HELD
 
     def set_plan(self, faults: tuple) -> None:
         """Keep the plan's link faults that can select traffic to this receiver."""
@@ -106,6 +107,8 @@ class LinkFaultStage:
         for e in extra_us:  # even undelayed copies wait for release(): delivery follows stamps, not arrival
             if len(self._held) < MAX_HELD:
                 heapq.heappush(self._held, (arrival.stamp_us + e, next(self._order), arrival))
+            else:
+                self.dropped_full += 1
         return []
 
     def _lost(self, fault: Loss, key: str, n: int) -> bool:

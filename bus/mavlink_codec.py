@@ -1,11 +1,15 @@
 """MAVLink 2 codec for vehicle state: ODOMETRY (#331), HEARTBEAT (#0), ESTIMATOR_STATUS (#230) and
 STATUSTEXT (#253), with message signing.
 
-Signing (MAVLink 2, 32-byte key): outgoing frames carry a 48-bit timestamp in units of 10 us since
-2015-01-01 and a truncated SHA-256 signature. Incoming frames are verified here rather than by
-pymavlink, because pymavlink 2.4.50 stores a stream's timestamp *before* checking the signature:
-one forged frame with a far-future timestamp would make every genuine frame look like a replay.
-We check the signature first and only then advance the stream's timestamp.
+Signing (MAVLink 2, 32-byte key, one per vehicle): outgoing frames carry a 48-bit timestamp in units
+of 10 us since 2015-01-01 and a truncated SHA-256 signature. Incoming frames are verified here rather
+than by pymavlink, because pymavlink 2.4.50 stores a stream's timestamp *before* checking the
+signature: one forged frame with a far-future timestamp would make every genuine frame look like a
+replay. We check the signature first, refuse timestamps more than 60 s ahead of our clock (so even a
+key holder cannot freeze a stream), and only then advance the stream's timestamp.
+
+Contents are checked too: an ODOMETRY whose [x, y, yaw] covariance is not symmetric positive
+definite, or is absurdly large, or whose values are not finite, is rejected as degenerate.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import math
 import time
 from collections import Counter
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
@@ -25,6 +30,11 @@ from bus.errors import DecodeError
 COMPONENT_ID = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
 NEW_STREAM_TOLERANCE = 6_000_000  # 60 s in 10-us units, as in the MAVLink signing spec
+FUTURE_TOLERANCE = 6_000_000      # 60 s in 10-us units
+MAX_POSITION_M = 1e7
+MAX_VARIANCE = 1e8                # m^2, rad^2: beyond this an estimate carries no information
+MAX_FRAME_BYTES = 280             # MAVLink 2: 10 header + 255 payload + 2 CRC + 13 signature
+_POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw in ODOMETRY's pose covariance
 _UPPER = np.triu_indices(6)
 _DIAGONAL = (0, 6, 11, 15, 18, 20)  # positions of the variances in the 21-float upper triangle
 
@@ -40,7 +50,9 @@ _SYMMETRIC_INDEX = _symmetric_index()
 
 
 class MavlinkRejected(DecodeError):
-    """A well-formed frame that failed authentication (unsigned, bad signature, replay)."""
+    """A well-formed frame that failed authentication or the content checks; ``reason`` is one of
+    bus.rejections.REASONS (unsigned, bad_signature, replay, stale_stream, future_timestamp,
+    unknown_sysid, degenerate)."""
 
     def __init__(self, reason: str, detail: str) -> None:
         super().__init__(f"MAVLink frame rejected ({reason}): {detail}")
@@ -155,12 +167,30 @@ class MavlinkEncoder:
         return self._pack(msg)
 
 
-class MavlinkDecoder:
-    """Decodes single MAVLink 2 frames and authenticates them; counts every rejection by reason."""
+def split_frames(buffer: bytes) -> tuple[list[bytes], int]:
+    """Cut a byte string of concatenated MAVLink 2 frames into frames (by their length fields).
+    Returns the frames and the number of trailing bytes that do not form a frame (total)."""
+    frames, i, n = [], 0, len(buffer)
+    while i + 12 <= n and buffer[i] == mavlink2.PROTOCOL_MARKER_V2:
+        length = 12 + buffer[i + 1] + (13 if buffer[i + 2] & mavlink2.MAVLINK_IFLAG_SIGNED else 0)
+        if i + length > n:
+            break
+        frames.append(bytes(buffer[i:i + length]))
+        i += length
+    return frames, n - i
 
-    def __init__(self, *, signing_key: bytes | None = None, require_signing: bool | None = None) -> None:
-        self._key = signing_key
-        self._require = signing_key is not None if require_signing is None else require_signing
+
+class MavlinkDecoder:
+    """Decodes single MAVLink 2 frames and authenticates them; counts every rejection by reason.
+
+    ``key_for(sysid)`` gives each sender's signing key (None: not a known sender, rejected as
+    unknown_sysid); ``signing_key`` is the same key for every sender. Without either, frames are
+    not authenticated (insecure runs, or neighbours that cannot hold each other's keys)."""
+
+    def __init__(self, *, signing_key: bytes | None = None, require_signing: bool | None = None,
+                 key_for: Callable[[int], bytes | None] | None = None) -> None:
+        self._key_for = key_for if key_for is not None else (None if signing_key is None else (lambda sysid: signing_key))
+        self._require = self._key_for is not None if require_signing is None else require_signing
         self._mav = mavlink2.MAVLink(None)
         self._stream_timestamps: dict[tuple[int, int, int], int] = {}
         self.rejected: Counter[str] = Counter()
@@ -178,11 +208,11 @@ class MavlinkDecoder:
             raise DecodeError("payload is not exactly one MAVLink 2 frame")
         try:
             self._authenticate(bytes(frame), msg.get_srcSystem(), msg.get_srcComponent())
+            if isinstance(msg, mavlink2.MAVLink_odometry_message):
+                return _to_estimate(msg)
         except MavlinkRejected as exc:
             self.rejected[exc.reason] += 1
             raise
-        if isinstance(msg, mavlink2.MAVLink_odometry_message):
-            return _to_estimate(msg)
         if isinstance(msg, mavlink2.MAVLink_heartbeat_message):
             return Heartbeat(msg.get_srcSystem(), msg.type, msg.system_status)
         if isinstance(msg, mavlink2.MAVLink_estimator_status_message):
@@ -197,41 +227,68 @@ class MavlinkDecoder:
 
     def _authenticate(self, frame: bytes, sysid: int, compid: int) -> None:
         signed = bool(frame[2] & mavlink2.MAVLINK_IFLAG_SIGNED)
-        if self._key is None:
+        if self._key_for is None:
             return
+        key = self._key_for(sysid)
+        if key is None:
+            raise MavlinkRejected("unknown_sysid", f"sysid {sysid} is not a vehicle of this swarm")
         if not signed:
             if self._require:
                 raise MavlinkRejected("unsigned", f"sysid {sysid} sent an unsigned frame")
             return
-        expected = hashlib.sha256(self._key + frame[:-6]).digest()[:6]
+        expected = hashlib.sha256(key + frame[:-6]).digest()[:6]
         if not hmac.compare_digest(expected, frame[-6:]):
-            raise MavlinkRejected("bad_signature", f"sysid {sysid}: signature does not match the key")
+            raise MavlinkRejected("bad_signature", f"sysid {sysid}: signature does not match its key")
         stream = (frame[-13], sysid, compid)
         stamp = int.from_bytes(frame[-12:-6], "little")
         last = self._stream_timestamps.get(stream)
+        now = signing_now()
+        if stamp > now + FUTURE_TOLERANCE:
+            raise MavlinkRejected("future_timestamp", f"sysid {sysid}: signing timestamp more than 60 s ahead")
         if last is not None and stamp <= last:
             raise MavlinkRejected("replay", f"sysid {sysid}: timestamp {stamp} not after {last}")
-        if last is None and stamp + NEW_STREAM_TOLERANCE < signing_now():
-            raise MavlinkRejected("stale", f"sysid {sysid}: new stream more than 60 s old")
+        if last is None and stamp + NEW_STREAM_TOLERANCE < now:
+            raise MavlinkRejected("stale_stream", f"sysid {sysid}: new stream more than 60 s old")
+        if len(self._stream_timestamps) >= 4096 and stream not in self._stream_timestamps:
+            self._stream_timestamps.clear()  # bounded: 256 links x known senders; a flood of links starts over
         self._stream_timestamps[stream] = stamp
 
 
 def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate:
+    sysid = msg.get_srcSystem()
     values = [msg.x, msg.y, msg.z, *msg.q, msg.vx, msg.vy, msg.vz, msg.yawspeed,
               *msg.pose_covariance, *msg.velocity_covariance]
     if not all(map(math.isfinite, values)):
-        raise DecodeError(f"ODOMETRY from sysid {msg.get_srcSystem()} has non-finite fields")
+        raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has non-finite fields")
     if any(msg.pose_covariance[i] < 0 for i in _DIAGONAL) or any(msg.velocity_covariance[i] < 0 for i in _DIAGONAL):
-        raise DecodeError(f"ODOMETRY from sysid {msg.get_srcSystem()} has negative variances")
+        raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has negative variances")
+    if max(abs(msg.x), abs(msg.y), abs(msg.z)) > MAX_POSITION_M or abs(msg.q[0]) + abs(msg.q[3]) < 1e-6:
+        raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has an absurd position or attitude")
+    pose_cov = _full_covariance(msg.pose_covariance)
+    if not _usable_covariance(pose_cov[np.ix_(_POSE_INDEX, _POSE_INDEX)]):
+        raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid}: [x, y, yaw] covariance is zero, "
+                                            "singular, indefinite or huge")
     w, _, _, z = msg.q
     return StateEstimate(
-        vehicle_id=msg.get_srcSystem(), time_usec=msg.time_usec,
+        vehicle_id=sysid, time_usec=msg.time_usec,
         position_m=np.array([msg.x, msg.y, msg.z]), yaw_rad=2.0 * math.atan2(z, w),
         velocity_mps=np.array([msg.vx, msg.vy, msg.vz]), yaw_rate_radps=float(msg.yawspeed),
-        pose_covariance=_full_covariance(msg.pose_covariance),
-        velocity_covariance=_full_covariance(msg.velocity_covariance),
+        pose_covariance=pose_cov, velocity_covariance=_full_covariance(msg.velocity_covariance),
         reset_counter=msg.reset_counter, estimator_type=msg.estimator_type,
     )
+
+
+def _usable_covariance(C: np.ndarray) -> bool:
+    """Positive definite with a sane condition (Cholesky succeeds) and no variance above MAX_VARIANCE.
+    C (3, 3) is symmetric by construction (rebuilt from the upper triangle)."""
+    if np.any(np.diag(C) > MAX_VARIANCE):
+        return False
+    try:
+        L = np.linalg.cholesky(C)
+    except np.linalg.LinAlgError:
+        return False
+    d = np.diag(L)
+    return bool(np.min(d) > 1e-9 * np.max(d))
 
 
 def _full_covariance(upper: list[float]) -> np.ndarray:

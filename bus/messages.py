@@ -12,7 +12,8 @@ from typing import Annotated
 
 import numpy as np
 
-from bus.schema import Array, Bool, Counts, Covariance, Float, Int, decode, encode
+from bus.rejections import REASONS
+from bus.schema import Array, Bool, Counts, Covariance, Float, Int, Text, decode, encode
 
 VehicleId = Annotated[int, Int(1, 250)]
 StampUs = Annotated[int, Int(0, 2**53)]
@@ -21,8 +22,9 @@ MAX_POSITION_M = 1e7
 
 __all__ = [
     "ImuSample", "WheelOdometry", "GnssFix", "PosePrior", "RangeBearing", "Truth", "ClockTick", "TickAck",
-    "VehicleStatus", "RunEnd", "encode", "decode",
+    "GroundStationAck", "VehicleStatus", "RunEnd", "encode", "decode",
 ]
+Rejected = Annotated[tuple[int, ...], Counts(len(REASONS))]
 
 
 @dataclass(frozen=True)
@@ -95,38 +97,40 @@ class RangeBearing:
     covariance: Annotated[np.ndarray, Covariance((2, 2), 1e8)]
 
 
-FEEDS = ("prior", "imu", "odom", "gnss", "ranging")
-
-
 @dataclass(frozen=True)
 class ClockTick:
-    """World clock: every feed stamped up to ``stamp_us`` has been published for this tick.
+    """World clock: every vehicle's sensor batch for this tick (stamps up to ``stamp_us``) has been
+    published before it.
 
     ``wall_ns`` is the world's wall clock at publication; ``final`` marks the end of the run.
     ``comm_jammed`` lists the vehicles inside an active comm-jamming zone (their V2V traffic is lost).
-    ``published`` counts, per vehicle, the samples published so far on each feed of ``FEEDS``:
-    entry ``(id - 1) * len(FEEDS) + k``. Jamming and blackouts silence feeds, so a vehicle cannot
-    infer from the rates alone what is still on its way; these counts tell it.
+    ``v2v_published`` counts, per vehicle (entry id - 1), the V2V broadcasts it had sent by its last
+    acknowledgement: in lockstep a vehicle waits until it has heard them all before it cycles on, so
+    what it fuses never depends on how the bus interleaves keys.
     """
 
     tick: Annotated[int, Int(0, 2**53)]
     stamp_us: StampUs
     wall_ns: Annotated[int, Int(0, 2**63 - 1)]
     final: Annotated[bool, Bool()]
-    published: Annotated[tuple[int, ...], Counts(250 * 5)] = ()
     comm_jammed: Annotated[tuple[int, ...], Counts(250, 250)] = ()
-
-    def published_by(self, vehicle_id: int) -> dict[str, int]:
-        """Samples published so far per feed for one vehicle (empty when the tick carries no counts)."""
-        row = self.published[(vehicle_id - 1) * len(FEEDS): vehicle_id * len(FEEDS)]
-        return dict(zip(FEEDS, row)) if len(row) == len(FEEDS) else {}
+    v2v_published: Annotated[tuple[int, ...], Counts(250)] = ()
 
 
 @dataclass(frozen=True)
 class TickAck:
-    """A vehicle has processed everything up to ``tick`` (lockstep mode)."""
+    """A vehicle has processed everything up to ``tick`` (lockstep mode) and had sent ``v2v_sent``
+    V2V broadcasts by then."""
 
     vehicle_id: VehicleId
+    tick: Annotated[int, Int(0, 2**53)]
+    v2v_sent: Annotated[int, Int(0, 2**53)] = 0
+
+
+@dataclass(frozen=True)
+class GroundStationAck:
+    """The ground station has handled every clock tick up to ``tick`` (lockstep flow control)."""
+
     tick: Annotated[int, Int(0, 2**53)]
 
 
@@ -149,12 +153,18 @@ class VehicleStatus:
     late_fused: Annotated[int, Int(0, 2**53)] = 0
     v2v_fused: Annotated[int, Int(0, 2**53)] = 0
     v2v_missing: Annotated[int, Int(0, 2**53)] = 0
+    rejected: Rejected = ()
+    replays: Annotated[int, Int(0, 2**53)] = 0
 
 
 @dataclass(frozen=True)
 class RunEnd:
-    """The world has finished: every vehicle acknowledged the final tick (or was declared dead)."""
+    """The world has finished: every vehicle acknowledged the final tick (or was declared dead), or
+    the run was cut short (``status``: complete, groundstation-lost, interrupted). ``rejected``: the
+    world's rejected input by reason (order of bus.rejections.REASONS)."""
 
     tick: Annotated[int, Int(0, 2**53)]
     stamp_us: StampUs
     vehicles_alive: Annotated[int, Int(0, 250)]
+    status: Annotated[str, Text(40)] = "complete"
+    rejected: Rejected = ()

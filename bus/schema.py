@@ -80,6 +80,21 @@ class Counts:
 
 
 @dataclasses.dataclass(frozen=True)
+class Text:
+    """A short printable string (travels as a msgpack str)."""
+
+    max_len: int
+
+    def pack(self, value: Any) -> str:
+        return str(value)
+
+    def unpack(self, name: str, raw: Any) -> str:
+        if not isinstance(raw, str) or len(raw) > self.max_len or not raw.isprintable():
+            raise DecodeError(f"{name}: expected printable text of at most {self.max_len} characters")
+        return raw
+
+
+@dataclasses.dataclass(frozen=True)
 class Bool:
     def pack(self, value: Any) -> bool:
         return bool(value)

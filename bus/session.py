@@ -1,22 +1,33 @@
 """Bus endpoints: a zenoh session and an in-memory twin with the same small API.
 
-Callbacks only enqueue: every subscription delivers into an ``Inbox`` (a thread-safe FIFO) that the
-process's loop thread drains. Roles are enforced here: a vehicle may not subscribe to truth.
+Callbacks only enqueue: every subscription delivers into an inbox (a bounded lane of a
+``bus.mailbox.Mailbox``, or any object with ``put``) that the process's loop thread drains. A payload
+over the subscription's size cap is never copied: an ``Oversized`` marker goes in its place. Roles
+are enforced here: a vehicle may not subscribe to truth. A client whose router is not up yet waits
+for it, says so once, and gives up with a one-line error when ``connect_timeout_s`` is over.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import os
-import queue
+import socket
+import time
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 from bus.config import BusConfig
 from bus.errors import AccessDenied, BusUnavailable
 from bus.keys import KeySpace
+from bus.mailbox import Oversized
 
-Inbox = queue.SimpleQueue
+log = logging.getLogger("swarmloc.bus")
+MAX_QUERY_BYTES = 64 << 10
+
+
+class Inbox(Protocol):
+    def put(self, item: Any) -> Any: ...
 
 
 @dataclass(frozen=True)
@@ -49,7 +60,7 @@ class Bus(Protocol):
     role: str
 
     def publisher(self, key: str) -> Publisher: ...
-    def subscribe(self, key_expr: str, inbox: Inbox) -> None: ...
+    def subscribe(self, key_expr: str, inbox: Inbox, max_bytes: int | None = None) -> None: ...
     def declare_token(self, key: str) -> None: ...
     def watch_liveliness(self, key_expr: str, inbox: Inbox) -> None: ...
     def queryable(self, key: str, inbox: Inbox) -> None: ...
@@ -112,6 +123,50 @@ def zenoh_config(conf: BusConfig, transport: Transport = Transport()):
     return zconf
 
 
+def _reachable(endpoint: str, timeout_s: float = 0.5) -> bool:
+    """True when something accepts TCP connections at a ``tcp/`` or ``tls/`` endpoint."""
+    scheme, _, address = endpoint.partition("/")
+    host, _, port = address.split("#")[0].rpartition(":")
+    if scheme not in ("tcp", "tls") or not port.isdigit():
+        return False
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            return True
+    except OSError:
+        return False
+
+
+def open_session(conf: BusConfig, transport: Transport, zenoh_module: Any) -> Any:
+    """Open a zenoh session; a client waits (with backoff) for a router that is not up yet.
+
+    A router that accepts TCP connections but refuses the session has refused the login or the TLS
+    handshake: that fails at once (after one retry, for a router that is still starting)."""
+    who = f"{', '.join(conf.connect) or 'no endpoint'} as {transport.user or 'anonymous'}"
+    deadline = time.monotonic() + conf.connect_timeout_s
+    delay, refusals, announced = 0.2, 0, False
+    while True:
+        try:
+            return zenoh_module.open(zenoh_config(conf, transport))
+        except zenoh_module.ZError as exc:
+            detail = str(exc).split(" at ")[0]
+            if conf.mode != "client" or not conf.connect:
+                raise BusUnavailable(f"cannot open a zenoh {conf.mode} at {who}: {detail}") from None
+            if any(_reachable(e) for e in conf.connect):
+                refusals += 1
+                if refusals >= 2:
+                    raise BusUnavailable(f"cannot join the swarm at {who}: the router refused the login or "
+                                         f"the TLS handshake ({detail})") from None
+            if time.monotonic() + delay > deadline:
+                raise BusUnavailable(f"cannot join the swarm at {who}: no zenoh router answered within "
+                                     f"{conf.connect_timeout_s:g} s") from None
+            if not announced:
+                log.warning("waiting for the zenoh router at %s (up to %g s)", ", ".join(conf.connect),
+                            conf.connect_timeout_s)
+                announced = True
+            time.sleep(delay)
+            delay = min(2.0, delay * 1.5)
+
+
 class ZenohBus:
     """A zenoh session with swarmloc's role checks; use as a context manager so it always closes."""
 
@@ -121,11 +176,7 @@ class ZenohBus:
         self._zenoh = zenoh
         self.keys = KeySpace(conf.prefix)
         self.role = role
-        try:
-            self._session = zenoh.open(zenoh_config(conf, transport))
-        except zenoh.ZError as exc:
-            raise BusUnavailable(f"cannot join the swarm at {', '.join(conf.connect) or 'no endpoint'} as "
-                                 f"{transport.user or 'anonymous'}: {str(exc).split(' at ')[0]}") from None
+        self._session = open_session(conf, transport, zenoh)
         self._keep: list[object] = []
 
     def publisher(self, key: str) -> Publisher:
@@ -135,11 +186,17 @@ class ZenohBus:
         self._keep.append(pub)
         return pub
 
-    def subscribe(self, key_expr: str, inbox: Inbox) -> None:
+    def subscribe(self, key_expr: str, inbox: Inbox, max_bytes: int | None = None) -> None:
+        """Samples on ``key_expr`` go to ``inbox`` as Envelopes; those over ``max_bytes`` as Oversized."""
         check_subscription(self.role, self.keys, key_expr)
+        cap = max_bytes if max_bytes is not None else 1 << 62
 
         def on_sample(sample) -> None:
-            inbox.put(Envelope(str(sample.key_expr), sample.payload.to_bytes()))
+            size = len(sample.payload)
+            if size > cap:
+                inbox.put(Oversized(str(sample.key_expr), size))
+            else:
+                inbox.put(Envelope(str(sample.key_expr), sample.payload.to_bytes()))
 
         self._keep.append(self._session.declare_subscriber(key_expr, on_sample))
 
@@ -162,13 +219,19 @@ class ZenohBus:
                 query.reply(query.key_expr, payload)
                 query.drop()
 
-            inbox.put(Request(str(query.key_expr), query.payload.to_bytes() if query.payload else b"", respond))
+            payload = query.payload
+            if payload is not None and len(payload) > MAX_QUERY_BYTES:
+                query.drop()
+                inbox.put(Oversized(str(query.key_expr), len(payload)))
+                return
+            inbox.put(Request(str(query.key_expr), payload.to_bytes() if payload else b"", respond))
 
         self._keep.append(self._session.declare_queryable(key, on_query))
 
     def get(self, key: str, payload: bytes, timeout_s: float) -> list[bytes]:
         """Ask the queryables on ``key``; their replies (empty when nobody answers within the timeout)."""
-        return [r.ok.payload.to_bytes() for r in self._session.get(key, payload=payload, timeout=timeout_s) if r.ok]
+        return [r.ok.payload.to_bytes() for r in self._session.get(key, payload=payload, timeout=timeout_s)
+                if r.ok and len(r.ok.payload) <= MAX_QUERY_BYTES]
 
     def close(self) -> None:
         if not self._session.is_closed():

@@ -18,17 +18,18 @@ app = typer.Typer(add_completion=False, no_args_is_help=True,
 app.add_typer(fault_app, name="fault")
 
 
-def _run_node(config_path: Path, role: str, body: Callable) -> None:
+def _run_node(config_path: Path, role: str, body: Callable, *, vehicle_config: bool = False) -> None:
     """Load the config, open the bus for ``role``, run ``body(bus, config, stop)``, always close."""
-    from bus.config import load_config
+    from bus.config import load_config, load_vehicle_config
     from bus.process import stop_on_signals
     from bus.session import Transport, ZenohBus
 
     logging.basicConfig(level=logging.INFO, format=f"%(asctime)s {role} %(levelname)s %(message)s")
     stop = stop_on_signals()
     try:
-        config = load_config(config_path)
-        with ZenohBus(config.bus.with_env(), role=role, transport=Transport.from_env()) as bus:
+        config = (load_vehicle_config if vehicle_config else load_config)(config_path)
+        config = config.model_copy(update={"bus": config.bus.with_env()})
+        with ZenohBus(config.bus, role=role, transport=Transport.from_env()) as bus:
             body(bus, config, stop)
     except SwarmlocError as exc:
         fail(str(exc))
@@ -53,6 +54,7 @@ def up(
     tls_cert: Optional[Path] = typer.Option(None, help="run the bus over TLS: the router's PEM certificate (for localhost)"),
     tls_key: Optional[Path] = typer.Option(None, help="TLS: the router's PEM private key"),
     tls_ca: Optional[Path] = typer.Option(None, help="TLS: the PEM CA that signed the certificate"),
+    fault_seed: Optional[int] = typer.Option(None, help="seed of link-fault decisions (independent of --seed) [default: 1]"),
 ) -> None:
     """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table and write the report."""
     from bus.config import build_config
@@ -70,7 +72,7 @@ def up(
         fail("TLS needs --tls-cert, --tls-key and --tls-ca, all existing PEM files")
     try:
         base = load_scenario(scenario) if scenario else {}
-        config = build_config(overlay(base, {"name": name, "world": {"vehicles": vehicles, "seed": seed},
+        config = build_config(overlay(base, {"name": name, "world": {"vehicles": vehicles, "seed": seed}, "fault_seed": fault_seed,
                                              "clock": {"mode": mode, "speed": speed, "duration_s": duration, "tick_s": tick}}))
         if chaos is not None:
             config = with_chaos(config, chaos)
@@ -148,19 +150,30 @@ def report(run_dir: Path = typer.Argument(..., help="a run directory written by 
 
 @app.command()
 def secrets(out: Path = typer.Option(..., help="directory for the secrets (created, owner-only)"),
-            keep: bool = typer.Option(True, help="leave an existing set alone (containers share one)")) -> None:
-    """Write a fresh MAVLink signing key and one zenoh password per role, plus the router's
-    credentials file: what `swarm up` does for every run, for deployments (compose) to share."""
+            vehicles: int = typer.Option(5, min=1, max=250, help="logins and signing keys for vehicles 1..N"),
+            keep: bool = typer.Option(True, help="leave an existing set alone (containers share one)"),
+            enroll_out: Optional[Path] = typer.Option(None, help="also copy the enroll login (all that --id auto "
+                                                              "vehicles get) to this directory")) -> None:
+    """Write a fresh master MAVLink key, one zenoh password per role, a login and a signing key per
+    vehicle, and the router's credentials file: what `swarm up` does for every run, for deployments
+    (compose) to share."""
+    import shutil
+
     from bus.secrets import write_secrets
 
-    if keep and (out / "credentials.txt").exists():
-        typer.echo(f"secrets in {out} exist; kept")
-        return
     try:
-        write_secrets(out)
+        if keep and (out / "credentials.txt").exists():
+            typer.echo(f"secrets in {out} exist; kept")
+        else:
+            write_secrets(out, vehicles=vehicles)
+            typer.echo(f"secrets for {vehicles} vehicles written to {out}")
+        if enroll_out is not None:
+            enroll_out.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(out / "enroll.password", enroll_out / "enroll.password")
     except OSError as exc:
         fail(f"cannot write secrets to {out}: {exc.strerror or exc}")
-    typer.echo(f"secrets written to {out}")
+    except SwarmlocError as exc:
+        fail(str(exc))
 
 
 @app.command()
@@ -174,15 +187,17 @@ def router(listen: list[str] = typer.Option(["tcp/0.0.0.0:7447"], help="zenoh en
     """Run a zenoh router (what vehicles, world and ground station connect to)."""
     from bus.access import acl_policy
     from bus.process import stop_on_signals
+    from bus.secrets import credential_users
     from bus.session import Transport
     from groundstation.router import run_router
 
     try:
         base = Transport.from_env()
+        if credentials is not None and not credentials.is_file():
+            fail(f"credentials file {credentials} does not exist")
+        users = credential_users(credentials) if credentials else []
     except SwarmlocError as exc:
         fail(str(exc))
-    if credentials is not None and not credentials.is_file():
-        fail(f"credentials file {credentials} does not exist")
     if (tls_cert is None) != (tls_key is None):
         fail("--tls-cert and --tls-key go together")
     transport = Transport(user=base.user or ("router" if credentials else None),
@@ -190,7 +205,7 @@ def router(listen: list[str] = typer.Option(["tcp/0.0.0.0:7447"], help="zenoh en
                           tls_root_ca=base.tls_root_ca, tls_certificate=str(tls_cert) if tls_cert else None,
                           tls_private_key=str(tls_key) if tls_key else None,
                           credentials_file=str(credentials) if credentials else None,
-                          acl=acl_policy(prefix) if credentials and acl else None)
+                          acl=acl_policy(prefix, users) if credentials and acl else None)
     try:
         run_router(tuple(listen), stop_on_signals(), connect=tuple(connect), transport=transport)
     except Exception as exc:  # zenoh reports bad endpoints, certificates and configs as ZError
@@ -207,34 +222,58 @@ def _router_password(credentials: Path) -> str:
 
 @app.command()
 def sim(config: Path = typer.Option(..., help="swarm config JSON")) -> None:
-    """Run the world process: truth, sensor feeds and the clock."""
+    """Run the world process: truth, sensor feeds and the clock. Exits non-zero when the run ended
+    early (the ground station was gone for too long)."""
     from sim.node import run_world
 
-    _run_node(config, "world", run_world)
+    def body(bus, cfg, stop) -> None:
+        node = run_world(bus, cfg, stop)
+        if node.status == "groundstation-lost":
+            raise SwarmlocError(f"the ground station was gone for {cfg.clock.gone_timeout_s:g} s; run ended early")
+
+    _run_node(config, "world", body)
 
 
 @app.command()
-def vehicle(config: Path = typer.Option(..., help="swarm config JSON"),
+def vehicle(config: Path = typer.Option(..., help="the vehicle's own config JSON (vehicle.json of a run)"),
             id: str = typer.Option(..., "--id", help="vehicle id (MAVLink sysid, 1-250), or auto: claim one from the swarm"),
             restarts: int = typer.Option(0, min=0, max=255, help="how often this vehicle was started before (reset_counter)")) -> None:
-    """Run one vehicle process: the fixed-rate estimator loop. Signs its MAVLink stream with the key
-    in $SWARMLOC_MAVLINK_KEY or $SWARMLOC_MAVLINK_KEY_FILE. With --id auto the ground station assigns
-    the id (unique, even for vehicles starting together; the same again after a restart), keyed by
-    $SWARMLOC_VEHICLE_NAME or the host name."""
+    """Run one vehicle process: the fixed-rate estimator loop. Logs in as $SWARMLOC_ZENOH_USER and
+    signs its MAVLink stream with its own key ($SWARMLOC_MAVLINK_KEY or $SWARMLOC_MAVLINK_KEY_FILE).
+    With --id auto (login `enroll`) the ground station assigns the id (unique, even for vehicles
+    starting together; the same again after a restart), keyed by $SWARMLOC_VEHICLE_NAME or the host
+    name, and hands over the vehicle's own login and key."""
+    from bus.keys import parse_vehicle_id
     from bus.secrets import signing_key_from_env
     from vehicle.loops import run_vehicle
 
-    if id != "auto" and not (id.isdigit() and 1 <= int(id) <= 250):
+    if id != "auto" and parse_vehicle_id(id) is None:
         fail(f"--id must be 1-250 or auto, got {id!r}")
 
     def body(bus, cfg, stop) -> None:
-        vid, count = (int(id), restarts) if id != "auto" else _claim_id(bus, stop)
-        run_vehicle(bus, cfg, vid, stop, restarts=count, signing_key=signing_key_from_env())
+        if id != "auto":
+            run_vehicle(bus, cfg, int(id), stop, restarts=restarts, signing_key=signing_key_from_env())
+            return
+        reply = _claim_id(bus, stop)
+        if reply is None:
+            return
+        if not reply.signing_key:  # an insecure swarm: no secrets of its own
+            run_vehicle(bus, cfg, reply.vehicle_id, stop, restarts=reply.restarts, signing_key=signing_key_from_env())
+            return
+        from bus.secrets import vehicle_user
+        from bus.session import Transport, ZenohBus
 
-    _run_node(config, "vehicle", body)
+        bus.close()  # the enroll login may do nothing else
+        own = Transport(user=vehicle_user(reply.vehicle_id), password=reply.zenoh_password,
+                        tls_root_ca=Transport.from_env().tls_root_ca)
+        with ZenohBus(cfg.bus, role="vehicle", transport=own) as own_bus:
+            run_vehicle(own_bus, cfg, reply.vehicle_id, stop, restarts=reply.restarts,
+                        signing_key=bytes.fromhex(reply.signing_key))
+
+    _run_node(config, "vehicle", body, vehicle_config=True)
 
 
-def _claim_id(bus, stop, timeout_s: float = 120.0) -> tuple[int, int]:
+def _claim_id(bus, stop, timeout_s: float = 120.0):
     """Ask the ground station for this host's vehicle id until it answers (it may start later)."""
     import os
     import socket
@@ -246,15 +285,19 @@ def _claim_id(bus, stop, timeout_s: float = 120.0) -> tuple[int, int]:
     host = os.environ.get("SWARMLOC_VEHICLE_NAME") or socket.gethostname()
     payload = encode_json(ClaimRequest(host=host))
     deadline = time.monotonic() + timeout_s
+    log = logging.getLogger("swarmloc.vehicle")
     while not stop.is_set() and time.monotonic() < deadline:
         for raw in bus.get(bus.keys.claim(), payload, 2.0):
             reply = decode_json(ClaimReply, raw)
-            if not reply.ok:
+            if reply.ok:
+                log.info("%s claimed vehicle id %d (restarts %d)", host, reply.vehicle_id, reply.restarts)
+                return reply
+            if "alive" not in reply.error:
                 raise SwarmlocError(f"no vehicle id for {host}: {reply.error}")
-            logging.getLogger("swarmloc.vehicle").info("%s claimed vehicle id %d (restarts %d)", host,
-                                                       reply.vehicle_id, reply.restarts)
-            return reply.vehicle_id, reply.restarts
+            log.warning("%s: %s; asking again", host, reply.error)  # our previous self has not left yet
         time.sleep(0.5)
+    if stop.is_set():
+        return None
     raise SwarmlocError(f"no ground station answered the id claim of {host} within {timeout_s:g} s")
 
 
@@ -264,7 +307,8 @@ def gs(config: Path = typer.Option(..., help="swarm config JSON"),
        quiet: bool = typer.Option(False, help="no live display"),
        mavlink_out: Optional[str] = typer.Option(None, help="forward every vehicle's MAVLink to a GCS: udpout:HOST[:PORT] (port 14550)")) -> None:
     """Run the ground station: own the fault plan, score estimates against truth and write the run
-    directory. With a signing key ($SWARMLOC_MAVLINK_KEY[_FILE]) it accepts only signed MAVLink."""
+    directory. With the swarm's master key ($SWARMLOC_MAVLINK_KEY[_FILE]) it accepts only MAVLink
+    signed with each vehicle's own key, and hands vehicles that claim an id their secrets."""
     from bus.secrets import signing_key_from_env
     from groundstation.display import live_display
     from groundstation.mavlink_out import MavlinkForwarder
@@ -273,7 +317,7 @@ def gs(config: Path = typer.Option(..., help="swarm config JSON"),
     def body(bus, cfg, stop) -> None:
         forwarder = MavlinkForwarder(mavlink_out) if mavlink_out else None
         with live_display(cfg.clock.mode, cfg.clock.duration_s, quiet) as on_progress:
-            run_groundstation(bus, cfg, run_dir, stop, on_progress, signing_key=signing_key_from_env(), forwarder=forwarder)
+            run_groundstation(bus, cfg, run_dir, stop, on_progress, master_key=signing_key_from_env(), forwarder=forwarder)
 
     _run_node(config, "groundstation", body)
 

@@ -22,6 +22,7 @@ from bus.config import SwarmConfig
 from bus.errors import DecodeError, SwarmlocError
 from bus.plan import FaultPlan, decode_json
 from bus.secrets import role_env, write_secrets
+from bus.session import Envelope
 from groundstation.supervisor import KillSchedule
 
 SHUTDOWN_GRACE_S = 4.0
@@ -44,8 +45,9 @@ class Security:
     tls_root_ca: Path | None = None
     mavlink_out: str | None = None
 
-    def env(self, role: str) -> dict[str, str]:
-        out = role_env(self.secrets_dir, role) if self.secrets_dir else {}
+    def env(self, user: str) -> dict[str, str]:
+        """The environment of a process logging in as ``user`` (a role, or ``vehicle-<id>``)."""
+        out = role_env(self.secrets_dir, user) if self.secrets_dir else {}
         if self.tls_root_ca:
             out["SWARMLOC_ZENOH_TLS_ROOT_CA"] = str(self.tls_root_ca)
         return out
@@ -108,6 +110,7 @@ class Swarm:
         self.config, self.run_dir, self.show_progress, self.restart = config, run_dir, show_progress, restart
         self.security = security
         self.config_path = str(run_dir / "config.json")
+        self.vehicle_config_path = str(run_dir / "vehicle.json")
         self.children: list[Child] = []
         self.notes: list[str] = []
         self.restarts: dict[str, int] = {}
@@ -121,8 +124,7 @@ class Swarm:
 
     def spawn(self, name: str, args: list[str], *, essential: bool, inherit_stdout: bool = False) -> Child:
         log_path = self.run_dir / "logs" / f"{name}.log"
-        role = name.split("-")[0]
-        env = {**os.environ, "PYTHONUNBUFFERED": "1", **(self.security.env(role) if role != "router" else {})}
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", **(self.security.env(name) if name != "router" else {})}
         with log_path.open("ab") as log:
             process = subprocess.Popen([sys.executable, "-m", "groundstation.cli", *args], env=env,
                                        stdout=None if inherit_stdout else log, stderr=log,
@@ -133,7 +135,7 @@ class Swarm:
 
     def spawn_vehicle(self, vid: int) -> Child:
         name = f"vehicle-{vid}"
-        args = ["vehicle", "--config", self.config_path, "--id", str(vid), "--restarts", str(self.restarts.get(name, 0))]
+        args = ["vehicle", "--config", self.vehicle_config_path, "--id", str(vid), "--restarts", str(self.restarts.get(name, 0))]
         return self.spawn(name, args, essential=False)
 
     def spawn_groundstation(self) -> Child:
@@ -160,8 +162,8 @@ class Swarm:
         from bus.session import Transport, ZenohBus
 
         self.bus = ZenohBus(self.config.bus, role="supervisor", transport=Transport.from_env(self.security.env("supervisor")))
-        self.bus.subscribe(self.bus.keys.clock(), self.inbox)
-        self.bus.subscribe(self.bus.keys.fault_plan(), self.inbox)
+        self.bus.subscribe(self.bus.keys.clock(), self.inbox, 8 << 10)
+        self.bus.subscribe(self.bus.keys.fault_plan(), self.inbox, 1 << 20)
 
     def _follow_plan(self) -> None:
         """Drain the supervisor inbox, then execute the kill faults that are due."""
@@ -170,6 +172,8 @@ class Swarm:
                 envelope = self.inbox.get_nowait()
             except queue.Empty:
                 break
+            if not isinstance(envelope, Envelope):
+                continue  # oversized: nothing a supervisor needs
             try:
                 if envelope.key == self.bus.keys.clock():
                     self.now_us = max(self.now_us, m.decode(m.ClockTick, envelope.payload).stamp_us)
@@ -251,8 +255,10 @@ def launch(config: SwarmConfig, out: Path, *, show_progress: bool, stop: threadi
         update={"mode": "client", "connect": (f"{scheme}/{host}:{port}",), "listen": ()})})
     run_dir = unique_run_dir(out, config.name)
     config.dump(run_dir / "config.json")
+    config.for_vehicle().dump(run_dir / "vehicle.json")
     if secure:
-        security = dataclasses.replace(security, secrets_dir=write_secrets(run_dir / "secrets"))
+        security = dataclasses.replace(security, secrets_dir=write_secrets(run_dir / "secrets",
+                                                                           vehicles=config.world.vehicles))
     swarm = Swarm(config, run_dir, show_progress, restart=restart, security=security)
     handle = run_dir / SWARM_HANDLE
     handle.write_text(json.dumps({"connect": list(config.bus.connect), "prefix": config.bus.prefix, "pid": os.getpid(),

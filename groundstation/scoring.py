@@ -7,6 +7,8 @@ covariance (3 degrees of freedom), so its mean should be 3 for a consistent esti
 from __future__ import annotations
 
 import bisect
+import heapq
+import itertools
 import logging
 from dataclasses import dataclass, field
 
@@ -15,11 +17,11 @@ from scipy.special import chdtri
 
 from bus.angles import wrap_angle as wrap
 from bus.mavlink_codec import StateEstimate
-from bus.messages import Truth
 
 log = logging.getLogger("swarmloc.groundstation")
 POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw inside ODOMETRY's 6x6 pose covariance
 NEES_DOF = 3
+MAX_PENDING = 500_000  # estimates waiting for the watermark; beyond, they are counted and dropped
 
 
 @dataclass(frozen=True)
@@ -69,11 +71,12 @@ class TruthTrack:
         self.stamps: list[int] = []
         self.poses: list[np.ndarray] = []
 
-    def add(self, truth: Truth) -> None:
-        if self.stamps and truth.stamp_us <= self.stamps[-1]:
+    def add(self, stamp_us: int, pose: np.ndarray) -> None:
+        """One truth sample: pose (3,) [x m, y m, theta rad] at ``stamp_us``."""
+        if self.stamps and stamp_us <= self.stamps[-1]:
             return  # duplicate or out of order: truth is published in order
-        self.stamps.append(truth.stamp_us)
-        self.poses.append(truth.pose)
+        self.stamps.append(stamp_us)
+        self.poses.append(pose)
 
     def covers(self, stamp_us: int) -> bool:
         return bool(self.stamps) and self.stamps[0] <= stamp_us <= self.stamps[-1]
@@ -107,38 +110,43 @@ class Scorer:
     """Holds estimates until the watermark passes them, then scores them in (stamp, vehicle) order."""
 
     truth: dict[int, TruthTrack] = field(default_factory=dict)
-    pending: list[StateEstimate] = field(default_factory=list)
+    pending: list[tuple[int, int, int, StateEstimate]] = field(default_factory=list)  # heap
     tallies: dict[int, Tally] = field(default_factory=dict)
     unscored: int = 0
     duplicates: int = 0
     late: int = 0
+    dropped_full: int = 0
     last_scored_us: dict[int, int] = field(default_factory=dict)
     _seen: set[tuple[int, int]] = field(default_factory=set)
+    _order: itertools.count = field(default_factory=itertools.count)
     # two-sided 95% chi-square bounds for one NEES sample: inverse survival at 0.975 and 0.025
     bounds: tuple[float, float] = (float(chdtri(NEES_DOF, 0.975)), float(chdtri(NEES_DOF, 0.025)))
 
-    def add_truth(self, truth: Truth) -> None:
-        self.truth.setdefault(truth.vehicle_id, TruthTrack()).add(truth)
+    def add_truth(self, vehicle_id: int, stamp_us: int, pose: np.ndarray) -> None:
+        self.truth.setdefault(vehicle_id, TruthTrack()).add(stamp_us, pose)
 
-    def add_estimate(self, est: StateEstimate) -> None:
+    def add_estimate(self, est: StateEstimate) -> bool:
         """Queue an estimate for scoring; a second copy (same vehicle and stamp) is counted and
-        ignored, and so is one older than what was already scored for its vehicle."""
+        ignored, and so is one older than what was already scored for its vehicle. False when the
+        pending buffer is full (counted)."""
         ident = (est.vehicle_id, est.time_usec)
         if ident in self._seen:
             self.duplicates += 1
         elif est.time_usec <= self.last_scored_us.get(est.vehicle_id, -1):
             self.late += 1
+        elif len(self.pending) >= MAX_PENDING:
+            self.dropped_full += 1
+            return False
         else:
             self._seen.add(ident)
-            self.pending.append(est)
+            heapq.heappush(self.pending, (est.time_usec, est.vehicle_id, next(self._order), est))
+        return True
 
     def release(self, watermark_us: float) -> list[Score]:
-        """Score every pending estimate stamped <= watermark_us; the rest stay pending."""
-        due = sorted((e for e in self.pending if e.time_usec <= watermark_us),
-                     key=lambda e: (e.time_usec, e.vehicle_id))
-        self.pending = [e for e in self.pending if e.time_usec > watermark_us]
+        """Score every pending estimate stamped <= watermark_us, in (stamp, vehicle) order."""
         scores = []
-        for est in due:
+        while self.pending and self.pending[0][0] <= watermark_us:
+            est = heapq.heappop(self.pending)[3]
             track = self.truth.get(est.vehicle_id)
             if track is None or not track.covers(est.time_usec):
                 self.unscored += 1
@@ -146,7 +154,11 @@ class Scorer:
                             est.vehicle_id, est.time_usec,
                             f"{track.stamps[0]}..{track.stamps[-1]}" if track and track.stamps else "nothing")
                 continue
-            result = score(est, track.at(est.time_usec))
+            try:
+                result = score(est, track.at(est.time_usec))
+            except np.linalg.LinAlgError:  # the intake rejects degenerate covariances; never fatal here
+                self.unscored += 1
+                continue
             self.tallies.setdefault(est.vehicle_id, Tally()).add(result, self.bounds)
             self.last_scored_us[est.vehicle_id] = est.time_usec
             scores.append(result)

@@ -1,14 +1,19 @@
-"""The ground station's loop: handle inbox items until the world ends the run (or a stop signal),
-let stragglers land, then write the summary."""
+"""The ground station's loop: handle mailbox items until the world ends the run (or a stop signal,
+or the world is gone), let stragglers land, then write the summary.
+
+Nobody waits silently: a world that never joins within ``start_timeout_s`` ends the run as
+``no-world``; one whose liveliness token is gone for ``gone_timeout_s`` without ending the run ends it
+as ``world-lost``. Both are errors (the command exits non-zero).
+"""
 
 from __future__ import annotations
 
-import queue
-import threading
 import time
+import threading
 from pathlib import Path
 
 from bus.config import SwarmConfig
+from bus.errors import SwarmlocError
 from bus.session import Bus
 from groundstation.mavlink_out import MavlinkForwarder
 from groundstation.node import GroundStation
@@ -16,27 +21,67 @@ from groundstation.node import GroundStation
 END_GRACE_S = 0.3
 
 
+class WorldGone(SwarmlocError):
+    """The world never joined, or left without ending the run; the summary says so."""
+
+
 def run_groundstation(bus: Bus, config: SwarmConfig, run_dir: Path, stop: threading.Event,
-                      on_progress=None, *, signing_key: bytes | None = None,
+                      on_progress=None, *, master_key: bytes | None = None,
                       forwarder: MavlinkForwarder | None = None) -> dict:
-    """Score until the world ends the run (or ``stop`` is set); returns the summary."""
-    gs = GroundStation(bus, config, run_dir, signing_key=signing_key, forwarder=forwarder)
+    """Score until the world ends the run (or ``stop`` is set); returns the summary. Raises WorldGone
+    (after writing the summary) when the world never came or vanished."""
+    gs = GroundStation(bus, config, run_dir, master_key=master_key, forwarder=forwarder)
     if on_progress is not None:
         gs.on_progress = on_progress
     gs.publish_plan()
-    while not gs.ended and not stop.is_set():
-        try:
-            gs.handle(gs.inbox.get(timeout=0.2))
-        except queue.Empty:
+    watch = _WorldWatch(gs, config)
+    while gs.ended is None and not stop.is_set() and watch.status is None:
+        item = gs.mailbox.get(0.2)
+        if item is None:
             gs.run.maybe_flush()
+        else:
+            gs.handle(item)
+        watch.check()
     _drain(gs, END_GRACE_S)  # keys are not ordered among each other: let stragglers land
-    return gs.finish("complete" if gs.ended else "interrupted")
+    status = gs.ended.status if gs.ended is not None else (watch.status or "interrupted")
+    summary = gs.finish(status)
+    if watch.status is not None:
+        raise WorldGone(watch.explain())
+    return summary
+
+
+class _WorldWatch:
+    """Decides when the world is gone for good."""
+
+    def __init__(self, gs: GroundStation, config: SwarmConfig) -> None:
+        self.gs, self.clock = gs, config.clock
+        self.start = time.monotonic()
+        self.gone_since: float | None = None
+        self.status: str | None = None
+
+    def check(self) -> None:
+        now, gs = time.monotonic(), self.gs
+        if not gs.world_seen:
+            if now - self.start > self.clock.start_timeout_s:
+                self.status = "no-world"
+            return
+        if gs.world_alive:
+            self.gone_since = None
+        elif self.gone_since is None:
+            self.gone_since = now
+        elif now - self.gone_since > self.clock.gone_timeout_s:
+            self.status = "world-lost"
+
+    def explain(self) -> str:
+        if self.status == "no-world":
+            return f"the world did not join within {self.clock.start_timeout_s:g} s; run ended as no-world"
+        return f"the world left without ending the run ({self.clock.gone_timeout_s:g} s ago); run ended as world-lost"
 
 
 def _drain(gs: GroundStation, seconds: float) -> None:
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
-        try:
-            gs.handle(gs.inbox.get(timeout=max(0.0, deadline - time.monotonic())))
-        except queue.Empty:
+        item = gs.mailbox.get(max(0.0, deadline - time.monotonic()))
+        if item is None:
             return
+        gs.handle(item)

@@ -8,6 +8,7 @@ from typing import Any, Mapping, Sequence
 
 from bus.config import SwarmConfig
 from bus.messages import VehicleStatus
+from bus.rejections import REASONS, counts_to_dict
 from groundstation.link_quality import StreamQuality
 from groundstation.scoring import NEES_DOF, Scorer
 
@@ -17,11 +18,12 @@ def _round(value: float) -> float:
 
 
 def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, VehicleStatus],
-                  rejected: dict[int, int], events: dict[str, int], status: str, faults: Sequence = (),
-                  quality: Mapping[int, StreamQuality] | None = None) -> dict[str, Any]:
+                  events: dict[str, int], status: str, faults: Sequence = (), intake: Any = None,
+                  rejected: Mapping[str, tuple[int, ...]] | None = None) -> dict[str, Any]:
     """Per-vehicle and swarm RMSE and NEES, counters, MAVLink link quality, the faults of the plan,
-    and how the run ended."""
-    quality = quality or {}
+    rejected input by process and reason, and how the run ended."""
+    quality = intake.quality if intake is not None else {}
+    per_vehicle_rejected = intake.rejected_by_vehicle if intake is not None else {}
     vehicles: dict[str, Any] = {}
     total_sq, total_n, total_nees = 0.0, 0, 0.0
     for vid in sorted(set(scorer.tallies) | set(statuses)):
@@ -39,7 +41,7 @@ def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, Vehic
                          dropped_stale=st.dropped_stale, decode_errors=st.decode_errors, reset_counter=st.reset_counter,
                          sensor_duplicates=st.duplicates, sensor_samples_lost=st.samples_lost, late_fused=st.late_fused,
                          v2v_fused=st.v2v_fused, v2v_missing=st.v2v_missing)
-        entry["mavlink_rejected"] = rejected.get(vid, 0)
+        entry["mavlink_rejected"] = per_vehicle_rejected.get(vid, 0)
         if vid in quality:
             entry["mavlink_link"] = quality[vid].as_dict()
         vehicles[str(vid)] = entry
@@ -48,9 +50,15 @@ def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, Vehic
              "nees_bounds_95": [_round(b) for b in scorer.bounds], "unscored": scorer.unscored,
              "duplicate_estimates": scorer.duplicates, "late_estimates": scorer.late}
     fault_counts = dict(sorted(Counter(f.kind for f in faults).items()))
+    by_process = {name: counts_to_dict(counts) for name, counts in sorted((rejected or {}).items())}
+    totals = Counter()
+    for counts in by_process.values():
+        totals.update(counts)
     return {"name": config.name, "status": status, "mode": config.clock.mode, "seed": config.world.seed,
             "duration_s": config.clock.duration_s, "vehicles": vehicles, "swarm": swarm, "events": events,
-            "faults": {"total": len(faults), "by_kind": fault_counts, "names": [f.name for f in faults]}}
+            "faults": {"total": len(faults), "by_kind": fault_counts, "names": [f.name for f in faults]},
+            "rejected": {"by_process": {k: v for k, v in by_process.items() if v},
+                         "by_reason": {r: totals[r] for r in REASONS if totals[r]}}}
 
 
 def build_timing(statuses: dict[int, VehicleStatus], sim_s: float, wall_s: float,

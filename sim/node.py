@@ -1,27 +1,36 @@
-"""The world process: publishes truth and sensor feeds, drives the clock, ends the run.
+"""The world process: publishes every vehicle's sensor batch and the truth, drives the clock, ends
+the run.
 
-Lockstep: tick k is published only after every live vehicle acknowledged tick k-1; a vehicle whose
-liveliness token disappears, or that stays silent for ``ack_timeout_s``, is dropped from the set
-and the run goes on. Realtime: ticks follow the wall clock times the speed factor.
+Lockstep: tick k is published only after every live vehicle acknowledged tick k-1 and the ground
+station is at most ``gs_lag_ticks`` behind; a vehicle whose liveliness token disappears, or that stays
+silent for ``ack_timeout_s``, is dropped from the set and the run goes on. A ground station that is
+gone for ``gone_timeout_s`` ends the run (status ``groundstation-lost``). Realtime: ticks follow the
+wall clock times the speed factor. The next tick's feeds are computed while vehicles work.
 """
 
 from __future__ import annotations
 
 import logging
-import queue
 import threading
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
+
+from bus import feed
 from bus import messages as m
 from bus.config import SwarmConfig
 from bus.errors import DecodeError, SwarmlocError
+from bus.mailbox import Mailbox, Oversized
 from bus.plan import FaultPlan, decode_json
 from bus.process import Pacer
+from bus.rejections import Rejections
 from bus.session import Bus, Envelope, LivelinessEvent
 from sim.world import World
 
 log = logging.getLogger("swarmloc.world")
+MAX_ACK_BYTES = 256
+MAX_PLAN_BYTES = 1 << 20
 
 
 class StartTimeout(SwarmlocError):
@@ -30,32 +39,44 @@ class StartTimeout(SwarmlocError):
 
 @dataclass
 class Membership:
-    """Which vehicles are alive and which have acknowledged the current tick."""
+    """Which vehicles are alive and which have acknowledged the current tick; how many V2V
+    broadcasts each has sent (summed over its restarts)."""
 
     expected: set[int]
     alive: set[int] = field(default_factory=set)
     joining: set[int] = field(default_factory=set)  # restarted: in lockstep once their first ack arrives
     groundstation: bool = False
+    gs_seen: bool = False
+    gs_acked: int = -1
     acked: set[int] = field(default_factory=set)
     dead: set[int] = field(default_factory=set)
+    v2v_base: dict[int, int] = field(default_factory=dict)
+    v2v_last: dict[int, int] = field(default_factory=dict)
 
-    def on_liveliness(self, event: LivelinessEvent, prefix: str) -> None:
-        parts = event.key[len(prefix) + 1:].split("/")  # alive/<role>/<id>
-        if len(parts) != 3:
-            return
-        if parts[1] == "groundstation":
-            self.groundstation = event.alive
-        elif parts[1] == "vehicle" and parts[2].isdigit():
-            vid = int(parts[2])
-            if event.alive and vid in self.dead:
+    def on_token(self, role: str, vid: int | None, alive: bool) -> None:
+        if role == "groundstation":
+            self.groundstation = alive
+            self.gs_seen = self.gs_seen or alive
+        elif role == "vehicle" and vid in self.expected:
+            if alive and vid in self.dead:
                 log.info("vehicle %d is back; it joins the lockstep set with its first ack", vid)
                 self.dead.discard(vid)
                 self.joining.add(vid)
-            elif event.alive:
+            elif alive:
                 self.alive.add(vid)
             elif vid in self.alive or vid in self.joining:
                 self.joining.discard(vid)
                 self.declare_dead(vid, "liveliness lost")
+
+    def on_v2v_count(self, vid: int, sent: int) -> None:
+        """A restarted vehicle counts from zero again: what it sent before is added to its base."""
+        last = self.v2v_last.get(vid, 0)
+        if sent < last:
+            self.v2v_base[vid] = self.v2v_base.get(vid, 0) + last
+        self.v2v_last[vid] = sent
+
+    def v2v_published(self, vehicles: int) -> tuple[int, ...]:
+        return tuple(self.v2v_base.get(v, 0) + self.v2v_last.get(v, 0) for v in range(1, vehicles + 1))
 
     def declare_dead(self, vid: int, reason: str) -> None:
         log.warning("vehicle %d leaves the lockstep set: %s", vid, reason)
@@ -66,21 +87,35 @@ class Membership:
         return self.groundstation and self.expected <= self.alive
 
 
+@dataclass(frozen=True)
+class _Prepared:
+    """One tick's output, computed ahead: encoded batches, truth and the comm-jammed set."""
+
+    tick: int
+    stamp_us: int
+    batches: list[tuple[str, bytes]]
+    truth: bytes
+    comm_jammed: tuple[int, ...]
+
+
 class WorldNode:
     def __init__(self, bus: Bus, config: SwarmConfig) -> None:
-        self.bus, self.config = bus, config
+        self.bus, self.config, keys = bus, config, bus.keys
         self.world = World(config)
-        self.inbox: queue.SimpleQueue = queue.SimpleQueue()
-        bus.watch_liveliness(f"{bus.keys.prefix}/alive/**", self.inbox)
-        bus.subscribe(f"{bus.keys.prefix}/ctl/ack/*", self.inbox)
-        bus.subscribe(bus.keys.fault_plan(), self.inbox)
+        self.rejections = Rejections(log, "world")
+        self.mailbox = Mailbox()
+        control, acks = self.mailbox.lane("control", max_items=10_000), self.mailbox.lane("acks", max_items=100_000)
+        bus.watch_liveliness(f"{keys.prefix}/alive/**", control)
+        bus.subscribe(keys.fault_plan(), control, MAX_PLAN_BYTES)
+        bus.subscribe(f"{keys.prefix}/ctl/ack/*", acks, MAX_ACK_BYTES)
         self.plan_version = -1
-        self.gave_up_on_groundstation = False
-        bus.declare_token(bus.keys.alive("world", 0))
+        self.status = "complete"
+        bus.declare_token(keys.alive("world", 0))
         self.members = Membership(expected=set(self.world.vehicle_ids()))
         self._publishers: dict[str, object] = {}
         self.tick_us = round(config.clock.tick_s * 1e6)
         self.final_tick = round(config.clock.duration_s * 1e6) // self.tick_us
+        self._gs_gone_since: float | None = None
 
     def publish(self, key: str, payload: bytes) -> None:
         pub = self._publishers.get(key)
@@ -89,40 +124,57 @@ class WorldNode:
         pub.put(payload)
 
     def drain(self, timeout_s: float, tick: int | None = None) -> None:
-        """Handle inbox items (liveliness, acks of ``tick``) for up to ``timeout_s``."""
-        try:
-            item = self.inbox.get(timeout=timeout_s)
-        except queue.Empty:
-            return
-        while True:
-            if isinstance(item, LivelinessEvent):
-                self.members.on_liveliness(item, self.bus.keys.prefix)
-            elif isinstance(item, Envelope) and item.key == self.bus.keys.fault_plan():
-                self._on_plan(item)
-            elif isinstance(item, Envelope):
-                self._on_ack(item, tick)
-            try:
-                item = self.inbox.get_nowait()
-            except queue.Empty:
-                return
+        """Handle mailbox items (liveliness, plan, acks of ``tick``) for up to ``timeout_s``."""
+        item = self.mailbox.get(timeout_s)
+        while item is not None:
+            self._handle(item, tick)
+            item = self.mailbox.get_nowait()
+
+    def _handle(self, item: object, tick: int | None) -> None:
+        if isinstance(item, LivelinessEvent):
+            parsed = self.bus.keys.parse(item.key)
+            if parsed is None or parsed.kind != "alive":
+                self.rejections.reject("bad_key", "liveliness", repr(item.key))
+            else:
+                self.members.on_token(parsed.role, parsed.vehicle_id, item.alive)
+        elif isinstance(item, Oversized):
+            self.rejections.reject("oversized", item.key, f"{item.size} bytes")
+        elif isinstance(item, Envelope) and item.key == self.bus.keys.fault_plan():
+            self._on_plan(item)
+        elif isinstance(item, Envelope):
+            self._on_ack(item, tick)
 
     def _on_plan(self, envelope: Envelope) -> None:
         """A new fault plan from the ground station: the world applies its physical faults."""
         try:
             plan = decode_json(FaultPlan, envelope.payload)
         except DecodeError as exc:
-            log.warning("world dropped a malformed fault plan: %s", exc)
+            self.rejections.reject("malformed", envelope.key, str(exc))
             return
         if plan.version > self.plan_version:
             self.plan_version = plan.version
             self.world.faults.replace(plan.faults)
 
     def _on_ack(self, envelope: Envelope, tick: int | None) -> None:
+        parsed = self.bus.keys.parse(envelope.key)
+        if parsed is None or parsed.kind != "ack":
+            self.rejections.reject("bad_key", "acks", repr(envelope.key))
+            return
         try:
+            if parsed.ident == "gs":
+                self.members.gs_acked = max(self.members.gs_acked, m.decode(m.GroundStationAck, envelope.payload).tick)
+                return
             ack = m.decode(m.TickAck, envelope.payload)
         except DecodeError as exc:
-            log.warning("world dropped a malformed ack on %s: %s", envelope.key, exc)
+            self.rejections.reject("malformed", envelope.key, str(exc))
             return
+        if ack.vehicle_id != parsed.vehicle_id:
+            self.rejections.reject("impersonation", envelope.key, f"ack names vehicle {ack.vehicle_id}")
+            return
+        if ack.vehicle_id not in self.members.expected:
+            self.rejections.reject("unknown_vehicle", envelope.key, f"vehicle {ack.vehicle_id}")
+            return
+        self.members.on_v2v_count(ack.vehicle_id, ack.v2v_sent)
         if ack.tick == tick:
             self.members.acked.add(ack.vehicle_id)
             if ack.vehicle_id in self.members.joining:
@@ -136,18 +188,29 @@ class WorldNode:
                 return
             if time.monotonic() > deadline:
                 missing = sorted(self.members.expected - self.members.alive)
-                gs = "" if self.members.groundstation else " and the ground station"
-                raise StartTimeout(f"vehicles {missing}{gs} did not join within "
-                                   f"{self.config.clock.start_timeout_s:g} s")
+                who = ([f"vehicles {missing}"] if missing else []) + ([] if self.members.groundstation else ["the ground station"])
+                raise StartTimeout(f"{' and '.join(who)} did not join within {self.config.clock.start_timeout_s:g} s")
             self.drain(0.1)
 
-    def send_tick(self, tick: int, final: bool) -> None:
+    def prepare(self, tick: int) -> _Prepared:
+        """Advance the world to the tick's stamp and encode what it measured (no publishing)."""
         stamp = min(tick, self.final_tick) * self.tick_us
-        for key, payload in self.world.advance(stamp):
+        out = self.world.advance(stamp)
+        batches = [(self.bus.keys.feed(vid), feed.encode_batch(feed.SensorBatch(vid, tick, stamp, out.blocks(vid))))
+                   for vid in self.world.vehicle_ids()]
+        ids = self.world.vehicle_ids()
+        rows = np.array(out.truth).reshape(len(out.truth_stamps), len(ids), feed.TRUTH_WIDTH)
+        truth = feed.TruthBatch(tick, stamp, np.array(out.truth_stamps, dtype=np.int64), np.array(ids), rows)
+        return _Prepared(tick, stamp, batches, feed.encode_truth(truth), self.world.comm_jammed(stamp))
+
+    def send(self, prepared: _Prepared, final: bool) -> None:
+        for key, payload in prepared.batches:
             self.publish(key, payload)
+        self.publish(self.bus.keys.truth(), prepared.truth)
         self.members.acked = set()
-        self.publish(self.bus.keys.clock(), m.encode(m.ClockTick(tick, stamp, time.time_ns(), final, self.world.published(),
-                                                                 self.world.comm_jammed(stamp))))
+        tick = m.ClockTick(prepared.tick, prepared.stamp_us, time.time_ns(), final, prepared.comm_jammed,
+                           self.members.v2v_published(self.config.world.vehicles))
+        self.publish(self.bus.keys.clock(), m.encode(tick))
 
     def await_acks(self, tick: int, stop: threading.Event, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s
@@ -157,39 +220,55 @@ class WorldNode:
                     self.members.declare_dead(vid, f"no ack for tick {tick} within {timeout_s:g} s")
                 return
             self.drain(0.05, tick)
-        self.await_groundstation(stop)
 
-    def await_groundstation(self, stop: threading.Event) -> None:
-        """Lockstep pauses while the ground station is away (a restart), so that nothing goes
-        unscored; after ``start_timeout_s`` the run goes on without it."""
-        if self.members.groundstation or self.gave_up_on_groundstation:
-            return
-        log.warning("ground station gone; lockstep waits up to %g s for it", self.config.clock.start_timeout_s)
-        deadline = time.monotonic() + self.config.clock.start_timeout_s
-        while not stop.is_set() and not self.members.groundstation and time.monotonic() < deadline:
-            self.drain(0.05)
-        self.gave_up_on_groundstation = not self.members.groundstation
+    def await_groundstation(self, tick: int, stop: threading.Event, lockstep: bool) -> bool:
+        """Lockstep pauses while the ground station lags more than ``gs_lag_ticks`` or is away (a
+        restart), so nothing goes unscored. False when it has been gone for ``gone_timeout_s``."""
+        clock = self.config.clock
+        while not stop.is_set():
+            present = self.members.groundstation
+            if present:
+                self._gs_gone_since = None
+            elif self._gs_gone_since is None:
+                self._gs_gone_since = time.monotonic()
+                log.warning("ground station gone; the run waits up to %g s for it", clock.gone_timeout_s)
+            if not present and time.monotonic() - self._gs_gone_since > clock.gone_timeout_s:
+                return False
+            if present and (not lockstep or self.members.gs_acked >= tick - clock.gs_lag_ticks):
+                return True
+            self.drain(0.02)
+        return True
 
 
 def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode:
-    """Run the whole simulation; returns the node (for its membership record)."""
+    """Run the whole simulation; returns the node (for its membership record and status)."""
     node = WorldNode(bus, config)
     node.wait_for_members(stop)
     lockstep = config.clock.mode == "lockstep"
     pacer = Pacer(sim0_us=0, wall0_ns=time.time_ns(), speed=config.clock.speed)
     ack_timeout = config.clock.ack_timeout_s
+    prepared = node.prepare(0)
     for tick in range(node.final_tick + 1):
         if stop.is_set():
+            node.status = "interrupted"
+            break
+        if not node.await_groundstation(tick, stop, lockstep):
+            node.status = "groundstation-lost"
             break
         if not lockstep:
             time.sleep(max(0.0, pacer.seconds_until(tick * node.tick_us)))
-        node.send_tick(tick, final=False)
+        node.send(prepared, final=False)
+        prepared = node.prepare(tick + 1)  # the next tick's feeds, while the vehicles work
         if lockstep:
             node.await_acks(tick, stop, ack_timeout)
         else:
             node.drain(0.0)
-    end_tick = node.final_tick + 1
-    node.send_tick(end_tick, final=True)
-    node.await_acks(end_tick, stop, min(ack_timeout, 5.0))
-    node.publish(bus.keys.end(), m.encode(m.RunEnd(end_tick, node.final_tick * node.tick_us, len(node.members.alive))))
+    if node.status == "complete":
+        node.send(prepared, final=True)
+        node.await_acks(prepared.tick, stop, min(ack_timeout, 5.0))
+    else:
+        log.error("world ends the run early: %s", node.status)
+    end = m.RunEnd(prepared.tick, min(prepared.tick, node.final_tick) * node.tick_us, len(node.members.alive),
+                   node.status, node.rejections.as_counts())
+    node.publish(bus.keys.end(), m.encode(end))
     return node

@@ -1,7 +1,10 @@
 """The pure world: N unicycles at constant altitude and their sensors, stepped in integer microseconds.
 
-``World.advance(until_us)`` returns the encoded messages, in stamp order, for every step up to
-``until_us``. The node publishes them; tests and Monte Carlo runs use the world with no bus.
+``World.advance(until_us)`` runs every IMU step up to ``until_us`` and returns what was measured:
+per vehicle the sensor rows of each topic (``bus.feed`` layout) and the truth of every vehicle. The
+node publishes them as one batch per vehicle per tick; tests and Monte Carlo runs use the world with
+no bus. Noise comes from each vehicle's own generator in blocks of ``BLOCK_STEPS`` steps, so the
+output never depends on how time is cut into ticks, and faults never shift the noise streams.
 """
 
 from __future__ import annotations
@@ -10,13 +13,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bus import messages as m
 from bus.config import SwarmConfig
-from bus.keys import KeySpace
 from sim import sensors
-from sim.physical_faults import PhysicalFaults
 from sim.kinematics import unicycle_step
+from sim.physical_faults import PhysicalFaults
 from sim.trajectories import make_trajectory, start_pads
+
+BLOCK_STEPS = 100
 
 
 @dataclass
@@ -28,10 +31,30 @@ class _Vehicle:
     ranging_rng: np.random.Generator
     last_speed_mps: float = 0.0
     seq: dict[str, int] = field(default_factory=dict)
+    noise: dict[str, np.ndarray] = field(default_factory=dict)
 
     def next_seq(self, topic: str) -> int:
         self.seq[topic] = self.seq.get(topic, -1) + 1
         return self.seq[topic]
+
+
+@dataclass
+class TickOutput:
+    """What the world measured over one advance: ``rows[vid][topic]`` is a list of (stamp_us, seq,
+    row (w,)); ``truth_stamps`` (k,) and ``truth`` (k, N, 5) rows [x, y, theta, speed, yaw rate]."""
+
+    rows: dict[int, dict[str, list[tuple[int, int, np.ndarray]]]]
+    truth_stamps: list[int]
+    truth: list[np.ndarray]
+
+    def blocks(self, vehicle_id: int) -> dict[str, tuple[np.ndarray, int, np.ndarray]]:
+        """The bus.feed blocks of one vehicle: topic -> (stamps (k,), first seq, rows (k, w))."""
+        out = {}
+        for topic, samples in self.rows.get(vehicle_id, {}).items():
+            if samples:
+                out[topic] = (np.array([s[0] for s in samples], dtype=np.int64), samples[0][1],
+                              np.array([s[2] for s in samples], dtype=np.float64))
+        return out
 
 
 def _period_us(rate_hz: float) -> int:
@@ -43,9 +66,8 @@ class World:
 
     def __init__(self, config: SwarmConfig) -> None:
         self.config = config
-        self.keys = KeySpace(config.bus.prefix)
         self.step_us = _period_us(config.sensors.imu_rate_hz)
-        self.now_us = -self.step_us  # nothing emitted yet; the first step is stamped 0
+        self.steps_done = 0  # IMU steps emitted; the next one is stamped steps_done * step_us
         spec, wc = config.sensors, config.world
         pads = start_pads(wc.vehicles, wc.spacing_m)
         self.vehicles: list[_Vehicle] = []
@@ -62,79 +84,96 @@ class World:
             poses.append(start)
         self.poses = np.array(poses)
         self.faults = PhysicalFaults(config.faults)
+        self._periods = {topic: _period_us(rate) for topic, rate in (
+            ("odom", spec.odom_rate_hz), ("gnss", spec.gnss_rate_hz), ("ranging", spec.ranging_rate_hz),
+            ("truth", spec.truth_rate_hz))}
+
+    @property
+    def now_us(self) -> int:
+        """Stamp of the last step emitted (-step_us before the first)."""
+        return (self.steps_done - 1) * self.step_us
 
     def vehicle_ids(self) -> list[int]:
         return [v.vehicle_id for v in self.vehicles]
-
-    def published(self) -> tuple[int, ...]:
-        """Samples published so far per vehicle and feed, in the layout of ``ClockTick.published``."""
-        return tuple(v.seq.get(feed, -1) + 1 for v in self.vehicles for feed in m.FEEDS)
 
     def comm_jammed(self, t_us: int) -> tuple[int, ...]:
         """Vehicles inside an active comm-jamming zone at ``t_us`` (their V2V traffic is lost)."""
         return tuple(v.vehicle_id for v, pose in zip(self.vehicles, self.poses)
                      if self.faults.comm_jammed(t_us, pose))
 
-    def advance(self, until_us: int) -> list[tuple[str, bytes]]:
-        """Emit every step stamped in (now, until_us]; returns (key, payload) pairs in stamp order."""
-        out: list[tuple[str, bytes]] = []
-        while self.now_us + self.step_us <= until_us:
-            self.now_us += self.step_us
-            out.extend(self._step(self.now_us))
+    def advance(self, until_us: int) -> TickOutput:
+        """Run every step stamped in (now, until_us]."""
+        out = TickOutput({v.vehicle_id: {} for v in self.vehicles}, [], [])
+        while self.steps_done * self.step_us <= until_us:
+            self._step(out)
         return out
 
-    def _due(self, stamp_us: int, rate_hz: float) -> bool:
-        return stamp_us % _period_us(rate_hz) == 0
+    def _draw_block(self, v: _Vehicle) -> None:
+        """The next BLOCK_STEPS steps of every noise source of one vehicle, from its generator."""
+        spec, n = self.config.sensors, BLOCK_STEPS
+        v.noise = {"gyro": v.rng.normal(0.0, spec.gyro_sigma_radps, (n, 3)),
+                   "accel": v.rng.normal(0.0, spec.accel_sigma_mps2, (n, 3)),
+                   "walk": v.rng.normal(0.0, spec.gyro_bias_walk_radps_rtsec * np.sqrt(self.step_us * 1e-6), (n, 3)),
+                   "odom": v.rng.normal(0.0, [spec.odom_speed_sigma_mps, spec.odom_yaw_rate_sigma_radps], (n, 2)),
+                   "gnss": v.rng.normal(0.0, spec.gnss_sigma_m, (n, 2)),
+                   "ranging": v.ranging_rng.normal(0.0, [spec.range_sigma_m, spec.bearing_sigma_rad],
+                                                   (n, len(self.vehicles), 2))}
 
-    def _step(self, t_us: int) -> list[tuple[str, bytes]]:
-        """Sample every sensor at ``t_us`` from the current poses, then move the poses one step."""
+    def _step(self, out: TickOutput) -> None:
+        """Sample every sensor at the step's stamp from the current poses, then move the poses."""
+        t_us, k = self.steps_done * self.step_us, self.steps_done % BLOCK_STEPS
         spec, dt = self.config.sensors, self.step_us * 1e-6
+        if k == 0:
+            for v in self.vehicles:
+                self._draw_block(v)
         inputs = np.array([v.trajectory.inputs(t_us * 1e-6, pose) for v, pose in zip(self.vehicles, self.poses)])
-        out: list[tuple[str, bytes]] = []
-        jammed = set(self.comm_jammed(t_us)) if self._due(t_us, spec.ranging_rate_hz) else set()
-        for vehicle, pose, (speed, yaw_rate) in zip(self.vehicles, self.poses, inputs):
-            out.extend(self._samples(vehicle, t_us, pose, float(speed), float(yaw_rate)))
-            if self._due(t_us, spec.ranging_rate_hz):
-                out.extend(self._ranging(vehicle, t_us, pose, jammed))
-            vehicle.gyro_bias = sensors.walk_gyro_bias(vehicle.gyro_bias, spec, dt, vehicle.rng)
+        if t_us % self._periods["truth"] == 0:
+            out.truth_stamps.append(t_us)
+            out.truth.append(np.column_stack([self.poses, inputs]))
+        for v, pose, (speed, yaw_rate) in zip(self.vehicles, self.poses, inputs):
+            self._samples(out.rows[v.vehicle_id], v, t_us, k, pose, float(speed), float(yaw_rate))
+            v.gyro_bias = v.gyro_bias + v.noise["walk"][k]
+        if t_us % self._periods["ranging"] == 0 and spec.ranging_max_m > 0 and spec.ranging_max_peers > 0:
+            self._ranging(out, t_us, k)
         self.poses = unicycle_step(self.poses, inputs[:, 0], inputs[:, 1], dt)
-        return out
+        self.steps_done += 1
 
-    def _ranging(self, v: _Vehicle, t_us: int, pose: np.ndarray, jammed: set[int]) -> list[tuple[str, bytes]]:
-        """Radio ranging to every other vehicle in reach; nothing to or from a comm-jammed vehicle.
-        Noise is drawn for every pair, so faults and distances never shift the noise stream."""
-        spec, out = self.config.sensors, []
-        silent = v.vehicle_id in jammed or self.faults.silenced(v.vehicle_id, "ranging", t_us, pose)
-        for other, other_pose in zip(self.vehicles, self.poses):
-            if other is v:
-                continue
-            rng_m, bearing, cov = sensors.range_bearing(pose, other_pose[:2], spec, v.ranging_rng)
-            if silent or other.vehicle_id in jammed or rng_m > spec.ranging_max_m:
-                continue
-            msg = m.RangeBearing(v.vehicle_id, t_us, v.next_seq("ranging"), other.vehicle_id, rng_m, bearing, cov)
-            out.append((self.keys.sensor(v.vehicle_id, "ranging"), m.encode(msg)))
-        return out
+    def _emit(self, rows: dict, v: _Vehicle, topic: str, t_us: int, row: np.ndarray) -> None:
+        rows.setdefault(topic, []).append((t_us, v.next_seq(topic), row))
 
-    def _samples(self, v: _Vehicle, t_us: int, pose: np.ndarray, speed: float, yaw_rate: float) -> list[tuple[str, bytes]]:
-        spec, vid, keys, out = self.config.sensors, v.vehicle_id, self.keys, []
+    def _samples(self, rows: dict, v: _Vehicle, t_us: int, k: int, pose: np.ndarray, speed: float,
+                 yaw_rate: float) -> None:
+        spec, vid, silenced = self.config.sensors, v.vehicle_id, self.faults.silenced
         if t_us == 0:
             prior, cov = sensors.pose_prior(pose, spec, v.rng)
-            out.append((keys.sensor(vid, "prior"), m.encode(m.PosePrior(vid, t_us, v.next_seq("prior"), prior, cov))))
-        if self._due(t_us, spec.truth_rate_hz):
-            truth = m.Truth(vid, t_us, v.next_seq("truth"), pose.copy(), speed, yaw_rate)
-            out.append((keys.truth(vid), m.encode(truth)))
+            self._emit(rows, v, "prior", t_us, np.concatenate([prior, cov.ravel()]))
         accel_fwd = (speed - v.last_speed_mps) / (self.step_us * 1e-6) if t_us else 0.0
         v.last_speed_mps = speed
-        gyro, accel = sensors.imu_sample(speed, accel_fwd, yaw_rate, v.gyro_bias, spec, v.rng)
-        if not self.faults.silenced(vid, "imu", t_us, pose):
-            out.append((keys.sensor(vid, "imu"), m.encode(m.ImuSample(vid, t_us, v.next_seq("imu"), gyro, accel))))
-        if self._due(t_us, spec.odom_rate_hz):
-            measured = sensors.odometry_sample(speed, yaw_rate, spec, v.rng)
-            if not self.faults.silenced(vid, "odom", t_us, pose):
-                out.append((keys.sensor(vid, "odom"), m.encode(m.WheelOdometry(vid, t_us, v.next_seq("odom"), *measured))))
-        if self._due(t_us, spec.gnss_rate_hz):
-            fix, cov = sensors.gnss_fix(pose[:2], spec, v.rng)  # drawn even when jammed: faults never shift the noise
-            if not self.faults.silenced(vid, "gnss", t_us, pose):
-                fix = fix + self.faults.spoof_offset_m(vid, t_us, pose)
-                out.append((keys.sensor(vid, "gnss"), m.encode(m.GnssFix(vid, t_us, v.next_seq("gnss"), fix, cov))))
-        return out
+        gyro, accel = sensors.imu_sample(speed, accel_fwd, yaw_rate, v.gyro_bias, v.noise["gyro"][k], v.noise["accel"][k])
+        if not silenced(vid, "imu", t_us, pose):
+            self._emit(rows, v, "imu", t_us, np.concatenate([gyro, accel]))
+        if t_us % self._periods["odom"] == 0 and not silenced(vid, "odom", t_us, pose):
+            self._emit(rows, v, "odom", t_us, np.array([speed, yaw_rate]) + v.noise["odom"][k])
+        if t_us % self._periods["gnss"] == 0 and not silenced(vid, "gnss", t_us, pose):
+            fix = pose[:2] + v.noise["gnss"][k] + self.faults.spoof_offset_m(vid, t_us, pose)
+            self._emit(rows, v, "gnss", t_us, np.concatenate([fix, (np.eye(2) * spec.gnss_sigma_m**2).ravel()]))
+
+    def _ranging(self, out: TickOutput, t_us: int, k: int) -> None:
+        """Radio ranging from every vehicle to its ``ranging_max_peers`` nearest peers in reach;
+        nothing to or from a comm-jammed vehicle. Noise is drawn for every pair, so faults and
+        distances never shift the noise stream."""
+        spec = self.config.sensors
+        jammed = set(self.comm_jammed(t_us))
+        xy = self.poses[:, :2]
+        dist = np.hypot(*(xy[None, :, :] - xy[:, None, :]).transpose(2, 0, 1))
+        cov = np.array([spec.range_sigma_m**2, 0.0, 0.0, spec.bearing_sigma_rad**2])
+        for i, v in enumerate(self.vehicles):
+            if v.vehicle_id in jammed or self.faults.silenced(v.vehicle_id, "ranging", t_us, self.poses[i]):
+                continue
+            candidates = [j for j in np.argsort(dist[i], kind="stable") if j != i
+                          and dist[i, j] <= spec.ranging_max_m and self.vehicles[j].vehicle_id not in jammed]
+            for j in sorted(candidates[:spec.ranging_max_peers]):
+                rng_m, bearing = sensors.range_bearing(self.poses[i], xy[j], v.noise["ranging"][k, j])
+                if rng_m <= spec.ranging_max_m:
+                    row = np.array([self.vehicles[j].vehicle_id, rng_m, bearing, *cov])
+                    self._emit(out.rows[v.vehicle_id], v, "ranging", t_us, row)

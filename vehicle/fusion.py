@@ -1,26 +1,37 @@
 """The fusion horizon: measurements reach the estimator in stamp order even when they arrive late.
 
-Each loop cycle at time t applies every buffered measurement stamped <= t, lets the estimator run
-its per-cycle checks, and keeps a checkpoint (a copy of the estimator) for t. A measurement that
-arrives after the cycle covering its stamp is *late*: within the horizon, the estimator goes back to
-the newest checkpoint before it and replays everything since, in order (retrodiction by replay, as
-out-of-sequence filters do). Older than the horizon: dropped and counted. A second copy of a
-measurement (same topic and sequence number) is ignored and counted.
+Each loop cycle at time t applies every buffered measurement stamped <= t, then runs the estimator's
+cycle (propagation, health checks, divergence recovery). A measurement that arrives after the cycle
+covering its stamp is *late*: within the horizon, the estimator goes back to the newest checkpoint
+before it and replays everything since, in order (retrodiction by replay, as out-of-sequence filters
+do). Older than the horizon: dropped and counted. A second copy of a measurement (same topic and
+sequence number) is ignored and counted.
+
+Checkpoints cost a copy of the estimator, which for a SLAM map is an n x n covariance, so they are
+taken only where a late measurement can land: ``expect(stamp)`` asks for one just before ``stamp``
+(the link-fault stage holding a delayed packet, a ranging measurement waiting for its neighbour's
+broadcast); ``every_cycles`` adds one every N cycles for links whose lateness nobody can foresee
+(realtime). A checkpoint with bound b holds the state after every measurement stamped < b and every
+cycle < b.
 """
 
 from __future__ import annotations
 
-import bisect
 import heapq
 import itertools
+import logging
 from collections import deque
 from dataclasses import dataclass
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
+
+log = logging.getLogger("swarmloc.vehicle")
+MAX_PENDING = 200_000
+MAX_SEEN = 100_000
 
 
 class Estimator(Protocol):
-    def handle(self, msg: Any) -> None: ...
-    def tick(self, stamp_us: int) -> None: ...
+    def handle(self, topic: str, msg: Any) -> None: ...
+    def cycle(self, t_us: int) -> None: ...
     def snapshot(self) -> Any: ...
     def restore(self, snapshot: Any) -> None: ...
 
@@ -31,23 +42,31 @@ class FusionCounters:
     dropped_stale: int = 0
     duplicates: int = 0
     replays: int = 0
+    checkpoints: int = 0
+    failed: int = 0          # measurements the estimator could not apply (counted, skipped)
+    dropped_full: int = 0    # refused at the bound of the pending buffer
+
+
+Entry = tuple[int, int, str, Any]  # (stamp, arrival order, topic, message)
 
 
 class FusionHorizon:
     """Orders measurements for one estimator; ``horizon_us`` is how late a measurement may be."""
 
-    def __init__(self, estimator: Estimator, *, horizon_us: int) -> None:
-        self.estimator, self.horizon_us = estimator, horizon_us
+    def __init__(self, estimator: Estimator, *, horizon_us: int, every_cycles: int = 0) -> None:
+        self.estimator, self.horizon_us, self.every_cycles = estimator, horizon_us, every_cycles
         self.counters = FusionCounters()
-        self._pending: list[tuple[int, int, str, Any]] = []   # heap: (stamp, arrival, topic, msg)
-        self._late: list[tuple[int, int, str, Any]] = []
-        self._applied: list[tuple[int, int, str, Any]] = []   # sorted, newer than the oldest checkpoint
-        self._checkpoints: deque[tuple[int, Any]] = deque()   # (cycle time, estimator snapshot after it)
-        if horizon_us > 0:
-            self._checkpoints.append((-1, estimator.snapshot()))  # before anything: stamp-0 data can be late
-        self._seen: dict[tuple[str, int], int] = {}           # (topic, seq) -> stamp
+        self._pending: list[Entry] = []
+        self._late: list[Entry] = []
+        self._applied: list[Entry] = []                    # in order, stamped >= the oldest checkpoint's bound
+        self._checkpoints: deque[tuple[int, Any]] = deque()  # (bound, snapshot), bounds increasing
+        self._cycles: deque[int] = deque()                 # cycles run since the oldest checkpoint's bound
+        self._expected: list[int] = []                     # heap of stamps that want a checkpoint before them
+        self._seen: dict[tuple[str, int], int] = {}        # (topic, seq) -> stamp
         self._arrival = itertools.count()
-        self.cycle_us: int | None = None                       # time of the last cycle
+        self.cycle_us: int | None = None                   # time of the last cycle
+        if horizon_us > 0:
+            self._checkpoint(0)
 
     def push(self, topic: str, msg: Any) -> None:
         """Buffer one decoded measurement (it has ``stamp_us`` and ``seq``)."""
@@ -55,72 +74,120 @@ class FusionHorizon:
         if ident in self._seen:
             self.counters.duplicates += 1
             return
+        if len(self._pending) >= MAX_PENDING:
+            self.counters.dropped_full += 1
+            return
         self._seen[ident] = msg.stamp_us
         entry = (msg.stamp_us, next(self._arrival), topic, msg)
         if self.cycle_us is None or msg.stamp_us > self.cycle_us:
             heapq.heappush(self._pending, entry)
-        elif msg.stamp_us >= self.cycle_us - self.horizon_us and self._checkpoint_before(msg.stamp_us) is not None:
+        elif msg.stamp_us >= self.cycle_us - self.horizon_us and self._checkpoint_at_or_before(msg.stamp_us) is not None:
             self._late.append(entry)
         else:
             self.counters.dropped_stale += 1
 
-    def cycle(self, t_us: int, on_cycle: Callable[[int], None] | None = None) -> None:
-        """Fuse everything stamped <= ``t_us`` (replaying for late arrivals), then checkpoint t_us."""
+    def expect(self, stamp_us: int) -> None:
+        """A measurement stamped ``stamp_us`` will arrive late: keep a checkpoint just before it."""
+        if self.horizon_us > 0 and (self.cycle_us is None or stamp_us > self.cycle_us):
+            heapq.heappush(self._expected, stamp_us)
+
+    def cycle(self, t_us: int) -> None:
+        """Fuse everything stamped <= ``t_us`` (replaying for late arrivals), then run the cycle."""
         if self._late:
             self._replay()
         while self._pending and self._pending[0][0] <= t_us:
-            self._apply(heapq.heappop(self._pending))
-        self.estimator.tick(t_us)
-        if on_cycle is not None:
-            on_cycle(t_us)
-        self._checkpoint(t_us)
+            entry = heapq.heappop(self._pending)
+            self._checkpoints_due(entry[0])
+            self._apply(entry)
+        self._checkpoints_due(t_us)
+        self._run_cycle(t_us)
         self.cycle_us = t_us
+        if self.every_cycles and len(self._cycles) % self.every_cycles == 0:
+            self._checkpoint(t_us + 1)
+        self._prune(t_us)
 
-    def _apply(self, entry: tuple[int, int, str, Any]) -> None:
-        self.estimator.handle(entry[3])
+    def _checkpoints_due(self, stamp_us: int) -> None:
+        """Before anything stamped ``stamp_us`` is applied: a checkpoint with bound s for the earliest
+        expected stamp s <= ``stamp_us`` (nothing stamped >= s has been applied yet)."""
+        first = None
+        while self._expected and self._expected[0] <= stamp_us:
+            s = heapq.heappop(self._expected)
+            first = s if first is None else first
+        if first is not None:
+            self._checkpoint(first)
+
+    def _apply(self, entry: Entry) -> None:
+        try:
+            self.estimator.handle(entry[2], entry[3])
+        except (ArithmeticError, ValueError, IndexError) as exc:  # numpy's LinAlgError is a ValueError
+            self.counters.failed += 1
+            log.warning("estimator could not apply %s at %d us: %s: %s", entry[2], entry[0], type(exc).__name__, exc)
         self._applied.append(entry)
 
-    def _checkpoint(self, t_us: int) -> None:
+    def _run_cycle(self, t_us: int) -> None:
+        self.estimator.cycle(t_us)
+        self._cycles.append(t_us)
+
+    def _checkpoint(self, bound_us: int) -> None:
+        if self.horizon_us <= 0 or (self._checkpoints and self._checkpoints[-1][0] >= bound_us):
+            return
+        self._checkpoints.append((bound_us, self.estimator.snapshot()))
+        self.counters.checkpoints += 1
+
+    def _checkpoint_at_or_before(self, stamp_us: int) -> int | None:
+        """Index of the newest checkpoint with bound <= ``stamp_us`` (None if there is none)."""
+        for i in range(len(self._checkpoints) - 1, -1, -1):
+            if self._checkpoints[i][0] <= stamp_us:
+                return i
+        return None
+
+    def _prune(self, t_us: int) -> None:
+        """Keep the newest checkpoint older than the horizon and everything after it."""
         if self.horizon_us <= 0:
             self._applied.clear()
+            self._cycles.clear()
             return
-        self._checkpoints.append((t_us, self.estimator.snapshot()))
-        while len(self._checkpoints) > 1 and self._checkpoints[1][0] < t_us - self.horizon_us:
+        limit = t_us - self.horizon_us
+        while len(self._checkpoints) > 1 and self._checkpoints[1][0] <= limit:
             self._checkpoints.popleft()
         oldest = self._checkpoints[0][0]
-        cut = bisect.bisect_right([e[0] for e in self._applied], oldest)
+        cut = next((i for i, e in enumerate(self._applied) if e[0] >= oldest), len(self._applied))
         del self._applied[:cut]
-        self._seen = {k: s for k, s in self._seen.items() if s >= oldest} if len(self._seen) > 4096 else self._seen
-
-    def _checkpoint_before(self, stamp_us: int) -> int | None:
-        """Index of the newest checkpoint strictly before ``stamp_us`` (None if there is none)."""
-        times = [t for t, _ in self._checkpoints]
-        i = bisect.bisect_left(times, stamp_us) - 1
-        return i if i >= 0 else None
+        while self._cycles and self._cycles[0] < oldest:
+            self._cycles.popleft()
+        if len(self._seen) > MAX_SEEN:
+            self._seen = {k: s for k, s in self._seen.items() if s >= limit}
 
     def _replay(self) -> None:
-        """Go back to the checkpoint before the oldest late measurement and fuse everything again."""
+        """Go back to the checkpoint before the oldest late measurement and fuse everything again,
+        re-taking the later checkpoints at the same bounds."""
         late = sorted(self._late)
         self._late.clear()
-        i = self._checkpoint_before(late[0][0])
+        i = self._checkpoint_at_or_before(late[0][0])
         if i is None:  # its checkpoint aged out since the push
             self.counters.dropped_stale += len(late)
             return
         self.counters.replays += 1
         self.counters.late_fused += len(late)
-        start_us, snapshot = self._checkpoints[i]
-        kept = list(itertools.islice(self._checkpoints, 0, i + 1))
-        later_cycles = [t for t, _ in itertools.islice(self._checkpoints, i + 1, None)]
-        redo = sorted([e for e in self._applied if e[0] > start_us] + late)
-        self._applied = [e for e in self._applied if e[0] <= start_us]
-        self._checkpoints = deque(kept)
+        bound, snapshot = self._checkpoints[i]
+        rebuild = [b for b, _ in itertools.islice(self._checkpoints, i + 1, None)]
+        cycles = [t for t in self._cycles if t >= bound]
+        redo = sorted([e for e in self._applied if e[0] >= bound] + late)
+        self._applied = [e for e in self._applied if e[0] < bound]
+        self._checkpoints = deque(itertools.islice(self._checkpoints, 0, i + 1))
+        self._cycles = deque(t for t in self._cycles if t < bound)
         self.estimator.restore(snapshot)
+        for b in rebuild:
+            heapq.heappush(self._expected, b)
         k = 0
-        for t_us in later_cycles:
+        for t_us in cycles:
             while k < len(redo) and redo[k][0] <= t_us:
+                self._checkpoints_due(redo[k][0])
                 self._apply(redo[k])
                 k += 1
-            self.estimator.tick(t_us)
-            self._checkpoints.append((t_us, self.estimator.snapshot()))
+            self._checkpoints_due(t_us)
+            self._run_cycle(t_us)
+            if t_us + 1 in rebuild:
+                self._checkpoint(t_us + 1)
         for entry in redo[k:]:
             heapq.heappush(self._pending, entry)

@@ -60,6 +60,8 @@ class GnssHealth:
     _window: deque = field(default_factory=deque)
     _outage: deque = field(default_factory=deque)  # (innovation (2,), R (2, 2)) while unhealthy
     transitions: list[tuple[int, bool, str]] = field(default_factory=list)  # (stamp, healthy, reason) to report
+    last_test_ratio: float = 0.0
+    last_mean_test_ratio: float = 0.0
 
     def copy(self) -> "GnssHealth":
         """An independent copy (the windows are copied; their entries are never changed in place)."""
@@ -74,6 +76,7 @@ class GnssHealth:
         ratio = float(w @ w) / gate_threshold(2, self.spec.gate_probability)
         mean_ratio = self._mean_ratio(w) if self.healthy and ratio <= 1.0 else 0.0
         consistent = ratio <= 1.0 and mean_ratio <= 1.0
+        self.last_test_ratio, self.last_mean_test_ratio = ratio, mean_ratio
         if self.healthy:
             self._judge_healthy(stamp_us, consistent, "spoofing suspected"
                                 if mean_ratio > 1.0 else "fixes fail the gate")

@@ -1,14 +1,13 @@
-"""EKF for a unicycle at constant altitude with gyro-bias estimation.
+"""EKF for a unicycle at constant altitude with gyro-bias estimation (pure maths).
 
 State x = [x_m, y_m, theta_rad, gyro_bias_radps] (4,). Inputs: forward speed from wheel odometry and
-yaw rate from the gyro minus the estimated bias (or odometry yaw rate when the gyro is silent).
-Motion model (cooperative-localization paper): x + v dt cos(theta), y + v dt sin(theta),
-theta + w dt, integrated here along the exact arc. GNSS observes [x, y].
+yaw rate from the gyro minus the estimated bias (or odometry yaw rate when the gyro is silent), as
+their means over the propagation interval. Motion model (cooperative-localization paper):
+x + v dt cos(theta), y + v dt sin(theta), theta + w dt, integrated here along the exact arc.
+GNSS observes [x, y].
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -17,21 +16,6 @@ from vehicle.ekf import UpdateResult, gated_update
 
 STATE_DIM = 4
 _H_GNSS = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
-
-
-@dataclass(frozen=True)
-class InputNoise:
-    """Per-sample input noise and sample periods: the held-input model of the process noise.
-
-    A sample with white noise sigma, held for its period T_s, perturbs a propagation of length dt by
-    a variance sigma^2 T_s dt (equivalent continuous PSD sigma^2 T_s).
-    """
-
-    speed_sigma_mps: float
-    speed_period_s: float
-    yaw_rate_sigma_radps: float
-    yaw_rate_period_s: float
-    bias_walk_radps_rtsec: float
 
 
 def propagate_mean(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float) -> np.ndarray:
@@ -54,19 +38,22 @@ def motion_jacobians(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_
     return F, G
 
 
-def predict(x: np.ndarray, P: np.ndarray, speed_mps: float, gyro_radps: float, dt_s: float,
-            noise: InputNoise, use_bias: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Propagate (x, P) over dt_s with held inputs; ``use_bias`` False for a bias-free yaw source."""
-    yaw_rate = gyro_radps - (x[3] if use_bias else 0.0)
+def predict(x: np.ndarray, P: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float, *,
+            speed_var: float, yaw_rate_var: float, bias_walk_var: float, use_bias: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Propagate x (4,) and P (4, 4) over dt_s with the mean inputs of the interval.
+
+    ``yaw_rate_radps`` is the measured (gyro) mean rate; the bias x[3] is removed when ``use_bias``.
+    ``speed_var`` (m^2/s^2) and ``yaw_rate_var`` (rad^2/s^2) are the variances of those *means*;
+    ``bias_walk_var`` (rad^2/s^3) is the bias random walk's rate. Q = G diag(var) G^T.
+    """
+    yaw_rate = yaw_rate_radps - (x[3] if use_bias else 0.0)
     F, G = motion_jacobians(x, speed_mps, yaw_rate, dt_s)
     if not use_bias:
         F[:, 3] = 0.0
         F[3, 3] = 1.0
-    input_var = np.array([noise.speed_sigma_mps**2 * max(noise.speed_period_s, dt_s),
-                          noise.yaw_rate_sigma_radps**2 * max(noise.yaw_rate_period_s, dt_s)]) / dt_s
-    Q = (G * input_var) @ G.T
-    Q[3, 3] += noise.bias_walk_radps_rtsec**2 * dt_s
-    P_new = F @ P @ F.T + Q
+    P_new = F @ P @ F.T
+    P_new += np.outer(G[:, 0] * speed_var, G[:, 0]) + np.outer(G[:, 1] * yaw_rate_var, G[:, 1])
+    P_new[3, 3] += bias_walk_var * dt_s
     return propagate_mean(x, speed_mps, yaw_rate, dt_s), 0.5 * (P_new + P_new.T)
 
 

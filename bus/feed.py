@@ -1,0 +1,213 @@
+"""Batched wire formats: every sample of one vehicle's sensors stamped in one clock tick in one
+message (``SensorBatch`` on ``v/<id>/feed``), and the truth of every vehicle in one message per tick
+(``TruthBatch`` on ``truth``).
+
+Columnar msgpack: per topic a block ``{"stamp": <i8 bytes (k,)>, "seq0": int, "data": <f8 bytes (k, w)>}``
+(sequence numbers of a topic are consecutive, so the first one is enough). Decoding validates
+everything with numpy (shapes, finite values, ranges, stamps ordered and inside the tick, symmetric
+positive-definite covariances) and raises DecodeError on any fault; receivers unpack the rows into
+the per-sample messages of ``bus.messages`` and judge each sample on its own (link faults).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import msgpack
+import numpy as np
+
+from bus import messages as m
+from bus.errors import DecodeError
+from bus.schema import MAX_PAYLOAD_BYTES, WIRE_VERSION
+
+MAX_TICK_US = 1_000_000
+MAX_SEQ = 2**62
+# topic: (row width, max rows per batch, max |value|)
+LAYOUT = {
+    "prior": (12, 1, m.MAX_POSITION_M),    # pose (3), covariance (3, 3)
+    "imu": (6, 1000, 1000.0),              # gyro (3) rad/s, accel (3) m/s^2
+    "odom": (2, 1000, 1000.0),             # speed m/s, yaw rate rad/s
+    "gnss": (6, 100, m.MAX_POSITION_M),    # position (2), covariance (2, 2)
+    "ranging": (7, 2500, 1e6),             # target id, range m, bearing rad, covariance (2, 2)
+}
+TOPICS = tuple(LAYOUT)
+
+
+@dataclass(frozen=True)
+class SensorBatch:
+    """One vehicle's samples stamped in (stamp_us - tick length, stamp_us]: per topic, stamps (k,)
+    in us, the first sequence number and rows (k, width) as in ``LAYOUT``."""
+
+    vehicle_id: int
+    tick: int
+    stamp_us: int
+    blocks: dict[str, tuple[np.ndarray, int, np.ndarray]]
+
+    def samples(self) -> list[tuple[str, Any]]:
+        """(topic, message) for every sample, in stamp order (topics in LAYOUT order at equal stamps)."""
+        out = []
+        vid = self.vehicle_id
+        for topic, (stamps, seq0, rows) in self.blocks.items():
+            make = _MAKERS[topic]
+            out += [(topic, make(vid, int(s), seq0 + i, r)) for i, (s, r) in enumerate(zip(stamps.tolist(), rows))]
+        out.sort(key=lambda item: item[1].stamp_us)  # stable: LAYOUT order among equal stamps
+        return out
+
+
+def _prior(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.PosePrior:
+    return m.PosePrior(vid, stamp, seq, r[:3].copy(), r[3:].reshape(3, 3).copy())
+
+
+def _imu(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.ImuSample:
+    return m.ImuSample(vid, stamp, seq, r[:3], r[3:])
+
+
+def _odom(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.WheelOdometry:
+    return m.WheelOdometry(vid, stamp, seq, float(r[0]), float(r[1]))
+
+
+def _gnss(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.GnssFix:
+    return m.GnssFix(vid, stamp, seq, r[:2], r[2:].reshape(2, 2))
+
+
+def _ranging(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.RangeBearing:
+    return m.RangeBearing(vid, stamp, seq, int(r[0]), float(r[1]), float(r[2]), r[3:].reshape(2, 2))
+
+
+_MAKERS = {"prior": _prior, "imu": _imu, "odom": _odom, "gnss": _gnss, "ranging": _ranging}
+
+
+def encode_batch(batch: SensorBatch) -> bytes:
+    body: dict[str, Any] = {"type": "SensorBatch", "v": WIRE_VERSION, "vehicle_id": batch.vehicle_id,
+                            "tick": batch.tick, "stamp_us": batch.stamp_us}
+    for topic, (stamps, seq0, rows) in batch.blocks.items():
+        body[topic] = {"stamp": np.ascontiguousarray(stamps, "<i8").tobytes(), "seq0": int(seq0),
+                       "data": np.ascontiguousarray(rows, "<f8").tobytes()}
+    return msgpack.packb(body, use_bin_type=True)
+
+
+def _unpack(payload: bytes, type_name: str) -> dict:
+    if not isinstance(payload, (bytes, bytearray, memoryview)):
+        raise DecodeError(f"{type_name}: payload must be bytes")
+    if len(payload) > MAX_PAYLOAD_BYTES:
+        raise DecodeError(f"{type_name}: payload of {len(payload)} bytes exceeds {MAX_PAYLOAD_BYTES}")
+    try:
+        body = msgpack.unpackb(payload, raw=False, strict_map_key=True, use_list=True)
+    except Exception as exc:  # msgpack raises many types on garbage; all mean the same here
+        raise DecodeError(f"{type_name}: not valid msgpack ({type(exc).__name__})") from None
+    if not isinstance(body, dict) or body.get("type") != type_name or body.get("v") != WIRE_VERSION:
+        raise DecodeError(f"{type_name}: wrong type tag or version")
+    return body
+
+
+def _int(body: dict, name: str, lo: int, hi: int) -> int:
+    value = body.get(name)
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise DecodeError(f"{name}: expected an integer in [{lo}, {hi}]")
+    return value
+
+
+def _column(raw: Any, dtype: str, name: str) -> np.ndarray:
+    if not isinstance(raw, bytes) or len(raw) % 8:
+        raise DecodeError(f"{name}: expected raw 8-byte values")
+    return np.frombuffer(raw, dtype=dtype)
+
+
+def _spd2(c: np.ndarray) -> bool:
+    """All rows (k, 4) are symmetric positive-definite 2x2 matrices (row-major)."""
+    a, b, cc, d = c[:, 0], c[:, 1], c[:, 2], c[:, 3]
+    return bool(np.all(np.abs(b - cc) <= 1e-9 * np.maximum(np.abs(b), 1e-300)) and np.all(a > 0)
+                and np.all(a * d - b * cc > 0))
+
+
+def _spd3(c: np.ndarray) -> bool:
+    """All rows (k, 9) are symmetric positive-definite 3x3 matrices (Sylvester's criterion)."""
+    M = c.reshape(-1, 3, 3)
+    if not np.allclose(M, np.transpose(M, (0, 2, 1)), rtol=1e-9, atol=0.0):
+        return False
+    return bool(np.all(M[:, 0, 0] > 0) and np.all(np.linalg.det(M[:, :2, :2]) > 0) and np.all(np.linalg.det(M) > 0))
+
+
+def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.ndarray, int, np.ndarray]:
+    width, max_rows, max_abs = LAYOUT[topic]
+    if not isinstance(raw, dict) or raw.keys() != {"stamp", "seq0", "data"}:
+        raise DecodeError(f"{topic}: expected a block with stamp, seq0 and data")
+    stamps = _column(raw["stamp"], "<i8", f"{topic}.stamp")
+    rows = _column(raw["data"], "<f8", f"{topic}.data")
+    k = len(stamps)
+    if k > max_rows or len(rows) != k * width:
+        raise DecodeError(f"{topic}: {k} stamps need {k * width} values (at most {max_rows} rows), got {len(rows)}")
+    seq0 = _int(raw, "seq0", 0, MAX_SEQ)
+    rows = rows.reshape(k, width)
+    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or np.any(np.diff(stamps) < 0)):
+        raise DecodeError(f"{topic}: stamps must be ordered and inside the tick ending at {stamp_us} us")
+    if not np.all(np.abs(rows) <= max_abs):  # also rejects NaN and inf
+        raise DecodeError(f"{topic}: values must be finite and within +-{max_abs:g}")
+    if topic != "ranging" and k > 1 and np.any(np.diff(stamps) == 0):
+        raise DecodeError(f"{topic}: two samples with one stamp")
+    if topic in ("gnss", "ranging") and k and not _spd2(rows[:, -4:]):
+        raise DecodeError(f"{topic}: covariance is not symmetric positive definite")
+    if topic == "prior" and k and not _spd3(rows[:, 3:]):
+        raise DecodeError("prior: covariance is not symmetric positive definite")
+    if topic == "ranging" and k:
+        target = rows[:, 0]
+        if np.any(target != np.round(target)) or np.any(target < 1) or np.any(target > 250) or np.any(target == vehicle_id):
+            raise DecodeError("ranging: target ids must be other vehicles, 1-250")
+        if np.any(rows[:, 1] < 0) or np.any(np.abs(rows[:, 2]) > 10.0):
+            raise DecodeError("ranging: range must be >= 0 and the bearing within +-10 rad")
+    return stamps, seq0, rows
+
+
+def decode_batch(payload: bytes) -> SensorBatch:
+    """Validate a SensorBatch; DecodeError names the first problem."""
+    body = _unpack(payload, "SensorBatch")
+    allowed = {"type", "v", "vehicle_id", "tick", "stamp_us", *TOPICS}
+    if not set(body) <= allowed or not {"vehicle_id", "tick", "stamp_us"} <= set(body):
+        raise DecodeError(f"SensorBatch: fields must be {sorted(allowed)}")
+    vid = _int(body, "vehicle_id", 1, 250)
+    tick = _int(body, "tick", 0, 2**53)
+    stamp_us = _int(body, "stamp_us", 0, 2**53)
+    blocks = {t: _block(t, body[t], vid, stamp_us) for t in TOPICS if t in body}
+    return SensorBatch(vid, tick, stamp_us, blocks)
+
+
+TRUTH_WIDTH = 5  # x m, y m, theta rad, speed m/s, yaw rate rad/s
+
+
+@dataclass(frozen=True)
+class TruthBatch:
+    """Truth of every vehicle at the truth stamps of one tick: stamps (k,) us, vehicle ids (n,),
+    rows (k, n, 5) [x, y, theta, speed, yaw rate]."""
+
+    tick: int
+    stamp_us: int
+    stamps_us: np.ndarray
+    vehicle_ids: np.ndarray
+    rows: np.ndarray
+
+
+def encode_truth(batch: TruthBatch) -> bytes:
+    return msgpack.packb({"type": "TruthBatch", "v": WIRE_VERSION, "tick": batch.tick, "stamp_us": batch.stamp_us,
+                          "stamps": np.ascontiguousarray(batch.stamps_us, "<i8").tobytes(),
+                          "ids": np.ascontiguousarray(batch.vehicle_ids, "<i8").tobytes(),
+                          "data": np.ascontiguousarray(batch.rows, "<f8").tobytes()}, use_bin_type=True)
+
+
+def decode_truth(payload: bytes) -> TruthBatch:
+    body = _unpack(payload, "TruthBatch")
+    if set(body) != {"type", "v", "tick", "stamp_us", "stamps", "ids", "data"}:
+        raise DecodeError("TruthBatch: fields must be type, v, tick, stamp_us, stamps, ids, data")
+    tick, stamp_us = _int(body, "tick", 0, 2**53), _int(body, "stamp_us", 0, 2**53)
+    stamps, ids = _column(body["stamps"], "<i8", "stamps"), _column(body["ids"], "<i8", "ids")
+    data = _column(body["data"], "<f8", "data")
+    k, n = len(stamps), len(ids)
+    if n > 250 or k > 1000 or len(data) != k * n * TRUTH_WIDTH:
+        raise DecodeError(f"TruthBatch: {k} stamps x {n} vehicles need {k * n * TRUTH_WIDTH} values")
+    if np.any(ids < 1) or np.any(ids > 250) or len(set(ids.tolist())) != n:
+        raise DecodeError("TruthBatch: vehicle ids must be distinct, 1-250")
+    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or np.any(np.diff(stamps) <= 0)):
+        raise DecodeError("TruthBatch: stamps must increase inside the tick")
+    if not np.all(np.abs(data) <= m.MAX_POSITION_M):
+        raise DecodeError("TruthBatch: values must be finite")
+    return TruthBatch(tick, stamp_us, stamps, ids, data.reshape(k, n, TRUTH_WIDTH))

@@ -1,0 +1,94 @@
+"""Bounded mailboxes: zenoh callbacks only enqueue, one loop thread takes.
+
+A Mailbox has lanes, each bounded in items and bytes; ``get`` takes from the first non-empty lane
+in the order the lanes were made, so a flood on one lane (say, neighbours' broadcasts) can neither
+delay nor crowd out another (the world's feed). What a full lane refuses is counted, never queued.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Oversized:
+    """Stands in for a payload over its size cap: the callback never copied it."""
+
+    key: str
+    size: int
+
+
+def _size(item: Any) -> int:
+    payload = getattr(item, "payload", None)
+    return len(payload) if isinstance(payload, (bytes, bytearray)) else 64
+
+
+class Lane:
+    """One bounded FIFO of a Mailbox; ``put`` is safe from any thread."""
+
+    def __init__(self, box: "Mailbox", name: str, max_items: int, max_bytes: int) -> None:
+        self.box, self.name, self.max_items, self.max_bytes = box, name, max_items, max_bytes
+        self.items: deque = deque()
+        self.bytes = 0
+        self.dropped = 0
+
+    def put(self, item: Any) -> bool:
+        """Queue ``item``; False (and counted) when the lane is full."""
+        size = _size(item)
+        with self.box.cond:
+            if len(self.items) >= self.max_items or self.bytes + size > self.max_bytes:
+                self.dropped += 1
+                return False
+            self.items.append((item, size))
+            self.bytes += size
+            self.box.cond.notify()
+        return True
+
+
+class Mailbox:
+    def __init__(self) -> None:
+        self.cond = threading.Condition()
+        self.lanes: list[Lane] = []
+
+    def lane(self, name: str, *, max_items: int = 100_000, max_bytes: int = 64 << 20) -> Lane:
+        lane = Lane(self, name, max_items, max_bytes)
+        self.lanes.append(lane)
+        return lane
+
+    def _take(self) -> Any:
+        for lane in self.lanes:
+            if lane.items:
+                item, size = lane.items.popleft()
+                lane.bytes -= size
+                return item
+        return None
+
+    def get(self, timeout: float | None = None) -> Any:
+        """The next item by lane order, waiting up to ``timeout`` seconds; None when nothing came."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with self.cond:
+            while True:
+                item = self._take()
+                if item is not None:
+                    return item
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    return None
+                self.cond.wait(remaining)
+
+    def get_nowait(self) -> Any:
+        with self.cond:
+            return self._take()
+
+    def empty(self) -> bool:
+        with self.cond:
+            return not any(lane.items for lane in self.lanes)
+
+    def dropped(self) -> int:
+        """Items refused by full lanes since the start."""
+        with self.cond:
+            return sum(lane.dropped for lane in self.lanes)

@@ -1,0 +1,21 @@
+"""Vehicle estimators behind one interface (``vehicle.estimators.base.Estimator``); one module each.
+
+``get_estimator(config, vehicle_id)`` picks the one named by ``config.vehicle.estimator``.
+"""
+
+from __future__ import annotations
+
+from bus.config import VehicleProcessConfig
+from bus.errors import ConfigError
+from vehicle.estimators.base import Estimator
+
+
+def get_estimator(config: VehicleProcessConfig, vehicle_id: int) -> Estimator:
+    """The estimator a vehicle runs, built from its own configuration only."""
+    name = config.vehicle.estimator
+    if name == "ekf":
+        from vehicle.estimators.ekf import UnicycleEkf
+
+        return UnicycleEkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
+                           altitude_m=config.altitude_m)
+    raise ConfigError(f"unknown estimator {name!r}")

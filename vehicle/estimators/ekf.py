@@ -1,0 +1,239 @@
+"""``ekf``: the default vehicle estimator, an EKF over [x, y, theta, gyro_bias] driven by odometry speed
+and gyro yaw rate (integrated between cycles: one prediction per loop cycle), GNSS-corrected behind
+the GNSS health monitor, with cooperative (Covariance Intersection) updates from neighbours.
+
+Pure: no bus, no clock.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from typing import Any
+
+import numpy as np
+from pymavlink.dialects.v20 import common as mavlink2
+
+from bus import messages as m
+from bus.config import SensorSpec
+from bus.mavlink_codec import EstimatorStatus, StateEstimate
+from vehicle import unicycle_ekf as ekf
+from vehicle.alignment import GnssAlignment
+from vehicle.cooperative import CooperativeFix, cooperative_update
+from vehicle.ekf import gate_threshold
+from vehicle.estimators.base import SEVERITY_INFO, SEVERITY_WARNING, EstimatorCounters, Notice
+from vehicle.gnss_health import GnssHealth, GnssHealthSpec
+from vehicle.inputs import HeldInput
+
+GYRO_STALE_PERIODS = 5
+NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch: constant altitude, level flight
+DIVERGENCE_INFLATION = 10.0
+DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^2
+_MUTABLE = ("x", "P", "time_us", "speed", "gyro", "odom_yaw", "counters", "gnss_health", "alignment", "_last_good")
+
+
+class UnicycleEkf:
+    """EKF over [x, y, theta, gyro_bias] (4,): see the module docstring."""
+
+    name = "ekf"
+
+    def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float) -> None:
+        self.vehicle_id, self._spec, self._altitude_m = vehicle_id, spec, altitude_m
+        self._gate = gate_threshold(2, gate_probability)
+        self._gyro_period_us = round(1e6 / spec.imu_rate_hz)
+        self.x: np.ndarray | None = None
+        self.P: np.ndarray | None = None
+        self.time_us = 0
+        self.speed, self.gyro, self.odom_yaw = HeldInput(), HeldInput(), HeldInput()
+        self.counters = EstimatorCounters()
+        self.gnss_health = GnssHealth(GnssHealthSpec(gate_probability=gate_probability))
+        self.alignment = GnssAlignment()
+        self._last_good: tuple[np.ndarray, np.ndarray] | None = None
+        self._notices: list[Notice] = []
+        self._noticed_until_us = -1
+        self._resets_floor = 0
+
+    @property
+    def initialized(self) -> bool:
+        return self.x is not None
+
+    def handle(self, topic: str, msg: Any) -> None:
+        """Apply one measurement; they come in non-decreasing stamp order (older ones are counted)."""
+        if isinstance(msg, m.PosePrior):
+            self._initialise(msg.pose, msg.covariance, msg.stamp_us)
+            return
+        if self.x is None:
+            self._align(msg)
+            return
+        if msg.stamp_us < self.time_us:
+            self.counters.stale += 1
+            return
+        if isinstance(msg, m.ImuSample):
+            self.gyro.sample(msg.stamp_us, float(msg.gyro_radps[2]))
+        elif isinstance(msg, m.WheelOdometry):
+            self.speed.sample(msg.stamp_us, msg.speed_mps)
+            self.odom_yaw.sample(msg.stamp_us, msg.yaw_rate_radps)
+        elif isinstance(msg, m.GnssFix):
+            self._propagate_to(msg.stamp_us)
+            self._fuse_gnss(msg)
+        elif isinstance(msg, CooperativeFix):
+            self._propagate_to(msg.stamp_us)
+            self.x, self.P, result = cooperative_update(self.x, self.P, msg, self._gate)
+            self.counters.v2v_fused += int(result.accepted)
+            self.counters.v2v_rejected += int(not result.accepted)
+
+    def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
+        """Start at ``pose`` (3,) with covariance (3, 3); the gyro bias from its datasheet spread."""
+        self.x = np.append(pose, 0.0)
+        self.P = np.zeros((4, 4))
+        self.P[:3, :3] = covariance
+        self.P[3, 3] = self._spec.gyro_bias_sigma_radps**2
+        self.time_us = stamp_us
+        for held in (self.speed, self.gyro, self.odom_yaw):
+            held.restart(stamp_us)
+
+    def _align(self, msg: Any) -> None:
+        """No prior (a restart in flight): align from the GNSS track and the gyro (vehicle.alignment)."""
+        if isinstance(msg, m.ImuSample):
+            self.alignment.yaw_rate(msg.stamp_us, float(msg.gyro_radps[2]))
+            self.gyro.sample(msg.stamp_us, float(msg.gyro_radps[2]))
+        elif isinstance(msg, m.WheelOdometry):
+            self.speed.sample(msg.stamp_us, msg.speed_mps)
+            self.odom_yaw.sample(msg.stamp_us, msg.yaw_rate_radps)
+        elif isinstance(msg, m.GnssFix):
+            aligned = self.alignment.fix(msg.stamp_us, msg.position_m, msg.covariance_m2)
+            if aligned is not None:
+                self._initialise(*aligned, msg.stamp_us)
+                self.gnss_health.last_fix_us = msg.stamp_us
+
+    def _propagate_to(self, stamp_us: int) -> None:
+        """One prediction from the current time to ``stamp_us`` with the inputs' means over it."""
+        if self.x is None or stamp_us <= self.time_us:
+            return
+        dt, spec = (stamp_us - self.time_us) * 1e-6, self._spec
+        speed, speed_factor = self.speed.close(stamp_us)
+        gyro, gyro_factor = self.gyro.close(stamp_us)
+        odom_yaw, odom_factor = self.odom_yaw.close(stamp_us)
+        fresh = self.gyro.stamp_us is not None and stamp_us - self.gyro.stamp_us <= GYRO_STALE_PERIODS * self._gyro_period_us
+        rate, rate_var = (gyro, spec.gyro_sigma_radps**2 * gyro_factor) if fresh else \
+            (odom_yaw, spec.odom_yaw_rate_sigma_radps**2 * odom_factor)
+        self.x, self.P = ekf.predict(self.x, self.P, speed, rate, dt, speed_var=spec.odom_speed_sigma_mps**2 * speed_factor,
+                                     yaw_rate_var=rate_var, bias_walk_var=spec.gyro_bias_walk_radps_rtsec**2,
+                                     use_bias=fresh)
+        self.time_us = stamp_us
+
+    def _fuse_gnss(self, fix: m.GnssFix) -> None:
+        """Fuse a fix only if the GNSS health monitor trusts the receiver and the fix passes its tests."""
+        verdict = self.gnss_health.check(fix.stamp_us, fix.position_m - self.x[:2], self.P[:2, :2] + fix.covariance_m2,
+                                         fix.covariance_m2)
+        if verdict.reset_offset_m is not None:
+            self._reset_position(verdict.reset_offset_m, verdict.reset_variance_m2)
+        if not verdict.fuse:
+            self.counters.gnss_rejected += 1
+            return
+        self.x, self.P, _ = ekf.gnss_update(self.x, self.P, fix.position_m, fix.covariance_m2, self._gate)
+        self.counters.gnss_accepted += 1
+
+    def _reset_position(self, offset_m: np.ndarray, variance_m2: float) -> None:
+        """Jump the position by ``offset_m`` (2,) with per-axis variance ``variance_m2``; decorrelate it."""
+        self.x[:2] += offset_m
+        self.P[:2, 2:] = 0.0
+        self.P[2:, :2] = 0.0
+        self.P[:2, :2] = np.eye(2) * variance_m2
+        self.counters.resets += 1
+
+    def cycle(self, t_us: int) -> None:
+        """Once per loop cycle: propagate to ``t_us``, notice loss of GNSS fix, and recover from
+        divergence (restart from the last good cycle, covariance inflated)."""
+        if self.x is None:
+            return
+        self._propagate_to(t_us)
+        self.gnss_health.tick(t_us)
+        for stamp_us, healthy, reason in self.gnss_health.transitions:
+            self._notice(Notice(stamp_us, SEVERITY_INFO if healthy else SEVERITY_WARNING,
+                                f"GNSS {'healthy' if healthy else 'unhealthy'}: {reason}", status_changed=True))
+        self.gnss_health.transitions.clear()
+        if self._diverged():
+            self._recover(t_us)
+        else:
+            self._last_good = (self.x.copy(), self.P.copy())
+
+    def _diverged(self) -> bool:
+        """Non-finite state or a covariance that is no longer positive definite."""
+        if not np.all(np.isfinite(self.x)):
+            return True
+        try:
+            np.linalg.cholesky(self.P)
+        except np.linalg.LinAlgError:
+            return True
+        return not np.all(np.isfinite(self.P))
+
+    def _recover(self, t_us: int) -> None:
+        if self._last_good is None:  # diverged before any good cycle: start over from nothing
+            self.x, self.P = None, None
+            self._notice(Notice(t_us, SEVERITY_WARNING, "estimator reset: diverged before a good cycle"))
+            return
+        x, P = self._last_good
+        self.x, self.P = x.copy(), DIVERGENCE_INFLATION * P + np.diag(DIVERGENCE_FLOOR)
+        self.counters.resets += 1
+        self._notice(Notice(t_us, SEVERITY_WARNING, "estimator reset: non-finite or indefinite covariance"))
+
+    def _notice(self, notice: Notice) -> None:
+        """Queue a notice unless it was said already (a replay re-runs cycles)."""
+        if notice.stamp_us > self._noticed_until_us:
+            self._notices.append(notice)
+
+    def take_notices(self) -> list[Notice]:
+        out, self._notices = self._notices, []
+        if out:
+            self._noticed_until_us = max(self._noticed_until_us, *(n.stamp_us for n in out))
+        return out
+
+    def status(self, t_us: int) -> EstimatorStatus:
+        """ESTIMATOR_STATUS contents: GPS glitch flag while GNSS is distrusted, the larger GNSS test ratio."""
+        flags = mavlink2.ESTIMATOR_ATTITUDE | mavlink2.ESTIMATOR_VELOCITY_HORIZ | mavlink2.ESTIMATOR_POS_HORIZ_REL
+        flags |= mavlink2.ESTIMATOR_POS_HORIZ_ABS if self.gnss_health.healthy else mavlink2.ESTIMATOR_GPS_GLITCH
+        h = self.gnss_health
+        P = self.P if self.P is not None else np.eye(4) * 1e6
+        return EstimatorStatus(self.vehicle_id, t_us, flags, max(h.last_test_ratio, h.last_mean_test_ratio),
+                               float(np.sqrt(0.5 * (P[0, 0] + P[1, 1]))))
+
+    def estimate(self, t_us: int, reset_counter: int) -> StateEstimate:
+        """The estimate at the last cycle (``t_us``) as a StateEstimate (NED, body-frame velocity)."""
+        x, P = self.x, self.P
+        pose_cov = np.diag([0.0, 0.0, NOT_ESTIMATED_VAR, NOT_ESTIMATED_VAR, NOT_ESTIMATED_VAR, 0.0])
+        index = np.array([0, 1, 5])
+        pose_cov[np.ix_(index, index)] = P[:3, :3]
+        spec = self._spec
+        vel_cov = np.diag([spec.odom_speed_sigma_mps**2, NOT_ESTIMATED_VAR, NOT_ESTIMATED_VAR, NOT_ESTIMATED_VAR,
+                           NOT_ESTIMATED_VAR, spec.gyro_sigma_radps**2 + P[3, 3]])
+        gyro = self.gyro.value if self.gyro.value is not None else 0.0
+        return StateEstimate(
+            vehicle_id=self.vehicle_id, time_usec=max(t_us, self.time_us),
+            position_m=np.array([x[0], x[1], -self._altitude_m]), yaw_rad=float(x[2]),
+            velocity_mps=np.array([self.speed.value or 0.0, 0.0, 0.0]), yaw_rate_radps=gyro - float(x[3]),
+            pose_covariance=pose_cov, velocity_covariance=vel_cov, reset_counter=reset_counter,
+        )
+
+    @property
+    def resets(self) -> int:
+        """Resets so far; never goes down when a replay restores an older snapshot."""
+        return max(self._resets_floor, self.counters.resets)
+
+    def snapshot(self) -> dict:
+        """A copy of everything that changes as measurements are fused (for the fusion horizon)."""
+        state = {k: self.__dict__[k] for k in _MUTABLE}
+        for key in ("x", "P"):
+            if state[key] is not None:
+                state[key] = state[key].copy()
+        for key in ("speed", "gyro", "odom_yaw", "counters"):
+            state[key] = dataclasses.replace(state[key])
+        state["gnss_health"] = state["gnss_health"].copy()
+        state["alignment"] = copy.copy(state["alignment"])
+        return state
+
+    def restore(self, snapshot: dict) -> None:
+        """Go back to a :meth:`snapshot` (notices already given are not given again)."""
+        self._resets_floor = self.resets
+        self.__dict__.update(snapshot)
+        self.__dict__.update(self.snapshot())  # the snapshot stays reusable

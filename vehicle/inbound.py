@@ -1,0 +1,173 @@
+"""A vehicle process's bus layer: everything that arrives is parsed here (totally: any key, any
+bytes), passed through the link faults of the fault plan and the comm jamming the world reports,
+and only then handed to the estimator side. Who is comm-jammed (a hint of where vehicles are) stays
+in this layer; the estimator never sees it.
+"""
+
+from __future__ import annotations
+
+import bisect
+import logging
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+from bus import feed
+from bus import messages as m
+from bus.errors import DecodeError
+from bus.keys import KeySpace
+from bus.link_faults import Arrival, LinkFaultStage
+from bus.mailbox import Oversized
+from bus.mavlink_codec import MAX_FRAME_BYTES, frame_header
+from bus.plan import FaultPlan, decode_json
+from bus.rejections import Rejections
+from bus.session import Envelope
+
+log = logging.getLogger("swarmloc.vehicle")
+ODOMETRY_ID = 331  # MAVLINK_MSG_ID_ODOMETRY: the V2V packet
+JAM_HISTORY = 500  # clock ticks remembered
+MAX_BATCH_BYTES = 1 << 20
+MAX_CLOCK_BYTES = 8 << 10
+MAX_PLAN_BYTES = 1 << 20
+
+
+@dataclass(frozen=True)
+class Delivery:
+    """What the bus layer hands on: ``kind`` sample (topic, message), v2v (sender, stamp, frame),
+    tick (a ClockTick) or held (a sample stamped ``stamp_us`` is held back by a link fault)."""
+
+    kind: str
+    topic: str = ""
+    payload: Any = None
+    stamp_us: int = 0
+
+
+class Inbound:
+    def __init__(self, *, keys: KeySpace, vehicle_id: int, vehicles: int, fault_seed: int, faults: tuple,
+                 rejections: Rejections) -> None:
+        self.keys, self.vehicle_id, self.vehicles, self.rejections = keys, vehicle_id, vehicles, rejections
+        self.links = LinkFaultStage(f"v{vehicle_id}", seed=fault_seed, faults=faults)
+        self.plan_version = -1
+        self.received_tick = -1            # the newest sensor batch that arrived
+        self.received_stamp_us = -1        # and the end of the time it covers
+        self.heard: dict[int, int] = {}    # V2V frames heard per sender
+        self._jam_stamps: deque[int] = deque(maxlen=JAM_HISTORY)
+        self._jam_sets: deque[frozenset[int]] = deque(maxlen=JAM_HISTORY)
+        self.jammed_v2v = 0
+
+    def take(self, item: Any) -> list[Delivery]:
+        """File one mailbox item; returns what passes on (possibly nothing)."""
+        if isinstance(item, Oversized):
+            self.rejections.reject("oversized", item.key, f"{item.size} bytes")
+            return []
+        if not isinstance(item, Envelope):
+            self.rejections.reject("unexpected", "mailbox", type(item).__name__)
+            return []
+        keys = self.keys
+        if item.key == keys.clock():
+            return self._clock(item)
+        if item.key == keys.fault_plan():
+            return self._plan(item)
+        parsed = keys.parse(item.key)
+        if parsed is None or parsed.kind != "vehicle":
+            self.rejections.reject("bad_key", "subscription", repr(item.key))
+            return []
+        if parsed.vehicle_id > self.vehicles:
+            self.rejections.reject("unknown_vehicle", item.key, f"the swarm has {self.vehicles} vehicles")
+            return []
+        if parsed.topic == "feed" and parsed.vehicle_id == self.vehicle_id:
+            return self._batch(item)
+        if parsed.topic == "v2v" and parsed.vehicle_id != self.vehicle_id:
+            return self._v2v(item, parsed.vehicle_id)
+        if parsed.topic == "v2v":
+            return []  # our own broadcast
+        self.rejections.reject("unexpected", item.key, "not a key this vehicle listens to")
+        return []
+
+    def _clock(self, item: Envelope) -> list[Delivery]:
+        try:
+            tick = m.decode(m.ClockTick, item.payload)
+        except DecodeError as exc:
+            self.rejections.reject("malformed", item.key, str(exc))
+            return []
+        if not self._jam_stamps or tick.stamp_us > self._jam_stamps[-1]:
+            self._jam_stamps.append(tick.stamp_us)
+            self._jam_sets.append(frozenset(tick.comm_jammed))
+        return [Delivery("tick", payload=tick)]
+
+    def _plan(self, item: Envelope) -> list[Delivery]:
+        try:
+            plan = decode_json(FaultPlan, item.payload)
+        except DecodeError as exc:
+            self.rejections.reject("malformed", item.key, str(exc))
+            return []
+        if plan.version > self.plan_version:
+            self.plan_version = plan.version
+            self.links.set_plan(plan.faults)
+        return []
+
+    def _batch(self, item: Envelope) -> list[Delivery]:
+        try:
+            batch = feed.decode_batch(item.payload)
+        except DecodeError as exc:
+            self.rejections.reject("malformed", item.key, str(exc))
+            return []
+        if batch.vehicle_id != self.vehicle_id:
+            self.rejections.reject("impersonation", item.key, f"batch names vehicle {batch.vehicle_id}")
+            return []
+        self.received_tick = max(self.received_tick, batch.tick)
+        self.received_stamp_us = max(self.received_stamp_us, batch.stamp_us)
+        out = []
+        for topic, msg in batch.samples():
+            arrival = Arrival(item.key, f"v{self.vehicle_id}", topic, msg.stamp_us, (topic, msg))
+            out += self._offer(arrival)
+        return out
+
+    def _offer(self, arrival: Arrival) -> list[Delivery]:
+        """Through the link faults: delivered now, or held (the fusion horizon is told to expect it)."""
+        held, dropped = self.links.held, self.links.dropped_full
+        passed = self.links.offer(arrival)
+        if self.links.dropped_full > dropped:
+            self.rejections.reject("held_full", arrival.key, "link-fault stage full")
+        out = [self._delivery(p) for p in passed]
+        if self.links.held > held:
+            out.append(Delivery("held", arrival.topic, stamp_us=arrival.stamp_us))
+        return out
+
+    def _delivery(self, item: tuple[str, Any]) -> Delivery:
+        topic, payload = item
+        if topic == "v2v":
+            return Delivery("v2v", payload=payload, stamp_us=payload[1])
+        return Delivery("sample", topic, payload, payload.stamp_us)
+
+    def _v2v(self, item: Envelope, sender: int) -> list[Delivery]:
+        """A neighbour's ODOMETRY frame: counted as heard, then through link faults and comm jamming."""
+        frame = item.payload
+        header = frame_header(frame) if len(frame) <= MAX_FRAME_BYTES else None
+        if header is None or header[2] != ODOMETRY_ID or header[3] is None:
+            self.rejections.reject("malformed" if header is None else "unexpected", item.key, "not an ODOMETRY frame")
+            return []
+        if header[0] != sender:
+            self.rejections.reject("impersonation", item.key, f"frame from sysid {header[0]}")
+            return []
+        self.heard[sender] = self.heard.get(sender, 0) + 1
+        stamp = header[3]
+        return self._offer(Arrival(item.key, f"v{sender}", "mavlink", stamp, ("v2v", (sender, stamp, frame))))
+
+    def release(self, now_us: int) -> list[Delivery]:
+        """Held packets due by ``now_us``."""
+        return [self._delivery(p) for p in self.links.release(now_us)]
+
+    def comm_jammed(self, sender: int, stamp_us: int) -> bool:
+        """True when a V2V packet of ``sender`` stamped ``stamp_us`` was lost to comm jamming (either
+        end inside a jamming zone at that time); asked when the packet is used, a tick later."""
+        jammed = self.jammed_at(stamp_us)
+        if sender in jammed or self.vehicle_id in jammed:
+            self.jammed_v2v += 1
+            return True
+        return False
+
+    def jammed_at(self, stamp_us: int) -> frozenset[int]:
+        """Vehicles in a comm-jamming zone at the tick that covers ``stamp_us``."""
+        i = bisect.bisect_left(self._jam_stamps, stamp_us)
+        return self._jam_sets[i] if i < len(self._jam_sets) else (self._jam_sets[-1] if self._jam_sets else frozenset())

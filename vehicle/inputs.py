@@ -1,0 +1,52 @@
+"""Inputs integrated between propagations, so a filter predicts once per loop cycle (pure).
+
+A sampled input (odometry speed, gyro rate) is held from one sample to the next (zero-order hold).
+Over a propagation interval [t0, t1] the filter needs its mean, sum(v_i o_i) / dt, where o_i is
+how long sample i was held inside the interval, and the variance of that mean for a sample noise
+sigma: sigma^2 sum(o_i^2) / dt^2 (independent sample noise; one sample held over the whole
+interval gives sigma^2, n evenly spread samples sigma^2 / n).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass
+class HeldInput:
+    """One input's hold since the last propagation at ``start_us``."""
+
+    value: float | None = None
+    stamp_us: int | None = None      # time of the latest sample
+    start_us: int = 0                # time of the last close (propagation)
+    _segment_us: int = 0             # start of the current hold inside the interval
+    _integral: float = 0.0           # value x us
+    _sq_us2: float = 0.0             # sum of squared hold durations of closed segments (us^2)
+
+    def sample(self, stamp_us: int, value: float) -> None:
+        """A new sample at ``stamp_us`` (>= the last close); it is held from now on."""
+        if self.value is not None:
+            held = stamp_us - self._segment_us
+            self._integral += self.value * held
+            self._sq_us2 += float(held) * held
+        self._segment_us = max(stamp_us, self.start_us)
+        self.value, self.stamp_us = value, stamp_us
+
+    def close(self, t_us: int) -> tuple[float, float]:
+        """Mean over [start, t_us] and the variance factor sum(o_i^2) / dt^2 (multiply by sigma^2);
+        a new interval starts at ``t_us``. Without any sample: (0.0, 1.0)."""
+        dt = t_us - self.start_us
+        if self.value is None or dt <= 0:
+            self.start_us = self._segment_us = t_us
+            return 0.0, 1.0
+        held = t_us - self._segment_us
+        integral = self._integral + self.value * held
+        sq = self._sq_us2 + float(held) * held
+        self.start_us = self._segment_us = t_us
+        self._integral, self._sq_us2 = 0.0, 0.0
+        return integral / dt, sq / (float(dt) * dt)
+
+    def restart(self, t_us: int) -> None:
+        """Forget the interval so far (the filter was re-initialised at ``t_us``); keep the held value."""
+        self.start_us = self._segment_us = t_us
+        self._integral, self._sq_us2 = 0.0, 0.0

@@ -1,0 +1,72 @@
+"""What a vehicle sends: its signed MAVLink stream (ODOMETRY at ``mavlink_rate_hz``, HEARTBEAT and
+ESTIMATOR_STATUS at 1 Hz, STATUSTEXT for notices), the V2V broadcast at the ranging epochs, its
+loop statistics and its lockstep acknowledgements.
+
+MAVLink is a byte stream: the frames of one lockstep tick travel as one message (as several frames
+share one UDP datagram); in realtime each cycle's frames go out at once.
+"""
+
+from __future__ import annotations
+
+from bus import messages as m
+from bus.config import VehicleProcessConfig
+from bus.mavlink_codec import MavlinkEncoder
+from bus.session import Bus
+from vehicle.estimators.base import Estimator
+
+
+class Outbound:
+    def __init__(self, bus: Bus, config: VehicleProcessConfig, vehicle_id: int, *, signing_key: bytes | None) -> None:
+        keys, vc = bus.keys, config.vehicle
+        self.vehicle_id = vehicle_id
+        self.encoder = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key)
+        self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
+        self._v2v = bus.publisher(keys.v2v(vehicle_id))
+        self._ack = bus.publisher(keys.ack(vehicle_id))
+        self._status = bus.publisher(keys.status(vehicle_id))
+        self._v2v_period_us = round(1e6 / config.sensors.ranging_rate_hz)
+        self._mavlink_period_us = round(1e6 / vc.mavlink_rate_hz)
+        self._heartbeat_us, self._status_period_us = round(vc.heartbeat_period_s * 1e6), round(vc.status_period_s * 1e6)
+        self._next_heartbeat_us = 0
+        self._next_status_us = 0
+        self._frames: list[bytes] = []
+        self.v2v_sent = 0
+
+    def cycle(self, t_us: int, estimator: Estimator, reset_counter: int) -> None:
+        """Encode this cycle's frames (kept until ``flush``); broadcast V2V at the ranging epochs."""
+        notices = estimator.take_notices()
+        for notice in notices:
+            self._frames.append(self.encoder.statustext(notice.severity, notice.text[:50]))
+        if not estimator.initialized:
+            return
+        if any(n.status_changed for n in notices):
+            self._frames.append(self.encoder.estimator_status(estimator.status(t_us)))
+        on_v2v, on_mavlink = t_us % self._v2v_period_us == 0, t_us % self._mavlink_period_us == 0
+        if on_v2v or on_mavlink:
+            odometry = self.encoder.odometry(estimator.estimate(t_us, reset_counter))
+            if on_mavlink:
+                self._frames.append(odometry)
+            if on_v2v:
+                self._v2v.put(odometry)  # the V2V packet {id, x_hat, P, t}
+                self.v2v_sent += 1
+        if t_us >= self._next_heartbeat_us:
+            self._frames += [self.encoder.heartbeat(), self.encoder.estimator_status(estimator.status(t_us))]
+            self._next_heartbeat_us = t_us + self._heartbeat_us
+
+    def flush(self) -> None:
+        """Publish the frames encoded since the last flush as one message."""
+        if self._frames:
+            self._mavlink.put(b"".join(self._frames))
+            self._frames = []
+
+    def status_due(self, t_us: int) -> bool:
+        if t_us >= self._next_status_us:
+            self._next_status_us = t_us + self._status_period_us
+            return True
+        return False
+
+    def status(self, status: m.VehicleStatus) -> None:
+        self._status.put(m.encode(status))
+
+    def ack(self, tick: int) -> None:
+        self._ack.put(m.encode(m.TickAck(self.vehicle_id, tick, self.v2v_sent)))
