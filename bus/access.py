@@ -1,76 +1,93 @@
-"""Zenoh access control for a swarm, enforced by the router: a whitelist per login.
+"""Zenoh access control for a swarm, enforced by every router: what each login may not do.
 
-Nothing is allowed unless listed (``default_permission: deny``; an explicit deny wins over an allow):
+Explicit denies win over everything (zenoh's priority: explicit deny > explicit allow > default);
+the default is allow, because a router that connects to another router cannot authenticate it and
+must still forward the swarm's traffic to it. A router only admits logins listed in its credentials
+file, so the default reaches authenticated processes and peer routers only.
 
-- every login may subscribe to and receive everything under the prefix, except truth: only the
-  world publishes it and only the ground station (and routers) may receive it;
-- the world publishes sensor feeds, truth, the clock and the end of the run;
-- the ground station publishes the fault plan and its lockstep ack, and answers fault requests and
-  id claims;
-- vehicle ``i`` (login ``vehicle-i``) publishes only its own MAVLink, V2V and status keys and its own
-  ack, and declares only its own liveliness token: it cannot speak for another vehicle;
-- ``enroll`` (a vehicle that does not know its id yet) may only claim one; ``cli`` may ask for fault
-  changes; ``supervisor`` only listens; other routers (``router``) carry everything.
+- only the world publishes sensor feeds, truth, the clock and the end of the run;
+- only the ground station publishes the fault plan and its lockstep ack, and answers fault requests
+  and id claims;
+- nobody but the ground station (and routers, which carry it) subscribes to or receives truth;
+- vehicle ``i`` (login ``vehicle-i``) cannot publish on any other swarm vehicle's keys, ack for it or
+  declare its liveliness token: it speaks only for itself (keys of ids outside the swarm are refused
+  by the processes, which count them as ``unknown_vehicle``);
+- ``enroll`` (a vehicle that does not know its id yet), ``cli`` and ``supervisor`` cannot publish on
+  any vehicle's keys or ack at all; ``enroll`` may only claim an id, ``cli`` only ask for faults.
 """
 
 from __future__ import annotations
 
 from bus.secrets import ROLE_USERS, VEHICLE_USER
 
-LISTEN = ["declare_subscriber", "declare_liveliness_subscriber", "liveliness_query"]
+SEND = ["put", "delete"]
 EVERYTHING = ["put", "delete", "declare_subscriber", "query", "reply", "declare_queryable", "liveliness_token",
               "declare_liveliness_subscriber", "liveliness_query"]
 
 
-def _rule(rule_id: str, permission: str, flows: list[str], messages: list[str], key_exprs: list[str]) -> dict:
-    return {"id": rule_id, "permission": permission, "flows": flows, "messages": messages, "key_exprs": key_exprs}
+def _deny(rule_id: str, messages: list[str], key_exprs: list[str], flows: tuple[str, ...] = ("ingress",)) -> dict:
+    return {"id": rule_id, "permission": "deny", "flows": list(flows), "messages": messages, "key_exprs": key_exprs}
 
 
-def _role_rules(p: str) -> dict[str, list[dict]]:
-    """Ingress rules that say what each role may send, besides listening."""
-    return {
-        "world": [_rule("world-out", "allow", ["ingress"], ["put"],
-                        [f"{p}/v/*/feed", f"{p}/truth", f"{p}/ctl/clock", f"{p}/ctl/end"]),
-                  _rule("world-alive", "allow", ["ingress"], ["liveliness_token"], [f"{p}/alive/world/*"])],
-        "groundstation": [_rule("gs-out", "allow", ["ingress"], ["put"], [f"{p}/ctl/faults/plan", f"{p}/ctl/ack/gs"]),
-                          _rule("gs-answer", "allow", ["ingress"], ["declare_queryable", "reply"],
-                                [f"{p}/ctl/faults/request", f"{p}/ctl/claim"]),
-                          _rule("gs-alive", "allow", ["ingress"], ["liveliness_token"], [f"{p}/alive/groundstation/*"])],
-        "cli": [_rule("cli-ask", "allow", ["ingress"], ["query"], [f"{p}/ctl/faults/request"])],
-        "enroll": [_rule("enroll-ask", "allow", ["ingress"], ["query"], [f"{p}/ctl/claim"])],
-        "supervisor": [],
-        "router": [_rule("router-all", "allow", ["ingress"], EVERYTHING, [f"{p}/**"])],
-    }
+def _shared_rules(p: str) -> list[dict]:
+    return [
+        _deny("no-truth", ["declare_subscriber", "put"], [f"{p}/truth"], ("ingress", "egress")),
+        _deny("no-world-output", SEND, [f"{p}/v/*/feed", f"{p}/truth", f"{p}/ctl/clock", f"{p}/ctl/end"]),
+        _deny("no-world-token", ["liveliness_token"], [f"{p}/alive/world/**"]),
+        _deny("no-fault-control", [*SEND, "declare_queryable", "reply"],
+              [f"{p}/ctl/faults/**", f"{p}/ctl/claim", f"{p}/ctl/ack/gs"]),
+        _deny("no-gs-token", ["liveliness_token"], [f"{p}/alive/groundstation/**"]),
+        _deny("no-vehicle-speech", SEND, [f"{p}/v/*/mavlink", f"{p}/v/*/v2v", f"{p}/v/*/status"]),
+        _deny("no-vehicle-acks", SEND, [f"{p}/ctl/ack/*"]),
+        _deny("no-vehicle-token", ["liveliness_token"], [f"{p}/alive/vehicle/**"]),
+        _deny("no-fault-requests", ["query"], [f"{p}/ctl/faults/**"]),
+        _deny("no-claims", ["query"], [f"{p}/ctl/claim"]),
+    ]
 
 
-def _vehicle_rules(p: str, vid: int) -> list[dict]:
-    return [_rule(f"vehicle-{vid}-out", "allow", ["ingress"], ["put"],
-                  [f"{p}/v/{vid}/mavlink", f"{p}/v/{vid}/v2v", f"{p}/v/{vid}/status", f"{p}/ctl/ack/{vid}"]),
-            _rule(f"vehicle-{vid}-alive", "allow", ["ingress"], ["liveliness_token"], [f"{p}/alive/vehicle/{vid}"])]
+_ROLE_DENIES = {
+    "world": ["no-fault-control", "no-gs-token", "no-vehicle-speech", "no-vehicle-acks", "no-vehicle-token"],
+    "groundstation": ["no-world-output", "no-world-token", "no-vehicle-speech", "no-vehicle-token"],
+    "cli": ["no-truth", "no-world-output", "no-world-token", "no-fault-control", "no-gs-token",
+            "no-vehicle-speech", "no-vehicle-acks", "no-vehicle-token", "no-claims"],
+    "supervisor": ["no-truth", "no-world-output", "no-world-token", "no-fault-control", "no-gs-token",
+                   "no-vehicle-speech", "no-vehicle-acks", "no-vehicle-token", "no-fault-requests", "no-claims"],
+    "enroll": ["no-truth", "no-world-output", "no-world-token", "no-fault-control", "no-gs-token",
+               "no-vehicle-speech", "no-vehicle-acks", "no-vehicle-token", "no-fault-requests"],
+    "router": [],
+}
+_VEHICLE_DENIES = ["no-truth", "no-world-output", "no-world-token", "no-fault-control", "no-gs-token",
+                   "no-fault-requests", "no-claims"]
+
+
+def _others(p: str, vid: int, ids: list[int]) -> list[dict]:
+    """Vehicle ``vid`` may not speak on another swarm vehicle's keys nor hold its token."""
+    others = [j for j in ids if j != vid]
+    if not others:
+        return []
+    return [_deny(f"vehicle-{vid}-only", SEND, [f"{p}/v/{j}/**" for j in others] + [f"{p}/ctl/ack/{j}" for j in others]),
+            _deny(f"vehicle-{vid}-token", ["liveliness_token"], [f"{p}/alive/vehicle/{j}" for j in others])]
 
 
 def acl_policy(prefix: str, users: list[str] | None = None) -> dict:
-    """The ``access_control`` section of the router's zenoh config for key prefix ``prefix`` and the
+    """The ``access_control`` section of a router's zenoh config for key prefix ``prefix`` and the
     logins ``users`` (the names in its credentials file; vehicles are ``vehicle-<id>``)."""
     users = list(ROLE_USERS) if users is None else users
     p = prefix
-    truth = [f"{p}/truth"]
-    rules = [_rule("listen", "allow", ["ingress"], LISTEN, [f"{p}/**"]),
-             _rule("receive", "allow", ["egress"], EVERYTHING, [f"{p}/**"]),
-             _rule("no-truth", "deny", ["ingress", "egress"], ["declare_subscriber", "put"], truth)]
+    rules = _shared_rules(p)
+    ids = sorted(int(m.group(1)) for m in map(VEHICLE_USER.fullmatch, users) if m)
     subjects, policies = [], []
-    role_rules = _role_rules(p)
     for user in users:
         match = VEHICLE_USER.fullmatch(user)
         if match:
-            own = _vehicle_rules(p, int(match.group(1)))
-        elif user in role_rules:
-            own = role_rules[user]
+            own = _others(p, int(match.group(1)), ids)
+            rules += own
+            denies = _VEHICLE_DENIES + [r["id"] for r in own]
+        elif user in _ROLE_DENIES:
+            denies = _ROLE_DENIES[user]
         else:
-            continue  # an unknown login may authenticate but do nothing at all
-        rules += [r for r in own if r["id"] not in {x["id"] for x in rules}]
-        sees_truth = user in ("groundstation", "router")
+            denies = [r["id"] for r in _shared_rules(p)]  # a login we do not know may only listen
         subjects.append({"id": user, "usernames": [user]})
-        policies.append({"rules": ["listen", "receive", *(r["id"] for r in own),
-                                   *([] if sees_truth or user == "world" else ["no-truth"])], "subjects": [user]})
-    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
+        if denies:
+            policies.append({"rules": denies, "subjects": [user]})
+    return {"enabled": True, "default_permission": "allow", "rules": rules, "subjects": subjects, "policies": policies}

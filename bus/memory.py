@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import functools
 import queue
 import threading
 
 from bus.keys import KeySpace
+from bus.mailbox import Oversized
 from bus.session import Envelope, Inbox, LivelinessEvent, Request, check_subscription
 
 
+@functools.lru_cache(maxsize=65536)
 def _intersects(a: str, b: str) -> bool:
     import zenoh
 
@@ -21,7 +24,7 @@ class MemoryHub:
     def __init__(self, prefix: str = "swarm") -> None:
         self.prefix = prefix
         self._lock = threading.Lock()
-        self._subscriptions: list[tuple[str, Inbox]] = []
+        self._subscriptions: list[tuple[str, Inbox, int]] = []
         self._watchers: list[tuple[str, Inbox]] = []
         self._tokens: dict[str, int] = {}
         self._queryables: list[tuple[str, Inbox]] = []
@@ -31,13 +34,13 @@ class MemoryHub:
 
     def deliver(self, key: str, payload: bytes) -> None:
         with self._lock:
-            targets = [inbox for expr, inbox in self._subscriptions if _intersects(expr, key)]
-        for inbox in targets:
-            inbox.put(Envelope(key, payload))
+            targets = [(inbox, cap) for expr, inbox, cap in self._subscriptions if _intersects(expr, key)]
+        for inbox, cap in targets:
+            inbox.put(Envelope(key, payload) if len(payload) <= cap else Oversized(key, len(payload)))
 
-    def add_subscription(self, key_expr: str, inbox: Inbox) -> None:
+    def add_subscription(self, key_expr: str, inbox: Inbox, max_bytes: int | None = None) -> None:
         with self._lock:
-            self._subscriptions.append((key_expr, inbox))
+            self._subscriptions.append((key_expr, inbox, 1 << 62 if max_bytes is None else max_bytes))
 
     def add_watcher(self, key_expr: str, inbox: Inbox) -> None:
         with self._lock:
@@ -74,7 +77,13 @@ class MemoryHub:
             inbox.put(LivelinessEvent(key, alive))
 
 
+class _Matching:
+    matching = True
+
+
 class _MemoryPublisher:
+    matching_status = _Matching()  # the in-memory hub delivers synchronously: nothing to wait for
+
     def __init__(self, hub: MemoryHub, key: str) -> None:
         self._hub, self._key = hub, key
 
@@ -92,9 +101,9 @@ class MemoryBus:
     def publisher(self, key: str) -> _MemoryPublisher:
         return _MemoryPublisher(self._hub, key)
 
-    def subscribe(self, key_expr: str, inbox: Inbox) -> None:
+    def subscribe(self, key_expr: str, inbox: Inbox, max_bytes: int | None = None) -> None:
         check_subscription(self.role, self.keys, key_expr)
-        self._hub.add_subscription(key_expr, inbox)
+        self._hub.add_subscription(key_expr, inbox, max_bytes)
 
     def declare_token(self, key: str) -> None:
         self._tokens.append(key)

@@ -160,7 +160,8 @@ class VehicleStatus:
 @dataclass(frozen=True)
 class RunEnd:
     """The world has finished: every vehicle acknowledged the final tick (or was declared dead), or
-    the run was cut short (``status``: complete, groundstation-lost, interrupted). ``rejected``: the
+    the run was cut short (``status``: complete, groundstation-lost, interrupted). ``completed``: the
+    vehicles that acknowledged the final tick (they had sent everything before). ``rejected``: the
     world's rejected input by reason (order of bus.rejections.REASONS)."""
 
     tick: Annotated[int, Int(0, 2**53)]
@@ -168,3 +169,4 @@ class RunEnd:
     vehicles_alive: Annotated[int, Int(0, 250)]
     status: Annotated[str, Text(40)] = "complete"
     rejected: Rejected = ()
+    completed: Annotated[tuple[int, ...], Counts(250, 250)] = ()

@@ -55,6 +55,21 @@ class Publisher(Protocol):
     def put(self, payload: bytes) -> None: ...
 
 
+def await_subscribers(publishers: dict[str, Any], *, timeout_s: float, stop: Any = None) -> list[str]:
+    """Wait until every publisher knows of a matching subscriber; returns the names of those that
+    still do not after ``timeout_s``. A zenoh client drops publications for which it knows no
+    subscriber yet, and subscriptions propagate asynchronously: a process that publishes before this
+    loses its first messages, however it was started."""
+    deadline = time.monotonic() + timeout_s
+    waiting = dict(publishers)
+    while waiting:
+        waiting = {name: pub for name, pub in waiting.items() if not pub.matching_status.matching}
+        if not waiting or time.monotonic() > deadline or (stop is not None and stop.is_set()):
+            break
+        time.sleep(0.005)
+    return sorted(waiting)
+
+
 class Bus(Protocol):
     keys: KeySpace
     role: str

@@ -260,7 +260,10 @@ class GroundStation:
         return self.intake.stream_stamp_us.get(vid, -1) >= due_us or vid not in self.active
 
     def _completed(self, vid: int) -> bool:
-        """A vehicle whose estimates reached the end of the run left normally; otherwise it was lost."""
+        """A vehicle that acknowledged the final tick, or whose estimates reached the end of the run,
+        left normally; otherwise it was lost."""
+        if self.ended is not None and vid in self.ended.completed:
+            return True
         return self.latest_estimate_us.get(vid, -1) >= round(self.config.clock.duration_s * 1e6)
 
     def _lockstep_watermark(self) -> int:

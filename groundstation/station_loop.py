@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 import threading
+import logging
 from pathlib import Path
 
 from bus.config import SwarmConfig
@@ -18,7 +19,8 @@ from bus.session import Bus
 from groundstation.mavlink_out import MavlinkForwarder
 from groundstation.node import GroundStation
 
-END_GRACE_S = 0.3
+FINAL_WAIT_S = 30.0
+log = logging.getLogger("swarmloc.groundstation")
 
 
 class WorldGone(SwarmlocError):
@@ -42,7 +44,8 @@ def run_groundstation(bus: Bus, config: SwarmConfig, run_dir: Path, stop: thread
         else:
             gs.handle(item)
         watch.check()
-    _drain(gs, END_GRACE_S)  # keys are not ordered among each other: let stragglers land
+    if gs.ended is not None:
+        _await_final_data(gs, FINAL_WAIT_S)
     status = gs.ended.status if gs.ended is not None else (watch.status or "interrupted")
     summary = gs.finish(status)
     if watch.status is not None:
@@ -78,10 +81,25 @@ class _WorldWatch:
         return f"the world left without ending the run ({self.clock.gone_timeout_s:g} s ago); run ended as world-lost"
 
 
-def _drain(gs: GroundStation, seconds: float) -> None:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        item = gs.mailbox.get(max(0.0, deadline - time.monotonic()))
-        if item is None:
-            return
+def _await_final_data(gs: GroundStation, timeout_s: float) -> None:
+    """Keys are not ordered among each other, so the end of the run can overtake the last frames and
+    statuses. Every vehicle the world names as completed sent them before its final ack: wait until
+    they are in (a deadline only guards against a bus that lost them; it is logged)."""
+    end = gs.ended
+    deadline = time.monotonic() + timeout_s
+    period_us = round(1e6 / gs.config.vehicle.mavlink_rate_hz)
+    last_odometry_us = end.stamp_us - end.stamp_us % period_us
+
+    def missing() -> list[int]:
+        return [vid for vid in end.completed
+                if gs.intake.stream_stamp_us.get(vid, -1) < last_odometry_us
+                or vid not in gs.statuses or gs.statuses[vid].stamp_us < end.stamp_us]
+
+    while missing() and time.monotonic() < deadline:
+        item = gs.mailbox.get(0.1)
+        if item is not None:
+            gs.handle(item)
+    while (item := gs.mailbox.get_nowait()) is not None:  # what is already here
         gs.handle(item)
+    if missing():
+        log.warning("final data of vehicles %s did not arrive within %g s", missing(), timeout_s)

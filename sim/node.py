@@ -25,7 +25,7 @@ from bus.mailbox import Mailbox, Oversized
 from bus.plan import FaultPlan, decode_json
 from bus.process import Pacer
 from bus.rejections import Rejections
-from bus.session import Bus, Envelope, LivelinessEvent
+from bus.session import Bus, Envelope, LivelinessEvent, await_subscribers
 from sim.world import World
 
 log = logging.getLogger("swarmloc.world")
@@ -112,7 +112,8 @@ class WorldNode:
         self.status = "complete"
         bus.declare_token(keys.alive("world", 0))
         self.members = Membership(expected=set(self.world.vehicle_ids()))
-        self._publishers: dict[str, object] = {}
+        self._publishers: dict[str, object] = {key: bus.publisher(key) for key in
+                                               [keys.clock(), keys.truth(), *map(keys.feed, self.members.expected)]}
         self.tick_us = round(config.clock.tick_s * 1e6)
         self.final_tick = round(config.clock.duration_s * 1e6) // self.tick_us
         self._gs_gone_since: float | None = None
@@ -182,8 +183,10 @@ class WorldNode:
                 self.members.alive.add(ack.vehicle_id)
 
     def wait_for_members(self, stop: threading.Event) -> None:
+        """Until every vehicle and the ground station are alive and listen to what the world sends
+        them (a publication no subscriber is known for yet would be dropped)."""
         deadline = time.monotonic() + self.config.clock.start_timeout_s
-        while not self.members.everyone_joined():
+        while not (self.members.everyone_joined() and not await_subscribers(self._publishers, timeout_s=0.0)):
             if stop.is_set():
                 return
             if time.monotonic() > deadline:
@@ -268,7 +271,8 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
         node.await_acks(prepared.tick, stop, min(ack_timeout, 5.0))
     else:
         log.error("world ends the run early: %s", node.status)
+    completed = tuple(sorted(node.members.acked)) if node.status == "complete" else ()
     end = m.RunEnd(prepared.tick, min(prepared.tick, node.final_tick) * node.tick_us, len(node.members.alive),
-                   node.status, node.rejections.as_counts())
+                   node.status, node.rejections.as_counts(), completed)
     node.publish(bus.keys.end(), m.encode(end))
     return node

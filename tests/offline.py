@@ -6,14 +6,52 @@ import queue
 
 import numpy as np
 
+from bus import feed
 from bus import messages as m
 from bus.config import SensorSpec, build_config
-from bus.keys import KeySpace
 from sim.world import World
-from vehicle.estimator import VehicleEstimator
+from vehicle.estimators.ekf import UnicycleEkf
 from vehicle.gnss_health import GnssHealthSpec
 
-TYPES = {"imu": m.ImuSample, "odom": m.WheelOdometry, "gnss": m.GnssFix, "prior": m.PosePrior, "truth": m.Truth}
+
+def samples_of(world: World, until_us: int, vehicle_id: int = 1) -> tuple[list[tuple[str, object]], feed.TruthBatch]:
+    """Advance ``world`` to ``until_us``: one vehicle's samples (topic, message) in stamp order, and
+    the truth of every vehicle, both through the wire format (one batch per second)."""
+    samples, stamps, rows, ids = [], [], [], world.vehicle_ids()
+    end = world.now_us
+    while end < until_us:
+        end = min(until_us, end + 1_000_000)
+        out = world.advance(end)
+        batch = feed.encode_batch(feed.SensorBatch(vehicle_id, 0, end, out.blocks(vehicle_id)))
+        samples += feed.decode_batch(batch).samples()
+        stamps += out.truth_stamps
+        rows += out.truth
+    truth = feed.TruthBatch(0, until_us, np.array(stamps, dtype=np.int64), np.array(ids),
+                            np.array(rows).reshape(len(stamps), len(ids), feed.TRUTH_WIDTH))
+    return samples, truth
+
+
+def _ekf(spec: SensorSpec, gate_probability: float) -> UnicycleEkf:
+    return UnicycleEkf(vehicle_id=1, spec=spec, gate_probability=gate_probability, altitude_m=30.0)
+
+
+def _run(world: World, estimator: UnicycleEkf, duration_s: float, every_us: int, on_truth) -> None:
+    """Feed the estimator cycle by cycle (50 Hz) and call ``on_truth(stamp, pose)`` every ``every_us``."""
+    step_us, left = 1_000_000, []
+    for start in range(0, round(duration_s * 1e6), step_us):
+        end = min(start + step_us - 1, round(duration_s * 1e6))
+        samples, truth = samples_of(world, end)
+        samples = left + samples
+        truth_at = {int(s): truth.rows[k, 0, :3] for k, s in enumerate(truth.stamps_us)}
+        i = 0
+        for t in range(start, end + 1, 20_000):
+            while i < len(samples) and samples[i][1].stamp_us <= t:
+                estimator.handle(*samples[i])
+                i += 1
+            estimator.cycle(t)
+            if t % every_us == 0 and estimator.initialized:
+                on_truth(t, truth_at[t])
+        left = samples[i:]
 
 
 def pose_nees_series(seed: int, *, duration_s: float, trajectory: str, every_us: int = 1_000_000,
@@ -25,20 +63,16 @@ def pose_nees_series(seed: int, *, duration_s: float, trajectory: str, every_us:
     """
     sensors = (world_sensors or SensorSpec()).model_dump()
     config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": [trajectory]}, "sensors": sensors})
-    world, keys = World(config), KeySpace()
-    estimator = VehicleEstimator(vehicle_id=1, spec=estimator_spec or config.sensors,
-                                 gate_probability=config.vehicle.gate_probability, altitude_m=30.0)
+    estimator = _ekf(estimator_spec or config.sensors, config.vehicle.gate_probability)
     nees, errors = [], []
-    for key, payload in world.advance(round(duration_s * 1e6)):
-        msg = m.decode(TYPES[keys.topic_of(key)], payload)
-        if not isinstance(msg, m.Truth):
-            estimator.handle(msg)
-        elif estimator.initialized and msg.stamp_us % every_us == 0:
-            x, P = estimator.predicted(msg.stamp_us)
-            d = x[:3] - msg.pose
-            d[2] = (d[2] + np.pi) % (2 * np.pi) - np.pi
-            nees.append(float(d @ np.linalg.solve(P[:3, :3], d)))
-            errors.append(float(np.hypot(d[0], d[1])))
+
+    def score(t: int, pose: np.ndarray) -> None:
+        d = estimator.x[:3] - pose
+        d[2] = (d[2] + np.pi) % (2 * np.pi) - np.pi
+        nees.append(float(d @ np.linalg.solve(estimator.P[:3, :3], d)))
+        errors.append(float(np.hypot(d[0], d[1])))
+
+    _run(World(config), estimator, duration_s + 1e-6, every_us, score)
     return np.array(nees), np.array(errors)
 
 
@@ -47,23 +81,18 @@ def gnss_fault_run(seed: int, *, duration_s: float, faults: list[dict], monitor:
     """One vehicle on its circle with world ``faults``: time (s), position error (m) and GNSS health,
     sampled every ``every_us``. ``monitor=False`` fuses every fix that passes the gate (no health checks)."""
     config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": ["circle"]}, "faults": faults})
-    world, keys = World(config), KeySpace()
-    estimator = VehicleEstimator(vehicle_id=1, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
-                                 altitude_m=30.0)
+    estimator = _ekf(config.sensors, config.vehicle.gate_probability)
     if not monitor:
         estimator.gnss_health.spec = GnssHealthSpec(mean_gate_probability=1.0 - 1e-300, unhealthy_after_s=1e9,
                                                     fix_timeout_s=1e9)
     t, errors, healthy = [], [], []
-    for key, payload in world.advance(round(duration_s * 1e6)):
-        msg = m.decode(TYPES[keys.topic_of(key)], payload)
-        if not isinstance(msg, m.Truth):
-            estimator.handle(msg)
-        elif estimator.initialized and msg.stamp_us % every_us == 0:
-            estimator.tick(msg.stamp_us)
-            x, _ = estimator.predicted(msg.stamp_us)
-            t.append(msg.stamp_us * 1e-6)
-            errors.append(float(np.hypot(*(x[:2] - msg.pose[:2]))))
-            healthy.append(estimator.gnss_health.healthy)
+
+    def score(stamp: int, pose: np.ndarray) -> None:
+        t.append(stamp * 1e-6)
+        errors.append(float(np.hypot(*(estimator.x[:2] - pose[:2]))))
+        healthy.append(estimator.gnss_health.healthy)
+
+    _run(World(config), estimator, duration_s, every_us, score)
     return {"t_s": np.array(t), "error_m": np.array(errors), "healthy": np.array(healthy)}
 
 
@@ -71,38 +100,46 @@ def swarm_in_memory(config, *, sample_every_us: int = 200_000) -> dict[int, dict
     """The real vehicle nodes (V2V, link faults, fusion horizon) and the world in one process over
     the in-memory bus, in lockstep. Returns per vehicle: t_s, position error (m) and pose NEES of the
     published estimates, sampled every ``sample_every_us``."""
-    from bus.mavlink_codec import MavlinkDecoder, StateEstimate
+    from bus.mavlink_codec import MavlinkDecoder, StateEstimate, split_frames
     from bus.memory import MemoryHub
     from groundstation.scoring import score
+    from sim.node import WorldNode
     from vehicle.node import VehicleNode
 
     hub = MemoryHub(config.bus.prefix)
-    world, keys, world_bus = World(config), KeySpace(config.bus.prefix), hub.connect("world")
+    world_bus, keys = hub.connect("world"), None
+    world = WorldNode(world_bus, config)
+    keys = world_bus.keys
     listener = hub.connect("groundstation")
     estimates: queue.SimpleQueue = queue.SimpleQueue()
     listener.subscribe(f"{keys.prefix}/v/*/mavlink", estimates)
-    nodes = [VehicleNode(hub.connect("vehicle"), config, vid) for vid in world.vehicle_ids()]
+    nodes = [VehicleNode(hub.connect("vehicle"), config.for_vehicle(), vid) for vid in world.world.vehicle_ids()]
+    for node in nodes:
+        node.join()
     truth: dict[tuple[int, int], np.ndarray] = {}
-    tick_us = round(config.clock.tick_s * 1e6)
-    for k in range(round(config.clock.duration_s * 1e6) // tick_us + 1):
-        stamp = k * tick_us
-        for key, payload in world.advance(stamp):
-            if key.endswith("/truth"):
-                t = m.decode(m.Truth, payload)
-                truth[(t.vehicle_id, t.stamp_us)] = t.pose
-            else:
-                world_bus.publisher(key).put(payload)
-        world_bus.publisher(keys.clock()).put(m.encode(m.ClockTick(k, stamp, 0, False, world.published(),
-                                                                   world.comm_jammed(stamp))))
+    v2v_sent = {}
+    for k in range(world.final_tick + 1):
+        prepared = world.prepare(k)
+        batch = feed.decode_truth(prepared.truth)
+        for i, stamp in enumerate(batch.stamps_us.tolist()):
+            for n, vid in enumerate(batch.vehicle_ids.tolist()):
+                truth[(vid, stamp)] = batch.rows[i, n, :3]
+        for vid, sent in v2v_sent.items():
+            world.members.on_v2v_count(vid, sent)
+        world.send(prepared, final=False)
         for node in nodes:
-            while not node.inbox.empty():
-                node.take(node.inbox.get())
-            for t_us in node.cycles_due(stamp):
+            tick = None
+            while not node.mailbox.empty():
+                tick = node.take(node.mailbox.get_nowait()) or tick
+            for t_us in node.cycles_due(prepared.stamp_us):
                 node.cycle(t_us)
+            node.outbound.flush()
+            v2v_sent[node.vehicle_id] = node.outbound.v2v_sent
     decoder, out = MavlinkDecoder(), {}
     while not estimates.empty():
-        est = decoder.decode(estimates.get().payload)
-        if isinstance(est, StateEstimate) and est.time_usec % sample_every_us == 0:
-            s = score(est, truth[(est.vehicle_id, est.time_usec)])
-            out.setdefault(est.vehicle_id, []).append((est.time_usec * 1e-6, s.position_error_m, s.nees))
+        for frame in split_frames(estimates.get().payload)[0]:
+            est = decoder.decode(frame)
+            if isinstance(est, StateEstimate) and est.time_usec % sample_every_us == 0:
+                s = score(est, truth[(est.vehicle_id, est.time_usec)])
+                out.setdefault(est.vehicle_id, []).append((est.time_usec * 1e-6, s.position_error_m, s.nees))
     return {vid: dict(zip(("t_s", "error_m", "nees"), map(np.array, zip(*rows)))) for vid, rows in out.items()}

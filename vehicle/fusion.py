@@ -20,7 +20,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import logging
-from collections import deque
+from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -62,6 +62,8 @@ class FusionHorizon:
         self._checkpoints: deque[tuple[int, Any]] = deque()  # (bound, snapshot), bounds increasing
         self._cycles: deque[int] = deque()                 # cycles run since the oldest checkpoint's bound
         self._expected: list[int] = []                     # heap of stamps that want a checkpoint before them
+        self._outstanding: Counter[int] = Counter()        # announced late measurements not arrived yet, by stamp
+        self._periodic: set[int] = set()                   # bounds of the every_cycles checkpoints
         self._seen: dict[tuple[str, int], int] = {}        # (topic, seq) -> stamp
         self._arrival = itertools.count()
         self.cycle_us: int | None = None                   # time of the last cycle
@@ -83,6 +85,8 @@ class FusionHorizon:
             heapq.heappush(self._pending, entry)
         elif msg.stamp_us >= self.cycle_us - self.horizon_us and self._checkpoint_at_or_before(msg.stamp_us) is not None:
             self._late.append(entry)
+            if self._outstanding[msg.stamp_us] > 0:
+                self._outstanding[msg.stamp_us] -= 1
         else:
             self.counters.dropped_stale += 1
 
@@ -90,6 +94,7 @@ class FusionHorizon:
         """A measurement stamped ``stamp_us`` will arrive late: keep a checkpoint just before it."""
         if self.horizon_us > 0 and (self.cycle_us is None or stamp_us > self.cycle_us):
             heapq.heappush(self._expected, stamp_us)
+            self._outstanding[stamp_us] += 1
 
     def cycle(self, t_us: int) -> None:
         """Fuse everything stamped <= ``t_us`` (replaying for late arrivals), then run the cycle."""
@@ -104,6 +109,7 @@ class FusionHorizon:
         self.cycle_us = t_us
         if self.every_cycles and len(self._cycles) % self.every_cycles == 0:
             self._checkpoint(t_us + 1)
+            self._periodic.add(t_us + 1)
         self._prune(t_us)
 
     def _checkpoints_due(self, stamp_us: int) -> None:
@@ -149,8 +155,10 @@ class FusionHorizon:
             return
         limit = t_us - self.horizon_us
         while len(self._checkpoints) > 1 and self._checkpoints[1][0] <= limit:
-            self._checkpoints.popleft()
+            self._periodic.discard(self._checkpoints.popleft()[0])
         oldest = self._checkpoints[0][0]
+        if len(self._outstanding) > 64:  # announced but never came (lost on the way): forget them
+            self._outstanding = Counter({s: n for s, n in self._outstanding.items() if n > 0 and s >= limit})
         cut = next((i for i, e in enumerate(self._applied) if e[0] >= oldest), len(self._applied))
         del self._applied[:cut]
         while self._cycles and self._cycles[0] < oldest:
@@ -160,7 +168,8 @@ class FusionHorizon:
 
     def _replay(self) -> None:
         """Go back to the checkpoint before the oldest late measurement and fuse everything again,
-        re-taking the later checkpoints at the same bounds."""
+        re-taking the later checkpoints that can still be needed: periodic ones, and those of
+        announced measurements that have not arrived yet."""
         late = sorted(self._late)
         self._late.clear()
         i = self._checkpoint_at_or_before(late[0][0])
@@ -170,7 +179,8 @@ class FusionHorizon:
         self.counters.replays += 1
         self.counters.late_fused += len(late)
         bound, snapshot = self._checkpoints[i]
-        rebuild = [b for b, _ in itertools.islice(self._checkpoints, i + 1, None)]
+        rebuild = [b for b, _ in itertools.islice(self._checkpoints, i + 1, None)
+                   if b in self._periodic or self._outstanding[b] > 0]
         cycles = [t for t in self._cycles if t >= bound]
         redo = sorted([e for e in self._applied if e[0] >= bound] + late)
         self._applied = [e for e in self._applied if e[0] < bound]

@@ -22,6 +22,10 @@ class HeldInput:
     _segment_us: int = 0             # start of the current hold inside the interval
     _integral: float = 0.0           # value x us
     _sq_us2: float = 0.0             # sum of squared hold durations of closed segments (us^2)
+    segments: list = None            # (duration us, value) of the closed holds of the last interval
+
+    def __post_init__(self) -> None:
+        self.segments, self._open = [], []
 
     def sample(self, stamp_us: int, value: float) -> None:
         """A new sample at ``stamp_us`` (>= the last close); it is held from now on."""
@@ -29,24 +33,34 @@ class HeldInput:
             held = stamp_us - self._segment_us
             self._integral += self.value * held
             self._sq_us2 += float(held) * held
+            if held > 0:
+                self._open.append((held, self.value))
         self._segment_us = max(stamp_us, self.start_us)
         self.value, self.stamp_us = value, stamp_us
 
     def close(self, t_us: int) -> tuple[float, float]:
         """Mean over [start, t_us] and the variance factor sum(o_i^2) / dt^2 (multiply by sigma^2);
-        a new interval starts at ``t_us``. Without any sample: (0.0, 1.0)."""
+        ``segments`` then holds the interval's holds in order. A new interval starts at ``t_us``.
+        Without any sample: (0.0, 1.0) and one zero segment."""
         dt = t_us - self.start_us
         if self.value is None or dt <= 0:
-            self.start_us = self._segment_us = t_us
+            self.segments = [(dt, 0.0)] if dt > 0 else []
+            self.restart(t_us)
             return 0.0, 1.0
         held = t_us - self._segment_us
         integral = self._integral + self.value * held
         sq = self._sq_us2 + float(held) * held
-        self.start_us = self._segment_us = t_us
-        self._integral, self._sq_us2 = 0.0, 0.0
+        self.segments = self._open + ([(held, self.value)] if held > 0 else [])
+        self.restart(t_us)
         return integral / dt, sq / (float(dt) * dt)
+
+    def copy(self) -> "HeldInput":
+        """An independent copy (for the fusion horizon's checkpoints)."""
+        twin = HeldInput(self.value, self.stamp_us, self.start_us, self._segment_us, self._integral, self._sq_us2)
+        twin.segments, twin._open = list(self.segments), list(self._open)
+        return twin
 
     def restart(self, t_us: int) -> None:
         """Forget the interval so far (the filter was re-initialised at ``t_us``); keep the held value."""
         self.start_us = self._segment_us = t_us
-        self._integral, self._sq_us2 = 0.0, 0.0
+        self._integral, self._sq_us2, self._open = 0.0, 0.0, []

@@ -93,5 +93,6 @@ def _realtime_cycle(node: VehicleNode, pacer: Pacer) -> None:
 def run_vehicle(bus: Bus, config: VehicleProcessConfig, vehicle_id: int, stop: threading.Event, *, restarts: int = 0,
                 signing_key: bytes | None = None) -> VehicleNode:
     node = VehicleNode(bus, config, vehicle_id, restarts=restarts, signing_key=signing_key)
+    node.join(stop)
     (run_lockstep if config.clock.mode == "lockstep" else run_realtime)(node, stop)
     return node

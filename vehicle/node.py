@@ -16,7 +16,7 @@ from bus import messages as m
 from bus.config import VehicleProcessConfig
 from bus.mailbox import Mailbox
 from bus.rejections import Rejections
-from bus.session import Bus
+from bus.session import Bus, await_subscribers
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
 from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_FRAME_BYTES, MAX_PLAN_BYTES, Delivery, Inbound
@@ -45,7 +45,6 @@ class VehicleNode:
         self.inbound = Inbound(keys=keys, vehicle_id=vehicle_id, vehicles=config.vehicles, fault_seed=config.fault_seed,
                                faults=config.faults, rejections=self.rejections)
         self.outbound = Outbound(bus, config, vehicle_id, signing_key=signing_key)
-        bus.declare_token(keys.alive("vehicle", vehicle_id))
         self.estimator = get_estimator(config, vehicle_id)
         realtime = config.clock.mode == "realtime"
         self.fusion = FusionHorizon(self.estimator, horizon_us=round(vc.fusion_horizon_s * 1e6),
@@ -58,6 +57,22 @@ class VehicleNode:
         self.next_cycle_us = 0
         self.first_tick: m.ClockTick | None = None
         self._heard_floor: dict[int, int] = {}
+
+    def join(self, stop=None, *, v2v_wait_s: float = 30.0) -> None:
+        """Declare this vehicle alive once what it publishes has listeners: its acks (the world) and
+        its MAVLink (the ground station) without limit, its V2V broadcast (the neighbours) for up to
+        ``v2v_wait_s``; the world starts only when every vehicle is alive, so no first message is lost."""
+        out, announced = self.outbound, False
+        while await_subscribers({"ack": out.ack_publisher, "mavlink": out.mavlink_publisher}, timeout_s=1.0, stop=stop):
+            if stop is not None and stop.is_set():
+                return
+            if not announced:
+                log.info("vehicle %d waits for the world and the ground station to listen", self.vehicle_id)
+                announced = True
+        if self.config.vehicle.cooperative and self.config.vehicles > 1:
+            if await_subscribers({"v2v": out.v2v_publisher}, timeout_s=v2v_wait_s, stop=stop):
+                log.warning("vehicle %d: no neighbour listens after %g s; it goes on alone", self.vehicle_id, v2v_wait_s)
+        self.bus.declare_token(self.bus.keys.alive("vehicle", self.vehicle_id))
 
     def take(self, item: object) -> m.ClockTick | None:
         """File one mailbox item (None: nothing came); a clock tick is returned to the loop."""
@@ -97,7 +112,8 @@ class VehicleNode:
     def ready(self, tick: m.ClockTick) -> bool:
         """Lockstep: the tick's sensor batch has arrived, and every V2V broadcast the neighbours had
         sent by their last acknowledgements (zenoh orders samples within a key, not across keys)."""
-        if tick is not self.first_tick and self.inbound.received_tick < tick.tick:
+        joined_late = tick is self.first_tick and tick.tick > 0  # a restart: earlier batches are gone
+        if self.inbound.received_tick < tick.tick and not joined_late:
             return False
         if not self.config.vehicle.cooperative:
             return True

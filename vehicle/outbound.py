@@ -20,9 +20,9 @@ class Outbound:
         keys, vc = bus.keys, config.vehicle
         self.vehicle_id = vehicle_id
         self.encoder = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key)
-        self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
-        self._v2v = bus.publisher(keys.v2v(vehicle_id))
-        self._ack = bus.publisher(keys.ack(vehicle_id))
+        self.mavlink_publisher = self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
+        self.v2v_publisher = self._v2v = bus.publisher(keys.v2v(vehicle_id))
+        self.ack_publisher = self._ack = bus.publisher(keys.ack(vehicle_id))
         self._status = bus.publisher(keys.status(vehicle_id))
         self._v2v_period_us = round(1e6 / config.sensors.ranging_rate_hz)
         self._mavlink_period_us = round(1e6 / vc.mavlink_rate_hz)

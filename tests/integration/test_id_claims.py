@@ -1,5 +1,6 @@
-"""Vehicles started together with `--id auto` (as compose replicas are) claim distinct ids from the
-ground station, and the swarm runs with them."""
+"""Vehicles started together with `--id auto` (as compose replicas are), holding only the enroll
+login, claim distinct ids from the ground station, receive their own login and signing key, and
+the swarm runs with them (every estimate accepted under its own key)."""
 
 import json
 import os
@@ -17,8 +18,10 @@ pytestmark = pytest.mark.integration
 
 
 def test_vehicles_starting_together_claim_distinct_ids(tmp_path):
-    secrets, port = write_secrets(tmp_path / "secrets"), free_port()
-    build_config({"world": {"vehicles": 3, "seed": 2}, "clock": {"duration_s": 6}}).dump(tmp_path / "config.json")
+    secrets, port = write_secrets(tmp_path / "secrets", vehicles=3), free_port()
+    config = build_config({"world": {"vehicles": 3, "seed": 2}, "clock": {"duration_s": 6}})
+    config.dump(tmp_path / "config.json")
+    config.for_vehicle().dump(tmp_path / "vehicle.json")
     cli, conf, run_dir = [sys.executable, "-m", "groundstation.cli"], str(tmp_path / "config.json"), tmp_path / "run"
     processes = []
 
@@ -32,7 +35,8 @@ def test_vehicles_starting_together_claim_distinct_ids(tmp_path):
                               str(secrets / "credentials.txt")], "router")
     wait_for_port(port, 15.0, Child("router", router, tmp_path / "router.log", True))
     for name in ("alpha", "bravo", "charlie"):  # before the ground station: they retry until it answers
-        start(name, ["vehicle", "--config", conf, "--id", "auto"], "vehicle", SWARMLOC_VEHICLE_NAME=name)
+        start(name, ["vehicle", "--config", str(tmp_path / "vehicle.json"), "--id", "auto"], "enroll",
+              SWARMLOC_VEHICLE_NAME=name)
     gs = start("gs", ["gs", "--config", conf, "--run-dir", str(run_dir), "--quiet"], "groundstation")
     start("world", ["sim", "--config", conf], "world")
     try:
@@ -46,3 +50,4 @@ def test_vehicles_starting_together_claim_distinct_ids(tmp_path):
     assert sorted(claims["ids"].values()) == [1, 2, 3] and set(claims["ids"]) == {"alpha", "bravo", "charlie"}
     summary = read_summary(run_dir)
     assert {vid: v["samples"] for vid, v in summary["vehicles"].items()} == {"1": 301, "2": 301, "3": 301}
+    assert all(v["mavlink_rejected"] == 0 for v in summary["vehicles"].values())  # each signed with its own key

@@ -2,7 +2,8 @@
 vehicle hosts, as network namespaces joined by veth links. Vehicle host A runs a second zenoh
 router joined to the first (the two-router deployment of the README); its vehicles connect to it
 locally, while vehicle host B connects to the main router. Logins, access control and signing on.
-Every vehicle is scored."""
+Started in the worst order, with no sleeps: everything else before the routers (they wait for
+them). Every vehicle is scored."""
 
 import os
 import sys
@@ -29,11 +30,12 @@ def lab():
 
 
 def test_swarm_across_four_hosts_and_two_routers(lab, tmp_path):
-    secrets = write_secrets(tmp_path / "secrets")
+    secrets = write_secrets(tmp_path / "secrets", vehicles=3)
     main = f"tcp/{lab.addresses['rtr']}:7447"
     config = build_config({"name": "multihost", "world": {"vehicles": 3, "seed": 3},
                            "clock": {"duration_s": DURATION_S, "start_timeout_s": 90}})
     config.dump(tmp_path / "config.json")
+    config.for_vehicle().dump(tmp_path / "vehicle.json")
     cli = [sys.executable, "-m", "groundstation.cli"]
     processes = []
 
@@ -45,15 +47,15 @@ def test_swarm_across_four_hosts_and_two_routers(lab, tmp_path):
         processes.append((name, lab.run(host, cli + args, env=env, log=log)))
 
     creds = ["--credentials", str(secrets / "credentials.txt")]
-    start("rtr", "router-a", ["router", "--listen", "tcp/0.0.0.0:7447", *creds], "router")
-    start("va", "router-b", ["router", "--listen", "tcp/127.0.0.1:7448", "--connect", main, *creds], "router")
-    conf = str(tmp_path / "config.json")
+    conf, vconf = str(tmp_path / "config.json"), str(tmp_path / "vehicle.json")
     run_dir = tmp_path / "run"
-    start("gs", "groundstation", ["gs", "--config", conf, "--run-dir", str(run_dir), "--quiet"], "groundstation", main)
-    start("va", "vehicle-1", ["vehicle", "--config", conf, "--id", "1"], "vehicle", "tcp/127.0.0.1:7448")
-    start("va", "vehicle-2", ["vehicle", "--config", conf, "--id", "2"], "vehicle", "tcp/127.0.0.1:7448")
-    start("vb", "vehicle-3", ["vehicle", "--config", conf, "--id", "3"], "vehicle", main)
     start("gs", "world", ["sim", "--config", conf], "world", main)
+    start("va", "vehicle-1", ["vehicle", "--config", vconf, "--id", "1"], "vehicle-1", "tcp/127.0.0.1:7448")
+    start("va", "vehicle-2", ["vehicle", "--config", vconf, "--id", "2"], "vehicle-2", "tcp/127.0.0.1:7448")
+    start("vb", "vehicle-3", ["vehicle", "--config", vconf, "--id", "3"], "vehicle-3", main)
+    start("gs", "groundstation", ["gs", "--config", conf, "--run-dir", str(run_dir), "--quiet"], "groundstation", main)
+    start("va", "router-b", ["router", "--listen", "tcp/127.0.0.1:7448", "--connect", main, *creds], "router")
+    start("rtr", "router-a", ["router", "--listen", "tcp/0.0.0.0:7447", *creds], "router")
     try:
         gs = dict(processes)["groundstation"]
         assert gs.wait(timeout=240) == 0, (tmp_path / "groundstation.log").read_text()[-2000:]

@@ -59,7 +59,7 @@ def test_restart_on_failure_brings_back_a_vehicle_and_the_ground_station(tmp_pat
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     run = tmp_path / "phoenix"
     wait_for_metrics(run, 30_000)
-    os.kill(processes_matching(f"{run}/config.json --id 3")[0], signal.SIGKILL)
+    os.kill(processes_matching(f"{run}/vehicle.json --id 3")[0], signal.SIGKILL)
     wait_for_metrics(run, 60_000)
     gs = processes_matching(f"gs --config {run}/config.json")
     os.kill(gs[0], signal.SIGKILL)

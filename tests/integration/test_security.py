@@ -16,7 +16,7 @@ import trustme
 
 from bus.config import BusConfig
 from bus.errors import BusUnavailable
-from bus.mavlink_codec import MavlinkEncoder, StateEstimate, signing_now
+from bus.mavlink_codec import MavlinkEncoder, StateEstimate, signing_now, split_frames
 from bus.secrets import write_secrets
 from bus.session import Transport, ZenohBus
 from groundstation.launcher import free_port, wait_for_port, Child
@@ -53,28 +53,49 @@ def _received(inbox: queue.SimpleQueue, wait_s: float = 0.6) -> list[bytes]:
 
 
 def test_router_refuses_bad_logins_and_enforces_access_control(tmp_path):
-    secrets = write_secrets(tmp_path / "secrets")
+    secrets = write_secrets(tmp_path / "secrets", vehicles=3)
     router, port = _router(tmp_path, "--credentials", str(secrets / "credentials.txt"))
     try:
-        for transport in (_login(secrets, "vehicle", "wrong-password"), Transport()):
-            with pytest.raises(BusUnavailable, match="cannot join"):
+        for transport in (_login(secrets, "vehicle-1", "wrong-password"), Transport()):
+            with pytest.raises(BusUnavailable, match="refused the login"):
                 _bus(port, transport)
-        with _bus(port, _login(secrets, "world")) as world, _bus(port, _login(secrets, "vehicle")) as vehicle, \
-                _bus(port, _login(secrets, "vehicle")) as rogue, _bus(port, _login(secrets, "groundstation")) as gs:
-            at_vehicle, at_gs = queue.SimpleQueue(), queue.SimpleQueue()
-            vehicle.subscribe("swarm/v/1/truth", at_vehicle)
+        with _bus(port, _login(secrets, "world")) as world, _bus(port, _login(secrets, "vehicle-1")) as vehicle, \
+                _bus(port, _login(secrets, "vehicle-2")) as rogue, _bus(port, _login(secrets, "groundstation")) as gs, \
+                _bus(port, _login(secrets, "enroll")) as enroll:
+            at_vehicle, at_gs, alive = queue.SimpleQueue(), queue.SimpleQueue(), queue.SimpleQueue()
+            vehicle.subscribe("swarm/truth", at_vehicle)
             vehicle.subscribe("swarm/ctl/faults/plan", at_vehicle)
-            vehicle.subscribe("swarm/v/1/sensor/gnss", at_vehicle)
-            gs.subscribe("swarm/v/1/truth", at_gs)
+            vehicle.subscribe("swarm/v/1/feed", at_vehicle)
+            gs.subscribe("swarm/truth", at_gs)
             gs.subscribe("swarm/ctl/faults/plan", at_gs)
+            gs.subscribe("swarm/v/*/mavlink", at_gs)
+            gs.subscribe("swarm/ctl/ack/*", at_gs)
+            gs.watch_liveliness("swarm/alive/vehicle/*", alive)
             time.sleep(0.5)
-            world.publisher("swarm/v/1/truth").put(b"truth")
-            rogue.publisher("swarm/ctl/faults/plan").put(b"forged plan")
-            world.publisher("swarm/ctl/faults/plan").put(b"forged plan")
-            rogue.publisher("swarm/v/1/sensor/gnss").put(b"forged fix")
+            world.publisher("swarm/truth").put(b"truth")
+            world.publisher("swarm/v/1/feed").put(b"feed")
+            for bus in (rogue, world, enroll):
+                bus.publisher("swarm/ctl/faults/plan").put(b"forged plan")
+            for bus in (rogue, enroll):
+                bus.publisher("swarm/v/1/feed").put(b"forged feed")
+            rogue.publisher("swarm/v/1/mavlink").put(b"vehicle 2 speaking as 1")
+            rogue.publisher("swarm/ctl/ack/1").put(b"vehicle 2 acking for 1")
+            enroll.publisher("swarm/v/3/mavlink").put(b"enroll speaking as 3")
+            rogue.declare_token("swarm/alive/vehicle/1")
+            rogue.declare_token("swarm/alive/vehicle/\u00b2")
+            rogue.publisher("swarm/v/2/mavlink").put(b"vehicle 2 as itself")
+            rogue.publisher("swarm/ctl/ack/2").put(b"vehicle 2 acks")
+            rogue.declare_token("swarm/alive/vehicle/2")
             gs.publisher("swarm/ctl/faults/plan").put(b"plan")
-            assert sorted(_received(at_gs)) == [b"plan", b"truth"]  # nothing forged reached the ground station
-            assert _received(at_vehicle) == [b"plan"]                # vehicles get the plan, never truth
+            # nothing forged reached the ground station; vehicle 2 may speak only as itself
+            assert sorted(_received(at_gs)) == [b"plan", b"truth", b"vehicle 2 acks", b"vehicle 2 as itself"]
+            assert sorted(_received(at_vehicle)) == [b"feed", b"plan"]  # vehicles get the plan, never truth
+            tokens = []
+            while not alive.empty():
+                tokens.append(alive.get().key)
+            # another vehicle's token is refused; a non-decimal id passes the router and is the
+            # processes' to reject (bad_key), as the insider test shows
+            assert sorted(tokens) == ["swarm/alive/vehicle/2", "swarm/alive/vehicle/\u00b2"]
     finally:
         router.terminate()
         router.wait(10)
@@ -109,14 +130,14 @@ def test_the_bus_runs_over_tls_and_refuses_untrusted_peers(tmp_path):
 
 
 def _forge(process_env_secrets, port: int, genuine: list[bytes]) -> None:
-    """As a compromised vehicle (valid zenoh login, no signing key): an unsigned frame, a frame signed
-    with a wrong key and a far-future timestamp, and a replay of a genuine frame, all as vehicle 2."""
+    """With vehicle 2's zenoh login but not its signing key: an unsigned frame, a frame signed with a
+    wrong key and a far-future timestamp, and a replay of a genuine frame, all as vehicle 2."""
     estimate = StateEstimate(2, 1_000_000, np.array([1e5, 1e5, -30.0]), 0.0, np.zeros(3), 0.0, np.eye(6), np.eye(6))
     unsigned = MavlinkEncoder(vehicle_id=2).odometry(estimate)
     forger = MavlinkEncoder(vehicle_id=2, signing_key=os.urandom(32))
     forger._mav.signing.timestamp = signing_now() + 100 * 86_400 * 100_000  # 100 days ahead
     future = forger.odometry(estimate)
-    with _bus(port, _login(process_env_secrets, "vehicle")) as attacker:
+    with _bus(port, _login(process_env_secrets, "vehicle-2")) as attacker:
         publish = attacker.publisher("swarm/v/2/mavlink")
         for frame in (unsigned, future, genuine[0]):
             publish.put(frame)
@@ -128,15 +149,15 @@ def test_unsigned_forged_and_replayed_mavlink_is_rejected_and_the_genuine_stream
     run = tmp_path / "signed"
     wait_for_metrics(run, 20_000)
     port = int(json.loads((run / "swarm.json").read_text())["connect"][0].rsplit(":", 1)[1])
-    with _bus(port, _login(run / "secrets", "vehicle")) as spy:
+    with _bus(port, _login(run / "secrets", "vehicle-1")) as spy:
         inbox = queue.SimpleQueue()
         spy.subscribe("swarm/v/2/mavlink", inbox)
-        genuine = [inbox.get(timeout=10).payload]
+        genuine = [split_frames(inbox.get(timeout=10).payload)[0][0]]
     _forge(run / "secrets", port, genuine)
     output, _ = process.communicate(timeout=240)
     assert process.returncode == 0, output
     summary = read_summary(run)
-    assert summary["mavlink_rejected_by_reason"] == {"bad_signature": 1, "replay": 1, "unsigned": 1}
+    assert summary["rejected"]["by_process"]["groundstation"] == {"bad_signature": 1, "replay": 1, "unsigned": 1}
     assert summary["vehicles"]["2"]["mavlink_rejected"] == 3
     assert summary["vehicles"]["2"]["samples"] == 40 * 50 + 1  # every genuine estimate, after the forged one too
     assert summary["vehicles"]["2"]["max_error_m"] < 5.0        # the forged position was never scored

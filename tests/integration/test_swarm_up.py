@@ -53,7 +53,7 @@ def test_killed_vehicle_is_logged_and_the_others_finish(tmp_path):
         if metrics.exists() and metrics.stat().st_size > 20_000:
             break
         time.sleep(0.2)
-    victims = processes_matching(f"{run}/config.json --id 2")
+    victims = processes_matching(f"{run}/vehicle.json --id 2")
     assert victims, "vehicle 2 process not found"
     os.kill(victims[0], signal.SIGKILL)
     output, _ = process.communicate(timeout=240)
@@ -75,7 +75,7 @@ def test_sigint_shuts_everything_down_and_leaves_a_summary(tmp_path):
     process.send_signal(signal.SIGINT)
     process.communicate(timeout=30)
     assert read_summary(run)["status"] == "interrupted"
-    assert processes_matching(f"{run}/config.json") == []
+    assert processes_matching(f"{run}/config.json") == processes_matching(f"{run}/vehicle.json") == []
 
 
 @pytest.mark.parametrize("args, message", [

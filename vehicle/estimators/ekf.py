@@ -115,11 +115,12 @@ class UnicycleEkf:
         gyro, gyro_factor = self.gyro.close(stamp_us)
         odom_yaw, odom_factor = self.odom_yaw.close(stamp_us)
         fresh = self.gyro.stamp_us is not None and stamp_us - self.gyro.stamp_us <= GYRO_STALE_PERIODS * self._gyro_period_us
-        rate, rate_var = (gyro, spec.gyro_sigma_radps**2 * gyro_factor) if fresh else \
-            (odom_yaw, spec.odom_yaw_rate_sigma_radps**2 * odom_factor)
+        rate, rate_var, rate_source = (gyro, spec.gyro_sigma_radps**2 * gyro_factor, self.gyro) if fresh else \
+            (odom_yaw, spec.odom_yaw_rate_sigma_radps**2 * odom_factor, self.odom_yaw)
+        steps = ekf.pieces(self.speed.segments, rate_source.segments)
         self.x, self.P = ekf.predict(self.x, self.P, speed, rate, dt, speed_var=spec.odom_speed_sigma_mps**2 * speed_factor,
                                      yaw_rate_var=rate_var, bias_walk_var=spec.gyro_bias_walk_radps_rtsec**2,
-                                     use_bias=fresh)
+                                     use_bias=fresh, steps=steps)
         self.time_us = stamp_us
 
     def _fuse_gnss(self, fix: m.GnssFix) -> None:
@@ -226,8 +227,9 @@ class UnicycleEkf:
         for key in ("x", "P"):
             if state[key] is not None:
                 state[key] = state[key].copy()
-        for key in ("speed", "gyro", "odom_yaw", "counters"):
-            state[key] = dataclasses.replace(state[key])
+        for key in ("speed", "gyro", "odom_yaw"):
+            state[key] = state[key].copy()
+        state["counters"] = dataclasses.replace(state["counters"])
         state["gnss_health"] = state["gnss_health"].copy()
         state["alignment"] = copy.copy(state["alignment"])
         return state

@@ -1,12 +1,14 @@
-"""Config validation, key expressions, and role enforcement in the bus layer."""
+"""Config validation, key expressions (built and parsed, totally), and role enforcement in the bus layer."""
 
 import queue
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from bus.config import BusConfig, SwarmConfig, build_config
 from bus.errors import AccessDenied, ConfigError
-from bus.keys import KeySpace
+from bus.keys import KeySpace, ParsedKey, parse_vehicle_id
 from bus.memory import MemoryHub
 from bus.session import ZenohBus
 
@@ -38,27 +40,68 @@ def test_defaults_round_trip_through_json(tmp_path):
 
 
 @pytest.mark.parametrize("expr, is_truth", [
-    ("swarm/v/3/truth", True), ("swarm/v/*/truth", True), ("swarm/**", True), ("swarm/v/3/*", True),
-    ("**", True), ("swarm/v/3/sensor/*", False), ("swarm/v/3/mavlink", False), ("swarm/ctl/clock", False),
+    ("swarm/truth", True), ("swarm/*", True), ("swarm/**", True), ("**", True), ("swarm/v/3/feed", False),
+    ("swarm/v/*/mavlink", False), ("swarm/ctl/clock", False), ("swarm/v/**", False), ("not a key//", False),
 ])
 def test_truth_detection_covers_wildcards(expr, is_truth):
     assert KeySpace("swarm").is_truth(expr) is is_truth
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("1", 1), ("250", 250), ("42", 42), ("0", None), ("251", None), ("007", None), ("²", None), ("-3", None),
+    ("+3", None), (" 3", None), ("3 ", None), ("３", None), ("", None), ("x", None), ("1e2", None), ("99999999999999", None),
+])
+def test_vehicle_ids_are_plain_ascii_decimals_in_range(text, expected):
+    assert parse_vehicle_id(text) == expected
+
+
+def test_keys_parse_to_what_they_name():
+    keys = KeySpace("swarm")
+    assert keys.parse(keys.mavlink(7)) == ParsedKey("vehicle", 7, "mavlink")
+    assert keys.parse(keys.feed(250)) == ParsedKey("vehicle", 250, "feed")
+    assert keys.parse(keys.ack(3)) == ParsedKey("ack", 3)
+    assert keys.parse(keys.ack("gs")) == ParsedKey("ack", ident="gs")
+    assert keys.parse(keys.alive("vehicle", 4)) == ParsedKey("alive", 4, role="vehicle", ident="4")
+    assert keys.parse(keys.truth()).kind == "truth" and keys.parse(keys.clock()).kind == "clock"
+    for bad in ("swarm/v/x/v2v", "swarm/v/²/mavlink", "swarm/v/3/sensor/imu", "swarm/v/3/mavlink/extra",
+                "swarm/alive/vehicle/²", "swarm/alive/pilot/1", "other/v/1/mavlink", "swarm", "swarm/ctl/ack/0"):
+        assert keys.parse(bad) is None, bad
+        assert keys.vehicle_of(bad) is None
+
+
+@given(st.text(max_size=40))
+def test_any_key_parses_or_gives_none(tail):
+    keys = KeySpace("swarm")
+    for key in (tail, f"swarm/{tail}", f"swarm/v/{tail}/mavlink", f"swarm/alive/vehicle/{tail}", f"swarm/ctl/ack/{tail}"):
+        parsed = keys.parse(key)
+        assert parsed is None or isinstance(parsed, ParsedKey)
+        assert parsed is None or parsed.vehicle_id is None or 1 <= parsed.vehicle_id <= 250
 
 
 def test_memory_bus_refuses_truth_to_vehicles_and_delivers_to_others():
     hub = MemoryHub()
     inbox = queue.SimpleQueue()
     with pytest.raises(AccessDenied):
-        hub.connect("vehicle").subscribe("swarm/v/*/truth", inbox)
-    hub.connect("groundstation").subscribe("swarm/v/*/truth", inbox)
-    hub.connect("world").publisher("swarm/v/1/truth").put(b"x")
+        hub.connect("vehicle").subscribe("swarm/truth", inbox)
+    hub.connect("groundstation").subscribe("swarm/truth", inbox)
+    hub.connect("world").publisher("swarm/truth").put(b"x")
     assert inbox.get_nowait().payload == b"x"
+
+
+def test_subscriptions_hand_on_oversized_payloads_as_markers_only():
+    from bus.mailbox import Oversized
+
+    hub = MemoryHub()
+    inbox = queue.SimpleQueue()
+    hub.connect("groundstation").subscribe("swarm/v/*/mavlink", inbox, max_bytes=10)
+    hub.connect("vehicle").publisher("swarm/v/1/mavlink").put(b"x" * 11)
+    assert inbox.get_nowait() == Oversized("swarm/v/1/mavlink", 11)
 
 
 def test_zenoh_bus_refuses_truth_to_vehicles():
     with ZenohBus(BusConfig(mode="peer", connect=(), listen=()), role="vehicle") as bus:
         with pytest.raises(AccessDenied, match="truth"):
-            bus.subscribe(bus.keys.truth(1), queue.SimpleQueue())
+            bus.subscribe(bus.keys.truth(), queue.SimpleQueue())
         with pytest.raises(AccessDenied):
             bus.subscribe("swarm/**", queue.SimpleQueue())
-        bus.subscribe(bus.keys.sensors(1), queue.SimpleQueue())  # allowed
+        bus.subscribe(bus.keys.feed(1), queue.SimpleQueue())  # allowed

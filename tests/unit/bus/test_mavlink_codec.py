@@ -111,3 +111,52 @@ def test_estimator_status_and_statustext_round_trip_signed():
     assert status.pos_horiz_ratio == pytest.approx(1.75)
     text = decoder.decode(encoder.statustext(4, "GNSS unhealthy: spoofing suspected"))
     assert text == StatusText(4, 4, "GNSS unhealthy: spoofing suspected")
+
+
+def test_a_far_future_signing_timestamp_is_refused_even_with_the_right_key():
+    encoder = MavlinkEncoder(vehicle_id=3, signing_key=KEY)
+    decoder = MavlinkDecoder(signing_key=KEY)
+    encoder._mav.signing.timestamp = signing_now() + 10 * 86_400 * 100_000  # a key holder ten days ahead
+    with pytest.raises(MavlinkRejected, match="future_timestamp"):
+        decoder.decode(encoder.odometry(_estimate()))
+    genuine = MavlinkEncoder(vehicle_id=3, signing_key=KEY)
+    assert decoder.decode(genuine.odometry(_estimate())).vehicle_id == 3  # the stream was not frozen
+
+
+@pytest.mark.parametrize("cov", [
+    np.zeros((6, 6)),                                  # all zeros
+    np.diag([1.0, 1.0, 1e-6, 1e-6, 1e-6, 0.0]),        # singular in yaw
+    np.diag([1.0, 4.0, 1e-6, 1e-6, 1e-6, 1.0]) + np.pad([[0.0, 3.0], [3.0, 0.0]], ((0, 4), (0, 4))),  # indefinite: xy det < 0
+    np.diag([1e12, 1.0, 1e-6, 1e-6, 1e-6, 1.0]),       # huge
+], ids=["zero", "singular", "indefinite", "huge"])
+def test_degenerate_covariances_are_rejected(cov):
+    est = StateEstimate(3, 1_000_000, np.array([1.0, 2.0, -30.0]), 0.1, np.zeros(3), 0.0, cov, np.eye(6))
+    with pytest.raises(MavlinkRejected, match="degenerate"):
+        MavlinkDecoder().decode(MavlinkEncoder(vehicle_id=3).odometry(est))
+
+
+def test_each_sender_is_checked_against_its_own_key_and_unknown_senders_are_refused():
+    keys = {1: bytes([1] * 32), 2: bytes([2] * 32)}
+    decoder = MavlinkDecoder(key_for=keys.get)
+    assert decoder.decode(MavlinkEncoder(vehicle_id=2, signing_key=keys[2]).odometry(_estimate(vehicle_id=2))).vehicle_id == 2
+    with pytest.raises(MavlinkRejected, match="bad_signature"):  # vehicle 1's key speaking as vehicle 2
+        decoder.decode(MavlinkEncoder(vehicle_id=2, signing_key=keys[1]).odometry(_estimate(vehicle_id=2)))
+    with pytest.raises(MavlinkRejected, match="unknown_sysid"):
+        decoder.decode(MavlinkEncoder(vehicle_id=9, signing_key=keys[1]).odometry(_estimate(vehicle_id=9)))
+
+
+def test_concatenated_frames_split_by_their_lengths():
+    from bus.mavlink_codec import split_frames
+
+    frames = [MavlinkEncoder(vehicle_id=3, signing_key=KEY).odometry(_estimate()), MavlinkEncoder(vehicle_id=3).heartbeat()]
+    assert split_frames(b"".join(frames)) == (frames, 0)
+    assert split_frames(b"".join(frames) + b"\xfd\x05") == (frames, 2)
+    assert split_frames(b"junk" + frames[0]) == ([], len(frames[0]) + 4)
+
+
+@given(st.binary(max_size=1200))
+def test_splitting_any_bytes_is_total(buffer):
+    from bus.mavlink_codec import split_frames
+
+    frames, rest = split_frames(buffer)
+    assert sum(map(len, frames)) + rest == len(buffer)

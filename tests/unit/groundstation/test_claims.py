@@ -15,3 +15,17 @@ def test_claims_are_unique_stable_across_restarts_and_bounded(tmp_path):
     assert not full.ok and "full" in full.error
     reloaded = IdRegister(vehicles=3, path=tmp_path / "claims.json")
     assert reloaded.claim(ClaimRequest(host="c3")).restarts == 1
+
+
+def test_a_claim_carries_the_vehicles_own_secrets_and_an_alive_id_is_never_handed_out_twice(tmp_path):
+    from bus.secrets import vehicle_password, vehicle_signing_key
+
+    master = bytes(range(32))
+    register = IdRegister(vehicles=2, path=tmp_path / "claims.json", master_key=master)
+    first = register.claim(ClaimRequest(host="alpha"))
+    assert first.ok and first.signing_key == vehicle_signing_key(master, first.vehicle_id).hex()
+    assert first.zenoh_password == vehicle_password(master, first.vehicle_id)
+    refused = register.claim(ClaimRequest(host="alpha"), alive={first.vehicle_id})  # a second "alpha" while it lives
+    assert not refused.ok and "alive" in refused.error and not refused.signing_key
+    again = register.claim(ClaimRequest(host="alpha"), alive=set())  # after it died: a restart
+    assert again.ok and again.vehicle_id == first.vehicle_id and again.restarts == 1

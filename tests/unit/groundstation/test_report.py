@@ -10,7 +10,6 @@ from scipy.special import chdtri
 
 from bus.config import SwarmConfig
 from bus.mavlink_codec import StateEstimate
-from bus.messages import Truth
 from groundstation.report import ReportError, write_report
 from groundstation.report.rundata import load_run
 from groundstation.report.stats import binned_nees, binned_rmse, covariance_ellipse
@@ -29,7 +28,7 @@ def _write_run(path: Path, rng: np.random.Generator, vehicles: int = 2, seconds:
         for vid in range(1, vehicles + 1):
             angle = 0.1 * k + vid
             truth = np.array([10 * np.cos(angle) + 30 * vid, 10 * np.sin(angle), angle + np.pi / 2])
-            scorer.add_truth(Truth(vid, t_us, k, truth, 1.0, 0.1))
+            scorer.add_truth(vid, t_us, truth)
             cov = np.diag([0.25, 0.16, 1e-4, 1e-4, 1e-4, 1e-3])
             cov[0, 1] = cov[1, 0] = 0.05
             err = rng.multivariate_normal(np.zeros(2), cov[:2, :2])
@@ -42,7 +41,7 @@ def _write_run(path: Path, rng: np.random.Generator, vehicles: int = 2, seconds:
     run.event("fault_removed", seconds * 1_000_000, name="jam1")
     config = SwarmConfig(name="synthetic")
     run.write_json("config.json", config.model_dump(mode="json"))
-    run.write_json("summary.json", build_summary(config, scorer, {}, {}, {}, "complete"))
+    run.write_json("summary.json", build_summary(config, scorer, {}, {}, "complete"))
     run.write_json("timing.json", build_timing({}, seconds, 1.0))
     run.close()
 

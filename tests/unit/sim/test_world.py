@@ -2,11 +2,11 @@
 
 import numpy as np
 
-from bus import messages as m
+from bus import feed
 from bus.config import build_config
-from bus.keys import KeySpace
 from sim.kinematics import unicycle_step
 from sim.world import World
+from tests.offline import samples_of
 
 
 def test_exact_arc_matches_fine_euler_integration():
@@ -19,57 +19,95 @@ def test_exact_arc_matches_fine_euler_integration():
     np.testing.assert_allclose(coarse, fine, atol=1e-4)
 
 
+def _encoded(world: World, until_us: int, step_us: int) -> tuple[list[bytes], list[np.ndarray]]:
+    """Every vehicle's batches (encoded) and the truth, advancing in ticks of ``step_us``."""
+    batches, truth = [], []
+    for end in range(step_us, until_us + 1, step_us):
+        out = world.advance(end)
+        batches += [feed.encode_batch(feed.SensorBatch(v, 0, end, out.blocks(v))) for v in world.vehicle_ids()]
+        truth += out.truth
+    return batches, truth
+
+
+def _all_samples(world: World, until_us: int, vid: int) -> list[tuple[str, object]]:
+    return samples_of(world, until_us, vid)[0]
+
+
 def test_same_seed_same_bytes_other_seed_other_noise():
     cfg = build_config({"world": {"vehicles": 3, "seed": 7}})
-    a, b = World(cfg).advance(2_000_000), World(cfg).advance(2_000_000)
-    c = World(build_config({"world": {"vehicles": 3, "seed": 8}})).advance(2_000_000)
-    assert a == b
-    assert a != c
+    a, b = _encoded(World(cfg), 2_000_000, 100_000), _encoded(World(cfg), 2_000_000, 100_000)
+    c = _encoded(World(build_config({"world": {"vehicles": 3, "seed": 8}})), 2_000_000, 100_000)
+    assert a[0] == b[0]
+    assert a[0] != c[0]
+
+
+def test_the_tick_length_changes_nothing_the_world_measures():
+    cfg = build_config({"world": {"vehicles": 3, "seed": 7}})
+    per_tick = {step: [msg for v in (1, 2, 3) for msg in _samples_by_ticks(World(cfg), 3_000_000, step, v)]
+                for step in (20_000, 100_000, 1_000_000)}
+    reference = per_tick[20_000]
+    for step, samples in per_tick.items():
+        assert len(samples) == len(reference)
+        for (t1, a), (t2, b) in zip(samples, reference):
+            assert t1 == t2 and a.stamp_us == b.stamp_us and a.seq == b.seq
+            for name in a.__dataclass_fields__:
+                assert np.array_equal(np.asarray(getattr(a, name)), np.asarray(getattr(b, name))), (step, name)
+
+
+def _samples_by_ticks(world: World, until_us: int, step_us: int, vid: int) -> list[tuple[str, object]]:
+    out = []
+    for end in range(step_us, until_us + 1, step_us):
+        batch = feed.encode_batch(feed.SensorBatch(vid, 0, end, world.advance(end).blocks(vid)))
+        out += feed.decode_batch(batch).samples()
+    return out
 
 
 def test_sensor_rates_follow_the_config():
     world = World(build_config({"world": {"vehicles": 2}}))
-    topics = [KeySpace().topic_of(key) for key, _ in world.advance(999_999)]  # exactly one second of stamps
-    per_vehicle = {t: topics.count(t) / 2 for t in set(topics)}
-    assert per_vehicle == {"imu": 100, "odom": 50, "gnss": 5, "truth": 50, "prior": 1, "ranging": 5}  # one peer each
+    topics = [topic for topic, _ in _all_samples(world, 999_999, 1)]  # exactly one second of stamps
+    assert {t: topics.count(t) for t in set(topics)} == {"imu": 100, "odom": 50, "gnss": 5, "prior": 1, "ranging": 5}
+
+
+def test_ranging_reaches_only_the_nearest_peers():
+    world = World(build_config({"world": {"vehicles": 9, "seed": 2}, "sensors": {"ranging_max_peers": 3}}))
+    start = world.poses[:, :2].copy()
+    out = world.advance(999_999)
+    for i, vid in enumerate(world.vehicle_ids()):
+        rows = out.rows[vid]["ranging"]
+        assert len(rows) == 5 * 3  # 5 epochs x 3 peers
+        first_epoch = sorted(int(r[2][0]) for r in rows if r[0] == 0)
+        nearest = np.argsort(np.linalg.norm(start - start[i], axis=1), kind="stable")[1:4] + 1
+        assert first_epoch == sorted(nearest.tolist())
 
 
 def test_vehicles_never_come_close_to_each_other():
     world = World(build_config({"world": {"vehicles": 9, "seed": 3}}))
-    keys, tracks = KeySpace(), {}
-    for key, payload in world.advance(60_000_000):
-        if key.endswith("/truth"):
-            truth = m.decode(m.Truth, payload)
-            tracks.setdefault(truth.stamp_us, []).append(truth.pose[:2])
-    closest = min(np.min(np.linalg.norm(np.array(p)[:, None] - np.array(p)[None], axis=2) + np.eye(9) * 1e9)
-                  for p in tracks.values())
-    assert closest > 5.0
+    out = world.advance(60_000_000)
+    tracks = np.array(out.truth)[:, :, :2]  # (k, 9, 2)
+    gaps = np.linalg.norm(tracks[:, :, None] - tracks[:, None, :], axis=3) + np.eye(9) * 1e9
+    assert gaps.min() > 5.0
 
 
-def _feed(messages, keys, vid, topic, cls):
-    return [m.decode(cls, p) for k, p in messages if k == keys.sensor(vid, topic)]
-
-
-def test_blackout_silences_one_feed_and_the_published_counts_say_so():
+def test_blackout_silences_one_feed_and_nothing_else():
     faults = [{"kind": "blackout", "vehicle": 1, "sensor": "odom", "start_s": 1.0, "for_s": 1.0}]
-    world, keys = World(build_config({"world": {"vehicles": 2, "seed": 3}, "faults": faults})), KeySpace()
-    out = world.advance(3_000_000)
-    odom1 = [o.stamp_us for o in _feed(out, keys, 1, "odom", m.WheelOdometry)]
+    config = build_config({"world": {"vehicles": 2, "seed": 3}, "faults": faults})
+    odom1 = [msg.stamp_us for t, msg in _all_samples(World(config), 3_000_000, 1) if t == "odom"]
     assert not [t for t in odom1 if 1_000_000 <= t < 2_000_000] and len(odom1) == 151 - 50
-    assert len(_feed(out, keys, 2, "odom", m.WheelOdometry)) == 151
-    counts = m.ClockTick(0, 3_000_000, 0, False, world.published())
-    assert counts.published_by(1)["odom"] == 101 and counts.published_by(2)["odom"] == 151
-    plain = World(build_config({"world": {"vehicles": 2, "seed": 3}})).advance(3_000_000)
-    assert [p for k, p in out if k == keys.sensor(1, "imu")] == [p for k, p in plain if k == keys.sensor(1, "imu")]
+    assert len([1 for t, _ in _all_samples(World(config), 3_000_000, 2) if t == "odom"]) == 151
+    plain = build_config({"world": {"vehicles": 2, "seed": 3}})
+    imu = [msg.gyro_radps.tolist() for t, msg in _all_samples(World(config), 3_000_000, 1) if t == "imu"]
+    assert imu == [msg.gyro_radps.tolist() for t, msg in _all_samples(World(plain), 3_000_000, 1) if t == "imu"]
 
 
 def test_spoofed_fixes_drift_at_the_set_rate_and_jammed_ones_vanish():
     spoof = {"kind": "spoof-gnss", "center_m": [0, 0], "radius_m": 1e5, "drift_mps": 2.0, "heading_deg": 90, "start_s": 1.0}
     jam = {"kind": "jam-gnss", "center_m": [0, 0], "radius_m": 1e5, "start_s": 4.0}
     cfg = {"world": {"vehicles": 1, "seed": 3}}
-    keys = KeySpace()
-    plain = _feed(World(build_config(cfg)).advance(5_000_000), keys, 1, "gnss", m.GnssFix)
-    faulty = _feed(World(build_config({**cfg, "faults": [spoof, jam]})).advance(5_000_000), keys, 1, "gnss", m.GnssFix)
+
+    def fixes(config):
+        return [msg for t, msg in _all_samples(World(build_config(config)), 5_000_000, 1) if t == "gnss"]
+
+    plain, faulty = fixes(cfg), fixes({**cfg, "faults": [spoof, jam]})
     assert len(faulty) == 20 and faulty[-1].stamp_us == 3_800_000  # 5 Hz until the jammer at 4 s
     offsets = np.array([f.position_m - p.position_m for f, p in zip(faulty, plain)])
     stamps = np.array([f.stamp_us for f in faulty]) * 1e-6

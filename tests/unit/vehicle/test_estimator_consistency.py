@@ -1,4 +1,5 @@
-"""The vehicle EKF is consistent: NEES inside chi-square bounds over seeded Monte Carlo runs."""
+"""The vehicle EKF is consistent: NEES inside chi-square bounds over seeded Monte Carlo runs, and the
+checks are two-sided (an over- and an under-confident filter both fail them)."""
 
 import numpy as np
 from scipy.stats import chi2
@@ -18,21 +19,35 @@ def _monte_carlo(estimator_spec=None) -> np.ndarray:
 
 
 def _fraction_inside_bounds(nees: np.ndarray) -> float:
-    """Share of time steps whose run-averaged NEES lies in the two-sided 95% bounds (Bar-Shalom)."""
+    """Share of time steps whose run-averaged NEES lies in the two-sided 95% bounds (Bar-Shalom):
+    at one time the runs are independent, so the average of RUNS NEES is chi2(DOF * RUNS) / RUNS."""
     lo, hi = chi2.ppf([0.025, 0.975], DOF * RUNS) / RUNS
     mean = nees.mean(axis=0)
     return float(np.mean((mean >= lo) & (mean <= hi)))
+
+
+def _anees_interval(nees: np.ndarray) -> tuple[float, float]:
+    """95% interval of the grand ANEES from the spread of the per-run means (runs are independent;
+    the samples inside one run are not, so their count cannot set the width)."""
+    per_run = nees.mean(axis=1)
+    half = 1.96 * per_run.std(ddof=1) / np.sqrt(len(per_run))
+    return per_run.mean() - half, per_run.mean() + half
 
 
 def test_nees_stays_inside_95_percent_bounds():
     nees = _monte_carlo()
     assert nees.shape == (RUNS, 21)  # t = 0, 1, ..., 20 s
     assert _fraction_inside_bounds(nees) >= 0.9
-    lo, hi = chi2.ppf([0.025, 0.975], DOF * nees.size) / nees.size
-    assert lo <= nees.mean() <= hi * 1.1  # time-correlated samples: allow a little slack on the grand mean
+    lo, hi = _anees_interval(nees)
+    assert lo <= DOF <= hi and hi - lo < 1.0  # consistent, and measured tightly enough to mean it
 
 
-def test_the_check_catches_an_overconfident_filter():
-    """Same harness, filter told its gyro is 20x better than it is: the bounds must be violated."""
+def test_the_check_catches_an_overconfident_and_an_underconfident_filter():
+    """Same harness, filter told its gyro is 20x better, or 20x worse, than it is."""
     optimistic = SensorSpec(gyro_sigma_radps=0.0005, gyro_bias_sigma_radps=0.0005, gyro_bias_walk_radps_rtsec=0.0)
-    assert _fraction_inside_bounds(_monte_carlo(optimistic)) < 0.5
+    pessimistic = SensorSpec(gyro_sigma_radps=0.2, gyro_bias_walk_radps_rtsec=0.01)
+    for spec, side in ((optimistic, "over"), (pessimistic, "under")):
+        nees = _monte_carlo(spec)
+        lo, hi = _anees_interval(nees)
+        assert _fraction_inside_bounds(nees) < 0.5, side
+        assert (lo > DOF) if side == "over" else (hi < DOF), side

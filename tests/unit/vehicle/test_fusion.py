@@ -1,38 +1,41 @@
 """The fusion horizon: late measurements are fused as if they had come on time; too late ones and
-duplicates are counted, never fused."""
+duplicates are counted, never fused; checkpoints are taken only where a late one can land; the
+divergence guard and the reset counter behave through replays."""
 
 import numpy as np
+import pytest
 
 from bus import messages as m
 from bus.config import build_config
-from bus.keys import KeySpace
 from sim.world import World
-from vehicle.estimator import VehicleEstimator
+from tests.offline import samples_of
+from vehicle.estimators.ekf import UnicycleEkf
 from vehicle.fusion import FusionHorizon
 
-TYPES = {"imu": m.ImuSample, "odom": m.WheelOdometry, "gnss": m.GnssFix, "prior": m.PosePrior}
 PERIOD_US = 20_000
 
 
 def _feed(seconds: float, seed: int = 3) -> list[tuple[str, object]]:
-    config = build_config({"world": {"vehicles": 1, "seed": seed}})
-    keys = KeySpace()
-    out = []
-    for key, payload in World(config).advance(round(seconds * 1e6)):
-        topic = keys.topic_of(key)
-        if topic in TYPES:
-            out.append((topic, m.decode(TYPES[topic], payload)))
-    return out
+    samples, _ = samples_of(World(build_config({"world": {"vehicles": 1, "seed": seed}})), round(seconds * 1e6))
+    return [(topic, msg) for topic, msg in samples if topic != "ranging"]
 
 
-def _run(arrivals: list[tuple[int, str, object]], horizon_us: int, end_us: int) -> tuple[VehicleEstimator, FusionHorizon]:
-    """Cycle every 20 ms; at cycle t, push the measurements whose arrival time is <= t first."""
-    config = build_config({})
-    est = VehicleEstimator(vehicle_id=1, spec=config.sensors, gate_probability=0.9995, altitude_m=30.0)
-    fusion = FusionHorizon(est, horizon_us=horizon_us)
+def _ekf() -> UnicycleEkf:
+    return UnicycleEkf(vehicle_id=1, spec=build_config({}).sensors, gate_probability=0.9995, altitude_m=30.0)
+
+
+def _run(arrivals, horizon_us: int, end_us: int, every_cycles: int = 1, announce: bool = False):
+    """Cycle every 20 ms; at cycle t, push the measurements whose arrival time is <= t first. With
+    ``announce``, every late measurement is announced (expect) when its on-time slot comes."""
+    est = _ekf()
+    fusion = FusionHorizon(est, horizon_us=horizon_us, every_cycles=every_cycles)
     arrivals = sorted(arrivals, key=lambda a: a[0])
-    i = 0
+    late = sorted(msg.stamp_us for arrival, _, msg in arrivals if arrival > msg.stamp_us) if announce else []
+    i = j = 0
     for t in range(0, end_us + 1, PERIOD_US):
+        while j < len(late) and late[j] <= t:
+            fusion.expect(late[j])
+            j += 1
         while i < len(arrivals) and arrivals[i][0] <= t:
             fusion.push(arrivals[i][1], arrivals[i][2])
             i += 1
@@ -40,17 +43,37 @@ def _run(arrivals: list[tuple[int, str, object]], horizon_us: int, end_us: int) 
     return est, fusion
 
 
-def test_late_measurements_inside_the_horizon_give_the_on_time_result():
-    feed = _feed(6.0)
-    on_time, _ = _run([(msg.stamp_us, topic, msg) for topic, msg in feed], 500_000, 6_000_000)
-    # every GNSS fix and every 3rd odometry sample arrives 300 ms late
-    late = [(msg.stamp_us + (300_000 if topic == "gnss" or (topic == "odom" and msg.seq % 3 == 0) else 0), topic, msg)
+def _late_feed(feed):
+    """Every GNSS fix and every 3rd odometry sample arrives 300 ms late."""
+    return [(msg.stamp_us + (300_000 if topic == "gnss" or (topic == "odom" and msg.seq % 3 == 0) else 0), topic, msg)
             for topic, msg in feed]
-    delayed, fusion = _run(late, 500_000, 6_400_000)
+
+
+@pytest.mark.parametrize("every_cycles, announce", [(1, False), (0, True)], ids=["every cycle", "announced only"])
+def test_late_measurements_inside_the_horizon_give_the_on_time_result(every_cycles, announce):
+    feed = _feed(6.0)
+    on_time, _ = _run([(msg.stamp_us, topic, msg) for topic, msg in feed], 500_000, 6_400_000)
+    delayed, fusion = _run(_late_feed(feed), 500_000, 6_400_000, every_cycles, announce)
     assert fusion.counters.late_fused > 30 and fusion.counters.replays > 0
     assert fusion.counters.dropped_stale == 0
-    np.testing.assert_allclose(delayed.predicted(6_000_000)[0], on_time.predicted(6_000_000)[0], atol=1e-9)
+    np.testing.assert_allclose(delayed.x, on_time.x, atol=1e-9)
     np.testing.assert_allclose(delayed.P, on_time.P, atol=1e-12)
+
+
+def test_checkpoints_are_taken_only_where_late_measurements_land():
+    feed = _feed(6.0)
+    _, every = _run(_late_feed(feed), 500_000, 6_400_000, every_cycles=1)
+    _, announced = _run(_late_feed(feed), 500_000, 6_400_000, every_cycles=0, announce=True)
+    assert every.counters.checkpoints >= 6_400_000 // PERIOD_US
+    assert announced.counters.checkpoints < every.counters.checkpoints / 2
+    # the V2V pattern: one fix per ranging epoch, fused 100 ms late: one checkpoint per late fix
+    sparse = [(msg.stamp_us + (100_000 if topic == "gnss" else 0), topic, msg) for topic, msg in feed]
+    _, fusion = _run(sparse, 500_000, 6_400_000, every_cycles=0, announce=True)
+    late = sum(1 for topic, _ in feed if topic == "gnss")
+    # the initial checkpoint (bound 0) serves the fix stamped 0
+    assert fusion.counters.late_fused == late and fusion.counters.checkpoints == late
+    _, on_time = _run([(msg.stamp_us, topic, msg) for topic, msg in feed], 500_000, 6_400_000, every_cycles=0)
+    assert on_time.counters.checkpoints == 1  # the initial one: nothing was ever announced
 
 
 def test_measurements_older_than_the_horizon_are_dropped_and_counted():
@@ -69,3 +92,58 @@ def test_duplicates_are_ignored_and_counted():
     doubled, fusion = _run(twice, 500_000, 3_100_000)
     assert fusion.counters.duplicates == sum(1 for topic, _ in feed if topic in ("gnss", "odom"))
     np.testing.assert_array_equal(doubled.x, once.x)
+
+
+class _Poison:
+    """A measurement that breaks the filter's covariance when applied (a numerical accident)."""
+
+    def __init__(self, stamp_us: int, seq: int) -> None:
+        self.stamp_us, self.seq = stamp_us, seq
+
+
+class _Fragile(UnicycleEkf):
+    def handle(self, topic, msg):
+        if isinstance(msg, _Poison):
+            self.P[0, 0] = np.nan
+            return
+        super().handle(topic, msg)
+
+
+def test_divergence_guard_runs_in_replays_and_the_reset_counter_never_goes_down():
+    feed = _feed(3.0)
+    est = _Fragile(vehicle_id=1, spec=build_config({}).sensors, gate_probability=0.9995, altitude_m=30.0)
+    fusion = FusionHorizon(est, horizon_us=500_000, every_cycles=1)
+    seen_resets, i = [], 0
+    for t in range(0, 3_000_001, PERIOD_US):
+        while i < len(feed) and feed[i][1].stamp_us <= t:
+            fusion.push(*feed[i])
+            i += 1
+        if t == 2_000_000:  # a poison stamped 1.9 s arrives late: the replay diverges and must recover
+            fusion.push("poison", _Poison(1_900_000, 0))
+        fusion.cycle(t)
+        seen_resets.append(est.resets)
+        assert np.all(np.isfinite(est.P)) and np.all(np.isfinite(est.x))
+    assert fusion.counters.replays == 1 and est.resets == 1
+    assert seen_resets == sorted(seen_resets)  # monotonic through the replay
+    notices = est.take_notices()
+    assert [n.text for n in notices].count("estimator reset: non-finite or indefinite covariance") == 1
+
+
+def test_a_measurement_the_estimator_cannot_apply_is_counted_and_the_rest_is_fused():
+    class Picky(UnicycleEkf):
+        def handle(self, topic, msg):
+            if topic == "gnss" and msg.seq == 3:
+                raise np.linalg.LinAlgError("singular innovation covariance")
+            super().handle(topic, msg)
+
+    est = Picky(vehicle_id=1, spec=build_config({}).sensors, gate_probability=0.9995, altitude_m=30.0)
+    fusion = FusionHorizon(est, horizon_us=500_000, every_cycles=1)
+    feed, i = _feed(2.0), 0
+    for t in range(0, 2_000_001, PERIOD_US):
+        while i < len(feed) and feed[i][1].stamp_us <= t:
+            fusion.push(*feed[i])
+            i += 1
+        fusion.cycle(t)
+    assert fusion.counters.failed == 1
+    assert est.counters.gnss_accepted + est.counters.gnss_rejected == sum(1 for t, _ in feed if t == "gnss") - 1
+    assert isinstance(feed[0][1], m.PosePrior) and est.initialized

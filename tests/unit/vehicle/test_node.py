@@ -1,30 +1,75 @@
-"""The vehicle node over the in-memory bus: garbage is counted, never fatal; cycles at a fixed rate."""
+"""The vehicle node over the in-memory bus: anything on any key it listens to is counted by reason,
+never fatal; cycles follow the loop rate; a lockstep tick waits for its batch and its neighbours'
+broadcasts; its subscriptions never reach truth; its config carries nothing that determines truth."""
 
+import queue
 
 import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
+from bus import feed
 from bus import messages as m
-from bus.config import SwarmConfig
+from bus.config import SwarmConfig, build_config
+from bus.mailbox import Oversized
+from bus.mavlink_codec import MavlinkDecoder, MavlinkEncoder, StateEstimate, StatusText, split_frames
 from bus.memory import MemoryHub
+from bus.rejections import counts_to_dict
 from bus.session import Envelope
 from vehicle.node import VehicleNode
 
 
-def _node() -> tuple[VehicleNode, MemoryHub]:
+def _node(vid: int = 1) -> tuple[VehicleNode, MemoryHub]:
     hub = MemoryHub()
-    return VehicleNode(hub.connect("vehicle"), SwarmConfig(), 1), hub
+    return VehicleNode(hub.connect("vehicle"), SwarmConfig().for_vehicle(), vid), hub
 
 
-def test_garbage_on_every_feed_is_counted_and_the_node_keeps_working():
+def _batch(vid: int, tick: int, stamp_us: int, blocks: dict) -> bytes:
+    return feed.encode_batch(feed.SensorBatch(vid, tick, stamp_us, blocks))
+
+
+PRIOR = {"prior": (np.array([0]), 0, np.concatenate([np.zeros(3), np.eye(3).ravel()])[None])}
+
+
+def _estimate(vid: int, t_us: int, cov: np.ndarray | None = None) -> StateEstimate:
+    return StateEstimate(vid, t_us, np.array([1.0, 2.0, -30.0]), 0.0, np.zeros(3), 0.0,
+                         np.eye(6) if cov is None else cov, np.eye(6))
+
+
+def test_garbage_on_every_key_is_counted_by_reason_and_the_node_keeps_working():
     node, _ = _node()
-    for topic in ("imu", "odom", "gnss", "prior"):
-        assert node.take(Envelope(node.bus.keys.sensor(1, topic), b"\xc1garbage")) is None
-    assert node.take(Envelope(node.bus.keys.clock(), b"\x00")) is None
-    assert node.decode_errors == 5
-    prior = m.PosePrior(1, 0, 0, np.zeros(3), np.eye(3))
-    node.take(Envelope(node.bus.keys.sensor(1, "prior"), m.encode(prior)))
+    keys = node.bus.keys
+    items = [Envelope(keys.feed(1), b"\xc1garbage"), Envelope(keys.clock(), b"\x00"), Envelope(keys.fault_plan(), b"{"),
+             Envelope("swarm/v/x/v2v", b"anything"), Envelope("swarm/v/\u00b2/v2v", b"x"), Envelope("swarm/v/9/v2v", b"x"),
+             Envelope(keys.v2v(2), b"not mavlink"), Envelope(keys.feed(1), _batch(2, 0, 0, PRIOR)),
+             Envelope(keys.v2v(2), MavlinkEncoder(vehicle_id=3).odometry(_estimate(3, 0))),
+             Envelope(keys.v2v(3), MavlinkEncoder(vehicle_id=3).heartbeat()), Oversized(keys.v2v(2), 10**6), None]
+    for item in items:
+        assert node.take(item) is None
+    assert counts_to_dict(node.rejections.as_counts()) == {
+        "malformed": 4, "bad_key": 2, "unknown_vehicle": 1, "impersonation": 2, "unexpected": 1, "oversized": 1}
+    node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
     node.cycle(0)
     assert node.estimator.initialized
+
+
+@given(st.binary(max_size=300), st.sampled_from(["feed", "v2v", "mavlink", "status"]), st.text(max_size=6))
+def test_any_bytes_on_any_key_are_counted_never_raised(payload, topic, ident):
+    node, _ = _node()
+    before = node.rejections.total
+    for key in (f"swarm/v/{ident}/{topic}", "swarm/v/1/feed", "swarm/ctl/clock", "swarm/v/2/v2v"):
+        result = node.take(Envelope(key, payload))
+        assert result is None or isinstance(result, m.ClockTick)
+    assert node.rejections.total >= before
+
+
+def test_neighbour_estimates_with_degenerate_covariances_are_refused():
+    node, _ = _node()
+    for cov in (np.zeros((6, 6)), np.diag([1.0, -1.0, 1, 1, 1, 1]), np.diag([1e12, 1.0, 1, 1, 1, 1])):
+        frame = MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, 200_000, cov))
+        node.v2v.hear(2, 200_000, frame)
+    assert counts_to_dict(node.rejections.as_counts()) == {"degenerate": 3}
 
 
 def test_cycles_follow_the_loop_rate_in_sim_time():
@@ -34,44 +79,55 @@ def test_cycles_follow_the_loop_rate_in_sim_time():
     assert node.cycles_due(100_000) == []
 
 
-def test_feeds_complete_needs_every_sample_up_to_the_tick():
+def test_a_tick_waits_for_its_batch_and_for_every_broadcast_the_neighbours_sent():
     node, _ = _node()
     keys = node.bus.keys
-    node.take(Envelope(keys.sensor(1, "prior"), m.encode(m.PosePrior(1, 0, 0, np.zeros(3), np.eye(3)))))
-    for seq, t in enumerate((0, 10_000, 20_000)):
-        node.take(Envelope(keys.sensor(1, "imu"), m.encode(m.ImuSample(1, t, seq, np.zeros(3), np.zeros(3)))))
-    node.take(Envelope(keys.sensor(1, "gnss"), m.encode(m.GnssFix(1, 0, 0, np.zeros(2), np.eye(2)))))
-    node.take(Envelope(keys.sensor(1, "odom"), m.encode(m.WheelOdometry(1, 0, 0, 1.0, 0.0))))
-    tick = m.ClockTick(1, 20_000, 0, False, (1, 3, 2, 1, 0, 1, 3, 2, 1, 0))  # vehicles 1, 2: prior, imu, odom, gnss, ranging
-    assert not node.feeds_complete(tick)  # odometry of 20 ms still on its way
-    node.take(Envelope(keys.sensor(1, "odom"), m.encode(m.WheelOdometry(1, 20_000, 1, 1.0, 0.0))))
-    assert node.feeds_complete(tick)
-    jammed = m.ClockTick(2, 40_000, 0, False, (1, 3, 2, 1, 0))  # a silenced feed publishes nothing more
-    assert node.feeds_complete(jammed)
+    node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+    first = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, 0, False))))
+    assert node.ready(first)
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 100_000, 0, False, (), (0, 2, 1)))))
+    assert not node.ready(tick)  # batch 1 still on its way
+    node.take(Envelope(keys.feed(1), _batch(1, 1, 100_000, {})))
+    assert not node.ready(tick)  # vehicle 2 sent two broadcasts, vehicle 3 one
+    for vid, t in ((2, 0), (2, 200_000), (3, 0)):
+        node.take(Envelope(keys.v2v(vid), MavlinkEncoder(vehicle_id=vid).odometry(_estimate(vid, t))))
+    assert node.ready(tick)
 
 
 def test_vehicle_subscriptions_never_reach_truth():
     hub = MemoryHub()
-    VehicleNode(hub.connect("vehicle"), SwarmConfig(), 2)
-    subscribed = [expr for expr, _ in hub._subscriptions]
+    VehicleNode(hub.connect("vehicle"), SwarmConfig().for_vehicle(), 2)
+    subscribed = [expr for expr, _, _ in hub._subscriptions]
     assert subscribed and not any(hub.connect("vehicle").keys.is_truth(e) for e in subscribed)
 
 
+def test_a_vehicle_config_carries_nothing_that_determines_truth():
+    """Swarms that differ in everything that makes truth (world seed, trajectories, layout, speed)
+    give their vehicles byte-identical configs: a vehicle cannot rebuild the world from its own."""
+    a = build_config({"world": {"seed": 1, "trajectories": ["circle"], "radius_m": 20.0, "spacing_m": 60.0}})
+    b = build_config({"world": {"seed": 987654, "trajectories": ["waypoints", "figure8"], "radius_m": 35.0,
+                                "spacing_m": 90.0, "speed_mps": 6.0}})
+    assert a.for_vehicle().model_dump_json() == b.for_vehicle().model_dump_json()
+    dumped = a.for_vehicle().model_dump()
+    assert "world" not in dumped and "seed" not in str(dumped).replace("fault_seed", "")
+    from sim.world import World
+
+    with pytest.raises(AttributeError):
+        World(a.for_vehicle())  # the world needs what a vehicle is never given
+
+
 def test_divergence_guard_resets_instead_of_publishing_nan():
-    import queue
-
-    from bus.mavlink_codec import MavlinkDecoder, StateEstimate, StatusText
-
     node, hub = _node()
     out: queue.SimpleQueue = queue.SimpleQueue()
     hub.connect("groundstation").subscribe(node.bus.keys.mavlink(1), out)
-    node.take(Envelope(node.bus.keys.sensor(1, "prior"), m.encode(m.PosePrior(1, 0, 0, np.zeros(3), np.eye(3)))))
+    node.take(Envelope(node.bus.keys.feed(1), _batch(1, 0, 0, PRIOR)))
     node.cycle(0)
     node.estimator.P[0, 0] = np.nan  # a numerical accident inside the filter
     node.cycle(20_000)
+    node.outbound.flush()
     decoder, decoded = MavlinkDecoder(), []
     while not out.empty():
-        decoded.append(decoder.decode(out.get().payload))
+        decoded += [decoder.decode(f) for f in split_frames(out.get().payload)[0]]
     estimates = [d for d in decoded if isinstance(d, StateEstimate)]
     assert [e.reset_counter for e in estimates] == [0, 1]
     assert np.all(np.isfinite(estimates[-1].pose_covariance)) and np.all(np.isfinite(estimates[-1].position_m))

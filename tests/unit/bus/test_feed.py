@@ -1,0 +1,140 @@
+"""Batched feeds and truth on the wire: round trips, a clear DecodeError for every malformed case,
+and nothing but DecodeError for any bytes (hypothesis)."""
+
+import math
+
+import msgpack
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from bus import feed
+from bus.config import build_config
+from bus.errors import DecodeError
+from sim.world import World
+
+
+def _batch(seconds: float = 0.1, vid: int = 2) -> feed.SensorBatch:
+    world = World(build_config({"world": {"vehicles": 3, "seed": 4}}))
+    end = round(seconds * 1e6)
+    return feed.SensorBatch(vid, 1, end, world.advance(end).blocks(vid))
+
+
+def test_round_trip_keeps_every_sample():
+    batch = _batch()
+    decoded = feed.decode_batch(feed.encode_batch(batch))
+    assert (decoded.vehicle_id, decoded.tick, decoded.stamp_us) == (2, 1, 100_000)
+    samples, again = batch.samples(), decoded.samples()
+    assert [t for t, _ in again] == [t for t, _ in samples] and len(samples) == 1 + 11 + 6 + 1 + 2
+    for (_, a), (_, b) in zip(samples, again):
+        for name in a.__dataclass_fields__:
+            assert np.array_equal(np.asarray(getattr(a, name)), np.asarray(getattr(b, name)))
+    stamps = [m.stamp_us for _, m in again]
+    assert stamps == sorted(stamps)
+
+
+def _body() -> dict:
+    return msgpack.unpackb(feed.encode_batch(_batch()), raw=False)
+
+
+def _rows(body: dict, topic: str, width: int) -> np.ndarray:
+    return np.frombuffer(body[topic]["data"], "<f8").reshape(-1, width).copy()
+
+
+def _set(body: dict, topic: str, rows: np.ndarray) -> None:
+    body[topic]["data"] = rows.astype("<f8").tobytes()
+
+
+def _mutate_gnss(fn):
+    def mutate(body):
+        rows = _rows(body, "gnss", 6)
+        fn(rows)
+        _set(body, "gnss", rows)
+    return mutate
+
+
+@pytest.mark.parametrize("mutate, reason", [
+    (lambda b: b.update(vehicle_id=0), "vehicle_id"),
+    (lambda b: b.update(vehicle_id="2"), "vehicle_id"),
+    (lambda b: b.update(stamp_us=-5), "stamp_us"),
+    (lambda b: b.update(extra=1), "fields"),
+    (lambda b: b.pop("tick"), "fields"),
+    (lambda b: b.update(type="Other"), "type tag"),
+    (lambda b: b["imu"].update(data=b["imu"]["data"][:-8]), "values"),
+    (lambda b: b["imu"].update(stamp=b"\x00" * 7), "8-byte"),
+    (lambda b: b["imu"].update(seq0=-1), "seq0"),
+    (lambda b: b["imu"].pop("seq0"), "block"),
+    (lambda b: b.update(imu=[1, 2, 3]), "block"),
+    (lambda b: b["imu"].update(stamp=np.arange(11, dtype="<i8")[::-1].tobytes()), "ordered"),
+    (lambda b: b["imu"].update(stamp=(np.arange(11, dtype="<i8") * 10_000 + 10**7).tobytes()), "inside the tick"),
+    (lambda b: b["imu"].update(stamp=np.zeros(11, dtype="<i8").tobytes()), "one stamp"),
+    (_mutate_gnss(lambda r: r.__setitem__((0, 0), math.nan)), "finite"),
+    (_mutate_gnss(lambda r: r.__setitem__((0, 0), 1e9)), "within"),
+    (_mutate_gnss(lambda r: r.__setitem__((0, slice(2, 6)), [0.0, 0.0, 0.0, 0.0])), "positive definite"),
+    (_mutate_gnss(lambda r: r.__setitem__((0, slice(2, 6)), [1.0, 2.0, 2.0, 1.0])), "positive definite"),
+    (_mutate_gnss(lambda r: r.__setitem__((0, slice(2, 6)), [1.0, 0.5, 0.1, 1.0])), "symmetric"),
+    (lambda b: _set(b, "ranging", np.where(np.arange(7) == 0, 2.0, _rows(b, "ranging", 7))), "other vehicles"),
+    (lambda b: _set(b, "ranging", np.where(np.arange(7) == 0, 2.5, _rows(b, "ranging", 7))), "other vehicles"),
+    (lambda b: _set(b, "ranging", np.where(np.arange(7) == 1, -1.0, _rows(b, "ranging", 7))), "range"),
+    (lambda b: _set(b, "prior", np.where(np.arange(12) == 3, -1.0, _rows(b, "prior", 12))), "positive definite"),
+])
+def test_malformed_batches_are_rejected_with_a_clear_error(mutate, reason):
+    body = _body()
+    mutate(body)
+    with pytest.raises(DecodeError, match=reason):
+        feed.decode_batch(msgpack.packb(body, use_bin_type=True))
+
+
+@given(st.binary(max_size=600))
+def test_garbage_bytes_raise_decode_error_only(payload):
+    for decode in (feed.decode_batch, feed.decode_truth):
+        try:
+            decode(payload)
+        except DecodeError:
+            pass
+
+
+PAYLOAD = feed.encode_batch(_batch())
+
+
+@given(st.data())
+def test_mutated_batches_decode_or_raise_decode_error(data):
+    payload = bytearray(PAYLOAD)
+    for _ in range(data.draw(st.integers(1, 6))):
+        payload[data.draw(st.integers(0, len(payload) - 1))] = data.draw(st.integers(0, 255))
+    try:
+        batch = feed.decode_batch(bytes(payload))
+    except DecodeError:
+        return
+    for _, msg in batch.samples():  # whatever passes is usable
+        assert 0 <= msg.stamp_us <= batch.stamp_us
+
+
+json_like = st.recursive(
+    st.none() | st.booleans() | st.integers(-(2**63), 2**64 - 1) | st.floats() | st.text(max_size=8) | st.binary(max_size=40),
+    lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4),
+    max_leaves=12,
+)
+
+
+@given(st.sampled_from(["vehicle_id", "tick", "stamp_us", "imu", "odom", "gnss", "ranging", "prior", "x"]), json_like)
+def test_well_formed_msgpack_with_wrong_values_raises_decode_error(field, value):
+    body = _body()
+    body[field] = value
+    try:
+        feed.decode_batch(msgpack.packb(body, use_bin_type=True))
+    except DecodeError:
+        pass
+
+
+def test_truth_round_trip_and_rejections():
+    world = World(build_config({"world": {"vehicles": 3, "seed": 4}}))
+    out = world.advance(100_000)
+    batch = feed.TruthBatch(1, 100_000, np.array(out.truth_stamps), np.array([1, 2, 3]), np.array(out.truth))
+    again = feed.decode_truth(feed.encode_truth(batch))
+    np.testing.assert_array_equal(again.rows, batch.rows)
+    body = msgpack.unpackb(feed.encode_truth(batch), raw=False)
+    body["ids"] = np.array([1, 1, 3], "<i8").tobytes()
+    with pytest.raises(DecodeError, match="distinct"):
+        feed.decode_truth(msgpack.packb(body, use_bin_type=True))

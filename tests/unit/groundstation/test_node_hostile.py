@@ -1,0 +1,86 @@
+"""The ground station survives anything on any key it listens to: bad keys, garbage, oversized
+payloads, degenerate signed frames, far-off stamps, unknown sysids, impersonation. Each is counted
+by reason and never scored; genuine estimates still are."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bus import feed
+from bus import messages as m
+from bus.config import build_config
+from bus.mailbox import Oversized
+from bus.mavlink_codec import MavlinkEncoder, StateEstimate
+from bus.memory import MemoryHub
+from bus.rejections import counts_to_dict
+from bus.secrets import vehicle_signing_key
+from bus.session import Envelope, LivelinessEvent, Request
+from groundstation.node import GroundStation
+
+MASTER = bytes(range(32))
+
+
+def _gs(tmp_path) -> GroundStation:
+    config = build_config({"world": {"vehicles": 3}, "clock": {"duration_s": 10}})
+    return GroundStation(MemoryHub().connect("groundstation"), config, tmp_path / "run", master_key=MASTER)
+
+
+def _estimate(vid: int, t_us: int, cov=None, x: float = 1.0) -> StateEstimate:
+    return StateEstimate(vid, t_us, np.array([x, 2.0, -30.0]), 0.0, np.zeros(3), 0.0,
+                         np.eye(6) * 0.5 if cov is None else cov, np.eye(6))
+
+
+def _frame(vid: int, t_us: int, key_of: int | None = None, **kw) -> bytes:
+    key = vehicle_signing_key(MASTER, key_of or vid)
+    return MavlinkEncoder(vehicle_id=vid, signing_key=key).odometry(_estimate(vid, t_us, **kw))
+
+
+def _truth(gs: GroundStation, stamps: list[int]) -> None:
+    rows = np.zeros((len(stamps), 3, 5))
+    batch = feed.TruthBatch(0, stamps[-1], np.array(stamps), np.array([1, 2, 3]), rows)
+    gs.handle(Envelope(gs.bus.keys.truth(), feed.encode_truth(batch)))
+
+
+def test_hostile_input_is_counted_by_reason_and_only_genuine_estimates_are_scored(tmp_path):
+    gs = _gs(tmp_path)
+    keys = gs.bus.keys
+    _truth(gs, [0, 20_000, 40_000])
+    answers = []
+    hostile = [
+        Envelope("swarm/v/x/mavlink", b"bytes"), Envelope("swarm/v/\u00b2/mavlink", b"bytes"),
+        Envelope("swarm/v/9/mavlink", _frame(9, 0)),                              # not in the swarm
+        Envelope(keys.mavlink(2), b"garbage"),                                     # not MAVLink
+        Envelope(keys.mavlink(2), _frame(2, 20_000, cov=np.zeros((6, 6)))),       # zero covariance, signed
+        Envelope(keys.mavlink(2), _frame(3, 20_000)),                              # vehicle 3's frame on 2's key
+        Envelope(keys.mavlink(2), _frame(2, 20_000, key_of=1)),                    # signed with vehicle 1's key
+        Envelope(keys.mavlink(2), _frame(2, 3_000_000_000)),                       # far future (sim time 0)
+        Envelope(keys.mavlink(2), MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, 20_000))),  # unsigned
+        Envelope(keys.status(2), m.encode(m.VehicleStatus(3, 0, 1, 0, 0.0, 0.0, 0, 0, 0, 0))),     # status as 3
+        Envelope(keys.status(1), b"\x00"), Envelope(keys.truth(), b"\x93"), Envelope(keys.clock(), b"x"),
+        Envelope(keys.end(), b"\x01\x02"), Oversized(keys.mavlink(1), 10**7),
+        LivelinessEvent("swarm/alive/vehicle/\u00b2", True), LivelinessEvent("swarm/alive/vehicle/77", True),
+        Request(keys.claim(), b"{not json", answers.append), Request(keys.fault_request(), b"\xff" * 40, answers.append),
+    ]
+    for item in hostile:
+        gs.handle(item)
+    for t in (0, 20_000, 40_000):
+        gs.handle(Envelope(keys.mavlink(2), _frame(2, t)))  # the genuine stream, after all of that
+    gs.scorer.release(float("inf"))
+    assert counts_to_dict(gs.rejections.as_counts()) == {
+        "bad_key": 3, "unknown_vehicle": 2, "malformed": 7, "degenerate": 1, "impersonation": 2,
+        "bad_signature": 1, "stamp_out_of_range": 1, "unsigned": 1, "oversized": 1}
+    assert gs.scorer.tallies[2].samples == 3 and set(gs.scorer.tallies) == {2}
+    assert len(answers) == 2 and all(b'"ok":false' in a for a in answers)
+    assert gs.ended is None  # garbage on the end key did not end the run
+
+
+@settings(max_examples=150)
+@given(st.binary(max_size=400), st.sampled_from(["mavlink", "status", "feed", "v2v"]), st.text(max_size=5))
+def test_any_bytes_on_any_key_are_never_fatal(tmp_path_factory, payload, topic, ident):
+    gs = _gs(tmp_path_factory.mktemp("gs"))
+    for key in (f"swarm/v/{ident}/{topic}", "swarm/v/1/mavlink", "swarm/truth", "swarm/ctl/clock", "swarm/ctl/end"):
+        gs.handle(Envelope(key, payload))
+    gs.handle(Request("swarm/ctl/claim", payload, lambda reply: None))
+    gs.handle(Request("swarm/ctl/faults/request", payload, lambda reply: None))
+    gs.handle(LivelinessEvent(f"swarm/alive/vehicle/{ident}", True))
+    gs.run.close()

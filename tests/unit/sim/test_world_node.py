@@ -1,0 +1,51 @@
+"""The world node survives anything on the keys it listens to (acks, liveliness, the fault plan):
+counted by reason, never fatal; an ack counts only for the vehicle whose key it came on."""
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bus import messages as m
+from bus.config import build_config
+from bus.memory import MemoryHub
+from bus.rejections import counts_to_dict
+from bus.session import Envelope, LivelinessEvent
+from sim.node import WorldNode
+
+
+def _world() -> WorldNode:
+    return WorldNode(MemoryHub().connect("world"), build_config({"world": {"vehicles": 3}}))
+
+
+def test_hostile_acks_tokens_and_plans_are_counted_and_never_count_for_anyone():
+    node = _world()
+    keys = node.bus.keys
+    for vid in (1, 2, 3):
+        node._handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
+    for item in (LivelinessEvent("swarm/alive/vehicle/\u00b2", True), LivelinessEvent("swarm/alive/vehicle/0", True),
+                 Envelope("swarm/ctl/ack/x", b"1"), Envelope(keys.ack(2), b"garbage"),
+                 Envelope(keys.ack(2), m.encode(m.TickAck(1, 0))),      # vehicle 2 acking for vehicle 1
+                 Envelope(keys.ack(9), m.encode(m.TickAck(9, 0))),      # not in the swarm
+                 Envelope(keys.fault_plan(), b"{}"), Envelope(keys.ack("gs"), b"junk")):
+        node._handle(item, 0)
+    assert counts_to_dict(node.rejections.as_counts()) == {
+        "bad_key": 3, "malformed": 3, "impersonation": 1, "unknown_vehicle": 1}
+    assert node.members.alive == {1, 2, 3} and node.members.acked == set()
+    node._handle(Envelope(keys.ack(1), m.encode(m.TickAck(1, 0, 4))), 0)
+    assert node.members.acked == {1} and node.members.v2v_published(3) == (4, 0, 0)
+
+
+@settings(max_examples=200)
+@given(st.binary(max_size=300), st.text(max_size=8))
+def test_any_bytes_on_any_ack_key_are_never_fatal(payload, ident):
+    node = _world()
+    node._handle(Envelope(f"swarm/ctl/ack/{ident}", payload), 0)
+    node._handle(Envelope("swarm/ctl/ack/1", payload), 0)
+    node._handle(Envelope("swarm/ctl/faults/plan", payload), 0)
+    node._handle(LivelinessEvent(f"swarm/alive/{ident}/{ident}", True), 0)
+
+
+def test_a_restarted_vehicle_keeps_its_broadcast_count_growing():
+    node = _world()
+    node.members.on_v2v_count(2, 30)
+    node.members.on_v2v_count(2, 5)  # restarted: counts from zero again
+    assert node.members.v2v_published(3) == (0, 35, 0)
