@@ -105,3 +105,30 @@ def test_zenoh_bus_refuses_truth_to_vehicles():
         with pytest.raises(AccessDenied):
             bus.subscribe("swarm/**", queue.SimpleQueue())
         bus.subscribe(bus.keys.feed(1), queue.SimpleQueue())  # allowed
+
+
+def test_the_compose_vehicle_config_is_the_vehicle_part_of_the_compose_config():
+    """deploy/compose-vehicle.json is what vehicle containers get: it must stay in step with the
+    swarm's config and carry nothing that determines truth."""
+    import json
+    from pathlib import Path
+
+    from bus.config import load_config, load_vehicle_config
+
+    deploy = Path(__file__).resolve().parents[3] / "deploy"
+    swarm = load_config(deploy / "compose-config.json", env={})
+    assert load_vehicle_config(deploy / "compose-vehicle.json", env={}) == swarm.for_vehicle()
+    assert "seed" not in json.loads((deploy / "compose-vehicle.json").read_text()) and "world" not in \
+        json.loads((deploy / "compose-vehicle.json").read_text())
+
+
+def test_vehicle_configs_take_the_swarm_size_from_the_environment(tmp_path):
+    from bus.config import load_vehicle_config
+
+    SwarmConfig().for_vehicle().dump(tmp_path / "v.json")
+    assert load_vehicle_config(tmp_path / "v.json", env={"SWARMLOC_VEHICLES": "8"}).vehicles == 8
+    with pytest.raises(ConfigError, match="SWARMLOC_VEHICLES"):
+        load_vehicle_config(tmp_path / "v.json", env={"SWARMLOC_VEHICLES": "eight"})
+    (tmp_path / "bad.json").write_text("[1, 2]")
+    with pytest.raises(ConfigError, match="object"):
+        load_vehicle_config(tmp_path / "bad.json", env={})
