@@ -114,6 +114,7 @@ class VehicleConfig(_Strict):
     mavlink_rate_hz: float = Field(50.0, gt=0, le=1000, description="ODOMETRY to the ground station (<= loop rate)")
     realtime_allowance_s: float = Field(0.005, ge=0, le=1, description="realtime: a cycle waits this long past its "
                                         "deadline for the tick's sensor batch")
+    world_timeout_s: float = Field(60.0, gt=0, description="a vehicle whose world is gone this long gives up")
 
 
 class SwarmConfig(_Strict):

@@ -155,6 +155,7 @@ class VehicleStatus:
     v2v_missing: Annotated[int, Int(0, 2**53)] = 0
     rejected: Rejected = ()
     replays: Annotated[int, Int(0, 2**53)] = 0
+    final: Annotated[bool, Bool()] = False  # the last status, sent with the final tick's acknowledgement
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,8 @@ from typing import Any, Callable
 from bus.faults import check_fault, named
 from bus.plan import FaultPlan, FaultReply, FaultRequest, FaultState
 
+MAX_FAULTS = 256  # a plan larger than this is refused: every process holds and checks it per packet
+
 
 def fault_fields(fault: Any) -> dict[str, Any]:
     """The event fields of one fault: its name, kind ("fault") and parameters (with "zone" if it has one)."""
@@ -87,6 +89,8 @@ class FaultControl:
     def _add(self, req: FaultRequest) -> None:
         if req.fault is None:
             raise ValueError("add needs a fault")
+        if len(self.faults) >= MAX_FAULTS:
+            raise ValueError(f"the plan holds {MAX_FAULTS} faults already; remove some first")
         fault = req.fault
         if req.relative:
             fault = fault.model_copy(update={"start_s": round(self.now_us * 1e-6 + fault.start_s, 6)})

@@ -271,6 +271,7 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
         node.await_acks(prepared.tick, stop, min(ack_timeout, 5.0))
     else:
         log.error("world ends the run early: %s", node.status)
+        node.send(prepared, final=True)  # vehicles finish instead of waiting for ticks that never come
     completed = tuple(sorted(node.members.acked)) if node.status == "complete" else ()
     end = m.RunEnd(prepared.tick, min(prepared.tick, node.final_tick) * node.tick_us, len(node.members.alive),
                    node.status, node.rejections.as_counts(), completed)

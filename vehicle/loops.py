@@ -23,6 +23,7 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
     ticks: deque[m.ClockTick] = deque()
     while not stop.is_set():
         if not ticks:
+            node.world_watch.check()
             tick = node.take(node.mailbox.get(0.2))
             if tick is not None:
                 ticks.append(tick)
@@ -56,6 +57,7 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
     pacer: Pacer | None = None
     allowance_s = node.config.vehicle.realtime_allowance_s
     while not stop.is_set():
+        node.world_watch.check()
         if pacer is None:
             timeout = 0.2
         else:
@@ -66,7 +68,7 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
         if tick is not None:
             pacer = pacer or Pacer(sim0_us=tick.stamp_us, wall0_ns=tick.wall_ns, speed=node.config.clock.speed)
             if tick.final:
-                node.publish_status(tick.stamp_us)
+                node.publish_status(tick.stamp_us, final=True)
                 node.outbound.flush()
                 node.outbound.ack(tick.tick)
                 return

@@ -11,12 +11,14 @@ the clock allows; ``vehicle.outbound`` publishes the MAVLink stream, the V2V bro
 from __future__ import annotations
 
 import logging
+import time
 
 from bus import messages as m
+from bus.errors import SwarmlocError
 from bus.config import VehicleProcessConfig
 from bus.mailbox import Mailbox
 from bus.rejections import Rejections
-from bus.session import Bus, await_subscribers
+from bus.session import Bus, LivelinessEvent, await_subscribers
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
 from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_FRAME_BYTES, MAX_PLAN_BYTES, Delivery, Inbound
@@ -26,6 +28,27 @@ from vehicle.sequence import SequenceTracker
 from vehicle.v2v import V2V
 
 log = logging.getLogger("swarmloc.vehicle")
+
+
+class WorldGone(SwarmlocError):
+    """The world left (or never came back) for longer than the vehicle's ``world_timeout_s``."""
+
+
+class WorldWatch:
+    """Is the world there? Its liveliness token says; gone for ``timeout_s`` means the run is over."""
+
+    def __init__(self, *, timeout_s: float) -> None:
+        self.timeout_s, self.seen, self.gone_since = timeout_s, False, None
+
+    def on_token(self, parsed, alive: bool) -> None:
+        if parsed is None or parsed.role != "world":
+            return
+        self.seen = self.seen or alive
+        self.gone_since = None if alive else time.monotonic()
+
+    def check(self) -> None:
+        if self.seen and self.gone_since is not None and time.monotonic() - self.gone_since > self.timeout_s:
+            raise WorldGone(f"the world has been gone for {self.timeout_s:g} s; the vehicle stops")
 
 
 class VehicleNode:
@@ -42,6 +65,7 @@ class VehicleNode:
         bus.subscribe(keys.feed(vehicle_id), world, MAX_BATCH_BYTES)
         if vc.cooperative:
             bus.subscribe(keys.v2v("*"), neighbours, MAX_FRAME_BYTES)
+        bus.watch_liveliness(keys.alive("world", "*"), world)
         self.inbound = Inbound(keys=keys, vehicle_id=vehicle_id, vehicles=config.vehicles, fault_seed=config.fault_seed,
                                faults=config.faults, rejections=self.rejections)
         self.outbound = Outbound(bus, config, vehicle_id, signing_key=signing_key)
@@ -56,6 +80,7 @@ class VehicleNode:
         self.period_us = round(1e6 / vc.loop_rate_hz)
         self.next_cycle_us = 0
         self.first_tick: m.ClockTick | None = None
+        self.world_watch = WorldWatch(timeout_s=vc.world_timeout_s)
         self._heard_floor: dict[int, int] = {}
 
     def join(self, stop=None, *, v2v_wait_s: float = 30.0) -> None:
@@ -78,6 +103,9 @@ class VehicleNode:
         """File one mailbox item (None: nothing came); a clock tick is returned to the loop."""
         tick = None
         if item is None:
+            return None
+        if isinstance(item, LivelinessEvent):
+            self.world_watch.on_token(self.bus.keys.parse(item.key), item.alive)
             return None
         for delivery in self.inbound.take(item):
             if delivery.kind == "tick":
@@ -136,19 +164,19 @@ class VehicleNode:
     def reset_counter(self) -> int:
         return self.restarts + self.estimator.resets
 
-    def publish_status(self, t_us: int) -> None:
+    def publish_status(self, t_us: int, *, final: bool = False) -> None:
         c, f = self.estimator.counters, self.fusion.counters
         self.rejections.counts["inbox_full"] = self.mailbox.dropped()
         self.outbound.status(m.VehicleStatus(
             self.vehicle_id, t_us, self.stats.cycles, self.stats.overruns, self.stats.jitter_p99_us(),
             self.stats.cycle_p99_us(), c.stale + f.dropped_stale, c.gnss_rejected, self.rejections.total,
             self.reset_counter % 256, f.duplicates, self.sequences.lost, f.late_fused, c.v2v_fused, self.v2v.missing,
-            self.rejections.as_counts(), f.replays))
+            self.rejections.as_counts(), f.replays, final))
 
     def finish_tick(self, tick: m.ClockTick) -> None:
         """Lockstep: publish the tick's MAVLink frames, then acknowledge it."""
         if tick.final:
-            self.publish_status(tick.stamp_us)
+            self.publish_status(tick.stamp_us, final=True)
         self.outbound.flush()
         self.outbound.ack(tick.tick)
 

@@ -96,6 +96,67 @@ def predict(x: np.ndarray, P: np.ndarray, speed_mps: float, yaw_rate_radps: floa
     return x_new, 0.5 * (P_new + P_new.T)
 
 
+def predict_fast(x: np.ndarray, P: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float, *,
+                 speed_var: float, yaw_rate_var: float, bias_walk_var: float, use_bias: bool = True,
+                 steps: list[tuple[float, float, float]] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`predict` written out on plain floats for the 4-state filter (numpy's per-call cost
+    dominates 4 x 4 products): the same F P F^T + G diag(var) G^T, term by term.
+
+    F = I + E with E nonzero only in column 2 (a, b, 0, 0) and column 3 (d0, d1, d2, 0), so
+    (F P)[i] = P[i] + E[i, 2] P[2] + E[i, 3] P[3] and (F P F^T)[i, j] adds the same on the right.
+    """
+    bias = float(x[3]) if use_bias else 0.0
+    w = yaw_rate_radps - bias
+    mid = float(x[2]) + 0.5 * w * dt_s
+    c, s = math.cos(mid), math.sin(mid)
+    h = 0.5 * speed_mps * dt_s * dt_s
+    a, b = -speed_mps * dt_s * s, speed_mps * dt_s * c
+    d0, d1, d2 = (h * s, -h * c, -dt_s) if use_bias else (0.0, 0.0, 0.0)  # d f / d bias = -d f / d w
+    (p00, p01, p02, p03), (_, p11, p12, p13), (_, _, p22, p23), (_, _, _, p33) = P.tolist()
+    # F P, rows 0-2 (row 3 is P's): only the entries the upper triangle of F P F^T needs
+    r0 = (p00 + a * p02 + d0 * p03, p01 + a * p12 + d0 * p13, p02 + a * p22 + d0 * p23, p03 + a * p23 + d0 * p33)
+    r1 = (p12 + b * p22 + d1 * p23, p13 + b * p23 + d1 * p33, p11 + b * p12 + d1 * p13)  # cols 2, 3, 1
+    r2 = (p22 + d2 * p23, p23 + d2 * p33)                                                   # cols 2, 3
+    g10, g11 = dt_s * c, dt_s * s                  # d f / d v = (g10, g11, 0, 0)
+    g20, g21 = -h * s, h * c                       # d f / d w = (g20, g21, dt, 0)
+    sv, sw = speed_var, yaw_rate_var
+    m00 = r0[0] + a * r0[2] + d0 * r0[3] + sv * g10 * g10 + sw * g20 * g20
+    m01 = r0[1] + b * r0[2] + d1 * r0[3] + sv * g10 * g11 + sw * g20 * g21
+    m02 = r0[2] + d2 * r0[3] + sw * g20 * dt_s
+    m03 = r0[3]
+    m11 = r1[2] + b * r1[0] + d1 * r1[1] + sv * g11 * g11 + sw * g21 * g21
+    m12 = r1[0] + d2 * r1[1] + sw * g21 * dt_s
+    m13 = r1[1]
+    m22 = r2[0] + d2 * r2[1] + sw * dt_s * dt_s
+    m23 = r2[1]
+    m33 = p33 + bias_walk_var * dt_s
+    P_new = np.array([[m00, m01, m02, m03], [m01, m11, m12, m13], [m02, m12, m22, m23], [m03, m13, m23, m33]])
+    x_new = propagate_pieces(x, steps, bias) if steps else propagate_mean(x, speed_mps, w, dt_s)
+    return x_new, P_new
+
+
+def is_spd4(P: np.ndarray) -> bool:
+    """True when the symmetric 4 x 4 matrix P is finite and positive definite (Cholesky, unrolled)."""
+    rows = P.tolist()
+    if not math.isfinite(sum(map(sum, rows))):
+        return False
+    (a00, a01, a02, a03), (_, a11, a12, a13), (_, _, a22, a23), (_, _, _, a33) = rows
+    if not a00 > 0.0:
+        return False
+    l00 = math.sqrt(a00)
+    l10, l20, l30 = a01 / l00, a02 / l00, a03 / l00
+    d = a11 - l10 * l10
+    if not d > 0.0:
+        return False
+    l11 = math.sqrt(d)
+    l21, l31 = (a12 - l20 * l10) / l11, (a13 - l30 * l10) / l11
+    d = a22 - l20 * l20 - l21 * l21
+    if not d > 0.0:
+        return False
+    l32 = (a23 - l30 * l20 - l31 * l21) / math.sqrt(d)
+    return a33 - l30 * l30 - l31 * l31 - l32 * l32 > 0.0
+
+
 def gnss_update(x: np.ndarray, P: np.ndarray, fix_m: np.ndarray, cov_m2: np.ndarray,
                 gate: float) -> tuple[np.ndarray, np.ndarray, UpdateResult]:
     """Fuse a horizontal position fix (2,) with covariance (2, 2) behind a chi-square gate."""

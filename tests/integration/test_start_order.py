@@ -67,3 +67,48 @@ def test_a_router_that_never_comes_is_a_one_line_error(tmp_path):
     errors = [line for line in result.stderr.splitlines() if "error" in line]
     assert errors == [line for line in errors if line.startswith("swarm: error:")] and len(errors) == 1
     assert "no zenoh router answered within 2 s" in errors[0] and "Traceback" not in result.stderr
+
+
+def _manual_swarm(tmp_path, extra_clock: dict):
+    """Router, ground station, world and two vehicles as separate processes; returns (start, processes)."""
+    secrets, port = write_secrets(tmp_path / "secrets", vehicles=2), free_port()
+    config = build_config({"world": {"vehicles": 2, "seed": 4}, "clock": {"duration_s": 600, **extra_clock}})
+    config.dump(tmp_path / "config.json")
+    config.for_vehicle().dump(tmp_path / "vehicle.json")
+    processes = {}
+
+    def start(name: str, args: list[str], user: str) -> subprocess.Popen:
+        env = {**os.environ, **role_env(secrets, user), "SWARMLOC_ZENOH_CONNECT": f"tcp/127.0.0.1:{port}"}
+        processes[name] = subprocess.Popen(CLI + args, env=env, stdout=subprocess.DEVNULL,
+                                           stderr=open(tmp_path / f"{name}.log", "wb"))
+        return processes[name]
+
+    conf, vconf = str(tmp_path / "config.json"), str(tmp_path / "vehicle.json")
+    start("router", ["router", "--listen", f"tcp/127.0.0.1:{port}", "--credentials", str(secrets / "credentials.txt")],
+          "router")
+    start("groundstation", ["gs", "--config", conf, "--run-dir", str(tmp_path / "run"), "--quiet"], "groundstation")
+    start("world", ["sim", "--config", conf], "world")
+    for vid in (1, 2):
+        start(f"vehicle-{vid}", ["vehicle", "--config", vconf, "--id", str(vid)], f"vehicle-{vid}")
+    return processes
+
+
+@pytest.mark.parametrize("victim, survivor, status", [("world", "groundstation", "world-lost"),
+                                                      ("groundstation", "world", "groundstation-lost")])
+def test_the_world_and_the_ground_station_end_the_run_when_the_other_is_gone(tmp_path, victim, survivor, status):
+    from tests.integration.conftest import wait_for_metrics
+
+    processes = _manual_swarm(tmp_path, {"gone_timeout_s": 3})
+    try:
+        wait_for_metrics(tmp_path / "run", 5_000)
+        processes[victim].kill()
+        assert processes[survivor].wait(timeout=60) == 1  # not silently waiting: it ended the run, as an error
+        message = (tmp_path / f"{survivor}.log").read_text().strip().splitlines()[-1]
+        assert message.startswith("swarm: error:") and "run ended" in message
+        if survivor == "groundstation":
+            assert read_summary(tmp_path / "run")["status"] == status
+    finally:
+        for process in processes.values():
+            if process.poll() is None:
+                process.terminate()
+                process.wait(timeout=10)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -118,7 +119,7 @@ class UnicycleEkf:
         rate, rate_var, rate_source = (gyro, spec.gyro_sigma_radps**2 * gyro_factor, self.gyro) if fresh else \
             (odom_yaw, spec.odom_yaw_rate_sigma_radps**2 * odom_factor, self.odom_yaw)
         steps = ekf.pieces(self.speed.segments, rate_source.segments)
-        self.x, self.P = ekf.predict(self.x, self.P, speed, rate, dt, speed_var=spec.odom_speed_sigma_mps**2 * speed_factor,
+        self.x, self.P = ekf.predict_fast(self.x, self.P, speed, rate, dt, speed_var=spec.odom_speed_sigma_mps**2 * speed_factor,
                                      yaw_rate_var=rate_var, bias_walk_var=spec.gyro_bias_walk_radps_rtsec**2,
                                      use_bias=fresh, steps=steps)
         self.time_us = stamp_us
@@ -160,14 +161,8 @@ class UnicycleEkf:
             self._last_good = (self.x.copy(), self.P.copy())
 
     def _diverged(self) -> bool:
-        """Non-finite state or a covariance that is no longer positive definite."""
-        if not np.all(np.isfinite(self.x)):
-            return True
-        try:
-            np.linalg.cholesky(self.P)
-        except np.linalg.LinAlgError:
-            return True
-        return not np.all(np.isfinite(self.P))
+        """Non-finite state or a covariance that is no longer (finite and) positive definite."""
+        return not (math.isfinite(sum(self.x.tolist())) and ekf.is_spd4(self.P))
 
     def _recover(self, t_us: int) -> None:
         if self._last_good is None:  # diverged before any good cycle: start over from nothing

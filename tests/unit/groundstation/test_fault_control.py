@@ -70,3 +70,13 @@ def test_link_quality_counts_losses_duplicates_and_late_frames_across_the_wrap()
         quality.see(seq)
     assert (quality.received, quality.duplicates, quality.reordered) == (9, 1, 1)
     assert quality.lost == 2  # 252 came late (not lost); 1 and 2 never came
+
+
+def test_the_plan_is_bounded():
+    from groundstation.fault_control import MAX_FAULTS
+
+    control, _ = _control()
+    for _ in range(MAX_FAULTS):
+        assert control.request(FaultRequest(op="add", fault=Loss(dst="v3", percent=1))).ok
+    reply = control.request(FaultRequest(op="add", fault=Loss(dst="v3", percent=1)))
+    assert not reply.ok and "remove some first" in reply.error and len(reply.plan.faults) == MAX_FAULTS

@@ -44,3 +44,35 @@ def test_noise_free_sensors_give_exact_tracking():
                       gnss_sigma_m=1e-6, prior_sigma_m=1e-9, prior_heading_sigma_rad=1e-9)
     _, errors = pose_nees_series(3, duration_s=20.0, trajectory="waypoints", estimator_spec=tiny, world_sensors=tiny)
     assert errors.max() < 1e-4
+
+
+def test_the_float_prediction_equals_the_matrix_one():
+    rng = np.random.default_rng(4)
+    for _ in range(300):
+        A = rng.normal(size=(4, 4))
+        P, x = A @ A.T + 0.1 * np.eye(4), rng.normal(size=4)
+        v, w = rng.uniform(0, 10), rng.normal()
+        steps = [(0.01, v, w), (0.01, v + rng.normal(0, 0.1), w + rng.normal(0, 0.1))]
+        for use_bias in (True, False):
+            kw = dict(speed_var=rng.uniform(0, 1e-2), yaw_rate_var=rng.uniform(0, 1e-2), bias_walk_var=1e-7,
+                      use_bias=use_bias, steps=steps)
+            slow, fast = ekf.predict(x, P, v, w, 0.02, **kw), ekf.predict_fast(x, P, v, w, 0.02, **kw)
+            np.testing.assert_allclose(fast[0], slow[0], atol=1e-12)
+            np.testing.assert_allclose(fast[1], slow[1], rtol=1e-11, atol=1e-14)
+
+
+def test_the_positive_definiteness_check_agrees_with_cholesky():
+    rng = np.random.default_rng(5)
+    for _ in range(500):
+        A = rng.normal(size=(4, 4))
+        P = A @ A.T + rng.normal(0, 1.0) * np.eye(4)  # sometimes indefinite
+        try:
+            np.linalg.cholesky(P)
+            expected = True
+        except np.linalg.LinAlgError:
+            expected = False
+        assert ekf.is_spd4(P) is expected
+    for bad in (np.nan, np.inf, -np.inf):
+        P = np.eye(4)
+        P[1, 2] = P[2, 1] = bad
+        assert not ekf.is_spd4(P)
