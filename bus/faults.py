@@ -84,6 +84,13 @@ class Kill(_Fault):
     vehicle: int = Field(ge=1, le=250)
     restart_after_s: float | None = Field(None, ge=0, le=1e7)
 
+    def kill_us(self) -> int:
+        """Sim time [us] of the kill (the supervisor and the world compare the same integers)."""
+        return round(self.start_s * 1e6)
+
+    def restart_us(self) -> int | None:
+        return None if self.restart_after_s is None else round((self.start_s + self.restart_after_s) * 1e6)
+
 
 class _LinkFault(_Fault):
     """Selects traffic by source, destination and topic (globs: ``v*``, ``v3``, ``gs``, ``mavlink``)."""

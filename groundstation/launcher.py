@@ -23,7 +23,7 @@ from bus.errors import DecodeError, SwarmlocError
 from bus.plan import FaultPlan, decode_json
 from bus.secrets import role_env, write_secrets
 from bus.session import Envelope
-from groundstation.supervisor import KillSchedule
+from bus.kill_schedule import KillSchedule
 
 SHUTDOWN_GRACE_S = 4.0
 SWARM_HANDLE = "swarm.json"  # in the run directory while `swarm up` runs: how `swarm fault` finds it
@@ -164,6 +164,7 @@ class Swarm:
         self.bus = ZenohBus(self.config.bus, role="supervisor", transport=Transport.from_env(self.security.env("supervisor")))
         self.bus.subscribe(self.bus.keys.clock(), self.inbox, 8 << 10)
         self.bus.subscribe(self.bus.keys.fault_plan(), self.inbox, 1 << 20)
+        self.bus.declare_token(self.bus.keys.alive("supervisor", 0))  # lockstep: the world holds for kills
 
     def _follow_plan(self) -> None:
         """Drain the supervisor inbox, then execute the kill faults that are due."""

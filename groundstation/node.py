@@ -128,6 +128,8 @@ class GroundStation:
         if parsed.role == "world":
             self.world_alive, self.world_seen = item.alive, self.world_seen or item.alive
             return
+        if parsed.role != "vehicle":
+            return  # the supervisor, routers, itself: nothing to score
         vid = parsed.vehicle_id
         if vid is None or vid > self.config.world.vehicles:
             self.rejections.reject("unknown_vehicle", item.key, "not a vehicle of this swarm")

@@ -1,7 +1,8 @@
 """The run directory: config.json, metrics.csv, events.jsonl, summary.json, timing.json, tum/.
 
-Files are appended and flushed at least every ``flush_period_s`` of wall time, so killing the
-ground station loses at most the last second. A restarted ground station appends.
+Files are appended and flushed at least every ``flush_period_s`` of wall time and of sim time
+(lockstep runs many times faster than real time), so killing the ground station loses at most about
+the last second of metrics. A restarted ground station appends.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ class RunDirectory:
         (self.path / "tum").mkdir(parents=True, exist_ok=True)
         self._flush_period_s = flush_period_s
         self._last_flush = time.monotonic()
+        self._flushed_sim_us = 0
         self._metrics = self._open("metrics.csv", METRICS_HEADER)
         self._events = self._open("events.jsonl")
         self._tum: dict[str, TextIO] = {}
@@ -67,7 +69,7 @@ class RunDirectory:
             est, tp = s.estimate, s.truth_pose
             self._tum_file("est", s.vehicle_id).write(tum_line(s.stamp_us, *est.position_m, est.yaw_rad))
             self._tum_file("truth", s.vehicle_id).write(tum_line(s.stamp_us, tp[0], tp[1], est.position_m[2], tp[2]))
-        self.maybe_flush()
+        self.maybe_flush(scores[-1].stamp_us if scores else None)
 
     def event(self, kind: str, stamp_us: int, /, **fields: Any) -> None:
         record = {"t_s": round(stamp_us * 1e-6, 6), "event": kind, **fields}
@@ -79,9 +81,13 @@ class RunDirectory:
         tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
         tmp.replace(self.path / name)
 
-    def maybe_flush(self) -> None:
-        if time.monotonic() - self._last_flush >= self._flush_period_s:
+    def maybe_flush(self, sim_us: int | None = None) -> None:
+        """Flush when ``flush_period_s`` of wall time, or of sim time (``sim_us``: newest row), passed."""
+        sim_due = sim_us is not None and sim_us - self._flushed_sim_us >= self._flush_period_s * 1e6
+        if sim_due or time.monotonic() - self._last_flush >= self._flush_period_s:
             self.flush()
+            if sim_us is not None:
+                self._flushed_sim_us = sim_us
 
     def flush(self) -> None:
         for handle in (self._metrics, self._events, *self._tum.values()):

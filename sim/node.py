@@ -21,6 +21,7 @@ from bus import feed
 from bus import messages as m
 from bus.config import SwarmConfig
 from bus.errors import DecodeError, SwarmlocError
+from bus.kill_schedule import KillSchedule
 from bus.mailbox import Mailbox, Oversized
 from bus.plan import FaultPlan, decode_json
 from bus.process import Pacer
@@ -46,6 +47,7 @@ class Membership:
     alive: set[int] = field(default_factory=set)
     joining: set[int] = field(default_factory=set)  # restarted: in lockstep once their first ack arrives
     groundstation: bool = False
+    supervisor: bool = False  # `swarm up` executes kill faults; lockstep holds the clock for them
     gs_seen: bool = False
     gs_acked: int = -1
     acked: set[int] = field(default_factory=set)
@@ -57,6 +59,8 @@ class Membership:
         if role == "groundstation":
             self.groundstation = alive
             self.gs_seen = self.gs_seen or alive
+        elif role == "supervisor":
+            self.supervisor = alive
         elif role == "vehicle" and vid in self.expected:
             if alive and vid in self.dead:
                 log.info("vehicle %d is back; it joins the lockstep set with its first ack", vid)
@@ -109,6 +113,7 @@ class WorldNode:
         bus.subscribe(keys.fault_plan(), control, MAX_PLAN_BYTES)
         bus.subscribe(f"{keys.prefix}/ctl/ack/*", acks, MAX_ACK_BYTES)
         self.plan_version = -1
+        self.kills = KillSchedule()
         self.status = "complete"
         bus.declare_token(keys.alive("world", 0))
         self.members = Membership(expected=set(self.world.vehicle_ids()))
@@ -155,6 +160,7 @@ class WorldNode:
         if plan.version > self.plan_version:
             self.plan_version = plan.version
             self.world.faults.replace(plan.faults)
+            self.kills.set_plan(plan.faults)
 
     def _on_ack(self, envelope: Envelope, tick: int | None) -> None:
         parsed = self.bus.keys.parse(envelope.key)
@@ -224,6 +230,32 @@ class WorldNode:
                 return
             self.drain(0.05, tick)
 
+    def hold_for_kills(self, stamp_us: int, stop: threading.Event) -> None:
+        """Lockstep with a supervisor (`swarm up`) present: the clock stays at the tick of a kill fault
+        until the vehicle is gone, and at the tick of its restart until the new process is back and
+        listens to its feed, so the kill and the rejoin happen at the plan's sim times however long
+        a process takes to die or start (bus.kill_schedule). Bounded by ``ack_timeout_s`` and
+        ``start_timeout_s``: without anyone executing the fault, the run goes on."""
+        for action, vid, name in self.kills.due(stamp_us):
+            if not self.members.supervisor or vid not in self.members.expected:
+                continue
+            if action == "kill":
+                timeout_s, done = self.config.clock.ack_timeout_s, lambda: not self._present(vid)
+            else:
+                feed_publisher = {"feed": self._publishers[self.bus.keys.feed(vid)]}
+                timeout_s = self.config.clock.start_timeout_s
+                done = lambda: self._present(vid) and not await_subscribers(feed_publisher, timeout_s=0.0)
+            deadline = time.monotonic() + timeout_s
+            while not done() and not stop.is_set():
+                if time.monotonic() > deadline:
+                    log.warning("fault %s: vehicle %d not %s after %g s; the run goes on", name, vid,
+                                "gone" if action == "kill" else "back", timeout_s)
+                    break
+                self.drain(0.02)
+
+    def _present(self, vid: int) -> bool:
+        return vid in self.members.alive or vid in self.members.joining
+
     def await_groundstation(self, tick: int, stop: threading.Event, lockstep: bool) -> bool:
         """Lockstep pauses while the ground station lags more than ``gs_lag_ticks`` or is away (a
         restart), so nothing goes unscored. False when it has been gone for ``gone_timeout_s``."""
@@ -264,6 +296,7 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
         prepared = node.prepare(tick + 1)  # the next tick's feeds, while the vehicles work
         if lockstep:
             node.await_acks(tick, stop, ack_timeout)
+            node.hold_for_kills(tick * node.tick_us, stop)
         else:
             node.drain(0.0)
     if node.status == "complete":

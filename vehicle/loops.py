@@ -47,8 +47,9 @@ def _wait_until_ready(node: VehicleNode, tick: m.ClockTick, later: deque, stop: 
         if newer is not None:
             later.append(newer)
     if not node.ready(tick):
-        log.warning("vehicle %d: inputs up to %d us incomplete after %g s; cycling without them",
-                    node.vehicle_id, tick.stamp_us, READY_TIMEOUT_S)
+        log.warning("vehicle %d: inputs up to %d us incomplete after %g s (missing %s); cycling without them",
+                    node.vehicle_id, tick.stamp_us, READY_TIMEOUT_S, node.missing_inputs(tick))
+        node.write_off_missing(tick)
 
 
 def run_realtime(node: VehicleNode, stop: threading.Event) -> None:

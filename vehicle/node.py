@@ -149,6 +149,26 @@ class VehicleNode:
         return all(heard.get(j, 0) + self._heard_floor.get(j, 0) >= n
                    for j, n in enumerate(tick.v2v_published, start=1) if j != self.vehicle_id)
 
+    def missing_inputs(self, tick: m.ClockTick) -> str:
+        """What ``ready`` still waits for, in words (for the log)."""
+        parts = []
+        if self.inbound.received_tick < tick.tick:
+            parts.append(f"sensor batch {tick.tick} (latest {self.inbound.received_tick})")
+        heard = self.inbound.heard
+        parts += [f"V2V of vehicle {j}: {heard.get(j, 0) + self._heard_floor.get(j, 0)} of {n}"
+                  for j, n in enumerate(tick.v2v_published, start=1)
+                  if j != self.vehicle_id and heard.get(j, 0) + self._heard_floor.get(j, 0) < n]
+        return "; ".join(parts)
+
+    def write_off_missing(self, tick: m.ClockTick) -> None:
+        """After the wait for ``tick`` timed out: V2V broadcasts that never came are written off, so
+        one lost frame costs one wait, not one per later tick."""
+        heard = self.inbound.heard
+        for j, n in enumerate(tick.v2v_published, start=1):
+            short = n - heard.get(j, 0) - self._heard_floor.get(j, 0)
+            if j != self.vehicle_id and short > 0:
+                self._heard_floor[j] = self._heard_floor.get(j, 0) + short
+
     def cycle(self, t_us: int) -> None:
         """One loop cycle at sim time t_us: fuse everything stamped <= t_us, encode the estimate."""
         for delivery in self.inbound.release(t_us):

@@ -7,7 +7,7 @@ from bus.faults import JamGnss, Kill, Loss
 from bus.plan import FaultRequest
 from groundstation.fault_control import FaultControl
 from groundstation.link_quality import StreamQuality
-from groundstation.supervisor import KillSchedule
+from bus.kill_schedule import KillSchedule
 
 
 def _control(*faults):
