@@ -32,3 +32,14 @@ def per_call_us(body: Callable[[], object], *, calls: int, repeats: int = 5) -> 
             body()
         best = min(best, (time.perf_counter() - start) / calls)
     return best * 1e6
+
+
+def vehicle_feed(config, vehicle_id: int = 1) -> list[tuple[str, object]]:
+    """Every sample the world measures for one vehicle over ``config.clock.duration_s``, in stamp
+    order, as (topic, message) pairs: what the vehicle process unpacks from its sensor batches."""
+    from bus.feed import SensorBatch
+    from sim.world import World
+
+    world = World(config)
+    out = world.advance(round(config.clock.duration_s * 1e6))
+    return SensorBatch(vehicle_id, 0, round(config.clock.duration_s * 1e6), out.blocks(vehicle_id)).samples()

@@ -80,6 +80,7 @@ class GroundStation:
         self.resumed = False
         self._resume(run_dir)
         self._plan_sent_at = 0.0
+        self._ack_due: int | None = None
         self.wall_start: float | None = None
         self.wall_end: float | None = None
         self.on_progress = lambda gs: None
@@ -251,8 +252,16 @@ class GroundStation:
         self.previous_tick_us = tick.stamp_us
         if time.monotonic() - self._plan_sent_at > PLAN_REPEAT_S:
             self.publish_plan()  # repeated, so that restarted processes learn it
-        self._ack_pub.put(m.encode(m.GroundStationAck(tick.tick)))
+        self._ack_due = tick.tick
         self.on_progress(self)
+
+    def ack_if_drained(self) -> None:
+        """Acknowledge the newest clock tick once nothing is waiting in the mailbox: the clock's lane
+        is served first, so acknowledging on receipt would let a backlog of estimates grow without
+        bound behind it (lockstep backpressure, and what a killed ground station loses)."""
+        if self._ack_due is not None and self.mailbox.empty():
+            self._ack_pub.put(m.encode(m.GroundStationAck(self._ack_due)))
+            self._ack_due = None
 
     def _stream_passed(self, arrival: Arrival, due_us: int) -> bool:
         """A held frame comes out once its stream has delivered a frame stamped at or after its due

@@ -43,6 +43,7 @@ def run_groundstation(bus: Bus, config: SwarmConfig, run_dir: Path, stop: thread
             gs.run.maybe_flush()
         else:
             gs.handle(item)
+        gs.ack_if_drained()
         watch.check()
     if gs.ended is not None:
         _await_final_data(gs, FINAL_WAIT_S)

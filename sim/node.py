@@ -50,6 +50,7 @@ class Membership:
     supervisor: bool = False  # `swarm up` executes kill faults; lockstep holds the clock for them
     gs_seen: bool = False
     gs_acked: int = -1
+    gs_returned: bool = False  # a restarted ground station is back: it acks only ticks it sees
     acked: set[int] = field(default_factory=set)
     dead: set[int] = field(default_factory=set)
     v2v_base: dict[int, int] = field(default_factory=dict)
@@ -57,6 +58,7 @@ class Membership:
 
     def on_token(self, role: str, vid: int | None, alive: bool) -> None:
         if role == "groundstation":
+            self.gs_returned = self.gs_returned or (alive and self.gs_seen and not self.groundstation)
             self.groundstation = alive
             self.gs_seen = self.gs_seen or alive
         elif role == "supervisor":
@@ -253,6 +255,9 @@ class WorldNode:
                     break
                 self.drain(0.02)
 
+    def _groundstation_listens(self) -> bool:
+        return not await_subscribers({"truth": self._publishers[self.bus.keys.truth()]}, timeout_s=0.0)
+
     def _present(self, vid: int) -> bool:
         return vid in self.members.alive or vid in self.members.joining
 
@@ -269,6 +274,13 @@ class WorldNode:
                 log.warning("ground station gone; the run waits up to %g s for it", clock.gone_timeout_s)
             if not present and time.monotonic() - self._gs_gone_since > clock.gone_timeout_s:
                 return False
+            if present and self.members.gs_returned:
+                if not self._groundstation_listens():  # its truth would be dropped
+                    self.drain(0.02)
+                    continue
+                # what the old one had not acknowledged is lost with it; the new one starts here
+                self.members.gs_returned = False
+                self.members.gs_acked = max(self.members.gs_acked, tick - 1)
             if present and (not lockstep or self.members.gs_acked >= tick - clock.gs_lag_ticks):
                 return True
             self.drain(0.02)

@@ -28,6 +28,7 @@ from vehicle.sequence import SequenceTracker
 from vehicle.v2v import V2V
 
 log = logging.getLogger("swarmloc.vehicle")
+GS_LISTEN_WAIT_S = 2.0
 
 
 class WorldGone(SwarmlocError):
@@ -35,12 +36,17 @@ class WorldGone(SwarmlocError):
 
 
 class WorldWatch:
-    """Is the world there? Its liveliness token says; gone for ``timeout_s`` means the run is over."""
+    """Is the world there? Its liveliness token says; gone for ``timeout_s`` means the run is over.
+    Also notes a ground station that (re)appears: ``gs_arrived`` until the loop has handled it."""
 
     def __init__(self, *, timeout_s: float) -> None:
         self.timeout_s, self.seen, self.gone_since = timeout_s, False, None
+        self.gs_arrived = False
 
     def on_token(self, parsed, alive: bool) -> None:
+        if parsed is not None and parsed.role == "groundstation":
+            self.gs_arrived = self.gs_arrived or alive
+            return
         if parsed is None or parsed.role != "world":
             return
         self.seen = self.seen or alive
@@ -66,6 +72,7 @@ class VehicleNode:
         if vc.cooperative:
             bus.subscribe(keys.v2v("*"), neighbours, MAX_FRAME_BYTES)
         bus.watch_liveliness(keys.alive("world", "*"), world)
+        bus.watch_liveliness(keys.alive("groundstation", "*"), world)
         self.inbound = Inbound(keys=keys, vehicle_id=vehicle_id, vehicles=config.vehicles, fault_seed=config.fault_seed,
                                faults=config.faults, rejections=self.rejections)
         self.outbound = Outbound(bus, config, vehicle_id, signing_key=signing_key)
@@ -194,7 +201,12 @@ class VehicleNode:
             self.rejections.as_counts(), f.replays, final))
 
     def finish_tick(self, tick: m.ClockTick) -> None:
-        """Lockstep: publish the tick's MAVLink frames, then acknowledge it."""
+        """Lockstep: publish the tick's MAVLink frames, then acknowledge it. After a ground station
+        (re)appeared, first wait (bounded) until this process knows it listens: a publication with no
+        known subscriber is dropped, and lockstep runs fast enough to lose seconds that way."""
+        if self.world_watch.gs_arrived:
+            self.world_watch.gs_arrived = False
+            await_subscribers({"mavlink": self.outbound.mavlink_publisher}, timeout_s=GS_LISTEN_WAIT_S)
         if tick.final:
             self.publish_status(tick.stamp_us, final=True)
         self.outbound.flush()
