@@ -43,7 +43,7 @@ def up(
     mode: Optional[str] = typer.Option(None, help="lockstep (reproducible, as fast as possible) or realtime [default: lockstep]"),
     speed: Optional[float] = typer.Option(None, help="realtime only: sim seconds per wall second [default: 1]"),
     seed: Optional[int] = typer.Option(None, help="seed of trajectories and sensor noise [default: 0]"),
-    tick: Optional[float] = typer.Option(None, help="sim seconds the world advances per clock tick [default: 0.02]"),
+    tick: Optional[float] = typer.Option(None, help="sim seconds the world advances per clock tick [default: 0.1 lockstep, 0.02 realtime]"),
     out: Path = typer.Option(Path("runs"), help="parent folder of run directories"),
     name: Optional[str] = typer.Option(None, help="run directory name (a suffix is added if it exists) [default: the scenario's name, or run]"),
     quiet: bool = typer.Option(False, help="no progress display, only the final table"),
@@ -84,6 +84,37 @@ def up(
     except SwarmlocError as exc:
         fail(str(exc))
     _print_result(run_dir, failures, notes)
+
+
+@app.command()
+def config(
+    scenario: Optional[Path] = typer.Argument(None, help="TOML scenario (config and fault timeline); options below override it"),
+    out: Path = typer.Option(..., help="directory for config.json and vehicle.json (created)"),
+    vehicles: Optional[int] = typer.Option(None, help="number of vehicles (1-250) [default: 5]"),
+    duration: Optional[float] = typer.Option(None, help="simulated seconds [default: 60]"),
+    mode: Optional[str] = typer.Option(None, help="lockstep or realtime [default: lockstep]"),
+    seed: Optional[int] = typer.Option(None, help="seed of trajectories and sensor noise [default: 0]"),
+) -> None:
+    """Write the configs of a deployment: config.json for the world and the ground station (the whole
+    scenario, seed and trajectories included) and vehicle.json for the vehicles (only what a vehicle
+    needs: no seed, no trajectories, nothing that determines truth)."""
+    from bus.config import build_config
+    from groundstation.scenario import load_scenario, overlay
+
+    if mode not in (None, "lockstep", "realtime"):
+        fail(f"unknown mode {mode!r}: use lockstep or realtime")
+    try:
+        base = load_scenario(scenario) if scenario else {}
+        swarm = build_config(overlay(base, {"world": {"vehicles": vehicles, "seed": seed},
+                                            "clock": {"mode": mode, "duration_s": duration}}))
+        out.mkdir(parents=True, exist_ok=True)
+        swarm.dump(out / "config.json")
+        swarm.for_vehicle().dump(out / "vehicle.json")
+    except OSError as exc:
+        fail(f"cannot write to {out}: {exc.strerror or exc}")
+    except SwarmlocError as exc:
+        fail(str(exc))
+    typer.echo(f"wrote {out / 'config.json'} (world, ground station) and {out / 'vehicle.json'} (vehicles)")
 
 
 def with_chaos(config, seed: int):

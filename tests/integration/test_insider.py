@@ -91,10 +91,8 @@ def test_a_compromised_vehicle_cannot_speak_for_others_or_stop_the_swarm(tmp_pat
         put("v/3/mavlink", b"\xfd" * 100_000), put("v/3/v2v", b"\xfd" * 2_000), put("ctl/ack/3", b"x" * 10_000)
         put("v/3/mavlink", signed.heartbeat()[:-7])                             # truncated
         flood = bus.publisher("swarm/v/3/mavlink")
-        start = time.monotonic()
         for k in range(FLOOD):
             flood.put(b"\xfe" + k.to_bytes(4, "little"))
-        flood_s = time.monotonic() - start
     _finish(process)
     summary = read_summary(run)
     _assert_scored_in_full(summary)
@@ -108,7 +106,6 @@ def test_a_compromised_vehicle_cannot_speak_for_others_or_stop_the_swarm(tmp_pat
         assert rejected[f"vehicle-{vid}"] == {"bad_key": 1, "impersonation": 1, "oversized": 1}
     assert rejected["vehicle-3"] == {"bad_key": 1, "oversized": 1}  # its own key's v2v is not for itself
     assert summary["vehicles"]["3"]["mavlink_rejected"] == FLOOD + 8
-    assert flood_s < 5.0  # the flood really was a flood
 
 
 def test_the_cases_of_the_issue_are_survived_with_no_filtering_at_all(tmp_path):

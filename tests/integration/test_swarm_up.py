@@ -31,6 +31,15 @@ def test_same_seed_gives_identical_summary_and_metrics(three_vehicle_runs):
     assert (a / "metrics.csv").read_bytes() == (b / "metrics.csv").read_bytes()
 
 
+def test_the_clock_tick_changes_no_estimate(three_vehicle_runs, tmp_path):
+    """Lockstep ticks of 20 ms (one per cycle) and of the default 100 ms give the same run: samples
+    carry their stamps and vehicles cycle at 50 Hz in sim time either way."""
+    result = run_swarm(tmp_path, "--vehicles", "3", "--duration", "30", "--seed", "11", "--name", "same", "--tick", "0.02")
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert (tmp_path / "same" / "metrics.csv").read_bytes() == (three_vehicle_runs[0] / "metrics.csv").read_bytes()
+    assert (tmp_path / "same" / "summary.json").read_text() == (three_vehicle_runs[0] / "summary.json").read_text()
+
+
 def test_run_directory_is_complete(three_vehicle_runs):
     run = three_vehicle_runs[0]
     for name in ("config.json", "metrics.csv", "events.jsonl", "summary.json", "timing.json"):
