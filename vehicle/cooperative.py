@@ -47,12 +47,27 @@ def relative_model(x: np.ndarray, neighbour_xy_m: np.ndarray) -> tuple[np.ndarra
     return np.array([r, wrap_angle(np.arctan2(dy, dx) - x[2])]), H, -H[:, :2]
 
 
+def _inverse2(S: np.ndarray) -> np.ndarray:
+    """Inverse of a 2 x 2 matrix (no LAPACK call: this runs for every ranging measurement)."""
+    a, b, c, d = S[0, 0], S[0, 1], S[1, 0], S[1, 1]
+    return np.array([[d, -b], [-c, a]]) / (a * d - b * c)
+
+
 def ci_weight(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> float:
     """The w of WEIGHTS that minimises det(P+) = 1 / det(w P^-1 + (1 - w) H^T R^-1 H)."""
-    A = np.linalg.inv(P)
-    B = H.T @ np.linalg.solve(R, H)
-    info = WEIGHTS[:, None, None] * A + (1.0 - WEIGHTS)[:, None, None] * B
-    return float(WEIGHTS[int(np.argmax(np.linalg.det(info)))])
+    return _ci_weight(H @ P @ H.T, R, P.shape[0])
+
+
+def _ci_weight(M: np.ndarray, R: np.ndarray, n: int) -> float:
+    """``ci_weight`` from M = H P H^T (2, 2). H^T R^-1 H has rank 2, so by the matrix determinant
+    lemma, with C = R^-1 M: det(w P^-1 + (1 - w) H^T R^-1 H) =
+    det(P^-1) w^(n-2) (w^2 + w (1 - w) tr C + (1 - w)^2 det C), a scalar function of w: no n x n
+    determinant per candidate weight."""
+    C = _inverse2(R) @ M
+    trace, det = C[0, 0] + C[1, 1], C[0, 0] * C[1, 1] - C[0, 1] * C[1, 0]
+    w = WEIGHTS
+    log_info = (n - 2) * np.log(w) + np.log(w * w + w * (1.0 - w) * trace + (1.0 - w) ** 2 * det)
+    return float(w[int(np.argmax(log_info))])
 
 
 def cooperative_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
@@ -61,13 +76,14 @@ def cooperative_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
     predicted, H, Hj = relative_model(x, fix.neighbour_xy_m)
     R = fix.covariance + Hj @ fix.neighbour_cov_m2 @ Hj.T
     y = np.array([fix.range_m - predicted[0], wrap_angle(fix.bearing_rad - predicted[1])])
-    S = H @ P @ H.T + R
-    nis = float(y @ np.linalg.solve(S, y))
+    HP = H @ P
+    M = HP @ H.T
+    nis = float(y @ _inverse2(M + R) @ y)
     if not nis / gate <= 1.0:
         return x, P, UpdateResult(False, nis, nis / gate)
-    w = ci_weight(P, H, R)
+    w = _ci_weight(M, R, len(x))
     Pw, Rw = P / w, R / (1.0 - w)
-    K = np.linalg.solve(H @ Pw @ H.T + Rw, H @ Pw).T
+    K = (HP.T / w) @ _inverse2(M / w + Rw)   # P_w H^T (H P_w H^T + R_w)^-1
     I_KH = np.eye(len(x)) - K @ H
     P_new = I_KH @ Pw @ I_KH.T + K @ Rw @ K.T  # Joseph form
     x_new = x + K @ y

@@ -9,7 +9,7 @@ from scipy.stats import chi2
 from bus.angles import wrap_angle
 from bus.config import build_config
 from tests.offline import swarm_in_memory
-from vehicle.cooperative import CooperativeFix, cooperative_update, relative_model
+from vehicle.cooperative import WEIGHTS, CooperativeFix, ci_weight, cooperative_update, relative_model
 from vehicle.ekf import gated_update
 
 RUNS = 3000
@@ -77,3 +77,20 @@ def test_neighbours_keep_a_gnss_jammed_vehicle_localized_unless_the_radio_is_jam
     assert helped < 0.5 and helped < alone / 4
     assert cut_off > 2 * helped
     assert anees < 3.0  # CI is conservative: never over-confident
+
+
+def test_the_ci_weight_is_the_one_that_minimises_the_determinant():
+    """The closed form (matrix determinant lemma) picks the weight brute force over det(P+) picks."""
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        L = rng.normal(size=(4, 4)) * rng.uniform(0.01, 3.0, size=4)
+        P = L @ L.T + 1e-6 * np.eye(4)
+        x = np.append(rng.normal(size=3), 0.0)
+        _, H, Hj = relative_model(x, rng.normal(scale=30.0, size=2))
+        R = np.diag([rng.uniform(0.01, 1.0), rng.uniform(1e-4, 1e-2)]) + Hj @ np.eye(2) * rng.uniform(0, 4) @ Hj.T
+        A, B = np.linalg.inv(P), H.T @ np.linalg.solve(R, H)
+        dets = [np.linalg.det(w * A + (1 - w) * B) for w in WEIGHTS]
+        best = WEIGHTS[int(np.argmax(dets))]
+        w = ci_weight(P, H, R)
+        # equal, or a near-tie in det (floating point picks either neighbour)
+        assert w == best or np.isclose(max(dets), dets[int(np.flatnonzero(WEIGHTS == w)[0])], rtol=1e-9)
