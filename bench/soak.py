@@ -111,7 +111,9 @@ def main() -> None:
 
 def report(samples, summary, hostile, exit_status, output, minutes) -> None:
     warm = next(rss for t, rss in samples if t >= min(WARM_S, samples[-1][0] / 2))
-    end = samples[-2][1] if len(samples) > 1 and len(samples[-1][1]) < len(warm) else samples[-1][1]
+    end = {}  # each process's last sample while it ran (vehicles and the world leave before the rest)
+    for _, rss in samples:
+        end.update(rss)
     rows = []
     for role in sorted(warm):
         if role in end:

@@ -30,10 +30,12 @@ REASONS = (
     "pending_full",       # dropped at the bound of the ground station's pending scores
 )
 _INDEX = {reason: i for i, reason in enumerate(REASONS)}
+MAX_LOGGED = 1000  # distinct (reason, where) pairs logged; past that, rejections are only counted
 
 
 class Rejections:
-    """Thread-safe counts by reason; the first rejection of each (reason, where) is logged."""
+    """Thread-safe counts by reason; the first rejection of each (reason, where) is logged (the first
+    ``MAX_LOGGED`` such pairs: hostile traffic with ever new keys must not flood the log)."""
 
     def __init__(self, log: logging.Logger, owner: str) -> None:
         self._log, self._owner = log, owner
@@ -46,8 +48,8 @@ class Rejections:
             raise ValueError(f"unknown rejection reason {reason!r}")
         with self._lock:
             self.counts[reason] += count
-            first = (reason, where) not in self._logged
-            if first and len(self._logged) < 1000:
+            first = (reason, where) not in self._logged and len(self._logged) < MAX_LOGGED
+            if first:
                 self._logged.add((reason, where))
         if first:
             self._log.warning("%s rejected input (%s) on %s: %s; further ones are only counted",
