@@ -47,6 +47,7 @@ def _symmetric_index() -> np.ndarray:
 
 
 _SYMMETRIC_INDEX = _symmetric_index()
+_POSE_BLOCK = np.ix_(_POSE_INDEX, _POSE_INDEX)
 
 
 class MavlinkRejected(DecodeError):
@@ -265,7 +266,7 @@ def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate:
     if max(abs(msg.x), abs(msg.y), abs(msg.z)) > MAX_POSITION_M or abs(msg.q[0]) + abs(msg.q[3]) < 1e-6:
         raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has an absurd position or attitude")
     pose_cov = _full_covariance(msg.pose_covariance)
-    if not _usable_covariance(pose_cov[np.ix_(_POSE_INDEX, _POSE_INDEX)]):
+    if not _usable_covariance(pose_cov[_POSE_BLOCK]):
         raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid}: [x, y, yaw] covariance is zero, "
                                             "singular, indefinite or huge")
     w, _, _, z = msg.q
@@ -280,15 +281,23 @@ def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate:
 
 def _usable_covariance(C: np.ndarray) -> bool:
     """Positive definite with a sane condition (Cholesky succeeds) and no variance above MAX_VARIANCE.
-    C (3, 3) is symmetric by construction (rebuilt from the upper triangle)."""
-    if np.any(np.diag(C) > MAX_VARIANCE):
+    C (3, 3) is symmetric by construction (rebuilt from the upper triangle). Written out: this runs
+    for every frame the ground station and the neighbours receive."""
+    (a, b, c), (_, d, e), (_, _, f) = C.tolist()
+    if not max(a, d, f) <= MAX_VARIANCE or not a > 0.0:
         return False
-    try:
-        L = np.linalg.cholesky(C)
-    except np.linalg.LinAlgError:
+    l00 = math.sqrt(a)
+    l10, l20 = b / l00, c / l00
+    d1 = d - l10 * l10
+    if not d1 > 0.0:
         return False
-    d = np.diag(L)
-    return bool(np.min(d) > 1e-9 * np.max(d))
+    l11 = math.sqrt(d1)
+    l21 = (e - l20 * l10) / l11
+    d2 = f - l20 * l20 - l21 * l21
+    if not d2 > 0.0:
+        return False
+    diagonal = (l00, l11, math.sqrt(d2))
+    return min(diagonal) > 1e-9 * max(diagonal)
 
 
 def _full_covariance(upper: list[float]) -> np.ndarray:

@@ -20,6 +20,7 @@ from bus.mavlink_codec import StateEstimate
 
 log = logging.getLogger("swarmloc.groundstation")
 POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw inside ODOMETRY's 6x6 pose covariance
+_POSE_BLOCK = np.ix_(POSE_INDEX, POSE_INDEX)
 NEES_DOF = 3
 MAX_PENDING = 500_000  # estimates waiting for the watermark; beyond, they are counted and dropped
 
@@ -99,7 +100,7 @@ class TruthTrack:
 def score(est: StateEstimate, truth_pose: np.ndarray) -> Score:
     error = np.array([est.position_m[0] - truth_pose[0], est.position_m[1] - truth_pose[1],
                       wrap(est.yaw_rad - truth_pose[2])])
-    cov = est.pose_covariance[np.ix_(POSE_INDEX, POSE_INDEX)]
+    cov = est.pose_covariance[_POSE_BLOCK]
     nees = float(error @ np.linalg.solve(cov, error))
     return Score(est.vehicle_id, est.time_usec, error, cov, nees, est.reset_counter,
                  est, truth_pose)

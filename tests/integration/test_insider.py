@@ -19,12 +19,14 @@ import pytest
 from bus import messages as m
 from bus.config import BusConfig
 from bus.mavlink_codec import MavlinkEncoder, StateEstimate
-from bus.session import Transport, ZenohBus
+from bus.session import Transport, ZenohBus, await_subscribers
 from tests.integration.conftest import read_summary, swarm_command, wait_for_metrics
 
 pytestmark = pytest.mark.integration
 DURATION_S = 150
 FLOOD = 10_000
+REFUSED = {"v/2/mavlink", "v/1/v2v", "ctl/ack/1", "v/1/status", "v/1/feed", "ctl/clock"}  # by the router, to vehicle-3
+ALLOWED = {"v/x/v2v", "v/x/mavlink", "v/3/mavlink", "v/3/v2v", "v/3/status", "ctl/ack/3"}   # reach the processes
 
 
 def _estimate(vid: int, t_us: int, cov=None) -> StateEstimate:
@@ -45,6 +47,14 @@ def _start(tmp_path, name: str, *extra: str):
 def _attacker(endpoint: str, user: str | None = None, password: str | None = None) -> ZenohBus:
     # role "groundstation" switches off our own in-process check: only the router decides
     return ZenohBus(BusConfig(connect=(endpoint,)), role="groundstation", transport=Transport(user=user, password=password))
+
+
+def _heard(bus: ZenohBus, key: str):
+    """A publisher on ``key`` once this session knows who listens: a zenoh client drops what it
+    publishes before that, which would make a hostile message vanish instead of being tested."""
+    publisher = bus.publisher(key)
+    assert not await_subscribers({key: publisher}, timeout_s=20.0), f"nobody listens on {key}"
+    return publisher
 
 
 def _finish(process) -> str:
@@ -69,7 +79,13 @@ def test_a_compromised_vehicle_cannot_speak_for_others_or_stop_the_swarm(tmp_pat
     as_nine = MavlinkEncoder(vehicle_id=9, signing_key=key3, link_id=1)
     now = 1_000_000
     with _attacker(endpoint, "vehicle-3", (secrets / "vehicle-3.password").read_text().strip()) as bus:
-        put = lambda key, payload: bus.publisher(f"swarm/{key}").put(payload)  # noqa: E731
+        publishers = {key: bus.publisher(f"swarm/{key}") for key in REFUSED | ALLOWED}
+        # a zenoh client drops what it publishes before it knows who listens: wait, or a hostile
+        # message would vanish instead of being tested (the router's refusals may never show one)
+        assert not await_subscribers({k: publishers[k] for k in ALLOWED}, timeout_s=20.0)
+        await_subscribers({k: publishers[k] for k in REFUSED}, timeout_s=2.0)
+        put = lambda key, payload: publishers[key].put(payload)  # noqa: E731
+
         # speaking for other vehicles: refused by the router
         put("v/2/mavlink", as_two.odometry(_estimate(2, now))), put("v/1/v2v", as_two.odometry(_estimate(1, now)))
         put("ctl/ack/1", b"\x00"), put("v/1/status", b"\x00"), put("v/1/feed", b"\x00"), put("ctl/clock", b"\x00")
@@ -90,7 +106,7 @@ def test_a_compromised_vehicle_cannot_speak_for_others_or_stop_the_swarm(tmp_pat
         put("v/3/status", b"\xc1")                                              # malformed status
         put("v/3/mavlink", b"\xfd" * 100_000), put("v/3/v2v", b"\xfd" * 2_000), put("ctl/ack/3", b"x" * 10_000)
         put("v/3/mavlink", signed.heartbeat()[:-7])                             # truncated
-        flood = bus.publisher("swarm/v/3/mavlink")
+        flood = publishers["v/3/mavlink"]
         for k in range(FLOOD):
             flood.put(b"\xfe" + k.to_bytes(4, "little"))
     _finish(process)
@@ -112,13 +128,13 @@ def test_the_cases_of_the_issue_are_survived_with_no_filtering_at_all(tmp_path):
     process, run, endpoint = _start(tmp_path, "insecure", "--insecure")
     zero = MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, 1_000_000, np.zeros((6, 6))))
     with _attacker(endpoint) as bus:
-        bus.publisher("swarm/v/x/v2v").put(b"any bytes")
-        bus.publisher("swarm/v/x/mavlink").put(b"any bytes")
+        _heard(bus, "swarm/v/x/v2v").put(b"any bytes")
+        _heard(bus, "swarm/v/x/mavlink").put(b"any bytes")
         bus.declare_token("swarm/alive/vehicle/\u00b2")
-        bus.publisher("swarm/v/2/mavlink").put(zero)                            # degenerate, as vehicle 2
-        bus.publisher("swarm/ctl/ack/\u00b2").put(b"x")
-        bus.publisher("swarm/v/2/feed").put(b"\x00" * 50)                        # garbage as the world's feed
-        bus.publisher("swarm/ctl/clock").put(b"\xc1")                           # garbage as the clock
+        _heard(bus, "swarm/v/2/mavlink").put(zero)                              # degenerate, as vehicle 2
+        _heard(bus, "swarm/ctl/ack/\u00b2").put(b"x")
+        _heard(bus, "swarm/v/2/feed").put(b"\x00" * 50)                          # garbage as the world's feed
+        _heard(bus, "swarm/ctl/clock").put(b"\xc1")                             # garbage as the clock
         time.sleep(0.5)
     _finish(process)
     summary = read_summary(run)

@@ -160,3 +160,20 @@ def test_splitting_any_bytes_is_total(buffer):
 
     frames, rest = split_frames(buffer)
     assert sum(map(len, frames)) + rest == len(buffer)
+
+
+@given(st.lists(st.floats(-10.0, 10.0), min_size=9, max_size=9), st.floats(1e-12, 1e3))
+def test_the_written_out_covariance_check_agrees_with_lapack(entries, scale):
+    from bus.mavlink_codec import MAX_VARIANCE, _usable_covariance
+
+    A = np.array(entries).reshape(3, 3)
+    for C in (A @ A.T * scale, (A + A.T) * scale):  # positive semi-definite; any symmetric
+        try:
+            L = np.linalg.cholesky(C)
+            d = np.diag(L)
+            expected = bool(np.min(d) > 1e-9 * np.max(d)) and np.max(np.diag(C)) <= MAX_VARIANCE
+        except np.linalg.LinAlgError:
+            expected = False
+        d = np.sort(np.linalg.eigvalsh(C))
+        if abs(d[0]) > 1e-9 * max(abs(d[-1]), 1e-300):  # away from the boundary the two must agree
+            assert _usable_covariance(C) == expected
