@@ -1,0 +1,111 @@
+"""EKF-SLAM core (vision EKF-SLAM paper): a pose and a growing map of 2-D landmarks. Pure functions.
+
+State ``x = [pose (p,), l1x, l1y, l2x, l2y, ...]`` with the pose's first three entries ``[x m, y m,
+theta rad]`` (p = 3 as in the paper; p = 4 carries the unicycle EKF's gyro bias too), covariance
+``P`` (n, n), n = p + 2 m for m landmarks.
+
+- Observation of landmark j (paper, range-bearing model): with dx = l_jx - x, dy = l_jy - y,
+  ``h = [sqrt(dx^2 + dy^2), atan2(dy, dx) - theta]`` (the paper writes phi = x - l_x, psi = y - l_y
+  and atan2(-psi, -phi): the same bearing).
+- Landmark initialisation (paper): ``g(x, z) = [x + r cos(b + theta), y + r sin(b + theta)]`` with
+  ``Gx = dg/dpose`` (2, 3) and ``Gz = dg/dz`` (2, 2); the covariance grows as ``P <- Y P Y^T`` with
+  ``Y = [[I, 0], [Gx 0, Gz]]``, i.e. new cross terms ``Gx P_pose,:`` and the block
+  ``Gx P_pp Gx^T + Gz R Gz^T``.
+- Sequential per-landmark updates (paper). An update touches P in place: the gain comes from the
+  five columns of P the observation depends on (O(n)), and ``P -= K S K^T`` is applied as two rank-1
+  BLAS updates on P's own memory (O(n^2) flops, no n x n temporary), exactly symmetric.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.linalg.blas import dger
+
+from bus.angles import wrap_angle
+from vehicle.ekf import UpdateResult
+
+
+def landmark_count(x: np.ndarray, pose_dim: int) -> int:
+    return (len(x) - pose_dim) // 2
+
+
+def observe(x: np.ndarray, pose_dim: int, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Predicted [range m, bearing rad] (2,) of landmark j, and the Jacobians H_pose = dh/d[x, y,
+    theta] (2, 3) and H_landmark = dh/d[l_jx, l_jy] (2, 2)."""
+    k = pose_dim + 2 * j
+    dx, dy = x[k] - x[0], x[k + 1] - x[1]
+    q = max(dx * dx + dy * dy, 1e-12)
+    r = math.sqrt(q)
+    predicted = np.array([r, wrap_angle(math.atan2(dy, dx) - x[2])])
+    H_pose = np.array([[-dx / r, -dy / r, 0.0], [dy / q, -dx / q, -1.0]])
+    H_landmark = np.array([[dx / r, dy / r], [-dy / q, dx / q]])
+    return predicted, H_pose, H_landmark
+
+
+def landmark_from(pose: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where a landmark seen at z = [range m, bearing rad] from ``pose`` (3+,) lies (2,), with
+    Gx = dg/d[x, y, theta] (2, 3) and Gz = dg/d[range, bearing] (2, 2) (paper's initialisation)."""
+    r, a = z[0], z[1] + pose[2]
+    c, s = math.cos(a), math.sin(a)
+    point = np.array([pose[0] + r * c, pose[1] + r * s])
+    Gx = np.array([[1.0, 0.0, -r * s], [0.0, 1.0, r * c]])
+    Gz = np.array([[c, -r * s], [s, r * c]])
+    return point, Gx, Gz
+
+
+def add_landmarks(x: np.ndarray, P: np.ndarray, zs: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Append landmarks observed at ``zs`` (k, 2) with noise R (2, 2): the augmented (x, P), one new
+    allocation for the whole batch (the map grows once per camera frame, not per landmark).
+    P <- Y P Y^T (paper) block by block: cov(l_i, old state) = Gx_i P[pose, :],
+    cov(l_i, l_i') = Gx_i P_pp Gx_i'^T (they share the pose error), var(l_i) adds Gz_i R Gz_i^T."""
+    n, k = len(x), len(zs)
+    inits = [landmark_from(x, z) for z in zs]
+    G = np.vstack([Gx for _, Gx, _ in inits])              # (2k, 3)
+    x_new = np.concatenate([x, *(point for point, _, _ in inits)])
+    P_new = np.empty((n + 2 * k, n + 2 * k))
+    P_new[:n, :n] = P
+    cross = G @ P[:3, :]                                   # (2k, n)
+    P_new[n:, :n] = cross
+    P_new[:n, n:] = cross.T
+    P_new[n:, n:] = G @ P[:3, :3] @ G.T
+    for i, (_, _, Gz) in enumerate(inits):
+        P_new[n + 2 * i:n + 2 * i + 2, n + 2 * i:n + 2 * i + 2] += Gz @ R @ Gz.T
+    return x_new, P_new
+
+
+def update(x: np.ndarray, P: np.ndarray, pose_dim: int, j: int, z: np.ndarray, R: np.ndarray,
+           gate: float) -> UpdateResult:
+    """EKF update with landmark j seen at z = [range m, bearing rad] (noise R (2, 2)), in place on
+    x (n,) and P (n, n, C-contiguous); skipped when the NIS is above ``gate``."""
+    predicted, H_pose, H_landmark = observe(x, pose_dim, j)
+    k = pose_dim + 2 * j
+    idx = [0, 1, 2, k, k + 1]
+    H = np.hstack([H_pose, H_landmark])        # (2, 5): h depends on these five states only
+    PHt = P[:, idx] @ H.T                      # (n, 2) = P H^T
+    S = H @ PHt[idx] + R
+    y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
+    S_inv = np.linalg.inv(S)
+    nis = float(y @ S_inv @ y)
+    if not nis <= gate:
+        return UpdateResult(False, nis, nis / gate)
+    x += PHt @ (S_inv @ y)
+    x[2] = wrap_angle(x[2])
+    # P -= PHt S^-1 PHt^T = A A^T with A = PHt L^-T (S^-1 = L^-T L^-1): two rank-1 updates in place
+    L = np.linalg.cholesky(S)
+    A = np.linalg.solve(L, PHt.T)              # (2, n) = L^-1 PHt^T
+    for row in A:
+        dger(-1.0, row, row, a=P.T, overwrite_a=True)
+    return UpdateResult(True, nis, nis / gate)
+
+
+def predict_pose(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray, pose_next: np.ndarray) -> None:
+    """Motion of the pose block (q = len(pose_next)) in place: x_pose <- pose_next, P_pp <- F P_pp F^T + Q,
+    cross terms P_pl <- F P_pl (landmarks do not move). F, Q (q, q)."""
+    q = len(pose_next)
+    x[:q] = pose_next
+    x[2] = wrap_angle(x[2])
+    P[:q, q:] = F @ P[:q, q:]
+    P[q:, :q] = P[:q, q:].T
+    P[:q, :q] = F @ P[:q, :q] @ F.T + Q
