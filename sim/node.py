@@ -232,6 +232,15 @@ class WorldNode:
                 return
             self.drain(0.05, tick)
 
+    def await_final_acks(self, tick: int, finishing: set[int], stop: threading.Event, timeout_s: float) -> None:
+        """The final tick: wait for the acknowledgement of every vehicle that was alive when it went
+        out, even once its token is gone. A vehicle acknowledges and then leaves, and zenoh does not
+        order its ack and its departure (different keys): dropping it on the departure would make
+        ``completed`` depend on which arrived first."""
+        deadline = time.monotonic() + timeout_s
+        while not stop.is_set() and not finishing <= self.members.acked and time.monotonic() < deadline:
+            self.drain(0.05, tick)
+
     def hold_for_kills(self, stamp_us: int, stop: threading.Event) -> None:
         """Lockstep with a supervisor (`swarm up`) present: the clock stays at the tick of a kill fault
         until the vehicle is gone, and at the tick of its restart until the new process is back and
@@ -312,8 +321,9 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
         else:
             node.drain(0.0)
     if node.status == "complete":
+        finishing = set(node.members.alive)
         node.send(prepared, final=True)
-        node.await_acks(prepared.tick, stop, min(ack_timeout, 5.0))
+        node.await_final_acks(prepared.tick, finishing, stop, min(ack_timeout, 5.0))
     else:
         log.error("world ends the run early: %s", node.status)
         node.send(prepared, final=True)  # vehicles finish instead of waiting for ticks that never come

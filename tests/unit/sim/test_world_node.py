@@ -49,3 +49,23 @@ def test_a_restarted_vehicle_keeps_its_broadcast_count_growing():
     node.members.on_v2v_count(2, 30)
     node.members.on_v2v_count(2, 5)  # restarted: counts from zero again
     assert node.members.v2v_published(3) == (0, 35, 0)
+
+
+def test_a_vehicle_that_leaves_before_its_final_ack_arrives_still_completed_the_run():
+    """Ack and departure travel on different keys and may arrive in either order."""
+    import threading
+
+    node = _world()
+    keys = node.bus.keys
+    for vid in (1, 2, 3):
+        node._handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
+    finishing = set(node.members.alive)
+    node.members.acked = set()
+    for vid in (1, 2, 3):
+        node.mailbox.lanes[0].put(LivelinessEvent(keys.alive("vehicle", vid), False))   # gone first
+    late = threading.Timer(0.3, lambda: [node.mailbox.lanes[1].put(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 7))))
+                                         for vid in (1, 2, 3)])                          # the acks after
+    late.start()
+    node.await_final_acks(7, finishing, threading.Event(), timeout_s=5.0)
+    late.join()
+    assert node.members.acked == {1, 2, 3}
