@@ -107,6 +107,9 @@ class ClockTick:
     ``v2v_published`` counts, per vehicle (entry id - 1), the V2V broadcasts it had sent by its last
     acknowledgement: in lockstep a vehicle waits until it has heard them all before it cycles on, so
     what it fuses never depends on how the bus interleaves keys.
+    ``members`` lists the vehicles the world waits for (each acknowledged the previous tick, or is
+    rejoining): in lockstep the ground station scores up to where all of them have published, so
+    the order of metrics.csv never depends on when it hears their liveliness.
     """
 
     tick: Annotated[int, Int(0, 2**53)]
@@ -115,6 +118,7 @@ class ClockTick:
     final: Annotated[bool, Bool()]
     comm_jammed: Annotated[tuple[int, ...], Counts(250, 250)] = ()
     v2v_published: Annotated[tuple[int, ...], Counts(250)] = ()
+    members: Annotated[tuple[int, ...], Counts(250, 250)] = ()
 
 
 @dataclass(frozen=True)

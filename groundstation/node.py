@@ -70,6 +70,7 @@ class GroundStation:
         self.ended: m.RunEnd | None = None
         self.final_seen = False
         self.active: set[int] = set()  # vehicles alive on the bus
+        self.tick_members: set[int] | None = None  # lockstep: the vehicles the world's last tick waited for
         self.departed: set[int] = set()
         self.world_alive = False
         self.world_seen = False
@@ -242,6 +243,7 @@ class GroundStation:
             self.event("run_started", mode=self.config.clock.mode)
         self.final_seen = self.final_seen or tick.final
         self.sim_time_us = max(self.sim_time_us, tick.stamp_us)
+        self.tick_members = set(tick.members) or None  # none listed: liveliness decides
         self.faults.advance(tick.stamp_us)
         for vid, frame in self.intake.release(tick.stamp_us, self._stream_passed):
             self._on_mavlink(vid, frame)
@@ -280,9 +282,13 @@ class GroundStation:
     def _lockstep_watermark(self) -> int:
         """Estimates up to here can be scored in (time, vehicle) order: every live vehicle has
         published past it, truth covers it, and no delay fault still holds an older estimate.
-        Zenoh keeps order within a key, not across keys, so each stream's own progress counts."""
+        Zenoh keeps order within a key, not across keys, so each stream's own progress counts. The
+        vehicles counted are those the world's tick waited for, not those whose liveliness this
+        process has heard: a token is another key, and when it arrives must not decide the order in
+        which estimates are scored."""
         marks = [self.previous_tick_us, self.latest_truth_us]
-        marks += [self.latest_estimate_us.get(vid, -1) for vid in self.active]
+        members = self.active if self.tick_members is None else self.tick_members
+        marks += [self.latest_estimate_us.get(vid, -1) for vid in members]
         held = self.intake.links.held_min_stamp()
         return min(marks) if held is None else min(*marks, held - 1)
 

@@ -220,7 +220,8 @@ class WorldNode:
         self.publish(self.bus.keys.truth(), prepared.truth)
         self.members.acked = set()
         tick = m.ClockTick(prepared.tick, prepared.stamp_us, time.time_ns(), final, prepared.comm_jammed,
-                           self.members.v2v_published(self.config.world.vehicles))
+                           self.members.v2v_published(self.config.world.vehicles),
+                           tuple(sorted(self.members.alive | self.members.joining)))
         self.publish(self.bus.keys.clock(), m.encode(tick))
 
     def await_acks(self, tick: int, stop: threading.Event, timeout_s: float) -> None:
