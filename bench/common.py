@@ -42,4 +42,5 @@ def vehicle_feed(config, vehicle_id: int = 1) -> list[tuple[str, object]]:
 
     world = World(config)
     out = world.advance(round(config.clock.duration_s * 1e6))
-    return SensorBatch(vehicle_id, 0, round(config.clock.duration_s * 1e6), out.blocks(vehicle_id)).samples()
+    return SensorBatch(vehicle_id, 0, round(config.clock.duration_s * 1e6), out.blocks(vehicle_id),
+                       out.camera(vehicle_id)).samples()

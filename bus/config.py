@@ -90,6 +90,10 @@ class SensorSpec(_Strict):
     bearing_sigma_rad: float = Field(0.02, gt=0)
     prior_sigma_m: float = Field(0.5, gt=0, description="launch-pad survey of the start position")
     prior_heading_sigma_rad: float = Field(0.05, gt=0)
+    camera_rate_hz: float = Field(0.0, ge=0, le=100, description="down-looking camera frames (0: no camera)")
+    camera_size_px: int = Field(80, ge=16, le=1024, description="square frame side (the paper's 80 px)")
+    camera_noise_grey: float = Field(2.0, ge=0, le=100, description="pixel noise, grey levels (world)")
+    keypoint_sigma_px: float = Field(0.7, gt=0, le=20, description="keypoint position noise the filter assumes")
 
 
 class WorldConfig(_Strict):
@@ -100,10 +104,15 @@ class WorldConfig(_Strict):
     radius_m: float = Field(20.0, gt=0)
     altitude_m: float = Field(30.0, ge=0)
     spacing_m: float = Field(60.0, gt=0, description="distance between neighbouring start pads")
+    terrain: str = Field("", description="orthophoto (PNG/JPEG) the cameras see; empty: a procedural terrain")
+    terrain_metres_per_pixel: float = Field(0.1, gt=0, le=100)
+    terrain_size_px: int = Field(2048, ge=256, le=8192, description="side of the procedural terrain")
 
 
 class VehicleConfig(_Strict):
-    estimator: Literal["ekf"] = Field("ekf", description="the estimator every vehicle runs (vehicle.estimators)")
+    estimator: Literal["ekf", "ekf-slam"] = Field("ekf", description="the estimator every vehicle runs "
+                                                  "(vehicle.estimators): ekf, or ekf-slam (needs a camera)")
+    features: Literal["sift", "orb"] = Field("sift", description="ekf-slam: keypoint detector")
     loop_rate_hz: float = Field(50.0, gt=0, le=1000)
     gate_probability: float = Field(0.9995, gt=0.5, lt=1.0, description="chi-square gate for GNSS")
     heartbeat_period_s: float = Field(1.0, gt=0)
@@ -144,6 +153,7 @@ class SwarmConfig(_Strict):
         step_us = round(1e6 / self.sensors.imu_rate_hz)
         for label, rate in [("odom", self.sensors.odom_rate_hz), ("gnss", self.sensors.gnss_rate_hz),
                             ("ranging", self.sensors.ranging_rate_hz),
+                            *([("camera", self.sensors.camera_rate_hz)] if self.sensors.camera_rate_hz else []),
                             ("truth", self.sensors.truth_rate_hz), ("tick", 1.0 / self.clock.tick_s)]:
             if round(1e6 / rate) % step_us:
                 raise ValueError(f"{label} period must be a multiple of the IMU period ({step_us} us)")
@@ -158,6 +168,12 @@ class SwarmConfig(_Strict):
                 self.clock.tick_s > self.vehicle.v2v_latency_s + 1e-9:
             raise ValueError("lockstep with cooperation needs tick_s <= vehicle.v2v_latency_s (neighbours' "
                              "broadcasts of one tick are heard by the next)")
+        return self
+
+    @model_validator(mode="after")
+    def _slam_has_a_camera(self) -> "SwarmConfig":
+        if self.vehicle.estimator == "ekf-slam" and not self.sensors.camera_rate_hz:
+            raise ValueError("vehicle.estimator = 'ekf-slam' needs a camera: set sensors.camera_rate_hz (e.g. 10)")
         return self
 
     def dump(self, path: Path) -> None:

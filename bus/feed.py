@@ -32,6 +32,21 @@ LAYOUT = {
     "ranging": (7, 2500, 1e6),             # target id, range m, bearing rad, covariance (2, 2)
 }
 TOPICS = tuple(LAYOUT)
+CAMERA_SIZES_PX = (8, 1024)     # frame side, inclusive bounds
+MAX_CAMERA_FRAMES = 100         # per batch
+MAX_METRES_PER_PIXEL = 100.0
+
+
+@dataclass(frozen=True)
+class CameraBlock:
+    """Camera frames of one tick: stamps (k,) us, the first sequence number, ground scales (k,) m/px
+    and pixels (k, size, size) uint8. On the wire: ``{"stamp": <i8 bytes>, "seq0": int, "size": int,
+    "scale": <f8 bytes>, "pixels": <u1 bytes>}``."""
+
+    stamps: np.ndarray
+    seq0: int
+    metres_per_pixel: np.ndarray
+    pixels: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -43,14 +58,20 @@ class SensorBatch:
     tick: int
     stamp_us: int
     blocks: dict[str, tuple[np.ndarray, int, np.ndarray]]
+    camera: CameraBlock | None = None
 
     def samples(self) -> list[tuple[str, Any]]:
-        """(topic, message) for every sample, in stamp order (topics in LAYOUT order at equal stamps)."""
+        """(topic, message) for every sample, in stamp order (topics in LAYOUT order, then camera
+        frames, at equal stamps)."""
         out = []
         vid = self.vehicle_id
         for topic, (stamps, seq0, rows) in self.blocks.items():
             make = _MAKERS[topic]
             out += [(topic, make(vid, int(s), seq0 + i, r)) for i, (s, r) in enumerate(zip(stamps.tolist(), rows))]
+        if self.camera is not None:
+            c = self.camera
+            out += [("camera", m.CameraFrame(vid, int(s), c.seq0 + i, c.pixels[i], float(c.metres_per_pixel[i])))
+                    for i, s in enumerate(c.stamps.tolist())]
         out.sort(key=lambda item: item[1].stamp_us)  # stable: LAYOUT order among equal stamps
         return out
 
@@ -84,6 +105,12 @@ def encode_batch(batch: SensorBatch) -> bytes:
     for topic, (stamps, seq0, rows) in batch.blocks.items():
         body[topic] = {"stamp": np.ascontiguousarray(stamps, "<i8").tobytes(), "seq0": int(seq0),
                        "data": np.ascontiguousarray(rows, "<f8").tobytes()}
+    if batch.camera is not None:
+        c = batch.camera
+        body["camera"] = {"stamp": np.ascontiguousarray(c.stamps, "<i8").tobytes(), "seq0": int(c.seq0),
+                          "size": int(c.pixels.shape[1]) if c.pixels.ndim == 3 else 0,
+                          "scale": np.ascontiguousarray(c.metres_per_pixel, "<f8").tobytes(),
+                          "pixels": np.ascontiguousarray(c.pixels, np.uint8).tobytes()}
     return msgpack.packb(body, use_bin_type=True)
 
 
@@ -159,17 +186,39 @@ def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.nda
     return stamps, seq0, rows
 
 
+def _camera_block(raw: Any, stamp_us: int) -> CameraBlock:
+    """Shape checks only (square frames of a sane size, one scale per frame, stamps in the tick):
+    what a frame shows is for the vehicle's front end to judge."""
+    if not isinstance(raw, dict) or raw.keys() != {"stamp", "seq0", "size", "scale", "pixels"}:
+        raise DecodeError("camera: expected a block with stamp, seq0, size, scale and pixels")
+    stamps = _column(raw["stamp"], "<i8", "camera.stamp")
+    scale = _column(raw["scale"], "<f8", "camera.scale")
+    size = _int(raw, "size", *CAMERA_SIZES_PX)
+    seq0 = _int(raw, "seq0", 0, MAX_SEQ)
+    pixels = raw["pixels"]
+    k = len(stamps)
+    if not isinstance(pixels, bytes) or k > MAX_CAMERA_FRAMES or len(scale) != k or len(pixels) != k * size * size:
+        raise DecodeError(f"camera: {k} frames of {size} x {size} px need {k} scales and {k * size * size} "
+                          f"pixel bytes (at most {MAX_CAMERA_FRAMES} frames)")
+    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or np.any(np.diff(stamps) <= 0)):
+        raise DecodeError(f"camera: stamps must be increasing and inside the tick ending at {stamp_us} us")
+    if not np.all((scale > 0) & (scale <= MAX_METRES_PER_PIXEL)):
+        raise DecodeError(f"camera: ground scale must be in (0, {MAX_METRES_PER_PIXEL:g}] m per pixel")
+    return CameraBlock(stamps, seq0, scale, np.frombuffer(pixels, np.uint8).reshape(k, size, size))
+
+
 def decode_batch(payload: bytes) -> SensorBatch:
     """Validate a SensorBatch; DecodeError names the first problem."""
     body = _unpack(payload, "SensorBatch")
-    allowed = {"type", "v", "vehicle_id", "tick", "stamp_us", *TOPICS}
+    allowed = {"type", "v", "vehicle_id", "tick", "stamp_us", "camera", *TOPICS}
     if not set(body) <= allowed or not {"vehicle_id", "tick", "stamp_us"} <= set(body):
         raise DecodeError(f"SensorBatch: fields must be {sorted(allowed)}")
     vid = _int(body, "vehicle_id", 1, 250)
     tick = _int(body, "tick", 0, 2**53)
     stamp_us = _int(body, "stamp_us", 0, 2**53)
     blocks = {t: _block(t, body[t], vid, stamp_us) for t in TOPICS if t in body}
-    return SensorBatch(vid, tick, stamp_us, blocks)
+    camera = _camera_block(body["camera"], stamp_us) if "camera" in body else None
+    return SensorBatch(vid, tick, stamp_us, blocks, camera)
 
 
 TRUTH_WIDTH = 5  # x m, y m, theta rad, speed m/s, yaw rate rad/s

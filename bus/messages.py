@@ -98,6 +98,19 @@ class RangeBearing:
 
 
 @dataclass(frozen=True)
+class CameraFrame:
+    """A down-looking camera frame: grey pixels (H, W) uint8, forward up (row 0), left at column 0,
+    the centre pixel below the vehicle; ``metres_per_pixel`` is the ground scale. Travels only inside
+    a ``bus.feed.SensorBatch`` (raw bytes); the vehicle's front end judges the contents."""
+
+    vehicle_id: int
+    stamp_us: int
+    seq: int
+    pixels: np.ndarray
+    metres_per_pixel: float
+
+
+@dataclass(frozen=True)
 class ClockTick:
     """World clock: every vehicle's sensor batch for this tick (stamps up to ``stamp_us``) has been
     published before it.
@@ -160,6 +173,9 @@ class VehicleStatus:
     rejected: Rejected = ()
     replays: Annotated[int, Int(0, 2**53)] = 0
     final: Annotated[bool, Bool()] = False  # the last status, sent with the final tick's acknowledgement
+    landmarks: Annotated[int, Int(0, 2**31)] = 0          # SLAM: landmarks in the map
+    landmarks_updated: Annotated[int, Int(0, 2**31)] = 0  # SLAM: landmarks the last usable frame updated
+    frames_used: Annotated[int, Int(0, 2**53)] = 0        # SLAM: camera frames through the front end
 
 
 @dataclass(frozen=True)

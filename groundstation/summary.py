@@ -41,6 +41,8 @@ def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, Vehic
                          dropped_stale=st.dropped_stale, decode_errors=st.decode_errors, reset_counter=st.reset_counter,
                          sensor_duplicates=st.duplicates, sensor_samples_lost=st.samples_lost, late_fused=st.late_fused,
                          v2v_fused=st.v2v_fused, v2v_missing=st.v2v_missing)
+            if st.frames_used:  # a camera vehicle running SLAM
+                entry.update(landmarks=st.landmarks, camera_frames_used=st.frames_used)
         entry["mavlink_rejected"] = per_vehicle_rejected.get(vid, 0)
         if vid in quality:
             entry["mavlink_link"] = quality[vid].as_dict()

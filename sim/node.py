@@ -207,7 +207,8 @@ class WorldNode:
         """Advance the world to the tick's stamp and encode what it measured (no publishing)."""
         stamp = min(tick, self.final_tick) * self.tick_us
         out = self.world.advance(stamp)
-        batches = [(self.bus.keys.feed(vid), feed.encode_batch(feed.SensorBatch(vid, tick, stamp, out.blocks(vid))))
+        batches = [(self.bus.keys.feed(vid), feed.encode_batch(feed.SensorBatch(vid, tick, stamp, out.blocks(vid),
+                                                                                 out.camera(vid))))
                    for vid in self.world.vehicle_ids()]
         ids = self.world.vehicle_ids()
         rows = np.array(out.truth).reshape(len(out.truth_stamps), len(ids), feed.TRUTH_WIDTH)

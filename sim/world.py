@@ -14,9 +14,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bus.config import SwarmConfig
+from bus.feed import CameraBlock
 from sim import sensors
+from sim.camera import camera_frame
 from sim.kinematics import unicycle_step
 from sim.physical_faults import PhysicalFaults
+from sim.terrain import Terrain, load_terrain, procedural_terrain
 from sim.trajectories import make_trajectory, start_pads
 
 BLOCK_STEPS = 100
@@ -29,6 +32,7 @@ class _Vehicle:
     rng: np.random.Generator
     gyro_bias: np.ndarray
     ranging_rng: np.random.Generator
+    camera_rng: np.random.Generator
     last_speed_mps: float = 0.0
     seq: dict[str, int] = field(default_factory=dict)
     noise: dict[str, np.ndarray] = field(default_factory=dict)
@@ -51,14 +55,32 @@ class TickOutput:
         """The bus.feed blocks of one vehicle: topic -> (stamps (k,), first seq, rows (k, w))."""
         out = {}
         for topic, samples in self.rows.get(vehicle_id, {}).items():
-            if samples:
+            if samples and topic != "camera":
                 out[topic] = (np.array([s[0] for s in samples], dtype=np.int64), samples[0][1],
                               np.array([s[2] for s in samples], dtype=np.float64))
         return out
 
+    def camera(self, vehicle_id: int) -> CameraBlock | None:
+        """The vehicle's camera frames as a bus.feed block (None: no frame in this advance)."""
+        frames = self.rows.get(vehicle_id, {}).get("camera")
+        if not frames:
+            return None
+        return CameraBlock(np.array([f[0] for f in frames], dtype=np.int64), frames[0][1],
+                           np.array([f[2][0] for f in frames]), np.stack([f[2][1] for f in frames]))
+
 
 def _period_us(rate_hz: float) -> int:
     return round(1e6 / rate_hz)
+
+
+def make_terrain(config: SwarmConfig) -> Terrain:
+    """The ground the cameras see: ``world.terrain`` (an orthophoto) or a procedural one from the
+    world's seed (ConfigError, one line, for an unreadable file)."""
+    wc = config.world
+    if wc.terrain:
+        return load_terrain(wc.terrain, wc.terrain_metres_per_pixel)
+    return procedural_terrain(np.random.default_rng([wc.seed, 0, 7]), size_px=wc.terrain_size_px,
+                              metres_per_pixel=wc.terrain_metres_per_pixel)
 
 
 class World:
@@ -80,13 +102,16 @@ class World:
                                                 radius_m=wc.radius_m, rng=layout_rng)
             rng = np.random.default_rng([wc.seed, vid])
             self.vehicles.append(_Vehicle(vid, trajectory, rng, sensors.initial_gyro_bias(spec, rng),
-                                          np.random.default_rng([wc.seed, vid, 2])))
+                                          np.random.default_rng([wc.seed, vid, 2]), np.random.default_rng([wc.seed, vid, 3])))
             poses.append(start)
         self.poses = np.array(poses)
         self.faults = PhysicalFaults(config.faults)
         self._periods = {topic: _period_us(rate) for topic, rate in (
             ("odom", spec.odom_rate_hz), ("gnss", spec.gnss_rate_hz), ("ranging", spec.ranging_rate_hz),
             ("truth", spec.truth_rate_hz))}
+        self.terrain = make_terrain(config) if spec.camera_rate_hz else None
+        if self.terrain is not None:
+            self._periods["camera"] = _period_us(spec.camera_rate_hz)
 
     @property
     def now_us(self) -> int:
@@ -157,6 +182,10 @@ class World:
         if t_us % self._periods["gnss"] == 0 and not silenced(vid, "gnss", t_us, pose):
             fix = pose[:2] + v.noise["gnss"][k] + self.faults.spoof_offset_m(vid, t_us, pose)
             self._emit(rows, v, "gnss", t_us, np.concatenate([fix, (np.eye(2) * spec.gnss_sigma_m**2).ravel()]))
+        if self.terrain is not None and t_us % self._periods["camera"] == 0 and not silenced(vid, "camera", t_us, pose):
+            frame = camera_frame(self.terrain, pose, v.camera_rng, size_px=spec.camera_size_px,
+                                 noise_sigma=spec.camera_noise_grey)
+            self._emit(rows, v, "camera", t_us, (self.terrain.metres_per_pixel, frame))
 
     def _ranging(self, out: TickOutput, t_us: int, k: int) -> None:
         """Radio ranging from every vehicle to its ``ranging_max_peers`` nearest peers in reach;

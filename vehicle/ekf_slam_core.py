@@ -56,7 +56,8 @@ def landmark_from(pose: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def add_landmarks(x: np.ndarray, P: np.ndarray, zs: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Append landmarks observed at ``zs`` (k, 2) with noise R (2, 2): the augmented (x, P), one new
+    """Append landmarks observed at ``zs`` (k, 2) with noise R (2, 2), or one per landmark (k, 2, 2):
+    the augmented (x, P), one new
     allocation for the whole batch (the map grows once per camera frame, not per landmark).
     P <- Y P Y^T (paper) block by block: cov(l_i, old state) = Gx_i P[pose, :],
     cov(l_i, l_i') = Gx_i P_pp Gx_i'^T (they share the pose error), var(l_i) adds Gz_i R Gz_i^T."""
@@ -70,8 +71,9 @@ def add_landmarks(x: np.ndarray, P: np.ndarray, zs: np.ndarray, R: np.ndarray) -
     P_new[n:, :n] = cross
     P_new[:n, n:] = cross.T
     P_new[n:, n:] = G @ P[:3, :3] @ G.T
+    Rs = np.broadcast_to(R, (k, 2, 2))
     for i, (_, _, Gz) in enumerate(inits):
-        P_new[n + 2 * i:n + 2 * i + 2, n + 2 * i:n + 2 * i + 2] += Gz @ R @ Gz.T
+        P_new[n + 2 * i:n + 2 * i + 2, n + 2 * i:n + 2 * i + 2] += Gz @ Rs[i] @ Gz.T
     return x_new, P_new
 
 
@@ -81,11 +83,17 @@ def update(x: np.ndarray, P: np.ndarray, pose_dim: int, j: int, z: np.ndarray, R
     x (n,) and P (n, n, C-contiguous); skipped when the NIS is above ``gate``."""
     predicted, H_pose, H_landmark = observe(x, pose_dim, j)
     k = pose_dim + 2 * j
-    idx = [0, 1, 2, k, k + 1]
-    H = np.hstack([H_pose, H_landmark])        # (2, 5): h depends on these five states only
+    y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
+    return update_in_place(x, P, [0, 1, 2, k, k + 1], np.hstack([H_pose, H_landmark]), y, R, gate)
+
+
+def update_in_place(x: np.ndarray, P: np.ndarray, idx: list[int], H: np.ndarray, y: np.ndarray, R: np.ndarray,
+                    gate: float) -> UpdateResult:
+    """EKF update with innovation y (2,) of a measurement depending only on the states ``idx`` (q,)
+    through H (2, q), noise R (2, 2), in place on x (n,) and P (n, n, C-contiguous); skipped when the
+    NIS is above ``gate``. O(n) for the gain, O(n^2) flops for P, no n x n temporary."""
     PHt = P[:, idx] @ H.T                      # (n, 2) = P H^T
     S = H @ PHt[idx] + R
-    y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
     S_inv = np.linalg.inv(S)
     nis = float(y @ S_inv @ y)
     if not nis <= gate:

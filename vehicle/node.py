@@ -76,7 +76,7 @@ class VehicleNode:
         self.inbound = Inbound(keys=keys, vehicle_id=vehicle_id, vehicles=config.vehicles, fault_seed=config.fault_seed,
                                faults=config.faults, rejections=self.rejections)
         self.outbound = Outbound(bus, config, vehicle_id, signing_key=signing_key)
-        self.estimator = get_estimator(config, vehicle_id)
+        self.estimator = get_estimator(config, vehicle_id, reject=self.rejections.reject)
         realtime = config.clock.mode == "realtime"
         self.fusion = FusionHorizon(self.estimator, horizon_us=round(vc.fusion_horizon_s * 1e6),
                                     every_cycles=1 if realtime else 0)
@@ -198,7 +198,7 @@ class VehicleNode:
             self.vehicle_id, t_us, self.stats.cycles, self.stats.overruns, self.stats.jitter_p99_us(),
             self.stats.cycle_p99_us(), c.stale + f.dropped_stale, c.gnss_rejected, self.rejections.total,
             self.reset_counter % 256, f.duplicates, self.sequences.lost, f.late_fused, c.v2v_fused, self.v2v.missing,
-            self.rejections.as_counts(), f.replays, final))
+            self.rejections.as_counts(), f.replays, final, c.landmarks, c.landmarks_updated, c.frames_used))
 
     def finish_tick(self, tick: m.ClockTick) -> None:
         """Lockstep: publish the tick's MAVLink frames, then acknowledge it. After a ground station

@@ -73,10 +73,11 @@ def motion_jacobians(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_
     return F, G
 
 
-def predict(x: np.ndarray, P: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float, *,
-            speed_var: float, yaw_rate_var: float, bias_walk_var: float, use_bias: bool = True,
-            steps: list[tuple[float, float, float]] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Propagate x (4,) and P (4, 4) over dt_s with the mean inputs of the interval.
+def motion_model(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float, *,
+                 speed_var: float, yaw_rate_var: float, bias_walk_var: float, use_bias: bool = True,
+                 steps: list[tuple[float, float, float]] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The motion over dt_s with the mean inputs of the interval: the new state (4,), F (4, 4) and
+    Q (4, 4), so that P <- F P F^T + Q.
 
     ``yaw_rate_radps`` is the measured (gyro) mean rate; the bias x[3] is removed when ``use_bias``.
     ``speed_var`` (m^2/s^2) and ``yaw_rate_var`` (rad^2/s^2) are the variances of those *means*;
@@ -89,10 +90,19 @@ def predict(x: np.ndarray, P: np.ndarray, speed_mps: float, yaw_rate_radps: floa
     if not use_bias:
         F[:, 3] = 0.0
         F[3, 3] = 1.0
-    P_new = F @ P @ F.T
-    P_new += np.outer(G[:, 0] * speed_var, G[:, 0]) + np.outer(G[:, 1] * yaw_rate_var, G[:, 1])
-    P_new[3, 3] += bias_walk_var * dt_s
+    Q = np.outer(G[:, 0] * speed_var, G[:, 0]) + np.outer(G[:, 1] * yaw_rate_var, G[:, 1])
+    Q[3, 3] += bias_walk_var * dt_s
     x_new = propagate_pieces(x, steps, x[3] if use_bias else 0.0) if steps else propagate_mean(x, speed_mps, yaw_rate, dt_s)
+    return x_new, F, Q
+
+
+def predict(x: np.ndarray, P: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float, *,
+            speed_var: float, yaw_rate_var: float, bias_walk_var: float, use_bias: bool = True,
+            steps: list[tuple[float, float, float]] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Propagate x (4,) and P (4, 4) over dt_s (see :func:`motion_model`)."""
+    x_new, F, Q = motion_model(x, speed_mps, yaw_rate_radps, dt_s, speed_var=speed_var, yaw_rate_var=yaw_rate_var,
+                               bias_walk_var=bias_walk_var, use_bias=use_bias, steps=steps)
+    P_new = F @ P @ F.T + Q
     return x_new, 0.5 * (P_new + P_new.T)
 
 

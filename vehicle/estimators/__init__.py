@@ -5,17 +5,26 @@
 
 from __future__ import annotations
 
+from typing import Callable
+
 from bus.config import VehicleProcessConfig
 from bus.errors import ConfigError
 from vehicle.estimators.base import Estimator
 
 
-def get_estimator(config: VehicleProcessConfig, vehicle_id: int) -> Estimator:
-    """The estimator a vehicle runs, built from its own configuration only."""
+def get_estimator(config: VehicleProcessConfig, vehicle_id: int, *,
+                  reject: Callable[[str, str, str], None] | None = None) -> Estimator:
+    """The estimator a vehicle runs, built from its own configuration only; ``reject(reason, where,
+    detail)`` counts input the estimator refuses (garbage camera frames)."""
     name = config.vehicle.estimator
     if name == "ekf":
         from vehicle.estimators.ekf import UnicycleEkf
 
         return UnicycleEkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
                            altitude_m=config.altitude_m)
+    if name == "ekf-slam":
+        from vehicle.estimators.ekf_slam import EkfSlam
+
+        return EkfSlam(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
+                       altitude_m=config.altitude_m, detector=config.vehicle.features, reject=reject)
     raise ConfigError(f"unknown estimator {name!r}")

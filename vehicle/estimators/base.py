@@ -28,6 +28,9 @@ class EstimatorCounters:
     resets: int = 0
     v2v_fused: int = 0
     v2v_rejected: int = 0
+    landmarks: int = 0            # SLAM: landmarks in the map
+    landmarks_updated: int = 0    # SLAM: landmarks the last usable camera frame updated
+    frames_used: int = 0          # SLAM: camera frames through the front end
 
 
 @dataclass(frozen=True)

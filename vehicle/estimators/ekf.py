@@ -119,10 +119,13 @@ class UnicycleEkf:
         rate, rate_var, rate_source = (gyro, spec.gyro_sigma_radps**2 * gyro_factor, self.gyro) if fresh else \
             (odom_yaw, spec.odom_yaw_rate_sigma_radps**2 * odom_factor, self.odom_yaw)
         steps = ekf.pieces(self.speed.segments, rate_source.segments)
-        self.x, self.P = ekf.predict_fast(self.x, self.P, speed, rate, dt, speed_var=spec.odom_speed_sigma_mps**2 * speed_factor,
-                                     yaw_rate_var=rate_var, bias_walk_var=spec.gyro_bias_walk_radps_rtsec**2,
-                                     use_bias=fresh, steps=steps)
+        self._predict(speed, rate, dt, speed_var=spec.odom_speed_sigma_mps**2 * speed_factor, yaw_rate_var=rate_var,
+                      bias_walk_var=spec.gyro_bias_walk_radps_rtsec**2, use_bias=fresh, steps=steps)
         self.time_us = stamp_us
+
+    def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
+        """The motion step on (x, P) (ekf.predict_fast's arguments)."""
+        self.x, self.P = ekf.predict_fast(self.x, self.P, speed, rate, dt, **noise)
 
     def _fuse_gnss(self, fix: m.GnssFix) -> None:
         """Fuse a fix only if the GNSS health monitor trusts the receiver and the fix passes its tests."""
@@ -133,8 +136,11 @@ class UnicycleEkf:
         if not verdict.fuse:
             self.counters.gnss_rejected += 1
             return
-        self.x, self.P, _ = ekf.gnss_update(self.x, self.P, fix.position_m, fix.covariance_m2, self._gate)
+        self._gnss_update(fix)
         self.counters.gnss_accepted += 1
+
+    def _gnss_update(self, fix: m.GnssFix) -> None:
+        self.x, self.P, _ = ekf.gnss_update(self.x, self.P, fix.position_m, fix.covariance_m2, self._gate)
 
     def _reset_position(self, offset_m: np.ndarray, variance_m2: float) -> None:
         """Jump the position by ``offset_m`` (2,) with per-axis variance ``variance_m2``; decorrelate it."""
@@ -158,7 +164,11 @@ class UnicycleEkf:
         if self._diverged():
             self._recover(t_us)
         else:
-            self._last_good = (self.x.copy(), self.P.copy())
+            self._remember_good(t_us)
+
+    def _remember_good(self, t_us: int) -> None:
+        """Keep this cycle's state as the one to fall back to on divergence."""
+        self._last_good = (self.x.copy(), self.P.copy())
 
     def _diverged(self) -> bool:
         """Non-finite state or a covariance that is no longer (finite and) positive definite."""
@@ -170,9 +180,13 @@ class UnicycleEkf:
             self._notice(Notice(t_us, SEVERITY_WARNING, "estimator reset: diverged before a good cycle"))
             return
         x, P = self._last_good
-        self.x, self.P = x.copy(), DIVERGENCE_INFLATION * P + np.diag(DIVERGENCE_FLOOR)
+        self.x, self.P = x.copy(), self._inflated(P)
         self.counters.resets += 1
         self._notice(Notice(t_us, SEVERITY_WARNING, "estimator reset: non-finite or indefinite covariance"))
+
+    def _inflated(self, P: np.ndarray) -> np.ndarray:
+        """The fallback covariance after a divergence: inflated, with a floor."""
+        return DIVERGENCE_INFLATION * P + np.diag(DIVERGENCE_FLOOR)
 
     def _notice(self, notice: Notice) -> None:
         """Queue a notice unless it was said already (a replay re-runs cycles)."""

@@ -45,15 +45,35 @@ def detect(frame: np.ndarray, detector) -> Features:
 
 def thin(features: Features, cell_px: int = 30) -> Features:
     """The strongest keypoint of each ``cell_px`` x ``cell_px`` cell (paper: ~9000 -> ~900)."""
-    if len(features.responses) == 0:
-        return features
-    cells = (features.points_px // cell_px).astype(np.int64)
+    keep = thin_indices(features.points_px, features.responses, cell_px)
+    return Features(features.points_px[keep], features.responses[keep], features.descriptors[keep])
+
+
+def thin_indices(points_px: np.ndarray, responses: np.ndarray, cell_px: int = 30) -> np.ndarray:
+    """Indices (sorted) of the strongest of ``points_px`` (k, 2) in each ``cell_px`` cell."""
+    if len(responses) == 0:
+        return np.zeros(0, dtype=np.int64)
+    cells = (points_px // cell_px).astype(np.int64)
     key = cells[:, 0] * 1_000_003 + cells[:, 1]
-    order = np.lexsort((-features.responses, key))      # by cell, strongest first within a cell
+    order = np.lexsort((-responses, key))      # by cell, strongest first within a cell
     first = np.ones(len(order), dtype=bool)
     first[1:] = key[order][1:] != key[order][:-1]
-    keep = np.sort(order[first])
-    return Features(features.points_px[keep], features.responses[keep], features.descriptors[keep])
+    return np.sort(order[first])
+
+
+def garbage_reason(pixels: object) -> str | None:
+    """Why a camera frame cannot be used (None: it can): not a square grey uint8 image, empty,
+    all black, or without texture (grey-level spread under 2)."""
+    if not isinstance(pixels, np.ndarray) or pixels.dtype != np.uint8 or pixels.ndim != 2 \
+            or pixels.shape[0] != pixels.shape[1]:
+        return "not a square grey uint8 frame"
+    if pixels.size == 0:
+        return "empty frame"
+    if not pixels.any():
+        return "all black"
+    if float(pixels.std()) < 2.0:
+        return "no texture (uniform grey)"
+    return None
 
 
 def range_bearing(points_px: np.ndarray, size_px: int, metres_per_pixel: float) -> np.ndarray:

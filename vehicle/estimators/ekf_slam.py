@@ -1,0 +1,176 @@
+"""``ekf-slam``: vision EKF-SLAM (vision EKF-SLAM paper) on top of the default ``ekf``.
+
+The state is the unicycle EKF's pose block [x, y, theta, gyro_bias] followed by the map
+[l1x, l1y, l2x, l2y, ...] (m); odometry, IMU, GNSS (when there is any) and cooperative fixes act as
+in ``ekf``, the prediction moves the pose block and its cross-covariances in place
+(``ekf_slam_core.predict_pose``). Every camera frame:
+
+1. is judged (garbage frames are counted and reported, never fused);
+2. goes through the front end: SIFT (or ORB) keypoints, pixel offsets to range and bearing with the
+   ground scale the frame carries (``vehicle.vision.features``);
+3. is associated with the landmarks in view: descriptor match with the ratio test, each pair then
+   fused by a sequential range-bearing update (paper) behind a Mahalanobis gate, in place on P;
+4. adds landmarks: the strongest keypoint of each 30 x 30 px cell (paper's thinning) that matched
+   nothing and lies farther than half a cell from every mapped landmark, initialised with the
+   paper's ``g(x, z)``, ``Gx``, ``Gz`` in one batch per frame.
+
+Pure: no bus, no clock. Fusion-horizon snapshots copy (x, P) only where the horizon asks for one;
+the fallback for divergence recovery is refreshed once per ``GOOD_PERIOD_US``, not every cycle.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Callable
+
+import cv2
+import numpy as np
+
+from bus import messages as m
+from bus.config import SensorSpec
+from vehicle import ekf_slam_core as slam
+from vehicle import unicycle_ekf as ekf
+from vehicle.ekf import gate_threshold
+from vehicle.estimators.ekf import DIVERGENCE_FLOOR, DIVERGENCE_INFLATION, UnicycleEkf
+from vehicle.vision import association, features
+
+POSE_DIM = 4
+CELL_PX = 30                 # paper's thinning cell
+LANDMARK_GATE_P = 0.999      # Mahalanobis gate on each landmark update
+GOOD_PERIOD_US = 1_000_000   # divergence fallback refreshed this often (it is an n x n copy)
+CONSENSUS_M = 0.3           # matches must agree on one rigid motion within this [m]
+MAX_LANDMARKS = 2000         # the map stops growing here (update cost is O(n^2))
+
+Reject = Callable[[str, str, str], None]
+
+
+class EkfSlam(UnicycleEkf):
+    """Vision EKF-SLAM: see the module docstring."""
+
+    name = "ekf-slam"
+
+    def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
+                 detector: str = "sift", reject: Reject | None = None) -> None:
+        super().__init__(vehicle_id=vehicle_id, spec=spec, gate_probability=gate_probability, altitude_m=altitude_m)
+        self._detector = features.make_detector(detector)
+        self._norm = cv2.NORM_L2 if detector == "sift" else cv2.NORM_HAMMING
+        self._landmark_gate = gate_threshold(2, LANDMARK_GATE_P)
+        self._reject = reject or (lambda reason, where, detail: None)
+        self.descriptors: np.ndarray | None = None  # (m, d), replaced (never changed in place) as the map grows
+        self._good_until_us = -1
+        self._judged_until_us = -1  # garbage frames are reported once, replays or not
+
+    @property
+    def landmarks_xy(self) -> np.ndarray:
+        """Mapped landmarks (m, 2) [m]."""
+        return self.x[POSE_DIM:].reshape(-1, 2) if self.x is not None else np.zeros((0, 2))
+
+    def handle(self, topic: str, msg: Any) -> None:
+        if isinstance(msg, m.CameraFrame):
+            if self.x is not None and msg.stamp_us >= self.time_us:
+                self._on_frame(msg)
+            elif self.x is not None:
+                self.counters.stale += 1
+            return
+        super().handle(topic, msg)
+
+    def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
+        super()._initialise(pose, covariance, stamp_us)
+        self.descriptors = None
+        self.counters.landmarks = 0
+
+    def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
+        """The pose block moves; landmarks stay; cross-covariances follow in place."""
+        pose_next, F, Q = ekf.motion_model(self.x[:POSE_DIM], speed, rate, dt, **noise)
+        slam.predict_pose(self.x, self.P, F, Q, pose_next)
+
+    def _gnss_update(self, fix: m.GnssFix) -> None:
+        slam.update_in_place(self.x, self.P, [0, 1], np.eye(2), fix.position_m - self.x[:2], fix.covariance_m2,
+                             self._gate)
+
+    def _on_frame(self, frame: m.CameraFrame) -> None:
+        reason = features.garbage_reason(frame.pixels)
+        if reason is not None:
+            if frame.stamp_us > self._judged_until_us:  # a replay meets the same frame again
+                self._judged_until_us = frame.stamp_us
+                self._reject("garbage_frame", f"camera of vehicle {self.vehicle_id}", reason)
+            return
+        self._propagate_to(frame.stamp_us)
+        found = features.detect(np.ascontiguousarray(frame.pixels), self._detector)
+        size, scale = frame.pixels.shape[0], frame.metres_per_pixel
+        z = features.range_bearing(found.points_px, size, scale)
+        R = features.pixel_noise_to_range_bearing(found.points_px, size, scale, self._spec.keypoint_sigma_px)
+        matched = self._update_matched(found, z, R, half_extent_m=0.5 * size * scale)
+        self._add_landmarks(found, z, R, matched, cell_m=CELL_PX * scale)
+        self.counters.frames_used += 1
+
+    def _update_matched(self, found: features.Features, z: np.ndarray, R: np.ndarray, *, half_extent_m: float) -> set[int]:
+        """Sequential updates with the keypoints matched to landmarks in view; returns the keypoints
+        that matched a landmark (fused or gated out)."""
+        visible = association.in_view(self.landmarks_xy, self.x[:3], half_extent_m)
+        pairs = association.match(found.descriptors, self.descriptors[visible], self._norm) if len(visible) else []
+        if pairs:
+            seen = np.array([z[i] for i, _ in pairs])
+            measured = np.stack([seen[:, 0] * np.cos(seen[:, 1]), seen[:, 0] * np.sin(seen[:, 1])], axis=1)
+            predicted = association.to_body(self.landmarks_xy[[visible[row] for _, row in pairs]], self.x[:3])
+            agree = association.rigidly_consistent(predicted, measured, CONSENSUS_M)
+            pairs = [pair for pair, ok in zip(pairs, agree.tolist()) if ok]
+        updated = 0
+        for i, row in pairs:
+            result = slam.update(self.x, self.P, POSE_DIM, int(visible[row]), z[i], R[i], self._landmark_gate)
+            updated += int(result.accepted)
+        self.counters.landmarks_updated = updated
+        return {i for i, _ in pairs}
+
+    def _add_landmarks(self, found: features.Features, z: np.ndarray, R: np.ndarray, matched: set[int], *,
+                       cell_m: float) -> None:
+        """New landmarks from the thinned keypoints that matched nothing and lie farther than half a
+        cell from the map (paper's initialisation, one batch per frame)."""
+        room = MAX_LANDMARKS - self.counters.landmarks
+        keep = [i for i in features.thin_indices(found.points_px, found.responses, CELL_PX).tolist() if i not in matched]
+        if not keep or room <= 0:
+            return
+        where = features.body_to_world(self.x[:3], z[keep])
+        mapped = self.landmarks_xy
+        if len(mapped):
+            gap = np.min(np.hypot(*(where[:, None, :] - mapped[None, :, :]).transpose(2, 0, 1)), axis=1)
+            keep = [i for i, g in zip(keep, gap.tolist()) if g > 0.5 * cell_m]
+        keep = keep[:room]
+        if not keep:
+            return
+        self.x, self.P = slam.add_landmarks(self.x, self.P, z[keep], R[keep])
+        new = found.descriptors[keep]
+        self.descriptors = new.copy() if self.descriptors is None else np.vstack([self.descriptors, new])
+        self.counters.landmarks += len(keep)
+
+    def _diverged(self) -> bool:
+        """Non-finite state, a pose block that is not positive definite, or a map variance <= 0
+        (O(n): a full check of P would cost O(n^3) per cycle)."""
+        diagonal = np.diagonal(self.P)
+        return not (math.isfinite(float(self.x.sum())) and ekf.is_spd4(self.P[:POSE_DIM, :POSE_DIM])
+                    and bool(np.all(diagonal > 0)) and math.isfinite(float(diagonal.sum())))
+
+    def _remember_good(self, t_us: int) -> None:
+        if t_us >= self._good_until_us:
+            super()._remember_good(t_us)
+            self._good_until_us = t_us + GOOD_PERIOD_US
+
+    def _inflated(self, P: np.ndarray) -> np.ndarray:
+        out = DIVERGENCE_INFLATION * P
+        out[:POSE_DIM, :POSE_DIM] += np.diag(DIVERGENCE_FLOOR)
+        return out
+
+    def _recover(self, t_us: int) -> None:
+        super()._recover(t_us)
+        if self.x is not None:  # the fallback's map, and the descriptors of the landmarks it had
+            self.counters.landmarks = (len(self.x) - POSE_DIM) // 2
+            self.descriptors = None if self.descriptors is None else self.descriptors[:self.counters.landmarks]
+        else:
+            self.descriptors, self.counters.landmarks = None, 0
+
+    def snapshot(self) -> dict:
+        state = super().snapshot()
+        state["descriptors"] = self.descriptors  # never changed in place: shared, not copied
+        state["_good_until_us"] = self._good_until_us
+        return state
