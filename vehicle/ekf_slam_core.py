@@ -11,6 +11,12 @@ theta rad]`` (p = 3 as in the paper; p = 4 carries the unicycle EKF's gyro bias 
   ``Gx = dg/dpose`` (2, 3) and ``Gz = dg/dz`` (2, 2); the covariance grows as ``P <- Y P Y^T`` with
   ``Y = [[I, 0], [Gx 0, Gz]]``, i.e. new cross terms ``Gx P_pose,:`` and the block
   ``Gx P_pp Gx^T + Gz R Gz^T``.
+- First-estimates Jacobians (Huang, Mourikis and Roumeliotis, "Analysis and improvement of the
+  consistency of EKF-based SLAM", ICRA 2008): evaluated at the estimates of the moment, the
+  Jacobians give the filter information about the global heading it cannot have (a revisit
+  collapses its variance below the launch prior's), and loop closures turn it overconfident. With
+  each landmark's first estimate and the pose's propagated (pre-update) estimate in H, and the
+  propagated positions in F, the unobservable translation and rotation stay unobservable.
 - Sequential per-landmark updates (paper). An update touches P in place: the gain comes from the
   five columns of P the observation depends on (O(n)), and ``P -= K S K^T`` is applied as two rank-1
   BLAS updates on P's own memory (O(n^2) flops, no n x n temporary), exactly symmetric.
@@ -31,14 +37,19 @@ def landmark_count(x: np.ndarray, pose_dim: int) -> int:
     return (len(x) - pose_dim) // 2
 
 
-def observe(x: np.ndarray, pose_dim: int, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def observe(x: np.ndarray, pose_dim: int, j: int,
+            linearize_at: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Predicted [range m, bearing rad] (2,) of landmark j, and the Jacobians H_pose = dh/d[x, y,
-    theta] (2, 3) and H_landmark = dh/d[l_jx, l_jy] (2, 2)."""
+    theta] (2, 3) and H_landmark = dh/d[l_jx, l_jy] (2, 2), evaluated at the estimate or at
+    ``linearize_at`` = (vehicle xy (2,), landmark xy (2,)) (first-estimates Jacobians, below)."""
     k = pose_dim + 2 * j
     dx, dy = x[k] - x[0], x[k + 1] - x[1]
+    predicted = np.array([math.hypot(dx, dy), wrap_angle(math.atan2(dy, dx) - x[2])])
+    if linearize_at is not None:
+        (px, py), (lx, ly) = linearize_at
+        dx, dy = lx - px, ly - py
     q = max(dx * dx + dy * dy, 1e-12)
     r = math.sqrt(q)
-    predicted = np.array([r, wrap_angle(math.atan2(dy, dx) - x[2])])
     H_pose = np.array([[-dx / r, -dy / r, 0.0], [dy / q, -dx / q, -1.0]])
     H_landmark = np.array([[dx / r, dy / r], [-dy / q, dx / q]])
     return predicted, H_pose, H_landmark
@@ -78,10 +89,11 @@ def add_landmarks(x: np.ndarray, P: np.ndarray, zs: np.ndarray, R: np.ndarray) -
 
 
 def update(x: np.ndarray, P: np.ndarray, pose_dim: int, j: int, z: np.ndarray, R: np.ndarray,
-           gate: float) -> UpdateResult:
+           gate: float, linearize_at: tuple[np.ndarray, np.ndarray] | None = None) -> UpdateResult:
     """EKF update with landmark j seen at z = [range m, bearing rad] (noise R (2, 2)), in place on
-    x (n,) and P (n, n, C-contiguous); skipped when the NIS is above ``gate``."""
-    predicted, H_pose, H_landmark = observe(x, pose_dim, j)
+    x (n,) and P (n, n, C-contiguous); skipped when the NIS is above ``gate``. ``linearize_at``:
+    see :func:`observe`."""
+    predicted, H_pose, H_landmark = observe(x, pose_dim, j, linearize_at)
     k = pose_dim + 2 * j
     y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
     return update_in_place(x, P, [0, 1, 2, k, k + 1], np.hstack([H_pose, H_landmark]), y, R, gate)

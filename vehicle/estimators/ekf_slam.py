@@ -8,8 +8,10 @@ in ``ekf``, the prediction moves the pose block and its cross-covariances in pla
 1. is judged (garbage frames are counted and reported, never fused);
 2. goes through the front end: SIFT (or ORB) keypoints, pixel offsets to range and bearing with the
    ground scale the frame carries (``vehicle.vision.features``);
-3. is associated with the landmarks in view: descriptor match with the ratio test, each pair then
-   fused by a sequential range-bearing update (paper) behind a Mahalanobis gate, in place on P;
+3. is associated with the landmarks in view: descriptor match with the ratio test, kept when the
+   pairs agree on one rigid motion (RANSAC), each then fused by a sequential range-bearing update
+   (paper) behind a Mahalanobis gate, in place on P, with first-estimates Jacobians (Huang et
+   al. 2008, see ``ekf_slam_core``) so that loop closures do not make the filter overconfident;
 4. adds landmarks: the strongest keypoint of each 30 x 30 px cell (paper's thinning) that matched
    nothing and lies farther than half a cell from every mapped landmark, initialised with the
    paper's ``g(x, z)``, ``Gx``, ``Gz`` in one batch per frame.
@@ -51,13 +53,16 @@ class EkfSlam(UnicycleEkf):
     name = "ekf-slam"
 
     def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
-                 detector: str = "sift", reject: Reject | None = None) -> None:
+                 detector: str = "sift", reject: Reject | None = None, first_estimates: bool = True) -> None:
         super().__init__(vehicle_id=vehicle_id, spec=spec, gate_probability=gate_probability, altitude_m=altitude_m)
         self._detector = features.make_detector(detector)
         self._norm = cv2.NORM_L2 if detector == "sift" else cv2.NORM_HAMMING
         self._landmark_gate = gate_threshold(2, LANDMARK_GATE_P)
         self._reject = reject or (lambda reason, where, detail: None)
+        self._first_estimates = first_estimates  # False: Jacobians at the current estimates (the paper's EKF)
         self.descriptors: np.ndarray | None = None  # (m, d), replaced (never changed in place) as the map grows
+        self.first_xy: np.ndarray | None = None     # (m, 2) landmarks' first estimates (FEJ), replaced likewise
+        self._prior_xy: np.ndarray | None = None    # position as last propagated, before any update (FEJ)
         self._good_until_us = -1
         self._judged_until_us = -1  # garbage frames are reported once, replays or not
 
@@ -77,13 +82,17 @@ class EkfSlam(UnicycleEkf):
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
         super()._initialise(pose, covariance, stamp_us)
-        self.descriptors = None
+        self.descriptors, self.first_xy, self._prior_xy = None, None, self.x[:2].copy()
         self.counters.landmarks = 0
 
     def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
-        """The pose block moves; landmarks stay; cross-covariances follow in place."""
+        """The pose block moves; landmarks stay; cross-covariances follow in place. F's position-heading
+        terms are the displacement between propagated estimates (first-estimates Jacobian)."""
         pose_next, F, Q = ekf.motion_model(self.x[:POSE_DIM], speed, rate, dt, **noise)
+        if self._first_estimates and self._prior_xy is not None:
+            F[0, 2], F[1, 2] = -(pose_next[1] - self._prior_xy[1]), pose_next[0] - self._prior_xy[0]
         slam.predict_pose(self.x, self.P, F, Q, pose_next)
+        self._prior_xy = pose_next[:2].copy()
 
     def _gnss_update(self, fix: m.GnssFix) -> None:
         slam.update_in_place(self.x, self.P, [0, 1], np.eye(2), fix.position_m - self.x[:2], fix.covariance_m2,
@@ -118,7 +127,9 @@ class EkfSlam(UnicycleEkf):
             pairs = [pair for pair, ok in zip(pairs, agree.tolist()) if ok]
         updated = 0
         for i, row in pairs:
-            result = slam.update(self.x, self.P, POSE_DIM, int(visible[row]), z[i], R[i], self._landmark_gate)
+            j = int(visible[row])
+            result = slam.update(self.x, self.P, POSE_DIM, j, z[i], R[i], self._landmark_gate,
+                                 linearize_at=(self._prior_xy, self.first_xy[j]) if self._first_estimates else None)
             updated += int(result.accepted)
         self.counters.landmarks_updated = updated
         return {i for i, _ in pairs}
@@ -142,7 +153,13 @@ class EkfSlam(UnicycleEkf):
         self.x, self.P = slam.add_landmarks(self.x, self.P, z[keep], R[keep])
         new = found.descriptors[keep]
         self.descriptors = new.copy() if self.descriptors is None else np.vstack([self.descriptors, new])
+        first = self.x[-2 * len(keep):].reshape(-1, 2).copy()
+        self.first_xy = first if self.first_xy is None else np.vstack([self.first_xy, first])
         self.counters.landmarks += len(keep)
+
+    def _reset_position(self, offset_m: np.ndarray, variance_m2: float) -> None:
+        super()._reset_position(offset_m, variance_m2)
+        self._prior_xy = self.x[:2].copy()  # the jump is not motion
 
     def _diverged(self) -> bool:
         """Non-finite state, a pose block that is not positive definite, or a map variance <= 0
@@ -164,13 +181,17 @@ class EkfSlam(UnicycleEkf):
     def _recover(self, t_us: int) -> None:
         super()._recover(t_us)
         if self.x is not None:  # the fallback's map, and the descriptors of the landmarks it had
-            self.counters.landmarks = (len(self.x) - POSE_DIM) // 2
-            self.descriptors = None if self.descriptors is None else self.descriptors[:self.counters.landmarks]
+            kept = self.counters.landmarks = (len(self.x) - POSE_DIM) // 2
+            self.descriptors = None if self.descriptors is None else self.descriptors[:kept]
+            self.first_xy = None if self.first_xy is None else self.first_xy[:kept]
+            self._prior_xy = self.x[:2].copy()
         else:
-            self.descriptors, self.counters.landmarks = None, 0
+            self.descriptors, self.first_xy, self.counters.landmarks = None, None, 0
 
     def snapshot(self) -> dict:
         state = super().snapshot()
         state["descriptors"] = self.descriptors  # never changed in place: shared, not copied
+        state["first_xy"] = self.first_xy
+        state["_prior_xy"] = self._prior_xy      # replaced, never changed in place
         state["_good_until_us"] = self._good_until_us
         return state
