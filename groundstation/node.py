@@ -18,6 +18,7 @@ from bus import messages as m
 from bus.claims import ClaimReply, ClaimRequest
 from bus.config import SwarmConfig
 from bus.errors import DecodeError
+from bus.landmark_map import MAX_MAP_BYTES, LandmarkMap, decode_map, map_record
 from bus.link_faults import Arrival
 from bus.mailbox import Mailbox, Oversized
 from bus.mavlink_codec import EstimatorStatus, StateEstimate, StatusText
@@ -51,7 +52,7 @@ class GroundStation:
         mavlink, status = self.mailbox.lane("mavlink", max_items=200_000), self.mailbox.lane("status", max_items=20_000)
         for expr, lane, cap in ((keys.clock(), control, MAX_CONTROL_BYTES), (keys.end(), control, MAX_CONTROL_BYTES),
                                 (keys.truth(), truth, MAX_TRUTH_BYTES), (f"{prefix}/v/*/mavlink", mavlink, MAX_STREAM_BYTES),
-                                (f"{prefix}/v/*/status", status, MAX_CONTROL_BYTES)):
+                                (f"{prefix}/v/*/status", status, MAX_MAP_BYTES)):
             bus.subscribe(expr, lane, cap)
         bus.queryable(keys.fault_request(), control)
         bus.queryable(keys.claim(), control)
@@ -64,6 +65,7 @@ class GroundStation:
         self.forwarder = forwarder
         self.latency_us: dict[int, list[int]] = {}
         self.statuses: dict[int, m.VehicleStatus] = {}
+        self.maps: dict[int, LandmarkMap] = {}  # the latest map of each SLAM vehicle
         self.events: Counter[str] = Counter()
         self.sim_time_us = 0
         self.previous_tick_us = -1
@@ -187,7 +189,7 @@ class GroundStation:
                 for vid, frame in self.intake.offer(key, parsed.vehicle_id, item.payload):
                     self._on_mavlink(vid, frame)
             elif parsed.topic == "status":
-                self._on_status(parsed.vehicle_id, m.decode(m.VehicleStatus, item.payload))
+                self._on_status_key(parsed.vehicle_id, item.payload)
         except DecodeError as exc:
             self.rejections.reject("malformed", key, str(exc))
 
@@ -197,6 +199,26 @@ class GroundStation:
                 self.scorer.add_truth(vid, stamp, batch.rows[k, n, :3])
         if len(batch.stamps_us):
             self.latest_truth_us = max(self.latest_truth_us, int(batch.stamps_us[-1]))
+
+    def _on_status_key(self, vid: int, payload: bytes) -> None:
+        """The status key carries a vehicle's loop statistics and, from SLAM vehicles, its map."""
+        try:
+            status = m.decode(m.VehicleStatus, payload)
+        except DecodeError as not_status:
+            try:
+                landmark_map = decode_map(payload)
+            except DecodeError:
+                raise not_status from None
+            self._on_map(vid, landmark_map)
+            return
+        self._on_status(vid, status)
+
+    def _on_map(self, vid: int, landmark_map: LandmarkMap) -> None:
+        if landmark_map.vehicle_id != vid or vid > self.config.world.vehicles:
+            self.rejections.reject("impersonation" if landmark_map.vehicle_id != vid else "unknown_vehicle",
+                                   f"v/{vid}/status", f"map of vehicle {landmark_map.vehicle_id}")
+            return
+        self.maps[vid] = landmark_map
 
     def _on_status(self, vid: int, status: m.VehicleStatus) -> None:
         if status.vehicle_id != vid or vid > self.config.world.vehicles:
@@ -305,6 +327,8 @@ class GroundStation:
         summary = build_summary(self.config, self.scorer, self.statuses, dict(sorted(self.events.items())), status,
                                 self.faults.faults, self.intake, self._rejected())
         self.run.write_json("summary.json", summary)
+        for vid, landmark_map in sorted(self.maps.items()):
+            self.run.write_json(f"map_v{vid}.json", map_record(landmark_map))
         wall_s = (self.wall_end or time.perf_counter()) - (self.wall_start or time.perf_counter())
         self.run.write_json("timing.json", build_timing(self.statuses, self.sim_time_us * 1e-6, wall_s, self.latency_us))
         self.run.close()

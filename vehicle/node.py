@@ -19,6 +19,7 @@ from bus.config import VehicleProcessConfig
 from bus.mailbox import Mailbox
 from bus.rejections import Rejections
 from bus.session import Bus, LivelinessEvent, await_subscribers
+from bus.landmark_map import LandmarkMap
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
 from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_FRAME_BYTES, MAX_PLAN_BYTES, Delivery, Inbound
@@ -198,7 +199,12 @@ class VehicleNode:
             self.vehicle_id, t_us, self.stats.cycles, self.stats.overruns, self.stats.jitter_p99_us(),
             self.stats.cycle_p99_us(), c.stale + f.dropped_stale, c.gnss_rejected, self.rejections.total,
             self.reset_counter % 256, f.duplicates, self.sequences.lost, f.late_fused, c.v2v_fused, self.v2v.missing,
-            self.rejections.as_counts(), f.replays, final, c.landmarks, c.landmarks_updated, c.frames_used))
+            self.rejections.as_counts(), f.replays, final, c.landmarks, c.landmarks_updated, c.frames_used),
+            self._landmark_map(t_us))
+
+    def _landmark_map(self, t_us: int) -> LandmarkMap | None:
+        found = self.estimator.landmark_map()
+        return None if found is None else LandmarkMap(self.vehicle_id, t_us, *found)
 
     def finish_tick(self, tick: m.ClockTick) -> None:
         """Lockstep: publish the tick's MAVLink frames, then acknowledge it. After a ground station

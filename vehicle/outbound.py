@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from bus import messages as m
 from bus.config import VehicleProcessConfig
+from bus.landmark_map import LandmarkMap, encode_map
 from bus.mavlink_codec import MavlinkEncoder
 from bus.session import Bus
 from vehicle.estimators.base import Estimator
@@ -65,7 +66,10 @@ class Outbound:
             return True
         return False
 
-    def status(self, status: m.VehicleStatus) -> None:
+    def status(self, status: m.VehicleStatus, landmark_map: LandmarkMap | None = None) -> None:
+        """The loop statistics, after the map (when the estimator keeps one) on the same key."""
+        if landmark_map is not None:
+            self._status.put(encode_map(landmark_map))
         self._status.put(m.encode(status))
 
     def ack(self, tick: int) -> None:

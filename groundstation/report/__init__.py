@@ -31,7 +31,8 @@ def write_report(run_dir: Path) -> Report:
         notes.append(f"the error figure shows the first {f.MAX_ERROR_PANELS} of {len(data.vehicles)} vehicles")
     if not data.zones():
         notes.append("no jamming or spoofing zones in this run")
-    notes.append("this run's estimators have no landmarks and no inter-vehicle fusion links to draw")
+    if not data.maps:
+        notes.append("this run's estimators have no landmarks to draw")
     written: list[tuple[str, Path]] = []
     for title, stem, build in (("Map", "map", f.map_figure), ("Position error", "error", f.error_figure),
                                ("Swarm RMSE", "rmse", f.rmse_figure), ("NEES", "nees", f.nees_figure)):

@@ -38,17 +38,43 @@ def map_figure(data: RunData, *, ellipse_every_s: float = 5.0) -> Figure | None:
         if vid in data.est:
             ax.plot(data.est[vid][:, 1], data.est[vid][:, 2], "--", color=_color(i), lw=1.0, label=f"v{vid}")
             _draw_ellipses(ax, data, vid, _color(i), ellipse_every_s)
+    for i, vid in enumerate(data.vehicles):
+        if vid in data.maps:
+            _draw_landmarks(ax, *data.maps[vid], _color(i), vid)
     for zone in data.zones():
         spoof = "spoof" in str(zone.get("fault"))
         ax.add_patch(Circle(tuple(zone["center_m"]), zone["radius_m"], color="tab:orange" if spoof else "tab:red",
                             alpha=0.15, lw=1.5, label=f"{zone['fault']} {zone['name']}".strip()))
-    ax.set_aspect("equal", adjustable="datalim")
+    _frame_on_tracks(ax, data)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(f"tracks: true solid, estimated dashed; 3-sigma ellipses every {ellipse_every_s:g} s")
+    landmarks = "; landmarks (+) with 3-sigma ellipses" if data.maps else ""
+    ax.set_title(f"tracks: true solid, estimated dashed; 3-sigma ellipses every {ellipse_every_s:g} s{landmarks}",
+                 fontsize="medium")
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right", fontsize="small", ncols=2)
     return fig
+
+
+def _frame_on_tracks(ax: Any, data: RunData, margin: float = 0.15) -> None:
+    """Equal axes around the tracks and maps (a zone larger than the flight would shrink them to dots)."""
+    points = [rows[:, 1:3] for rows in (*data.est.values(), *data.truth.values())] + [xy for xy, _ in data.maps.values()]
+    points = [p for p in points if len(p)]
+    if points:
+        allp = np.vstack(points)
+        low, high = allp.min(axis=0), allp.max(axis=0)
+        pad = margin * max(float(np.max(high - low)), 1.0)
+        ax.set_xlim(low[0] - pad, high[0] + pad)
+        ax.set_ylim(low[1] - pad, high[1] + pad)
+    ax.set_aspect("equal", adjustable="datalim")
+
+
+def _draw_landmarks(ax: Any, xy: np.ndarray, cov: np.ndarray, color: Any, vid: int) -> None:
+    """A SLAM vehicle's map: landmarks (+) and their 3-sigma ellipses (vision EKF-SLAM paper, figs. 4-5)."""
+    ax.plot(xy[:, 0], xy[:, 1], "+", color=color, ms=3, mew=0.6, label=f"v{vid} map ({len(xy)} landmarks)")
+    for centre, c in zip(xy, cov):
+        outline = centre + covariance_ellipse(c, points=24)
+        ax.plot(outline[:, 0], outline[:, 1], "-", color=color, lw=0.3, alpha=0.5)
 
 
 def _draw_ellipses(ax: Any, data: RunData, vid: int, color: Any, every_s: float) -> None:

@@ -33,6 +33,7 @@ class RunData:
     events: list[dict[str, Any]] = field(default_factory=list)
     est: dict[int, np.ndarray] = field(default_factory=dict)       # vehicle -> (N, 8) TUM rows
     truth: dict[int, np.ndarray] = field(default_factory=dict)     # vehicle -> (N, 8) TUM rows
+    maps: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)  # SLAM vehicle -> xy (m, 2), cov (m, 2, 2)
     problems: list[str] = field(default_factory=list)
 
     @property
@@ -91,7 +92,26 @@ def load_run(path: Path) -> RunData:
                 target[int(file.stem.split("_v")[1])] = rows
     if not data.est:
         data.problems.append("tum/ has no estimated trajectories: the map shows no tracks")
+    for file in sorted(path.glob("map_v*.json")):
+        landmarks = _read_landmarks(file, data.problems)
+        if landmarks is not None:
+            data.maps[int(file.stem.split("_v")[1])] = landmarks
     return data
+
+
+def _read_landmarks(file: Path, problems: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
+    """A SLAM vehicle's map_v<id>.json as positions (m, 2) and covariances (m, 2, 2); None if damaged."""
+    record = _read_json(file, problems)
+    try:
+        xy = np.array(record["xy_m"], dtype=float).reshape(-1, 2)
+        packed = np.array(record["cov_m2"], dtype=float).reshape(-1, 3)
+        if len(xy) != len(packed) or not (np.isfinite(xy).all() and np.isfinite(packed).all()):
+            raise ValueError("sizes or values")
+    except (TypeError, KeyError, ValueError) as exc:
+        problems.append(f"{file.name} is damaged and was ignored ({exc})")
+        return None
+    cov = np.stack([np.stack([packed[:, 0], packed[:, 1]], axis=1), np.stack([packed[:, 1], packed[:, 2]], axis=1)], axis=1)
+    return xy, cov
 
 
 def _read_json(file: Path, problems: list[str], missing: str | None = None) -> dict[str, Any] | None:

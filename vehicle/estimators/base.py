@@ -4,7 +4,8 @@ small protocol, one module per variant, ``vehicle.estimators.get_estimator(confi
 The node knows only this interface: it hands over measurements in stamp order (``handle``), runs one
 ``cycle`` per loop period (propagation, health checks and divergence recovery live inside the
 estimator), asks for the ``estimate`` it publishes as ODOMETRY and the ``status`` behind
-ESTIMATOR_STATUS, and takes ``notices`` (STATUSTEXT lines). The fusion horizon uses ``snapshot`` /
+ESTIMATOR_STATUS, takes ``notices`` (STATUSTEXT lines) and, from a SLAM estimator, its
+``landmark_map`` (positions (m, 2), covariances (m, 2, 2); None without a map). The fusion horizon uses ``snapshot`` /
 ``restore`` to go back in time for late measurements.
 """
 
@@ -12,6 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any, Protocol
+
+import numpy as np
 
 from bus.mavlink_codec import EstimatorStatus, StateEstimate
 
@@ -57,3 +60,4 @@ class Estimator(Protocol):
     def snapshot(self) -> Any: ...
     def restore(self, snapshot: Any) -> None: ...
     def take_notices(self) -> list[Notice]: ...
+    def landmark_map(self) -> tuple[np.ndarray, np.ndarray] | None: ...

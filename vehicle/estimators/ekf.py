@@ -193,6 +193,10 @@ class UnicycleEkf:
         if notice.stamp_us > self._noticed_until_us:
             self._notices.append(notice)
 
+    def landmark_map(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """No map: this estimator localizes only."""
+        return None
+
     def take_notices(self) -> list[Notice]:
         out, self._notices = self._notices, []
         if out:

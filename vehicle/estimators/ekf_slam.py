@@ -157,6 +157,18 @@ class EkfSlam(UnicycleEkf):
         self.first_xy = first if self.first_xy is None else np.vstack([self.first_xy, first])
         self.counters.landmarks += len(keep)
 
+    def landmark_map(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Landmark positions (m, 2) and their covariances (m, 2, 2); None before the first landmark."""
+        count = self.counters.landmarks
+        if self.x is None or count == 0:
+            return None
+        i = POSE_DIM + 2 * np.arange(count)
+        P = self.P
+        cov = np.empty((count, 2, 2))
+        cov[:, 0, 0], cov[:, 1, 1] = P[i, i], P[i + 1, i + 1]
+        cov[:, 0, 1] = cov[:, 1, 0] = P[i, i + 1]
+        return self.landmarks_xy.copy(), cov
+
     def _reset_position(self, offset_m: np.ndarray, variance_m2: float) -> None:
         super()._reset_position(offset_m, variance_m2)
         self._prior_xy = self.x[:2].copy()  # the jump is not motion

@@ -1,0 +1,87 @@
+"""The SLAM map on the wire: round trip, a clear DecodeError for each malformed case, nothing but
+DecodeError for any bytes or any field value (hypothesis); the ground station keeps the last map of
+each vehicle from its status key and writes it to the run directory, and refuses a map in another
+vehicle's name."""
+
+import json
+
+import msgpack
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from bus import messages as m
+from bus.config import build_config
+from bus.errors import DecodeError
+from bus.landmark_map import LandmarkMap, decode_map, encode_map
+from bus.memory import MemoryHub
+from bus.rejections import counts_to_dict
+from bus.session import Envelope
+from groundstation.node import GroundStation
+
+XY = np.array([[1.0, 2.0], [-3.5, 40.25], [7.0, -8.0]])
+COV = np.array([[[0.1, 0.02], [0.02, 0.2]], [[1.0, 0.0], [0.0, 1.0]], [[0.5, -0.1], [-0.1, 0.3]]])
+PAYLOAD = encode_map(LandmarkMap(2, 1_500_000, XY, COV))
+
+
+def test_round_trip():
+    again = decode_map(PAYLOAD)
+    assert (again.vehicle_id, again.stamp_us) == (2, 1_500_000)
+    assert np.array_equal(again.xy_m, XY) and np.array_equal(again.covariance_m2, COV)
+
+
+def _body() -> dict:
+    return msgpack.unpackb(PAYLOAD, raw=False)
+
+
+@pytest.mark.parametrize("mutate, reason", [
+    (lambda b: b.update(vehicle_id=0), "vehicle_id"),
+    (lambda b: b.update(type="VehicleStatus"), "type tag"),
+    (lambda b: b.update(extra=1), "fields"),
+    (lambda b: b.update(xy=b["xy"][:-8]), "rows of 2"),
+    (lambda b: b.update(cov=b["cov"][:-24]), "positions but 2 covariances"),
+    (lambda b: b.update(xy=np.array([[np.nan, 0.0]] * 3).tobytes()), "finite"),
+    (lambda b: b.update(cov=np.array([[1.0, 2.0, 1.0]] * 3).tobytes()), "positive definite"),
+    (lambda b: b.update(cov=np.array([[-1.0, 0.0, 1.0]] * 3).tobytes()), "positive definite"),
+])
+def test_malformed_maps_are_rejected_with_a_clear_error(mutate, reason):
+    body = _body()
+    mutate(body)
+    with pytest.raises(DecodeError, match=reason):
+        decode_map(msgpack.packb(body, use_bin_type=True))
+
+
+@given(st.binary(max_size=300))
+def test_any_bytes_decode_or_raise_decode_error(payload):
+    try:
+        decode_map(payload)
+    except DecodeError:
+        pass
+
+
+@given(st.sampled_from(["type", "v", "vehicle_id", "stamp_us", "xy", "cov"]),
+       st.none() | st.booleans() | st.integers(-(2**63), 2**64 - 1) | st.floats() | st.text(max_size=8) | st.binary(max_size=64))
+def test_any_value_in_any_field_decodes_or_raises_decode_error(field, value):
+    body = _body()
+    body[field] = value
+    try:
+        decode_map(msgpack.packb(body, use_bin_type=True))
+    except DecodeError:
+        pass
+
+
+def test_the_ground_station_keeps_the_last_map_and_refuses_one_in_another_name(tmp_path):
+    config = build_config({"world": {"vehicles": 3}, "clock": {"duration_s": 10}})
+    gs = GroundStation(MemoryHub().connect("groundstation"), config, tmp_path / "run", master_key=bytes(32))
+    keys = gs.bus.keys
+    older = encode_map(LandmarkMap(2, 500_000, XY[:1], COV[:1]))
+    for payload in (older, PAYLOAD, m.encode(m.VehicleStatus(2, 1_500_000, 75, 0, 0.0, 0.0, 0, 0, 0, 0))):
+        gs.handle(Envelope(keys.status(2), payload))
+    gs.handle(Envelope(keys.status(1), PAYLOAD))        # vehicle 2's map on vehicle 1's key
+    gs.handle(Envelope(keys.status(1), b"\x81\xa1x\x01"))  # neither a status nor a map
+    assert counts_to_dict(gs.rejections.as_counts()) == {"impersonation": 1, "malformed": 1}
+    assert set(gs.maps) == {2} and 2 in gs.statuses
+    gs.finish("complete")
+    written = json.loads((tmp_path / "run" / "map_v2.json").read_text())
+    assert written["landmarks"] == 3 and written["xy_m"][1] == [-3.5, 40.25] and written["t_s"] == 1.5
