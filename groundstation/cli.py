@@ -16,6 +16,9 @@ from groundstation.fault_commands import fault_app
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="swarmloc: multi-process swarm localization over zenoh, with MAVLink 2 state packets.")
 app.add_typer(fault_app, name="fault")
+experiment_app = typer.Typer(add_completion=False, no_args_is_help=True,
+                             help="Experiments from the papers, each a folder of ordinary runs plus comparison figures.")
+app.add_typer(experiment_app, name="experiment")
 
 
 def _run_node(config_path: Path, role: str, body: Callable, *, vehicle_config: bool = False) -> None:
@@ -84,6 +87,42 @@ def up(
     except SwarmlocError as exc:
         fail(str(exc))
     _print_result(run_dir, failures, notes)
+
+
+@experiment_app.command("vision-slam")
+def vision_slam(
+    out: Path = typer.Option(Path("runs"), help="parent folder of the experiment folder"),
+    seed: int = typer.Option(3, help="seed of trajectories, sensor noise and terrain"),
+    duration: float = typer.Option(60.0, help="simulated seconds per flight"),
+    quiet: bool = typer.Option(False, help="no progress display"),
+) -> None:
+    """The vision EKF-SLAM paper's experiment: a circle and a figure-8 UAV with GNSS jammed all flight,
+    flown with ekf-slam on camera frames and again with dead reckoning on the same seed. Writes both
+    runs (each with its report and landmark map), the comparison figures and experiment.json."""
+    from rich.console import Console
+
+    from bus.process import stop_on_signals
+    from groundstation.experiments import compare, run_vision_slam
+
+    try:
+        folder, runs, failures = run_vision_slam(out, seed=seed, duration_s=duration, stop=stop_on_signals(),
+                                                 show_progress=not quiet)
+    except SwarmlocError as exc:
+        fail(str(exc))
+    console = Console()
+    ok = all(_report(run, console) for run in runs.values())
+    table, figures = compare(folder, runs)
+    for name, flight in table.items():
+        landmarks = {vid: v.get("landmarks") for vid, v in flight["vehicles"].items()}
+        console.print(f"{name}: {flight['status']}, swarm RMSE {flight['swarm_rmse_m']} m, ANEES {flight['swarm_anees']}"
+                      + (f", landmarks {landmarks}" if any(landmarks.values()) else ""), highlight=False)
+    for failure in failures:
+        console.print(f"[red]swarm: {failure}[/red]")
+    for figure in figures:
+        console.print(f"figure: {figure}")
+    console.print(f"experiment: {folder}")
+    if failures or not ok:
+        raise typer.Exit(1)
 
 
 @app.command()

@@ -66,7 +66,7 @@ def _frame_on_tracks(ax: Any, data: RunData, margin: float = 0.15) -> None:
         pad = margin * max(float(np.max(high - low)), 1.0)
         ax.set_xlim(low[0] - pad, high[0] + pad)
         ax.set_ylim(low[1] - pad, high[1] + pad)
-    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_aspect("equal", adjustable="box")
 
 
 def _draw_landmarks(ax: Any, xy: np.ndarray, cov: np.ndarray, color: Any, vid: int) -> None:
