@@ -49,10 +49,12 @@ def vehicle_rss_mb(marker: str) -> list[float]:
     return sizes
 
 
-def run_case(vehicles: int, mode: str, duration_s: float, out: Path) -> dict:
+def run_case(vehicles: int, mode: str, duration_s: float, out: Path, scenario: Path | None = None) -> dict:
+    """`swarm up` (over ``scenario`` when given) with these settings, measured."""
     name = f"{mode}-{vehicles}"
-    cmd = [sys.executable, "-m", "groundstation.cli", "up", "--quiet", "--out", str(out), "--name", name,
-           "--vehicles", str(vehicles), "--mode", mode, "--duration", str(duration_s), "--seed", "1"]
+    cmd = [sys.executable, "-m", "groundstation.cli", "up", *([str(scenario)] if scenario else []), "--quiet",
+           "--out", str(out), "--name", name, "--vehicles", str(vehicles), "--mode", mode,
+           "--duration", str(duration_s), "--seed", "1"]
     peak: list[float] = []
     done = threading.Event()
 

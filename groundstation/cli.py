@@ -26,13 +26,16 @@ def _run_node(config_path: Path, role: str, body: Callable, *, vehicle_config: b
     from bus.config import load_config, load_vehicle_config
     from bus.process import stop_on_signals
     from bus.session import Transport, ZenohBus
+    from threadpoolctl import threadpool_limits
 
     logging.basicConfig(level=logging.INFO, format=f"%(asctime)s {role} %(levelname)s %(message)s")
     stop = stop_on_signals()
     try:
         config = (load_vehicle_config if vehicle_config else load_config)(config_path)
         config = config.model_copy(update={"bus": config.bus.with_env()})
-        with ZenohBus(config.bus, role=role, transport=Transport.from_env()) as bus:
+        # one BLAS thread: a swarm runs many single-loop processes per core, and OpenBLAS threads
+        # spinning in each of them starved the others (camera vehicles: 30% loop overruns)
+        with threadpool_limits(limits=1), ZenohBus(config.bus, role=role, transport=Transport.from_env()) as bus:
             body(bus, config, stop)
     except SwarmlocError as exc:
         fail(str(exc))

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from bus.config import SwarmConfig
@@ -110,6 +111,8 @@ class World:
             ("odom", spec.odom_rate_hz), ("gnss", spec.gnss_rate_hz), ("ranging", spec.ranging_rate_hz),
             ("truth", spec.truth_rate_hz))}
         self.terrain = make_terrain(config) if spec.camera_rate_hz else None
+        if self.terrain is not None:
+            cv2.setNumThreads(1)  # frames are small: OpenCV's thread pool costs more than it brings
         if self.terrain is not None:
             self._periods["camera"] = _period_us(spec.camera_rate_hz)
 

@@ -70,6 +70,16 @@ def _ci_weight(M: np.ndarray, R: np.ndarray, n: int) -> float:
     return float(w[int(np.argmax(log_info))])
 
 
+def cooperative_terms(x: np.ndarray, P: np.ndarray, fix: CooperativeFix) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """The pieces of a CI update that depend only on the pose block: innovation y (2,), H on
+    [x, y, theta] (2, 3), R_eff (2, 2), M = H P H^T (2, 2) and the plain NIS."""
+    predicted, H, Hj = relative_model(x[:3], fix.neighbour_xy_m)
+    R = fix.covariance + Hj @ fix.neighbour_cov_m2 @ Hj.T
+    y = np.array([fix.range_m - predicted[0], wrap_angle(fix.bearing_rad - predicted[1])])
+    M = H @ P[:3, :3] @ H.T
+    return y, H, R, M, float(y @ _inverse2(M + R) @ y)
+
+
 def cooperative_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
                        gate: float) -> tuple[np.ndarray, np.ndarray, UpdateResult]:
     """CI update of (x (n,), P (n, n)) with one relative measurement; gated on the plain NIS."""
@@ -89,3 +99,16 @@ def cooperative_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
     x_new = x + K @ y
     x_new[2] = wrap_angle(x_new[2])
     return x_new, 0.5 * (P_new + P_new.T), UpdateResult(True, nis, nis / gate)
+
+
+def cooperative_update_in_place(x: np.ndarray, P: np.ndarray, fix: CooperativeFix, gate: float,
+                                update_in_place) -> UpdateResult:
+    """The same CI update on a large state (a SLAM map) without n x n temporaries: P <- P / w in
+    place, then a Kalman update with R_eff / (1 - w) by ``update_in_place(x, P, idx, H, y, R, gate)``."""
+    y, H, R, M, nis = cooperative_terms(x, P, fix)
+    if not nis / gate <= 1.0:
+        return UpdateResult(False, nis, nis / gate)
+    w = _ci_weight(M, R, len(x))
+    P *= 1.0 / w
+    update_in_place(x, P, [0, 1, 2], H, y, R / (1.0 - w), float("inf"))
+    return UpdateResult(True, nis, nis / gate)

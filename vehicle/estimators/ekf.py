@@ -21,7 +21,7 @@ from bus.mavlink_codec import EstimatorStatus, StateEstimate
 from vehicle import unicycle_ekf as ekf
 from vehicle.alignment import GnssAlignment
 from vehicle.cooperative import CooperativeFix, cooperative_update
-from vehicle.ekf import gate_threshold
+from vehicle.ekf import UpdateResult, gate_threshold
 from vehicle.estimators.base import SEVERITY_INFO, SEVERITY_WARNING, EstimatorCounters, Notice
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 from vehicle.inputs import HeldInput
@@ -79,9 +79,13 @@ class UnicycleEkf:
             self._fuse_gnss(msg)
         elif isinstance(msg, CooperativeFix):
             self._propagate_to(msg.stamp_us)
-            self.x, self.P, result = cooperative_update(self.x, self.P, msg, self._gate)
+            result = self._cooperative_update(msg)
             self.counters.v2v_fused += int(result.accepted)
             self.counters.v2v_rejected += int(not result.accepted)
+
+    def _cooperative_update(self, fix: CooperativeFix) -> UpdateResult:
+        self.x, self.P, result = cooperative_update(self.x, self.P, fix, self._gate)
+        return result
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
         """Start at ``pose`` (3,) with covariance (3, 3); the gyro bias from its datasheet spread."""

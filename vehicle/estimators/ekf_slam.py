@@ -33,7 +33,8 @@ from bus import messages as m
 from bus.config import SensorSpec
 from vehicle import ekf_slam_core as slam
 from vehicle import unicycle_ekf as ekf
-from vehicle.ekf import gate_threshold
+from vehicle.cooperative import CooperativeFix, cooperative_update_in_place
+from vehicle.ekf import UpdateResult, gate_threshold
 from vehicle.estimators.ekf import DIVERGENCE_FLOOR, DIVERGENCE_INFLATION, UnicycleEkf
 from vehicle.vision import association, features
 
@@ -42,6 +43,7 @@ CELL_PX = 30                 # paper's thinning cell
 LANDMARK_GATE_P = 0.999      # Mahalanobis gate on each landmark update
 GOOD_PERIOD_US = 1_000_000   # divergence fallback refreshed this often (it is an n x n copy)
 CONSENSUS_M = 0.3           # matches must agree on one rigid motion within this [m]
+FRAMES_REMEMBERED = 32      # front-end results kept for replays (3.2 s at 10 Hz; the horizon is 0.5 s)
 MAX_LANDMARKS = 2000         # the map stops growing here (update cost is O(n^2))
 
 Reject = Callable[[str, str, str], None]
@@ -55,6 +57,7 @@ class EkfSlam(UnicycleEkf):
     def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
                  detector: str = "sift", reject: Reject | None = None, first_estimates: bool = True) -> None:
         super().__init__(vehicle_id=vehicle_id, spec=spec, gate_probability=gate_probability, altitude_m=altitude_m)
+        cv2.setNumThreads(1)  # one core per vehicle process: OpenCV's thread pool would fight the others for it
         self._detector = features.make_detector(detector)
         self._norm = cv2.NORM_L2 if detector == "sift" else cv2.NORM_HAMMING
         self._landmark_gate = gate_threshold(2, LANDMARK_GATE_P)
@@ -65,6 +68,7 @@ class EkfSlam(UnicycleEkf):
         self._prior_xy: np.ndarray | None = None    # position as last propagated, before any update (FEJ)
         self._good_until_us = -1
         self._judged_until_us = -1  # garbage frames are reported once, replays or not
+        self._seen_frames: dict[tuple[int, int], tuple] = {}  # front-end results by (stamp, seq), oldest first
 
     @property
     def landmarks_xy(self) -> np.ndarray:
@@ -94,6 +98,9 @@ class EkfSlam(UnicycleEkf):
         slam.predict_pose(self.x, self.P, F, Q, pose_next)
         self._prior_xy = pose_next[:2].copy()
 
+    def _cooperative_update(self, fix: CooperativeFix) -> UpdateResult:
+        return cooperative_update_in_place(self.x, self.P, fix, self._gate, slam.update_in_place)
+
     def _gnss_update(self, fix: m.GnssFix) -> None:
         slam.update_in_place(self.x, self.P, [0, 1], np.eye(2), fix.position_m - self.x[:2], fix.covariance_m2,
                              self._gate)
@@ -106,13 +113,25 @@ class EkfSlam(UnicycleEkf):
                 self._reject("garbage_frame", f"camera of vehicle {self.vehicle_id}", reason)
             return
         self._propagate_to(frame.stamp_us)
-        found = features.detect(np.ascontiguousarray(frame.pixels), self._detector)
+        found, z, R = self._front_end(frame)
         size, scale = frame.pixels.shape[0], frame.metres_per_pixel
-        z = features.range_bearing(found.points_px, size, scale)
-        R = features.pixel_noise_to_range_bearing(found.points_px, size, scale, self._spec.keypoint_sigma_px)
         matched = self._update_matched(found, z, R, half_extent_m=0.5 * size * scale)
         self._add_landmarks(found, z, R, matched, cell_m=CELL_PX * scale)
         self.counters.frames_used += 1
+
+    def _front_end(self, frame: m.CameraFrame) -> tuple[features.Features, np.ndarray, np.ndarray]:
+        """Keypoints, [range, bearing] (k, 2) and their covariances (k, 2, 2) of a frame; remembered
+        for the few frames a fusion-horizon replay may meet again (a pure function of the pixels)."""
+        key = (frame.stamp_us, frame.seq)
+        if key not in self._seen_frames:
+            found = features.detect(np.ascontiguousarray(frame.pixels), self._detector)
+            size, scale = frame.pixels.shape[0], frame.metres_per_pixel
+            z = features.range_bearing(found.points_px, size, scale)
+            R = features.pixel_noise_to_range_bearing(found.points_px, size, scale, self._spec.keypoint_sigma_px)
+            self._seen_frames[key] = (found, z, R)
+            while len(self._seen_frames) > FRAMES_REMEMBERED:
+                self._seen_frames.pop(next(iter(self._seen_frames)))
+        return self._seen_frames[key]
 
     def _update_matched(self, found: features.Features, z: np.ndarray, R: np.ndarray, *, half_extent_m: float) -> set[int]:
         """Sequential updates with the keypoints matched to landmarks in view; returns the keypoints

@@ -94,3 +94,23 @@ def test_the_ci_weight_is_the_one_that_minimises_the_determinant():
         w = ci_weight(P, H, R)
         # equal, or a near-tie in det (floating point picks either neighbour)
         assert w == best or np.isclose(max(dets), dets[int(np.flatnonzero(WEIGHTS == w)[0])], rtol=1e-9)
+
+
+def test_the_in_place_ci_update_of_a_slam_state_equals_the_dense_one():
+    """A SLAM vehicle's CI update (P scaled in place, rank-2 update on P's memory) gives the dense
+    update's state and covariance, and the same gating."""
+    from vehicle.cooperative import cooperative_update_in_place
+    from vehicle.ekf_slam_core import update_in_place
+
+    rng = np.random.default_rng(5)
+    n = 4 + 2 * 40
+    A = rng.normal(size=(n, n)) * 0.1
+    P = A @ A.T + np.eye(n) * 0.05
+    x = np.concatenate([[1.0, 2.0, 0.3, 0.001], rng.uniform(-20, 20, 2 * 40)])
+    for offset in (0.2, 40.0):  # fused, then gated out
+        fix = CooperativeFix(1, 0, 0, 2, 25.0 + offset, 0.4, np.diag([0.09, 4e-4]), np.array([20.0, 16.0]), np.eye(2) * 0.5)
+        x_dense, P_dense, dense = cooperative_update(x, P, fix, 13.8)
+        x_in, P_in = x.copy(), P.copy()
+        in_place = cooperative_update_in_place(x_in, P_in, fix, 13.8, update_in_place)
+        assert in_place.accepted == dense.accepted and np.isclose(in_place.nis, dense.nis)
+        assert np.allclose(x_in, x_dense, atol=1e-10) and np.allclose(P_in, P_dense, atol=1e-10)
