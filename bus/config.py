@@ -106,7 +106,8 @@ class WorldConfig(_Strict):
     spacing_m: float = Field(60.0, gt=0, description="distance between neighbouring start pads")
     terrain: str = Field("", description="orthophoto (PNG/JPEG) the cameras see; empty: a procedural terrain")
     terrain_metres_per_pixel: float = Field(0.1, gt=0, le=100)
-    terrain_size_px: int = Field(2048, ge=256, le=8192, description="side of the procedural terrain")
+    terrain_size_px: int | None = Field(None, ge=256, le=8192, description="side of the procedural terrain "
+                                        "(default: large enough for every start pad and trajectory, at least 2048)")
 
 
 class VehicleConfig(_Strict):

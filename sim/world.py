@@ -80,8 +80,17 @@ def make_terrain(config: SwarmConfig) -> Terrain:
     wc = config.world
     if wc.terrain:
         return load_terrain(wc.terrain, wc.terrain_metres_per_pixel)
-    return procedural_terrain(np.random.default_rng([wc.seed, 0, 7]), size_px=wc.terrain_size_px,
+    size_px = wc.terrain_size_px or terrain_size_for(config)
+    return procedural_terrain(np.random.default_rng([wc.seed, 0, 7]), size_px=size_px,
                               metres_per_pixel=wc.terrain_metres_per_pixel)
+
+
+def terrain_size_for(config: SwarmConfig, margin_m: float = 20.0) -> int:
+    """Side [px] of a terrain centred on the origin that holds every start pad, the trajectory
+    around it (``radius_m``) and a camera footprint's margin: at least 2048, at most 8192."""
+    wc = config.world
+    reach_m = float(np.max(np.abs(start_pads(wc.vehicles, wc.spacing_m)))) + wc.radius_m + margin_m
+    return int(min(8192, max(2048, 2 * np.ceil(reach_m / wc.terrain_metres_per_pixel))))
 
 
 class World:
