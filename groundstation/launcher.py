@@ -19,7 +19,7 @@ from pathlib import Path
 
 from bus import messages as m
 from bus.config import SwarmConfig
-from bus.errors import DecodeError, SwarmlocError
+from bus.errors import ConfigError, DecodeError, SwarmlocError
 from bus.plan import FaultPlan, decode_json
 from bus.secrets import role_env, write_secrets
 from bus.session import Envelope
@@ -250,6 +250,9 @@ def launch(config: SwarmConfig, out: Path, *, show_progress: bool, stop: threadi
     """Run one swarm to completion; returns the run directory, failure reports and notes (kills, restarts).
 
     ``secure``: fresh secrets in ``<run>/secrets`` (zenoh logins with access control, MAVLink signing)."""
+    terrain = config.world.terrain
+    if config.sensors.camera_rate_hz and terrain and not Path(terrain).is_file():  # before any process starts
+        raise ConfigError(f"terrain image {terrain} does not exist (world.terrain)")
     port = free_port()
     scheme, host = ("tls", "localhost") if security.tls_certificate else ("tcp", "127.0.0.1")
     config = config.model_copy(update={"bus": config.bus.model_copy(

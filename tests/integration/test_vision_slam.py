@@ -55,7 +55,7 @@ def test_the_loop_closure_shrinks_the_pose_covariance(runs):
 
 def test_slam_beats_dead_reckoning_on_the_same_seed(runs):
     slam, dr = read_summary(runs["slam"])["swarm"], read_summary(runs["dr"])["swarm"]
-    assert slam["rmse_m"] < dr["rmse_m"]  # 0.27-0.93 of it over 6 seeds at 60 s: the launch heading error is unobservable
+    assert slam["rmse_m"] < dr["rmse_m"] / 3
 
 
 def test_the_experiment_writes_both_runs_the_maps_and_the_comparison(runs):
@@ -69,3 +69,13 @@ def test_the_experiment_writes_both_runs_the_maps_and_the_comparison(runs):
         assert landmarks["landmarks"] == read_summary(runs["slam"])["vehicles"][str(vid)]["landmarks"]
         assert landmarks["t_s"] == 60.0  # the final map
     assert not list(runs["dr"].glob("map_v*.json")) and (runs["slam"] / "report" / "map.png").exists()
+
+
+def test_a_missing_orthophoto_is_one_line_before_anything_starts(tmp_path):
+    scenario = tmp_path / "ortho.toml"
+    scenario.write_text('[world]\nterrain = "/no/such/ortho.png"\n[sensors]\ncamera_rate_hz = 10\n')
+    result = subprocess.run([sys.executable, "-m", "groundstation.cli", "up", str(scenario), "--quiet", "--out",
+                             str(tmp_path)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert result.stderr.strip() == "swarm: error: terrain image /no/such/ortho.png does not exist (world.terrain)"
+    assert not list(tmp_path.glob("run*"))  # no run was started
