@@ -111,8 +111,8 @@ class WorldConfig(_Strict):
 
 
 class VehicleConfig(_Strict):
-    estimator: Literal["ekf", "ekf-slam"] = Field("ekf", description="the estimator every vehicle runs "
-                                                  "(vehicle.estimators): ekf, or ekf-slam (needs a camera)")
+    estimator: Literal["ekf", "ukf", "ekf-slam"] = Field("ekf", description="the estimator every vehicle runs "
+                                                         "(vehicle.estimators): ekf, ukf, or ekf-slam (needs a camera)")
     features: Literal["sift", "orb"] = Field("sift", description="ekf-slam: keypoint detector")
     loop_rate_hz: float = Field(50.0, gt=0, le=1000)
     gate_probability: float = Field(0.9995, gt=0.5, lt=1.0, description="chi-square gate for GNSS")

@@ -22,6 +22,11 @@ def get_estimator(config: VehicleProcessConfig, vehicle_id: int, *,
 
         return UnicycleEkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
                            altitude_m=config.altitude_m)
+    if name == "ukf":
+        from vehicle.estimators.ukf import UnicycleUkf
+
+        return UnicycleUkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
+                           altitude_m=config.altitude_m)
     if name == "ekf-slam":
         from vehicle.estimators.ekf_slam import EkfSlam
 

@@ -1,7 +1,8 @@
-"""The vehicle EKF is consistent: NEES inside chi-square bounds over seeded Monte Carlo runs, and the
-checks are two-sided (an over- and an under-confident filter both fail them)."""
+"""The vehicle filters (EKF and UKF) are consistent: NEES inside chi-square bounds over seeded Monte
+Carlo runs, and the checks are two-sided (an over- and an under-confident filter both fail them)."""
 
 import numpy as np
+import pytest
 from scipy.stats import chi2
 
 from bus.config import SensorSpec
@@ -12,10 +13,10 @@ DOF = 3
 KINDS = ("circle", "figure8", "waypoints")
 
 
-def _monte_carlo(estimator_spec=None) -> np.ndarray:
+def _monte_carlo(estimator_spec=None, kind: str = "ekf") -> np.ndarray:
     """(RUNS, steps) NEES, one seeded run each, trajectories cycling through every kind."""
     return np.array([pose_nees_series(seed, duration_s=20.0, trajectory=KINDS[seed % 3],
-                                      estimator_spec=estimator_spec)[0] for seed in range(RUNS)])
+                                      estimator_spec=estimator_spec, kind=kind)[0] for seed in range(RUNS)])
 
 
 def _fraction_inside_bounds(nees: np.ndarray) -> float:
@@ -34,8 +35,9 @@ def _anees_interval(nees: np.ndarray) -> tuple[float, float]:
     return per_run.mean() - half, per_run.mean() + half
 
 
-def test_nees_stays_inside_95_percent_bounds():
-    nees = _monte_carlo()
+@pytest.mark.parametrize("kind", ["ekf", "ukf"])
+def test_nees_stays_inside_95_percent_bounds(kind):
+    nees = _monte_carlo(kind=kind)
     assert nees.shape == (RUNS, 21)  # t = 0, 1, ..., 20 s
     assert _fraction_inside_bounds(nees) >= 0.9
     lo, hi = _anees_interval(nees)
