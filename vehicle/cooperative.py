@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bus.angles import wrap_angle
-from vehicle.ekf import UpdateResult
+from vehicle.ekf import UpdateResult, gated_update
 
 WEIGHTS = np.linspace(0.02, 0.98, 49)
 
@@ -78,6 +78,20 @@ def cooperative_terms(x: np.ndarray, P: np.ndarray, fix: CooperativeFix) -> tupl
     y = np.array([fix.range_m - predicted[0], wrap_angle(fix.bearing_rad - predicted[1])])
     M = H @ P[:3, :3] @ H.T
     return y, H, R, M, float(y @ _inverse2(M + R) @ y)
+
+
+def naive_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
+                 gate: float) -> tuple[np.ndarray, np.ndarray, UpdateResult]:
+    """A plain Kalman update (Joseph form) with R_eff = R + H_j P_j H_j^T: right only if the
+    neighbour's estimate is independent of ours, which it stops being once they fuse each other
+    (data incest): kept to show what double counting does."""
+    predicted, H, Hj = relative_model(x, fix.neighbour_xy_m)
+    R = fix.covariance + Hj @ fix.neighbour_cov_m2 @ Hj.T
+    y = np.array([fix.range_m - predicted[0], wrap_angle(fix.bearing_rad - predicted[1])])
+    x_new, P_new, result = gated_update(x, P, y, H, R, gate)
+    if result.accepted:
+        x_new[2] = wrap_angle(x_new[2])
+    return x_new, P_new, result
 
 
 def cooperative_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix,

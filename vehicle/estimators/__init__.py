@@ -21,7 +21,7 @@ def get_estimator(config: VehicleProcessConfig, vehicle_id: int, *,
         from vehicle.estimators.ekf import UnicycleEkf
 
         return UnicycleEkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
-                           altitude_m=config.altitude_m)
+                           altitude_m=config.altitude_m, cooperative_fusion=config.vehicle.cooperative_fusion)
     if name == "ukf":
         from vehicle.estimators.ukf import UnicycleUkf
 
