@@ -19,7 +19,7 @@ import numpy as np
 
 from bus import messages as m
 from bus.errors import DecodeError
-from bus.schema import MAX_PAYLOAD_BYTES, WIRE_VERSION
+from bus.schema import WIRE_VERSION, unpack_tagged
 
 MAX_TICK_US = 1_000_000
 MAX_SEQ = 2**62
@@ -114,20 +114,6 @@ def encode_batch(batch: SensorBatch) -> bytes:
     return msgpack.packb(body, use_bin_type=True)
 
 
-def _unpack(payload: bytes, type_name: str) -> dict:
-    if not isinstance(payload, (bytes, bytearray, memoryview)):
-        raise DecodeError(f"{type_name}: payload must be bytes")
-    if len(payload) > MAX_PAYLOAD_BYTES:
-        raise DecodeError(f"{type_name}: payload of {len(payload)} bytes exceeds {MAX_PAYLOAD_BYTES}")
-    try:
-        body = msgpack.unpackb(payload, raw=False, strict_map_key=True, use_list=True)
-    except Exception as exc:  # msgpack raises many types on garbage; all mean the same here
-        raise DecodeError(f"{type_name}: not valid msgpack ({type(exc).__name__})") from None
-    if not isinstance(body, dict) or body.get("type") != type_name or body.get("v") != WIRE_VERSION:
-        raise DecodeError(f"{type_name}: wrong type tag or version")
-    return body
-
-
 def _int(body: dict, name: str, lo: int, hi: int) -> int:
     value = body.get(name)
     if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
@@ -209,7 +195,7 @@ def _camera_block(raw: Any, stamp_us: int) -> CameraBlock:
 
 def decode_batch(payload: bytes) -> SensorBatch:
     """Validate a SensorBatch; DecodeError names the first problem."""
-    body = _unpack(payload, "SensorBatch")
+    body = unpack_tagged(payload, "SensorBatch")
     allowed = {"type", "v", "vehicle_id", "tick", "stamp_us", "camera", *TOPICS}
     if not set(body) <= allowed or not {"vehicle_id", "tick", "stamp_us"} <= set(body):
         raise DecodeError(f"SensorBatch: fields must be {sorted(allowed)}")
@@ -244,7 +230,7 @@ def encode_truth(batch: TruthBatch) -> bytes:
 
 
 def decode_truth(payload: bytes) -> TruthBatch:
-    body = _unpack(payload, "TruthBatch")
+    body = unpack_tagged(payload, "TruthBatch")
     if set(body) != {"type", "v", "tick", "stamp_us", "stamps", "ids", "data"}:
         raise DecodeError("TruthBatch: fields must be type, v, tick, stamp_us, stamps, ids, data")
     tick, stamp_us = _int(body, "tick", 0, 2**53), _int(body, "stamp_us", 0, 2**53)

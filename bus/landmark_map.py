@@ -16,7 +16,7 @@ import msgpack
 import numpy as np
 
 from bus.errors import DecodeError
-from bus.schema import WIRE_VERSION
+from bus.schema import WIRE_VERSION, Int, unpack_tagged
 
 MAX_LANDMARKS = 5000
 MAX_COORD_M = 1e7
@@ -31,19 +31,16 @@ class LandmarkMap:
     covariance_m2: np.ndarray  # (m, 2, 2)
 
 
+def _packed(cov: np.ndarray) -> np.ndarray:
+    """Covariances (m, 2, 2) as rows (m, 3) [xx, xy, yy]."""
+    return np.stack([cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]], axis=1) if len(cov) else np.zeros((0, 3))
+
+
 def encode_map(lmap: LandmarkMap) -> bytes:
-    c = lmap.covariance_m2
-    packed = np.stack([c[:, 0, 0], c[:, 0, 1], c[:, 1, 1]], axis=1) if len(c) else np.zeros((0, 3))
+    packed = _packed(lmap.covariance_m2)
     return msgpack.packb({"type": "LandmarkMap", "v": WIRE_VERSION, "vehicle_id": int(lmap.vehicle_id),
                           "stamp_us": int(lmap.stamp_us), "xy": np.ascontiguousarray(lmap.xy_m, "<f8").tobytes(),
                           "cov": np.ascontiguousarray(packed, "<f8").tobytes()}, use_bin_type=True)
-
-
-def _int(body: dict, name: str, lo: int, hi: int) -> int:
-    value = body.get(name)
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise DecodeError(f"LandmarkMap.{name}: expected an integer in [{lo}, {hi}]")
-    return value
 
 
 def _floats(body: dict, name: str, width: int) -> np.ndarray:
@@ -55,16 +52,11 @@ def _floats(body: dict, name: str, width: int) -> np.ndarray:
 
 def decode_map(payload: bytes) -> LandmarkMap:
     """Validate a LandmarkMap; DecodeError names the first problem."""
-    if not isinstance(payload, (bytes, bytearray)) or len(payload) > MAX_MAP_BYTES:
-        raise DecodeError(f"LandmarkMap: payload must be bytes of at most {MAX_MAP_BYTES}")
-    try:
-        body = msgpack.unpackb(bytes(payload), raw=False, strict_map_key=True)
-    except Exception as exc:  # msgpack raises many types on garbage
-        raise DecodeError(f"LandmarkMap: not valid msgpack ({type(exc).__name__})") from None
-    if not isinstance(body, dict) or body.keys() != {"type", "v", "vehicle_id", "stamp_us", "xy", "cov"} \
-            or body["type"] != "LandmarkMap" or body["v"] != WIRE_VERSION:
-        raise DecodeError("LandmarkMap: wrong fields, type tag or version")
-    vid, stamp = _int(body, "vehicle_id", 1, 250), _int(body, "stamp_us", 0, 2**53)
+    body = unpack_tagged(payload, "LandmarkMap", MAX_MAP_BYTES)
+    if body.keys() != {"type", "v", "vehicle_id", "stamp_us", "xy", "cov"}:
+        raise DecodeError("LandmarkMap: fields must be type, v, vehicle_id, stamp_us, xy and cov")
+    vid = Int(1, 250).unpack("LandmarkMap.vehicle_id", body["vehicle_id"])
+    stamp = Int(0, 2**53).unpack("LandmarkMap.stamp_us", body["stamp_us"])
     xy, cov = _floats(body, "xy", 2), _floats(body, "cov", 3)
     if len(xy) != len(cov):
         raise DecodeError(f"LandmarkMap: {len(xy)} positions but {len(cov)} covariances")
@@ -79,7 +71,5 @@ def decode_map(payload: bytes) -> LandmarkMap:
 
 def map_record(lmap: LandmarkMap) -> dict:
     """The map as JSON for the run directory (``map_v<id>.json``): stamp, positions, covariances."""
-    c = lmap.covariance_m2
     return {"vehicle": lmap.vehicle_id, "t_s": round(lmap.stamp_us * 1e-6, 6), "landmarks": len(lmap.xy_m),
-            "xy_m": np.round(lmap.xy_m, 4).tolist(),
-            "cov_m2": np.round(np.stack([c[:, 0, 0], c[:, 0, 1], c[:, 1, 1]], axis=1), 8).tolist() if len(c) else []}
+            "xy_m": np.round(lmap.xy_m, 4).tolist(), "cov_m2": np.round(_packed(lmap.covariance_m2), 8).tolist()}

@@ -211,3 +211,19 @@ def decode(cls: type[T], payload: bytes) -> T:
         missing, extra = sorted(expected - set(body)), sorted(map(str, set(body) - expected))
         raise DecodeError(f"{cls.__name__}: missing fields {missing}, unexpected fields {extra}")
     return cls(**{name: spec.unpack(f"{cls.__name__}.{name}", body[name]) for name, spec in specs})
+
+
+def unpack_tagged(payload: bytes, type_name: str, max_bytes: int = MAX_PAYLOAD_BYTES) -> dict:
+    """The msgpack map of a payload tagged ``{"type": type_name, "v": WIRE_VERSION, ...}`` (columnar
+    formats that do not fit the dataclass codec); DecodeError for anything else."""
+    if not isinstance(payload, (bytes, bytearray, memoryview)):
+        raise DecodeError(f"{type_name}: payload must be bytes")
+    if len(payload) > max_bytes:
+        raise DecodeError(f"{type_name}: payload of {len(payload)} bytes exceeds {max_bytes}")
+    try:
+        body = msgpack.unpackb(payload, raw=False, strict_map_key=True, use_list=True)
+    except Exception as exc:  # msgpack raises many types on garbage; all mean the same here
+        raise DecodeError(f"{type_name}: not valid msgpack ({type(exc).__name__})") from None
+    if not isinstance(body, dict) or body.get("type") != type_name or body.get("v") != WIRE_VERSION:
+        raise DecodeError(f"{type_name}: wrong type tag or version")
+    return body

@@ -11,13 +11,12 @@ import typer
 
 from bus.errors import SwarmlocError
 from groundstation.cli_errors import fail
+from groundstation.experiment_commands import experiment_app
 from groundstation.fault_commands import fault_app
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="swarmloc: multi-process swarm localization over zenoh, with MAVLink 2 state packets.")
 app.add_typer(fault_app, name="fault")
-experiment_app = typer.Typer(add_completion=False, no_args_is_help=True,
-                             help="Experiments from the papers, each a folder of ordinary runs plus comparison figures.")
 app.add_typer(experiment_app, name="experiment")
 
 
@@ -92,42 +91,6 @@ def up(
     _print_result(run_dir, failures, notes)
 
 
-@experiment_app.command("vision-slam")
-def vision_slam(
-    out: Path = typer.Option(Path("runs"), help="parent folder of the experiment folder"),
-    seed: int = typer.Option(3, help="seed of trajectories, sensor noise and terrain"),
-    duration: float = typer.Option(60.0, help="simulated seconds per flight"),
-    quiet: bool = typer.Option(False, help="no progress display"),
-) -> None:
-    """The vision EKF-SLAM paper's experiment: a circle and a figure-8 UAV with GNSS jammed all flight,
-    flown with ekf-slam on camera frames and again with dead reckoning on the same seed. Writes both
-    runs (each with its report and landmark map), the comparison figures and experiment.json."""
-    from rich.console import Console
-
-    from bus.process import stop_on_signals
-    from groundstation.experiments import compare, run_vision_slam
-
-    try:
-        folder, runs, failures = run_vision_slam(out, seed=seed, duration_s=duration, stop=stop_on_signals(),
-                                                 show_progress=not quiet)
-    except SwarmlocError as exc:
-        fail(str(exc))
-    console = Console()
-    ok = all(_report(run, console) for run in runs.values())
-    table, figures = compare(folder, runs)
-    for name, flight in table.items():
-        landmarks = {vid: v.get("landmarks") for vid, v in flight["vehicles"].items()}
-        console.print(f"{name}: {flight['status']}, swarm RMSE {flight['swarm_rmse_m']} m, ANEES {flight['swarm_anees']}"
-                      + (f", landmarks {landmarks}" if any(landmarks.values()) else ""), highlight=False)
-    for failure in failures:
-        console.print(f"[red]swarm: {failure}[/red]")
-    for figure in figures:
-        console.print(f"figure: {figure}")
-    console.print(f"experiment: {folder}")
-    if failures or not ok:
-        raise typer.Exit(1)
-
-
 @app.command()
 def config(
     scenario: Optional[Path] = typer.Argument(None, help="TOML scenario (config and fault timeline); options below override it"),
@@ -189,27 +152,11 @@ def _print_result(run_dir: Path, failures: list[str], notes: list[str]) -> None:
     else:
         console.print(f"[red]swarm: no summary.json was written in {run_dir}[/red]")
     console.print(f"run directory: {run_dir}")
-    report_ok = _report(run_dir, console)
+    from groundstation.display import report_and_say
+
+    report_ok = report_and_say(run_dir, console)
     if failures or not summary_path.exists() or not report_ok:
         raise typer.Exit(1)
-
-
-def _report(run_dir: Path, console) -> bool:
-    """Write the report of ``run_dir`` and say where it is; a failure is one line, never a traceback."""
-    from groundstation.report import ReportError, write_report
-
-    try:
-        result = write_report(run_dir)
-    except ReportError as exc:
-        console.print(f"[red]swarm: error: {exc}[/red]", highlight=False)
-        return False
-    except Exception as exc:  # the run itself is safe on disk; say what went wrong and go on
-        console.print(f"[red]swarm: report of {run_dir} failed: {type(exc).__name__}: {exc}[/red]")
-        return False
-    for problem in result.problems:
-        console.print(f"[yellow]report: {problem}[/yellow]")
-    console.print(f"report: {result.html}")
-    return True
 
 
 @app.command()
@@ -217,7 +164,9 @@ def report(run_dir: Path = typer.Argument(..., help="a run directory written by 
     """Write report.html (self-contained) and report/*.png for a run directory; says what is missing."""
     from rich.console import Console
 
-    if not _report(run_dir, Console()):
+    from groundstation.display import report_and_say
+
+    if not report_and_say(run_dir, Console()):
         raise typer.Exit(1)
 
 

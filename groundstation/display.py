@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any, Iterator
 
 from rich.console import Console
@@ -57,3 +58,21 @@ def live_display(mode: str, duration_s: float, quiet: bool) -> Iterator[Any]:
                 summary = build_summary(gs.config, gs.scorer, gs.statuses, dict(gs.rejected), {}, "running")
                 live.update(rmse_table(summary, title=f"t = {gs.sim_time_us * 1e-6:.1f} s"))
         yield update
+
+
+def report_and_say(run_dir: Path, console: Console) -> bool:
+    """Write the report of ``run_dir`` and say where it is; a failure is one line, never a traceback."""
+    from groundstation.report import ReportError, write_report
+
+    try:
+        result = write_report(run_dir)
+    except ReportError as exc:
+        console.print(f"[red]swarm: error: {exc}[/red]", highlight=False)
+        return False
+    except Exception as exc:  # the run itself is safe on disk; say what went wrong and go on
+        console.print(f"[red]swarm: report of {run_dir} failed: {type(exc).__name__}: {exc}[/red]")
+        return False
+    for problem in result.problems:
+        console.print(f"[yellow]report: {problem}[/yellow]")
+    console.print(f"report: {result.html}")
+    return True

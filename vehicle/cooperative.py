@@ -47,7 +47,7 @@ def relative_model(x: np.ndarray, neighbour_xy_m: np.ndarray) -> tuple[np.ndarra
     return np.array([r, wrap_angle(np.arctan2(dy, dx) - x[2])]), H, -H[:, :2]
 
 
-def _inverse2(S: np.ndarray) -> np.ndarray:
+def inverse2(S: np.ndarray) -> np.ndarray:
     """Inverse of a 2 x 2 matrix (no LAPACK call: this runs for every ranging measurement)."""
     a, b, c, d = S[0, 0], S[0, 1], S[1, 0], S[1, 1]
     return np.array([[d, -b], [-c, a]]) / (a * d - b * c)
@@ -55,29 +55,35 @@ def _inverse2(S: np.ndarray) -> np.ndarray:
 
 def ci_weight(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> float:
     """The w of WEIGHTS that minimises det(P+) = 1 / det(w P^-1 + (1 - w) H^T R^-1 H)."""
-    return _ci_weight(H @ P @ H.T, R, P.shape[0])
+    return ci_weight_from(H @ P @ H.T, R, P.shape[0])
 
 
-def _ci_weight(M: np.ndarray, R: np.ndarray, n: int) -> float:
-    """``ci_weight`` from M = H P H^T (2, 2). H^T R^-1 H has rank 2, so by the matrix determinant
+def ci_weight_from(M: np.ndarray, R: np.ndarray, n: int) -> float:
+    """``ci_weight`` from M = H P H^T (2, 2) and the state dimension n. H^T R^-1 H has rank 2, so by the matrix determinant
     lemma, with C = R^-1 M: det(w P^-1 + (1 - w) H^T R^-1 H) =
     det(P^-1) w^(n-2) (w^2 + w (1 - w) tr C + (1 - w)^2 det C), a scalar function of w: no n x n
     determinant per candidate weight."""
-    C = _inverse2(R) @ M
+    C = inverse2(R) @ M
     trace, det = C[0, 0] + C[1, 1], C[0, 0] * C[1, 1] - C[0, 1] * C[1, 0]
     w = WEIGHTS
     log_info = (n - 2) * np.log(w) + np.log(w * w + w * (1.0 - w) * trace + (1.0 - w) ** 2 * det)
     return float(w[int(np.argmax(log_info))])
 
 
+def neighbour_measurement(x: np.ndarray, fix: CooperativeFix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Innovation y (2,) of a ranging fix at state x (n,), H = dh/dx (2, n) and the effective noise
+    R_eff = R + H_j P_j H_j^T (2, 2): the neighbour's broadcast covariance enters as measurement noise."""
+    predicted, H, Hj = relative_model(x, fix.neighbour_xy_m)
+    R = fix.covariance + Hj @ fix.neighbour_cov_m2 @ Hj.T
+    return np.array([fix.range_m - predicted[0], wrap_angle(fix.bearing_rad - predicted[1])]), H, R
+
+
 def cooperative_terms(x: np.ndarray, P: np.ndarray, fix: CooperativeFix) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """The pieces of a CI update that depend only on the pose block: innovation y (2,), H on
     [x, y, theta] (2, 3), R_eff (2, 2), M = H P H^T (2, 2) and the plain NIS."""
-    predicted, H, Hj = relative_model(x[:3], fix.neighbour_xy_m)
-    R = fix.covariance + Hj @ fix.neighbour_cov_m2 @ Hj.T
-    y = np.array([fix.range_m - predicted[0], wrap_angle(fix.bearing_rad - predicted[1])])
+    y, H, R = neighbour_measurement(x[:3], fix)
     M = H @ P[:3, :3] @ H.T
-    return y, H, R, M, float(y @ _inverse2(M + R) @ y)
+    return y, H, R, M, float(y @ inverse2(M + R) @ y)
 
 
 def naive_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
@@ -85,9 +91,7 @@ def naive_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
     """A plain Kalman update (Joseph form) with R_eff = R + H_j P_j H_j^T: right only if the
     neighbour's estimate is independent of ours, which it stops being once they fuse each other
     (data incest): kept to show what double counting does."""
-    predicted, H, Hj = relative_model(x, fix.neighbour_xy_m)
-    R = fix.covariance + Hj @ fix.neighbour_cov_m2 @ Hj.T
-    y = np.array([fix.range_m - predicted[0], wrap_angle(fix.bearing_rad - predicted[1])])
+    y, H, R = neighbour_measurement(x, fix)
     x_new, P_new, result = gated_update(x, P, y, H, R, gate)
     if result.accepted:
         x_new[2] = wrap_angle(x_new[2])
@@ -97,17 +101,15 @@ def naive_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
 def cooperative_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
                        gate: float) -> tuple[np.ndarray, np.ndarray, UpdateResult]:
     """CI update of (x (n,), P (n, n)) with one relative measurement; gated on the plain NIS."""
-    predicted, H, Hj = relative_model(x, fix.neighbour_xy_m)
-    R = fix.covariance + Hj @ fix.neighbour_cov_m2 @ Hj.T
-    y = np.array([fix.range_m - predicted[0], wrap_angle(fix.bearing_rad - predicted[1])])
+    y, H, R = neighbour_measurement(x, fix)
     HP = H @ P
     M = HP @ H.T
-    nis = float(y @ _inverse2(M + R) @ y)
+    nis = float(y @ inverse2(M + R) @ y)
     if not nis / gate <= 1.0:
         return x, P, UpdateResult(False, nis, nis / gate)
-    w = _ci_weight(M, R, len(x))
+    w = ci_weight_from(M, R, len(x))
     Pw, Rw = P / w, R / (1.0 - w)
-    K = (HP.T / w) @ _inverse2(M / w + Rw)   # P_w H^T (H P_w H^T + R_w)^-1
+    K = (HP.T / w) @ inverse2(M / w + Rw)   # P_w H^T (H P_w H^T + R_w)^-1
     I_KH = np.eye(len(x)) - K @ H
     P_new = I_KH @ Pw @ I_KH.T + K @ Rw @ K.T  # Joseph form
     x_new = x + K @ y
@@ -122,7 +124,7 @@ def cooperative_update_in_place(x: np.ndarray, P: np.ndarray, fix: CooperativeFi
     y, H, R, M, nis = cooperative_terms(x, P, fix)
     if not nis / gate <= 1.0:
         return UpdateResult(False, nis, nis / gate)
-    w = _ci_weight(M, R, len(x))
+    w = ci_weight_from(M, R, len(x))
     P *= 1.0 / w
     update_in_place(x, P, [0, 1, 2], H, y, R / (1.0 - w), float("inf"))
     return UpdateResult(True, nis, nis / gate)

@@ -73,17 +73,15 @@ def motion_jacobians(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_
     return F, G
 
 
-def motion_model(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float, *,
-                 speed_var: float, yaw_rate_var: float, bias_walk_var: float, use_bias: bool = True,
-                 steps: list[tuple[float, float, float]] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The motion over dt_s with the mean inputs of the interval: the new state (4,), F (4, 4) and
-    Q (4, 4), so that P <- F P F^T + Q.
+def linearized_motion(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float, *,
+                      speed_var: float, yaw_rate_var: float, bias_walk_var: float, use_bias: bool = True,
+                      steps: list[tuple[float, float, float]] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """F (4, 4) and Q (4, 4) of the motion over dt_s with the mean inputs of the interval, so that
+    P <- F P F^T + Q (``steps`` is accepted for the same call as :func:`motion_model`, unused).
 
     ``yaw_rate_radps`` is the measured (gyro) mean rate; the bias x[3] is removed when ``use_bias``.
     ``speed_var`` (m^2/s^2) and ``yaw_rate_var`` (rad^2/s^2) are the variances of those *means*;
-    ``bias_walk_var`` (rad^2/s^3) is the bias random walk's rate. Q = G diag(var) G^T. With
-    ``steps`` (the inputs' hold pieces) the mean follows every piece's arc exactly; the covariance
-    is propagated once with the mean inputs.
+    ``bias_walk_var`` (rad^2/s^3) is the bias random walk's rate. Q = G diag(var) G^T.
     """
     yaw_rate = yaw_rate_radps - (x[3] if use_bias else 0.0)
     F, G = motion_jacobians(x, speed_mps, yaw_rate, dt_s)
@@ -92,7 +90,19 @@ def motion_model(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: f
         F[3, 3] = 1.0
     Q = np.outer(G[:, 0] * speed_var, G[:, 0]) + np.outer(G[:, 1] * yaw_rate_var, G[:, 1])
     Q[3, 3] += bias_walk_var * dt_s
-    x_new = propagate_pieces(x, steps, x[3] if use_bias else 0.0) if steps else propagate_mean(x, speed_mps, yaw_rate, dt_s)
+    return F, Q
+
+
+def motion_model(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float, *,
+                 speed_var: float, yaw_rate_var: float, bias_walk_var: float, use_bias: bool = True,
+                 steps: list[tuple[float, float, float]] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The new state (4,) and :func:`linearized_motion`'s F and Q. With ``steps`` (the inputs' hold
+    pieces) the mean follows every piece's arc exactly; the covariance is propagated once with the
+    mean inputs."""
+    F, Q = linearized_motion(x, speed_mps, yaw_rate_radps, dt_s, speed_var=speed_var, yaw_rate_var=yaw_rate_var,
+                             bias_walk_var=bias_walk_var, use_bias=use_bias)
+    bias = x[3] if use_bias else 0.0
+    x_new = propagate_pieces(x, steps, bias) if steps else propagate_mean(x, speed_mps, yaw_rate_radps - bias, dt_s)
     return x_new, F, Q
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from bus.angles import wrap_angle
 from vehicle import unicycle_ekf as ekf
 from vehicle import unscented as ut
-from vehicle.cooperative import CooperativeFix, _ci_weight, _inverse2
+from vehicle.cooperative import CooperativeFix, ci_weight_from, inverse2, neighbour_measurement, relative_model
 from vehicle.ekf import UpdateResult
 from vehicle.estimators.ekf import UnicycleEkf
 
@@ -33,7 +33,7 @@ class UnicycleUkf(UnicycleEkf):
 
     def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
         use_bias, steps = noise["use_bias"], noise["steps"]
-        _, _, Q = ekf.motion_model(self.x, speed, rate, dt, **noise)
+        _, Q = ekf.linearized_motion(self.x, speed, rate, dt, **noise)
 
         def move(point: np.ndarray) -> np.ndarray:
             bias = point[3] if use_bias else 0.0
@@ -45,26 +45,18 @@ class UnicycleUkf(UnicycleEkf):
 
     def _cooperative_update(self, fix: CooperativeFix) -> UpdateResult:
         """CI with the unscented range-bearing prediction: P_w = P / w, R_w = R_eff / (1 - w)."""
-        neighbour = fix.neighbour_xy_m
-
         def h(point: np.ndarray) -> np.ndarray:
-            dx, dy = neighbour - point[:2]
-            return np.array([np.hypot(dx, dy), wrap_angle(float(np.arctan2(dy, dx) - point[2]))])
+            return relative_model(point[:3], fix.neighbour_xy_m)[0]
 
         z_hat, M, P_xz = ut.measure(self.x, self.P, h, angle_rows=(1,))
-        # the neighbour's position error enters through the Jacobian of h w.r.t. its position
-        dx, dy = neighbour - self.x[:2]
-        r2 = max(dx * dx + dy * dy, 1e-6)
-        r = np.sqrt(r2)
-        Hj = np.array([[dx / r, dy / r], [-dy / r2, dx / r2]])
-        R = fix.covariance + Hj @ fix.neighbour_cov_m2 @ Hj.T
+        _, _, R = neighbour_measurement(self.x[:3], fix)  # the neighbour's covariance as noise, as in ekf
         y = np.array([fix.range_m - z_hat[0], wrap_angle(fix.bearing_rad - z_hat[1])])
-        nis = float(y @ _inverse2(M + R) @ y)
+        nis = float(y @ inverse2(M + R) @ y)
         if not nis / self._gate <= 1.0:
             return UpdateResult(False, nis, nis / self._gate)
-        w = _ci_weight(M, R, len(self.x))
+        w = ci_weight_from(M, R, len(self.x))
         S = M / w + R / (1.0 - w)
-        K = (P_xz / w) @ _inverse2(S)
+        K = (P_xz / w) @ inverse2(S)
         self.x = self.x + K @ y
         self.x[2] = wrap_angle(float(self.x[2]))
         P_new = self.P / w - K @ S @ K.T

@@ -14,10 +14,7 @@ def in_view(landmarks_xy_m: np.ndarray, pose: np.ndarray, half_extent_m: float) 
     [m] around ``pose`` [x, y, theta] (the frame is aligned with the heading)."""
     if len(landmarks_xy_m) == 0:
         return np.zeros(0, dtype=np.int64)
-    d = landmarks_xy_m - pose[:2]
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    forward, left = d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c
-    return np.flatnonzero((np.abs(forward) <= half_extent_m) & (np.abs(left) <= half_extent_m))
+    return np.flatnonzero(np.all(np.abs(to_body(landmarks_xy_m, pose)) <= half_extent_m, axis=1))
 
 
 def match(frame_descriptors: np.ndarray, map_descriptors: np.ndarray, norm: int, ratio: float = 0.8) -> list[tuple[int, int]]:
