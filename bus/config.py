@@ -120,9 +120,14 @@ class VehicleConfig(_Strict):
     status_period_s: float = Field(1.0, gt=0)
     fusion_horizon_s: float = Field(0.5, ge=0, le=10, description="late measurements up to this old are still fused in order")
     cooperative: bool = Field(True, description="fuse ranging to neighbours with their broadcast estimates (CI)")
-    cooperative_fusion: Literal["ci", "naive"] = Field("ci", description="ci: Covariance Intersection (consistent "
-                                                       "whatever the correlation); naive: a plain Kalman update that "
-                                                       "treats the neighbour's estimate as independent (double counts)")
+    cooperative_fusion: Literal["split-ci", "ci", "paper", "naive"] = Field(
+        "split-ci", description="split-ci: Covariance Intersection scaling only the neighbour's share, the radio's "
+        "own noise kept whole (consistent whatever the correlation); ci: plain CI; paper: CI of the position "
+        "the fix implies (paper eq. 4.10); naive: a plain Kalman update that treats the neighbour's estimate as "
+        "independent (double counts)")
+    ci_weight: Literal["optimal", "closed-form"] = Field("optimal", description="CI weight: optimal (maximum "
+                                                         "pose information, w = 1 skips the fix) or closed-form "
+                                                         "(plain CI's best weight in closed form)")
     v2v_latency_s: float = Field(0.1, ge=0, le=5, description="ranging waits this long for the neighbour's estimate")
     mavlink_rate_hz: float = Field(50.0, gt=0, le=1000, description="ODOMETRY to the ground station (<= loop rate)")
     realtime_allowance_s: float = Field(0.005, ge=0, le=1, description="realtime: a cycle waits this long past its "
@@ -172,12 +177,6 @@ class SwarmConfig(_Strict):
                 self.clock.tick_s > self.vehicle.v2v_latency_s + 1e-9:
             raise ValueError("lockstep with cooperation needs tick_s <= vehicle.v2v_latency_s (neighbours' "
                              "broadcasts of one tick are heard by the next)")
-        return self
-
-    @model_validator(mode="after")
-    def _naive_fusion_is_ekf_only(self) -> "SwarmConfig":
-        if self.vehicle.cooperative_fusion == "naive" and self.vehicle.estimator != "ekf":
-            raise ValueError("vehicle.cooperative_fusion = 'naive' is available with the ekf estimator only")
         return self
 
     @model_validator(mode="after")

@@ -104,8 +104,9 @@ def gnss_fault_run(seed: int, *, duration_s: float, faults: list[dict], monitor:
 
 def swarm_in_memory(config, *, sample_every_us: int = 200_000) -> dict[int, dict[str, np.ndarray]]:
     """The real vehicle nodes (V2V, link faults, fusion horizon) and the world in one process over
-    the in-memory bus, in lockstep. Returns per vehicle: t_s, position error (m) and pose NEES of the
-    published estimates, sampled every ``sample_every_us``."""
+    the in-memory bus, in lockstep. Returns per vehicle: t_s, position error (m), pose NEES and its
+    position (2 dof) and heading (1 dof) parts of the published estimates, sampled every
+    ``sample_every_us``."""
     from bus.mavlink_codec import MavlinkDecoder, StateEstimate, split_frames
     from bus.memory import MemoryHub
     from groundstation.scoring import score
@@ -147,5 +148,9 @@ def swarm_in_memory(config, *, sample_every_us: int = 200_000) -> dict[int, dict
             est = decoder.decode(frame)
             if isinstance(est, StateEstimate) and est.time_usec % sample_every_us == 0:
                 s = score(est, truth[(est.vehicle_id, est.time_usec)])
-                out.setdefault(est.vehicle_id, []).append((est.time_usec * 1e-6, s.position_error_m, s.nees))
-    return {vid: dict(zip(("t_s", "error_m", "nees"), map(np.array, zip(*rows)))) for vid, rows in out.items()}
+                e, cov = s.error_m, s.pose_covariance
+                out.setdefault(est.vehicle_id, []).append((est.time_usec * 1e-6, s.position_error_m, s.nees,
+                                                           float(e[:2] @ np.linalg.solve(cov[:2, :2], e[:2])),
+                                                           float(e[2] ** 2 / cov[2, 2])))
+    names = ("t_s", "error_m", "nees", "nees_position", "nees_heading")
+    return {vid: dict(zip(names, map(np.array, zip(*rows)))) for vid, rows in out.items()}

@@ -9,6 +9,7 @@ from typing import Callable
 
 from bus.config import VehicleProcessConfig
 from bus.errors import ConfigError
+from vehicle.cooperative import CooperativeRule
 from vehicle.estimators.base import Estimator
 
 
@@ -17,19 +18,21 @@ def get_estimator(config: VehicleProcessConfig, vehicle_id: int, *,
     """The estimator a vehicle runs, built from its own configuration only; ``reject(reason, where,
     detail)`` counts input the estimator refuses (garbage camera frames)."""
     name = config.vehicle.estimator
+    rule = CooperativeRule(config.vehicle.cooperative_fusion, config.vehicle.ci_weight)
     if name == "ekf":
         from vehicle.estimators.ekf import UnicycleEkf
 
         return UnicycleEkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
-                           altitude_m=config.altitude_m, cooperative_fusion=config.vehicle.cooperative_fusion)
+                           altitude_m=config.altitude_m, cooperative=rule)
     if name == "ukf":
         from vehicle.estimators.ukf import UnicycleUkf
 
         return UnicycleUkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
-                           altitude_m=config.altitude_m)
+                           altitude_m=config.altitude_m, cooperative=rule)
     if name == "ekf-slam":
         from vehicle.estimators.ekf_slam import EkfSlam
 
         return EkfSlam(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
-                       altitude_m=config.altitude_m, detector=config.vehicle.features, reject=reject)
+                       altitude_m=config.altitude_m, detector=config.vehicle.features, reject=reject,
+                       cooperative=rule)
     raise ConfigError(f"unknown estimator {name!r}")

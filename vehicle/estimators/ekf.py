@@ -20,7 +20,7 @@ from bus.config import SensorSpec
 from bus.mavlink_codec import EstimatorStatus, StateEstimate
 from vehicle import unicycle_ekf as ekf
 from vehicle.alignment import GnssAlignment
-from vehicle.cooperative import CooperativeFix, cooperative_update, naive_update
+from vehicle.cooperative import CooperativeFix, CooperativeRule, apply_correction
 from vehicle.ekf import UpdateResult, gate_threshold
 from vehicle.estimators.base import SEVERITY_INFO, SEVERITY_WARNING, EstimatorCounters, Notice
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
@@ -39,9 +39,9 @@ class UnicycleEkf:
     name = "ekf"
 
     def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
-                 cooperative_fusion: str = "ci") -> None:
+                 cooperative: CooperativeRule = CooperativeRule()) -> None:
         self.vehicle_id, self._spec, self._altitude_m = vehicle_id, spec, altitude_m
-        self._fuse_neighbour = naive_update if cooperative_fusion == "naive" else cooperative_update
+        self._rule = cooperative
         self._gate = gate_threshold(2, gate_probability)
         self._gyro_period_us = round(1e6 / spec.imu_rate_hz)
         self.x: np.ndarray | None = None
@@ -85,8 +85,11 @@ class UnicycleEkf:
             self.counters.v2v_fused += int(result.accepted)
             self.counters.v2v_rejected += int(not result.accepted)
 
-    def _cooperative_update(self, fix: CooperativeFix) -> UpdateResult:
-        self.x, self.P, result = self._fuse_neighbour(self.x, self.P, fix, self._gate)
+    def _cooperative_update(self, fix: CooperativeFix, unscented: bool = False) -> UpdateResult:
+        """One neighbour fix by the vehicle's cooperative rule (vehicle.cooperative)."""
+        correction, result = self._rule.fuse(self.x, self.P, fix, self._gate, unscented)
+        if correction is not None:
+            self.x, self.P = apply_correction(self.x, self.P, correction)
         return result
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:

@@ -33,7 +33,7 @@ from bus import messages as m
 from bus.config import SensorSpec
 from vehicle import ekf_slam_core as slam
 from vehicle import unicycle_ekf as ekf
-from vehicle.cooperative import CooperativeFix, cooperative_update_in_place
+from vehicle.cooperative import CooperativeFix, CooperativeRule, apply_correction_in_place
 from vehicle.ekf import UpdateResult, gate_threshold
 from vehicle.estimators.ekf import DIVERGENCE_FLOOR, DIVERGENCE_INFLATION, UnicycleEkf
 from vehicle.vision import association, features
@@ -55,8 +55,10 @@ class EkfSlam(UnicycleEkf):
     name = "ekf-slam"
 
     def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
-                 detector: str = "sift", reject: Reject | None = None, first_estimates: bool = True) -> None:
-        super().__init__(vehicle_id=vehicle_id, spec=spec, gate_probability=gate_probability, altitude_m=altitude_m)
+                 detector: str = "sift", reject: Reject | None = None, first_estimates: bool = True,
+                 cooperative: CooperativeRule = CooperativeRule()) -> None:
+        super().__init__(vehicle_id=vehicle_id, spec=spec, gate_probability=gate_probability, altitude_m=altitude_m,
+                         cooperative=cooperative)
         cv2.setNumThreads(1)  # one core per vehicle process: OpenCV's thread pool would fight the others for it
         self._detector = features.make_detector(detector)
         self._norm = cv2.NORM_L2 if detector == "sift" else cv2.NORM_HAMMING
@@ -98,8 +100,12 @@ class EkfSlam(UnicycleEkf):
         slam.predict_pose(self.x, self.P, F, Q, pose_next)
         self._prior_xy = pose_next[:2].copy()
 
-    def _cooperative_update(self, fix: CooperativeFix) -> UpdateResult:
-        return cooperative_update_in_place(self.x, self.P, fix, self._gate, slam.update_in_place)
+    def _cooperative_update(self, fix: CooperativeFix, unscented: bool = False) -> UpdateResult:
+        """The cooperative rule on the pose block; the map follows in place (no n x n temporaries)."""
+        correction, result = self._rule.fuse(self.x, self.P, fix, self._gate)
+        if correction is not None:
+            apply_correction_in_place(self.x, self.P, correction)
+        return result
 
     def _gnss_update(self, fix: m.GnssFix) -> None:
         slam.update_in_place(self.x, self.P, [0, 1], np.eye(2), fix.position_m - self.x[:2], fix.covariance_m2,

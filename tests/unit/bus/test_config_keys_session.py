@@ -137,6 +137,6 @@ def test_vehicle_configs_take_the_swarm_size_from_the_environment(tmp_path):
 def test_estimator_options_that_do_not_fit_together_are_refused():
     with pytest.raises(ConfigError, match="needs a camera"):
         build_config({"vehicle": {"estimator": "ekf-slam"}})
-    with pytest.raises(ConfigError, match="naive.*ekf estimator only"):
-        build_config({"vehicle": {"estimator": "ukf", "cooperative_fusion": "naive"}})
+    with pytest.raises(ConfigError, match="cooperative_fusion"):
+        build_config({"vehicle": {"cooperative_fusion": "fancy"}})
     assert build_config({"vehicle": {"estimator": "ukf"}, "sensors": {"camera_rate_hz": 10}}).vehicle.estimator == "ukf"

@@ -1,54 +1,125 @@
 """Cooperative localization: the Covariance Intersection update stays consistent when the
-neighbour's estimate shares our errors (where a plain EKF update becomes over-confident), and in a
-swarm a vehicle whose GNSS is jammed stays localized through its neighbours, unless its radio is
+neighbour's estimate shares our errors (where a plain EKF update becomes over-confident), chooses its
+weight on the pose it observes, skips fixes that bring nothing and leaves unobserved states alone; in
+a swarm a vehicle whose GNSS is jammed stays localized through its neighbours, unless its radio is
 jammed too."""
 
 import numpy as np
+import pytest
 from scipy.stats import chi2
 
-from bus.angles import wrap_angle
 from bus.config import build_config
 from tests.offline import swarm_in_memory
-from vehicle.cooperative import WEIGHTS, CooperativeFix, ci_weight, cooperative_update, relative_model
-from vehicle.ekf import gated_update
+from vehicle.cooperative import (WEIGHT_GRID, CooperativeFix, CooperativeRule, apply_correction_in_place,
+                                 cooperative_update, relative_model)
 
 RUNS = 3000
 P = np.diag([1.0, 1.0, 0.01, 1e-6])
 R = np.diag([0.09, 0.0004])
 TRUTH = np.array([0.0, 0.0, 0.3, 0.0])
 NEIGHBOUR = np.array([30.0, 10.0])
+RULES = [CooperativeRule(f, w) for f in ("split-ci", "ci", "paper") for w in ("optimal", "closed-form")]
 
 
-def _anees(shared: float, seed: int = 1) -> tuple[float, float]:
-    """Average pose NEES after one update, CI and plain EKF, when a share of the neighbour's position
-    error is our own error (data incest)."""
+def _anees(shared: float, rule: CooperativeRule, seed: int = 1) -> float:
+    """Average pose NEES after one update when a share of the neighbour's position error is our own
+    error (data incest); the prior and the neighbour each have covariance P[:2, :2]."""
     rng = np.random.default_rng(seed)
-    nees_ci, nees_ekf = [], []
+    nees = []
     for _ in range(RUNS):
         e = rng.multivariate_normal(np.zeros(4), P)
-        x = TRUTH + e
         own = rng.multivariate_normal(np.zeros(2), P[:2, :2])
         neighbour = NEIGHBOUR + shared * e[:2] + np.sqrt(1 - shared**2) * own
         h, _, _ = relative_model(TRUTH, NEIGHBOUR)
         z = h + rng.multivariate_normal(np.zeros(2), R)
         fix = CooperativeFix(1, 0, 0, 2, z[0], z[1], R, neighbour, P[:2, :2])
-        x_ci, P_ci, _ = cooperative_update(x, P, fix, gate=1e9)
-        predicted, H, Hj = relative_model(x, neighbour)
-        y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
-        x_ekf, P_ekf, _ = gated_update(x, P, y, H, R + Hj @ P[:2, :2] @ Hj.T, gate=1e9)
-        for out, (xx, PP) in ((nees_ci, (x_ci, P_ci)), (nees_ekf, (x_ekf, P_ekf))):
-            d = (xx - TRUTH)[:3]
-            out.append(float(d @ np.linalg.solve(PP[:3, :3], d)))
-    return float(np.mean(nees_ci)), float(np.mean(nees_ekf))
+        x_new, P_new, _ = cooperative_update(TRUTH + e, P, fix, 1e9, rule)
+        d = (x_new - TRUTH)[:3]
+        nees.append(float(d @ np.linalg.solve(P_new[:3, :3], d)))
+    return float(np.mean(nees))
 
 
-def test_covariance_intersection_stays_consistent_where_the_plain_ekf_does_not():
+def test_covariance_intersection_stays_consistent_where_the_plain_update_does_not():
     upper = chi2.ppf(0.975, 3 * RUNS) / RUNS  # two-sided 95% band of the average of RUNS 3-dof NEES
-    ci_independent, ekf_independent = _anees(shared=0.0)
-    ci_shared, ekf_shared = _anees(shared=1.0)
-    assert ekf_independent < upper  # control: with independent errors the plain update is fine
-    assert ekf_shared > upper       # data incest: the plain update is over-confident
-    assert ci_shared < upper and ci_independent < upper
+    naive = CooperativeRule("naive")
+    assert _anees(0.0, naive) < upper  # control: with independent errors the plain update is fine
+    assert _anees(1.0, naive) > upper  # data incest: the plain update is over-confident
+    for rule in RULES:
+        assert _anees(1.0, rule) < upper and _anees(0.0, rule) < upper, rule
+
+
+@pytest.mark.parametrize("fusion", ["split-ci", "ci"])
+def test_the_weight_maximises_the_fused_information_and_one_means_do_not_fuse(fusion):
+    """Brute force over w in [0, 1] (w = 1: own estimate alone) of det of the fused information about
+    the measured [range, bearing], written out as CI of own M and the fix (split: R kept whole)."""
+    rule, rng = CooperativeRule(fusion), np.random.default_rng(4)
+    chose_one = 0
+    for _ in range(300):
+        L = rng.normal(size=(2, 2)) * rng.uniform(0.01, 3.0, size=2)
+        M = L @ L.T + 1e-6 * np.eye(2)
+        R, S = np.diag([rng.uniform(0.01, 1.0), rng.uniform(1e-4, 1e-2)]), np.diag(rng.uniform(0, 4, 2))
+        def information(w):
+            own = w * np.linalg.inv(M)
+            if w == 1.0:
+                return own
+            fix = np.linalg.inv(R + S / (1 - w)) if fusion == "split-ci" else (1 - w) * np.linalg.inv(R + S)
+            return own + fix
+        scores = [np.linalg.det(information(w)) for w in WEIGHT_GRID]
+        w = rule.choose_weight(M, R, S)
+        chose_one += w == 1.0
+        assert np.isclose(scores[int(np.flatnonzero(np.isclose(WEIGHT_GRID, w))[0])], max(scores), rtol=1e-9)
+    assert chose_one > 0  # some draws have a fix worth nothing next to our own estimate
+
+
+def test_a_fix_that_brings_nothing_leaves_a_good_estimate_alone():
+    """Own position known to 0.1 m, the neighbour's to 10 m: w = 1, nothing changes (plain CI on the
+    old grid inflated the covariance, heading and gyro bias included, at every such fix)."""
+    P_good = np.diag([0.01, 0.01, 1e-4, 1e-6])
+    fix = CooperativeFix(1, 0, 0, 2, 31.7, 0.02, R, NEIGHBOUR, np.eye(2) * 100.0)
+    for rule in (CooperativeRule("split-ci"), CooperativeRule("ci")):
+        x_new, P_new, result = cooperative_update(TRUTH, P_good, fix, 1e9, rule)
+        assert result.accepted and x_new is TRUTH and P_new is P_good
+
+
+def test_states_the_fix_does_not_observe_are_left_alone():
+    """A gyro bias uncorrelated with the pose keeps its variance and value; one correlated with the
+    heading follows it (its regression), and the joint covariance stays positive definite."""
+    fix = CooperativeFix(1, 0, 0, 2, 31.0, 0.05, R, NEIGHBOUR, np.eye(2) * 0.2)
+    x0 = np.array([0.0, 0.0, 0.3, 0.004])
+    x_new, P_new, _ = cooperative_update(x0, P, fix, 1e9)
+    assert x_new[3] == x0[3] and P_new[3, 3] == P[3, 3] and not np.allclose(P_new[:3, :3], P[:3, :3])
+    correlated = P.copy()
+    correlated[2, 3] = correlated[3, 2] = 0.8 * np.sqrt(P[2, 2] * P[3, 3])
+    x_new, P_new, _ = cooperative_update(x0, correlated, fix, 1e9)
+    assert x_new[3] != x0[3] and P_new[3, 3] < correlated[3, 3]
+    assert np.linalg.eigvalsh(P_new).min() > 0
+
+
+def test_split_ci_keeps_the_radio_noise_whole_and_fuses_tighter_than_plain_ci():
+    fix = CooperativeFix(1, 0, 0, 2, 31.0, 0.05, R, NEIGHBOUR, np.eye(2) * 2.0)  # an interior weight
+    _, P_split, _ = cooperative_update(TRUTH, P, fix, 1e9, CooperativeRule("split-ci"))
+    _, P_plain, _ = cooperative_update(TRUTH, P, fix, 1e9, CooperativeRule("ci"))
+    assert np.linalg.det(P_split[:3, :3]) < np.linalg.det(P_plain[:3, :3]) < np.linalg.det(P[:3, :3])
+
+
+def test_the_in_place_update_of_a_slam_state_equals_the_dense_one():
+    """A SLAM vehicle's update (three rank-1 updates on P's memory) gives the dense update's state
+    and covariance, and the same gating."""
+    rng = np.random.default_rng(5)
+    n = 4 + 2 * 40
+    A = rng.normal(size=(n, n)) * 0.1
+    P_big = A @ A.T + np.eye(n) * 0.05
+    x = np.concatenate([[1.0, 2.0, 0.3, 0.001], rng.uniform(-20, 20, 2 * 40)])
+    rule = CooperativeRule()
+    for offset in (0.2, 40.0):  # fused, then gated out
+        fix = CooperativeFix(1, 0, 0, 2, 25.0 + offset, 0.4, R, np.array([20.0, 16.0]), np.eye(2) * 0.5)
+        x_dense, P_dense, dense = cooperative_update(x, P_big, fix, 13.8, rule)
+        x_in, P_in = x.copy(), P_big.copy()
+        correction, in_place = rule.fuse(x_in, P_in, fix, 13.8)
+        if correction is not None:
+            apply_correction_in_place(x_in, P_in, correction)
+        assert in_place.accepted == dense.accepted and np.isclose(in_place.nis, dense.nis)
+        assert np.allclose(x_in, x_dense, atol=1e-10) and np.allclose(P_in, P_dense, atol=1e-10)
 
 
 SEEDS = (1, 2, 3)
@@ -77,55 +148,3 @@ def test_neighbours_keep_a_gnss_jammed_vehicle_localized_unless_the_radio_is_jam
     assert helped < 0.5 and helped < alone / 4
     assert cut_off > 2 * helped
     assert anees < 3.0  # CI is conservative: never over-confident
-
-
-def test_the_ci_weight_is_the_one_that_minimises_the_determinant():
-    """The closed form (matrix determinant lemma) picks the weight brute force over det(P+) picks."""
-    rng = np.random.default_rng(4)
-    for _ in range(200):
-        L = rng.normal(size=(4, 4)) * rng.uniform(0.01, 3.0, size=4)
-        P = L @ L.T + 1e-6 * np.eye(4)
-        x = np.append(rng.normal(size=3), 0.0)
-        _, H, Hj = relative_model(x, rng.normal(scale=30.0, size=2))
-        R = np.diag([rng.uniform(0.01, 1.0), rng.uniform(1e-4, 1e-2)]) + Hj @ np.eye(2) * rng.uniform(0, 4) @ Hj.T
-        A, B = np.linalg.inv(P), H.T @ np.linalg.solve(R, H)
-        dets = [np.linalg.det(w * A + (1 - w) * B) for w in WEIGHTS]
-        best = WEIGHTS[int(np.argmax(dets))]
-        w = ci_weight(P, H, R)
-        # equal, or a near-tie in det (floating point picks either neighbour)
-        assert w == best or np.isclose(max(dets), dets[int(np.flatnonzero(WEIGHTS == w)[0])], rtol=1e-9)
-
-
-def test_the_in_place_ci_update_of_a_slam_state_equals_the_dense_one():
-    """A SLAM vehicle's CI update (P scaled in place, rank-2 update on P's memory) gives the dense
-    update's state and covariance, and the same gating."""
-    from vehicle.cooperative import cooperative_update_in_place
-    from vehicle.ekf_slam_core import update_in_place
-
-    rng = np.random.default_rng(5)
-    n = 4 + 2 * 40
-    A = rng.normal(size=(n, n)) * 0.1
-    P = A @ A.T + np.eye(n) * 0.05
-    x = np.concatenate([[1.0, 2.0, 0.3, 0.001], rng.uniform(-20, 20, 2 * 40)])
-    for offset in (0.2, 40.0):  # fused, then gated out
-        fix = CooperativeFix(1, 0, 0, 2, 25.0 + offset, 0.4, np.diag([0.09, 4e-4]), np.array([20.0, 16.0]), np.eye(2) * 0.5)
-        x_dense, P_dense, dense = cooperative_update(x, P, fix, 13.8)
-        x_in, P_in = x.copy(), P.copy()
-        in_place = cooperative_update_in_place(x_in, P_in, fix, 13.8, update_in_place)
-        assert in_place.accepted == dense.accepted and np.isclose(in_place.nis, dense.nis)
-        assert np.allclose(x_in, x_dense, atol=1e-10) and np.allclose(P_in, P_dense, atol=1e-10)
-
-
-def test_naive_fusion_double_counts_and_turns_overconfident():
-    """`cooperative_fusion = "naive"` (a plain Kalman update, the neighbour taken as independent) in
-    a 4-vehicle swarm with GNSS jammed for everyone after 5 s: the vehicles fuse each other's
-    estimates back and forth, and the swarm's NEES leaves the 95% band from above."""
-    nees = []
-    for seed in (1, 2, 3):
-        config = build_config({"world": {"vehicles": 4, "seed": seed}, "clock": {"duration_s": 30},
-                               "vehicle": {"cooperative_fusion": "naive"},
-                               "faults": [{"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 1000.0, "start_s": 5.0}]})
-        nees += [r["nees"][r["t_s"] >= 10.0] for r in swarm_in_memory(config, sample_every_us=1_000_000).values()]
-    per_step = np.array(nees).mean(axis=0)  # one sample per vehicle and seed at each second: independent
-    upper = chi2.ppf(0.975, 3 * len(nees)) / len(nees)
-    assert np.all(per_step > upper), (per_step, upper)
