@@ -96,6 +96,14 @@ class SensorSpec(_Strict):
     keypoint_sigma_px: float = Field(0.7, gt=0, le=20, description="keypoint position noise the filter assumes")
 
 
+class SensorTruth(_Strict):
+    """How the world's sensors really are next to their datasheet (``sensors``), which is all the
+    vehicles are told: 3 makes that sensor's white noise three times the datasheet's sigma."""
+
+    gnss_sigma_factor: float = Field(1.0, gt=0, le=100, description="true GNSS noise / datasheet")
+    range_sigma_factor: float = Field(1.0, gt=0, le=100, description="true ranging noise / datasheet")
+
+
 class WorldConfig(_Strict):
     vehicles: int = Field(5, ge=1, le=250)
     seed: int = Field(0, ge=0)
@@ -108,6 +116,7 @@ class WorldConfig(_Strict):
     terrain_metres_per_pixel: float = Field(0.1, gt=0, le=100)
     terrain_size_px: int | None = Field(None, ge=256, le=8192, description="side of the procedural terrain "
                                         "(default: large enough for every start pad and trajectory, at least 2048)")
+    sensor_truth: SensorTruth = SensorTruth()
 
 
 class VehicleConfig(_Strict):
@@ -128,6 +137,9 @@ class VehicleConfig(_Strict):
     ci_weight: Literal["optimal", "closed-form"] = Field("optimal", description="CI weight: optimal (maximum "
                                                          "pose information, w = 1 skips the fix) or closed-form "
                                                          "(plain CI's best weight in closed form)")
+    adaptive_noise: bool = Field(False, description="IAE: estimate the GNSS and ranging noise covariances from the "
+                                 "innovations of the last adaptive_window fixes instead of trusting the datasheet")
+    adaptive_window: int = Field(40, ge=5, le=10_000, description="IAE window, fixes per sensor")
     v2v_latency_s: float = Field(0.1, ge=0, le=5, description="ranging waits this long for the neighbour's estimate")
     mavlink_rate_hz: float = Field(50.0, gt=0, le=1000, description="ODOMETRY to the ground station (<= loop rate)")
     realtime_allowance_s: float = Field(0.005, ge=0, le=1, description="realtime: a cycle waits this long past its "

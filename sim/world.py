@@ -147,14 +147,14 @@ class World:
 
     def _draw_block(self, v: _Vehicle) -> None:
         """The next BLOCK_STEPS steps of every noise source of one vehicle, from its generator."""
-        spec, n = self.config.sensors, BLOCK_STEPS
+        spec, n, truth = self.config.sensors, BLOCK_STEPS, self.config.world.sensor_truth
         v.noise = {"gyro": v.rng.normal(0.0, spec.gyro_sigma_radps, (n, 3)),
                    "accel": v.rng.normal(0.0, spec.accel_sigma_mps2, (n, 3)),
                    "walk": v.rng.normal(0.0, spec.gyro_bias_walk_radps_rtsec * np.sqrt(self.step_us * 1e-6), (n, 3)),
                    "odom": v.rng.normal(0.0, [spec.odom_speed_sigma_mps, spec.odom_yaw_rate_sigma_radps], (n, 2)),
-                   "gnss": v.rng.normal(0.0, spec.gnss_sigma_m, (n, 2)),
+                   "gnss": v.rng.normal(0.0, spec.gnss_sigma_m, (n, 2)) * truth.gnss_sigma_factor,
                    "ranging": v.ranging_rng.normal(0.0, [spec.range_sigma_m, spec.bearing_sigma_rad],
-                                                   (n, len(self.vehicles), 2))}
+                                                   (n, len(self.vehicles), 2)) * truth.range_sigma_factor}
 
     def _step(self, out: TickOutput) -> None:
         """Sample every sensor at the step's stamp from the current poses, then move the poses."""

@@ -31,13 +31,15 @@ def samples_of(world: World, until_us: int, vehicle_id: int = 1) -> tuple[list[t
     return samples, truth
 
 
-def _ekf(spec: SensorSpec, gate_probability: float, kind: str = "ekf") -> UnicycleEkf:
-    """The vehicle filter of ``kind`` (ekf or ukf) for vehicle 1."""
+def _ekf(spec: SensorSpec, gate_probability: float, kind: str = "ekf", adaptive_window: int = 0) -> UnicycleEkf:
+    """The vehicle filter of ``kind`` (ekf or ukf) for vehicle 1 (``adaptive_window``: IAE)."""
     if kind == "ukf":
         from vehicle.estimators.ukf import UnicycleUkf
 
-        return UnicycleUkf(vehicle_id=1, spec=spec, gate_probability=gate_probability, altitude_m=30.0)
-    return UnicycleEkf(vehicle_id=1, spec=spec, gate_probability=gate_probability, altitude_m=30.0)
+        return UnicycleUkf(vehicle_id=1, spec=spec, gate_probability=gate_probability, altitude_m=30.0,
+                           adaptive_window=adaptive_window)
+    return UnicycleEkf(vehicle_id=1, spec=spec, gate_probability=gate_probability, altitude_m=30.0,
+                       adaptive_window=adaptive_window)
 
 
 def _run(world: World, estimator: UnicycleEkf, duration_s: float, every_us: int, on_truth) -> None:
@@ -61,15 +63,20 @@ def _run(world: World, estimator: UnicycleEkf, duration_s: float, every_us: int,
 
 def pose_nees_series(seed: int, *, duration_s: float, trajectory: str, every_us: int = 1_000_000,
                      estimator_spec: SensorSpec | None = None, world_sensors: SensorSpec | None = None,
-                     kind: str = "ekf") -> tuple[np.ndarray, np.ndarray]:
+                     kind: str = "ekf", world: dict | None = None, adaptive_window: int = 0,
+                     estimator_out: list | None = None) -> tuple[np.ndarray, np.ndarray]:
     """NEES over [x, y, yaw] and position error (m) of one vehicle, sampled every ``every_us``.
 
-    ``world_sensors`` overrides what the world simulates; ``estimator_spec`` what the filter assumes;
-    ``kind`` picks the filter (ekf or ukf).
+    ``world_sensors`` overrides what the world simulates, ``world`` adds to the world section (e.g.
+    its sensor_truth); ``estimator_spec`` what the filter assumes; ``kind`` picks the filter (ekf or
+    ukf), ``adaptive_window`` turns IAE on; ``estimator_out`` receives the filter at the end.
     """
     sensors = (world_sensors or SensorSpec()).model_dump()
-    config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": [trajectory]}, "sensors": sensors})
-    estimator = _ekf(estimator_spec or config.sensors, config.vehicle.gate_probability, kind)
+    config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": [trajectory], **(world or {})},
+                           "sensors": sensors})
+    estimator = _ekf(estimator_spec or config.sensors, config.vehicle.gate_probability, kind, adaptive_window)
+    if estimator_out is not None:
+        estimator_out.append(estimator)
     nees, errors = [], []
 
     def score(t: int, pose: np.ndarray) -> None:

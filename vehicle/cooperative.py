@@ -147,7 +147,7 @@ class CooperativeRule:
         """Gate the fix on its plain NIS, choose w and fuse it in measurement space; None when gated
         out or when w = 1. ``unscented``: range and bearing through sigma points of the pose marginal
         (paper eqs. 4.1-4.9) instead of the linearization."""
-        y, M, C, R, S = self._measurement(x, P[:POSE, :POSE], fix, unscented)
+        y, M, C, R, S = self.measurement(x, P[:POSE, :POSE], fix, unscented)
         nis = float(y @ inverse2(M + R + S) @ y)
         result = UpdateResult(bool(nis <= gate), nis, nis / gate)
         if not result.accepted:
@@ -160,7 +160,7 @@ class CooperativeRule:
         M_new = inverse2(own_info + fix_info)
         return Correction(M_new @ fix_info @ y, M, 0.5 * (M_new + M_new.T), C, w), result
 
-    def _measurement(self, x: np.ndarray, P_pp: np.ndarray, fix: CooperativeFix,
+    def measurement(self, x: np.ndarray, P_pp: np.ndarray, fix: CooperativeFix,
                      unscented: bool) -> tuple[np.ndarray, ...]:
         """Innovation y (2,), own covariance of the measured quantity M (2, 2), the cross-covariance
         C = cov(pose, z) (3, 2), the independent noise R and the neighbour's share S (2, 2 each)."""

@@ -19,20 +19,21 @@ def get_estimator(config: VehicleProcessConfig, vehicle_id: int, *,
     detail)`` counts input the estimator refuses (garbage camera frames)."""
     name = config.vehicle.estimator
     rule = CooperativeRule(config.vehicle.cooperative_fusion, config.vehicle.ci_weight)
+    window = config.vehicle.adaptive_window if config.vehicle.adaptive_noise else 0
     if name == "ekf":
         from vehicle.estimators.ekf import UnicycleEkf
 
         return UnicycleEkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
-                           altitude_m=config.altitude_m, cooperative=rule)
+                           altitude_m=config.altitude_m, cooperative=rule, adaptive_window=window)
     if name == "ukf":
         from vehicle.estimators.ukf import UnicycleUkf
 
         return UnicycleUkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
-                           altitude_m=config.altitude_m, cooperative=rule)
+                           altitude_m=config.altitude_m, cooperative=rule, adaptive_window=window)
     if name == "ekf-slam":
         from vehicle.estimators.ekf_slam import EkfSlam
 
         return EkfSlam(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
                        altitude_m=config.altitude_m, detector=config.vehicle.features, reject=reject,
-                       cooperative=rule)
+                       cooperative=rule, adaptive_window=window)
     raise ConfigError(f"unknown estimator {name!r}")

@@ -56,9 +56,9 @@ class EkfSlam(UnicycleEkf):
 
     def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
                  detector: str = "sift", reject: Reject | None = None, first_estimates: bool = True,
-                 cooperative: CooperativeRule = CooperativeRule()) -> None:
+                 cooperative: CooperativeRule = CooperativeRule(), adaptive_window: int = 0) -> None:
         super().__init__(vehicle_id=vehicle_id, spec=spec, gate_probability=gate_probability, altitude_m=altitude_m,
-                         cooperative=cooperative)
+                         cooperative=cooperative, adaptive_window=adaptive_window)
         cv2.setNumThreads(1)  # one core per vehicle process: OpenCV's thread pool would fight the others for it
         self._detector = features.make_detector(detector)
         self._norm = cv2.NORM_L2 if detector == "sift" else cv2.NORM_HAMMING
@@ -102,6 +102,7 @@ class EkfSlam(UnicycleEkf):
 
     def _cooperative_update(self, fix: CooperativeFix, unscented: bool = False) -> UpdateResult:
         """The cooperative rule on the pose block; the map follows in place (no n x n temporaries)."""
+        fix = self._adapted_ranging(fix, unscented)
         correction, result = self._rule.fuse(self.x, self.P, fix, self._gate)
         if correction is not None:
             apply_correction_in_place(self.x, self.P, correction)

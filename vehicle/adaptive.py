@@ -1,0 +1,60 @@
+"""Innovation-based adaptive estimation (IAE) of a measurement noise covariance (cooperative paper:
+"IAE"; Mehra 1970, Mohamed and Schwarz 1999), pure.
+
+Over the last N innovations v_k (m,) with predicted spreads H P H^T (m, m):
+    R_hat = (1/N) sum v_k v_k^T - (1/N) sum H P_k H^T,
+since E[v v^T] = H P H^T + R for a consistent filter. Until enough innovations are in, and wherever the
+estimate is not positive definite enough, the sensor's nominal covariance bounds it. The estimate is
+used from a quarter of a window on (a growing window until it is full): a filter that trusts a wrong
+noise for a whole window builds up an error its covariance does not know about: in the nominal's
+whitened frame the eigenvalues are clipped to [FLOOR, CEILING] (so R_hat stays between a quarter and a
+hundred times the datasheet).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+FLOOR, CEILING = 0.25, 100.0
+
+
+class InnovationWindow:
+    """The last ``window`` innovations of one sensor and the covariance they imply."""
+
+    def __init__(self, window: int, dim: int = 2) -> None:
+        self.window = window
+        self._outer = np.zeros((window, dim, dim))   # v v^T - H P H^T per innovation
+        self._count = 0
+
+    def copy(self) -> "InnovationWindow":
+        twin = InnovationWindow.__new__(InnovationWindow)
+        twin.window, twin._outer, twin._count = self.window, self._outer.copy(), self._count
+        return twin
+
+    @property
+    def full(self) -> bool:
+        return self._count >= self.window
+
+    @property
+    def usable(self) -> bool:
+        return self._count >= max(5, self.window // 4)
+
+    def add(self, innovation: np.ndarray, predicted_spread: np.ndarray) -> None:
+        """One innovation v (m,) and its predicted spread H P H^T (m, m) (without R)."""
+        self._outer[self._count % self.window] = np.outer(innovation, innovation) - predicted_spread
+        self._count += 1
+
+    def estimate(self) -> np.ndarray:
+        """The raw R_hat (m, m) over what the window holds (not clipped; may be indefinite)."""
+        return self._outer[:min(self._count, self.window)].mean(axis=0)
+
+    def covariance(self, nominal: np.ndarray) -> np.ndarray:
+        """R_hat (m, m), clipped against ``nominal`` (m, m); ``nominal`` itself until a quarter window is in."""
+        if not self.usable:
+            return nominal
+        estimate = self.estimate()
+        L = np.linalg.cholesky(nominal)
+        whitened = np.linalg.solve(L, np.linalg.solve(L, estimate).T)   # L^-1 R_hat L^-T
+        values, vectors = np.linalg.eigh(0.5 * (whitened + whitened.T))
+        clipped = (vectors * np.clip(values, FLOOR, CEILING)) @ vectors.T
+        return L @ clipped @ L.T
