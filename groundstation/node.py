@@ -180,7 +180,9 @@ class GroundStation:
             if key == keys.clock():
                 self._on_tick(m.decode(m.ClockTick, item.payload))
             elif key == keys.end():
-                self.ended, self.wall_end = m.decode(m.RunEnd, item.payload), time.perf_counter()
+                if self.ended is None:  # the world says it again until we acknowledge it
+                    self.ended, self.wall_end = m.decode(m.RunEnd, item.payload), time.perf_counter()
+                self._ack_pub.put(m.encode(m.GroundStationAck(self.ended.tick + 1)))  # "got the end"
             elif key == keys.truth():
                 self._on_truth(feed.decode_truth(item.payload))
             elif parsed is None or parsed.kind != "vehicle":

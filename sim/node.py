@@ -272,6 +272,22 @@ class WorldNode:
     def _present(self, vid: int) -> bool:
         return vid in self.members.alive or vid in self.members.joining
 
+    def hand_over_end(self, end: m.RunEnd, stop: threading.Event, timeout_s: float = 10.0) -> None:
+        """Publish the run's end and stay until the ground station acknowledges it (an ack of the
+        tick after the last) or is gone, at most ``timeout_s``, saying it again each second: a put
+        made just before the session closes can be lost, and a ground station that misses the end
+        reports the run as world-lost."""
+        payload = m.encode(end)
+        deadline, next_put = time.monotonic() + timeout_s, 0.0
+        while self.members.groundstation and self.members.gs_acked <= end.tick and \
+                time.monotonic() < deadline and not stop.is_set():
+            if time.monotonic() >= next_put:
+                self.publish(self.bus.keys.end(), payload)
+                next_put = time.monotonic() + 1.0
+            self.drain(0.05)
+        if next_put == 0.0:
+            self.publish(self.bus.keys.end(), payload)
+
     def await_groundstation(self, tick: int, stop: threading.Event, lockstep: bool) -> bool:
         """Lockstep pauses while the ground station lags more than ``gs_lag_ticks`` or is away (a
         restart), so nothing goes unscored. False when it has been gone for ``gone_timeout_s``."""
@@ -332,5 +348,5 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
     completed = tuple(sorted(node.members.acked)) if node.status == "complete" else ()
     end = m.RunEnd(prepared.tick, min(prepared.tick, node.final_tick) * node.tick_us, len(node.members.alive),
                    node.status, node.rejections.as_counts(), completed)
-    node.publish(bus.keys.end(), m.encode(end))
+    node.hand_over_end(end, stop)
     return node
