@@ -193,18 +193,7 @@ def encode(message: Any) -> bytes:
 
 def decode(cls: type[T], payload: bytes) -> T:
     """Unpack and validate ``payload`` as a ``cls`` message; raise DecodeError if it is not one."""
-    if not isinstance(payload, (bytes, bytearray, memoryview)):
-        raise DecodeError(f"{cls.__name__}: payload must be bytes, got {type(payload).__name__}")
-    if len(payload) > MAX_PAYLOAD_BYTES:
-        raise DecodeError(f"{cls.__name__}: payload of {len(payload)} bytes exceeds {MAX_PAYLOAD_BYTES}")
-    try:
-        body = msgpack.unpackb(payload, raw=False, strict_map_key=True, use_list=True)
-    except Exception as exc:  # msgpack raises many types on garbage; all mean the same here
-        raise DecodeError(f"{cls.__name__}: not valid msgpack ({type(exc).__name__})") from None
-    if not isinstance(body, dict):
-        raise DecodeError(f"{cls.__name__}: expected a map, got {type(body).__name__}")
-    if body.get("type") != cls.__name__ or body.get("v") != WIRE_VERSION:
-        raise DecodeError(f"{cls.__name__}: wrong type tag or version ({body.get('type')!r}, {body.get('v')!r})")
+    body = unpack_tagged(payload, cls.__name__)
     specs = _specs(cls)
     expected = {name for name, _ in specs} | {"type", "v"}
     if set(body) != expected:
@@ -215,15 +204,17 @@ def decode(cls: type[T], payload: bytes) -> T:
 
 def unpack_tagged(payload: bytes, type_name: str, max_bytes: int = MAX_PAYLOAD_BYTES) -> dict:
     """The msgpack map of a payload tagged ``{"type": type_name, "v": WIRE_VERSION, ...}`` (columnar
-    formats that do not fit the dataclass codec); DecodeError for anything else."""
+    formats and, through decode, the dataclass codec); DecodeError for anything else."""
     if not isinstance(payload, (bytes, bytearray, memoryview)):
-        raise DecodeError(f"{type_name}: payload must be bytes")
+        raise DecodeError(f"{type_name}: payload must be bytes, got {type(payload).__name__}")
     if len(payload) > max_bytes:
         raise DecodeError(f"{type_name}: payload of {len(payload)} bytes exceeds {max_bytes}")
     try:
         body = msgpack.unpackb(payload, raw=False, strict_map_key=True, use_list=True)
     except Exception as exc:  # msgpack raises many types on garbage; all mean the same here
         raise DecodeError(f"{type_name}: not valid msgpack ({type(exc).__name__})") from None
-    if not isinstance(body, dict) or body.get("type") != type_name or body.get("v") != WIRE_VERSION:
-        raise DecodeError(f"{type_name}: wrong type tag or version")
+    if not isinstance(body, dict):
+        raise DecodeError(f"{type_name}: expected a map, got {type(body).__name__}")
+    if body.get("type") != type_name or body.get("v") != WIRE_VERSION:
+        raise DecodeError(f"{type_name}: wrong type tag or version ({body.get('type')!r}, {body.get('v')!r})")
     return body

@@ -14,8 +14,10 @@ hundred times the datasheet).
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2
 
 FLOOR, CEILING = 0.25, 100.0
+GATE = chi2.ppf(0.999999, 2)  # innovations beyond this (spoofing, outliers) do not teach the estimate
 
 
 class InnovationWindow:
@@ -58,3 +60,30 @@ class InnovationWindow:
         values, vectors = np.linalg.eigh(0.5 * (whitened + whitened.T))
         clipped = (vectors * np.clip(values, FLOOR, CEILING)) @ vectors.T
         return L @ clipped @ L.T
+
+
+class NoiseAdaptation:
+    """IAE of one vehicle's GNSS and ranging noise: a window per sensor. ``adapt`` learns from one
+    innovation (unless it is beyond ``GATE``: spoofing, outliers) and returns the noise to fuse it with."""
+
+    SENSORS = ("gnss", "ranging")
+
+    def __init__(self, window: int) -> None:
+        self.windows = {sensor: InnovationWindow(window) for sensor in self.SENSORS}
+
+    def copy(self) -> "NoiseAdaptation":
+        twin = NoiseAdaptation.__new__(NoiseAdaptation)
+        twin.windows = {sensor: window.copy() for sensor, window in self.windows.items()}
+        return twin
+
+    def adapt(self, sensor: str, innovation: np.ndarray, spread: np.ndarray, nominal: np.ndarray) -> np.ndarray:
+        """The covariance (m, m) to fuse this ``sensor``'s measurement with, after learning from its
+        innovation (m,) and predicted spread without noise (m, m); ``nominal`` is the datasheet's."""
+        window = self.windows[sensor]
+        if innovation @ np.linalg.solve(spread + window.covariance(nominal), innovation) <= GATE:
+            window.add(innovation, spread)
+        return window.covariance(nominal)
+
+    def estimates(self) -> dict[str, np.ndarray]:
+        """Raw R_hat (m, m) of every sensor whose window is full."""
+        return {sensor: window.estimate() for sensor, window in self.windows.items() if window.full}

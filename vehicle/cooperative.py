@@ -30,7 +30,7 @@ state the same way).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Callable, Literal
 
 import numpy as np
 from scipy.linalg.blas import dger
@@ -84,9 +84,10 @@ def relative_model(x: np.ndarray, neighbour_xy_m: np.ndarray) -> tuple[np.ndarra
 
 
 def inverse2(S: np.ndarray) -> np.ndarray:
-    """Inverse of a 2 x 2 matrix (no LAPACK call: this runs for every ranging measurement)."""
-    a, b, c, d = S[0, 0], S[0, 1], S[1, 0], S[1, 1]
-    return np.array([[d, -b], [-c, a]]) / (a * d - b * c)
+    """Inverses of 2 x 2 matrices (..., 2, 2) in closed form (no LAPACK call: this runs for every
+    ranging measurement)."""
+    adjugate = np.stack([S[..., 1, 1], -S[..., 0, 1], -S[..., 1, 0], S[..., 0, 0]], axis=-1).reshape(S.shape)
+    return adjugate / _det2(S)[..., None, None]
 
 
 def _det2(A: np.ndarray) -> np.ndarray:
@@ -127,10 +128,10 @@ class CooperativeRule:
         = (R + S / (1 - w))^-1, plain CI (1 - w) (R + S)^-1, naive (R + S)^-1."""
         w = np.asarray(w, dtype=float)[:, None, None]
         if self.fusion == "naive":
-            return np.broadcast_to(_inverse2s(R + S), w.shape[:1] + (2, 2))
+            return np.broadcast_to(inverse2(R + S), w.shape[:1] + (2, 2))
         if self.fusion == "split-ci":
-            return (1.0 - w) * _inverse2s((1.0 - w) * R + S)
-        return (1.0 - w) * _inverse2s(R + S)[None]
+            return (1.0 - w) * inverse2((1.0 - w) * R + S)
+        return (1.0 - w) * inverse2(R + S)[None]
 
     def choose_weight(self, M: np.ndarray, R: np.ndarray, S: np.ndarray) -> float:
         """w in [0, 1] for own covariance M (2, 2) of the measured quantity and the fix's noise R, S."""
@@ -142,12 +143,16 @@ class CooperativeRule:
         fused = w[:, None, None] * inverse2(M)[None] + self.fix_information(R, S, w)
         return float(w[int(np.argmax(_det2(fused)))])
 
-    def fuse(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix, gate: float,
-             unscented: bool = False) -> tuple[Correction | None, UpdateResult]:
+    def fuse(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix, gate: float, unscented: bool = False,
+             adapt: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
+             ) -> tuple[Correction | None, UpdateResult]:
         """Gate the fix on its plain NIS, choose w and fuse it in measurement space; None when gated
         out or when w = 1. ``unscented``: range and bearing through sigma points of the pose marginal
-        (paper eqs. 4.1-4.9) instead of the linearization."""
+        (paper eqs. 4.1-4.9) instead of the linearization. ``adapt(y, M + S, R)``: the radio noise to
+        use instead of R (IAE, vehicle.adaptive)."""
         y, M, C, R, S = self.measurement(x, P[:POSE, :POSE], fix, unscented)
+        if adapt is not None:
+            R = adapt(y, M + S, R)
         nis = float(y @ inverse2(M + R + S) @ y)
         result = UpdateResult(bool(nis <= gate), nis, nis / gate)
         if not result.accepted:
@@ -177,12 +182,6 @@ class CooperativeRule:
             y, H, R, S = neighbour_measurement(x, fix)
         C = P_pp @ H.T
         return y, H @ C, C, R, S
-
-
-def _inverse2s(A: np.ndarray) -> np.ndarray:
-    """Inverses of 2 x 2 matrices (..., 2, 2)."""
-    out = np.stack([A[..., 1, 1], -A[..., 0, 1], -A[..., 1, 0], A[..., 0, 0]], axis=-1).reshape(A.shape)
-    return out / _det2(A)[..., None, None]
 
 
 def closed_form_weight(M: np.ndarray, R: np.ndarray) -> float:

@@ -10,19 +10,19 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+from functools import partial
 from typing import Any
 
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
-from scipy.stats import chi2
 
 from bus import messages as m
 from bus.config import SensorSpec
 from bus.mavlink_codec import EstimatorStatus, StateEstimate
 from vehicle import unicycle_ekf as ekf
-from vehicle.adaptive import InnovationWindow
+from vehicle.adaptive import NoiseAdaptation
 from vehicle.alignment import GnssAlignment
-from vehicle.cooperative import CooperativeFix, CooperativeRule, apply_correction
+from vehicle.cooperative import CooperativeFix, CooperativeRule, Correction, apply_correction
 from vehicle.ekf import UpdateResult, gate_threshold
 from vehicle.estimators.base import SEVERITY_INFO, SEVERITY_WARNING, EstimatorCounters, Notice
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
@@ -33,21 +33,20 @@ NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch: constant altitude, level flight
 DIVERGENCE_INFLATION = 10.0
 DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^2
 _MUTABLE = ("x", "P", "time_us", "speed", "gyro", "odom_yaw", "counters", "gnss_health", "alignment", "_last_good", "iae")
-IAE_GATE = chi2.ppf(0.999999, 2)  # innovations beyond this (spoofing, outliers) do not teach the noise estimate
 
 
 class UnicycleEkf:
     """EKF over [x, y, theta, gyro_bias] (4,): see the module docstring."""
 
     name = "ekf"
+    unscented_fixes = False  # range and bearing of cooperative fixes through sigma points (ukf)
 
     def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
                  cooperative: CooperativeRule = CooperativeRule(), adaptive_window: int = 0) -> None:
         self.vehicle_id, self._spec, self._altitude_m = vehicle_id, spec, altitude_m
         self._rule = cooperative
         # IAE of the GNSS and ranging noise (vehicle.adaptive); None: the datasheet's noise as told
-        self.iae = {"gnss": InnovationWindow(adaptive_window), "ranging": InnovationWindow(adaptive_window)} \
-            if adaptive_window else None
+        self.iae = NoiseAdaptation(adaptive_window) if adaptive_window else None
         self._gate = gate_threshold(2, gate_probability)
         self._gyro_period_us = round(1e6 / spec.imu_rate_hz)
         self.x: np.ndarray | None = None
@@ -91,13 +90,17 @@ class UnicycleEkf:
             self.counters.v2v_fused += int(result.accepted)
             self.counters.v2v_rejected += int(not result.accepted)
 
-    def _cooperative_update(self, fix: CooperativeFix, unscented: bool = False) -> UpdateResult:
-        """One neighbour fix by the vehicle's cooperative rule (vehicle.cooperative)."""
-        fix = self._adapted_ranging(fix, unscented)
-        correction, result = self._rule.fuse(self.x, self.P, fix, self._gate, unscented)
+    def _cooperative_update(self, fix: CooperativeFix) -> UpdateResult:
+        """One neighbour fix by the vehicle's cooperative rule (vehicle.cooperative), its radio noise
+        learnt by IAE when that is on."""
+        adapt = None if self.iae is None else partial(self.iae.adapt, "ranging")
+        correction, result = self._rule.fuse(self.x, self.P, fix, self._gate, self.unscented_fixes, adapt)
         if correction is not None:
-            self.x, self.P = apply_correction(self.x, self.P, correction)
+            self._apply_correction(correction)
         return result
+
+    def _apply_correction(self, correction: Correction) -> None:
+        self.x, self.P = apply_correction(self.x, self.P, correction)
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
         """Start at ``pose`` (3,) with covariance (3, 3); the gyro bias from its datasheet spread."""
@@ -143,35 +146,15 @@ class UnicycleEkf:
         """The motion step on (x, P) (ekf.predict_fast's arguments)."""
         self.x, self.P = ekf.predict_fast(self.x, self.P, speed, rate, dt, **noise)
 
-    def _adapted_ranging(self, fix: CooperativeFix, unscented: bool) -> CooperativeFix:
-        """With IAE: learn from this fix's innovation, and give it the estimated radio noise."""
-        if self.iae is None:
-            return fix
-        y, M, _, R, S = self._rule.measurement(self.x, self.P[:3, :3], fix, unscented)
-        window = self.iae["ranging"]
-        if y @ np.linalg.solve(M + S + window.covariance(R), y) <= IAE_GATE:
-            window.add(y, M + S)
-        return dataclasses.replace(fix, covariance=window.covariance(R))
-
-    def _adapted_gnss(self, fix: m.GnssFix) -> m.GnssFix:
-        """With IAE: learn from this fix's innovation, and give it the estimated receiver noise."""
-        if self.iae is None:
-            return fix
-        window, y, spread = self.iae["gnss"], fix.position_m - self.x[:2], self.P[:2, :2]
-        R = window.covariance(fix.covariance_m2)
-        if y @ np.linalg.solve(spread + R, y) <= IAE_GATE:
-            window.add(y, spread)
-        return dataclasses.replace(fix, covariance_m2=window.covariance(fix.covariance_m2))
-
     def adapted_noise(self) -> dict[str, np.ndarray] | None:
         """IAE's current GNSS and ranging covariances (None: IAE off, or the window is not full yet)."""
-        if self.iae is None:
-            return None
-        return {name: window.estimate() for name, window in self.iae.items() if window.full}
+        return None if self.iae is None else self.iae.estimates()
 
     def _fuse_gnss(self, fix: m.GnssFix) -> None:
         """Fuse a fix only if the GNSS health monitor trusts the receiver and the fix passes its tests."""
-        fix = self._adapted_gnss(fix)
+        if self.iae is not None:
+            R = self.iae.adapt("gnss", fix.position_m - self.x[:2], self.P[:2, :2], fix.covariance_m2)
+            fix = dataclasses.replace(fix, covariance_m2=R)
         verdict = self.gnss_health.check(fix.stamp_us, fix.position_m - self.x[:2], self.P[:2, :2] + fix.covariance_m2,
                                          fix.covariance_m2)
         if verdict.reset_offset_m is not None:
@@ -289,7 +272,7 @@ class UnicycleEkf:
         state["gnss_health"] = state["gnss_health"].copy()
         state["alignment"] = copy.copy(state["alignment"])
         if state["iae"] is not None:
-            state["iae"] = {name: window.copy() for name, window in state["iae"].items()}
+            state["iae"] = state["iae"].copy()
         return state
 
     def restore(self, snapshot: dict) -> None:

@@ -22,7 +22,6 @@ the fallback for divergence recovery is refreshed once per ``GOOD_PERIOD_US``, n
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any, Callable
 
@@ -33,8 +32,8 @@ from bus import messages as m
 from bus.config import SensorSpec
 from vehicle import ekf_slam_core as slam
 from vehicle import unicycle_ekf as ekf
-from vehicle.cooperative import CooperativeFix, CooperativeRule, apply_correction_in_place
-from vehicle.ekf import UpdateResult, gate_threshold
+from vehicle.cooperative import CooperativeRule, Correction, apply_correction_in_place
+from vehicle.ekf import gate_threshold
 from vehicle.estimators.ekf import DIVERGENCE_FLOOR, DIVERGENCE_INFLATION, UnicycleEkf
 from vehicle.vision import association, features
 
@@ -100,13 +99,9 @@ class EkfSlam(UnicycleEkf):
         slam.predict_pose(self.x, self.P, F, Q, pose_next)
         self._prior_xy = pose_next[:2].copy()
 
-    def _cooperative_update(self, fix: CooperativeFix, unscented: bool = False) -> UpdateResult:
-        """The cooperative rule on the pose block; the map follows in place (no n x n temporaries)."""
-        fix = self._adapted_ranging(fix, unscented)
-        correction, result = self._rule.fuse(self.x, self.P, fix, self._gate)
-        if correction is not None:
-            apply_correction_in_place(self.x, self.P, correction)
-        return result
+    def _apply_correction(self, correction: Correction) -> None:
+        """The map follows the pose in place (no n x n temporaries)."""
+        apply_correction_in_place(self.x, self.P, correction)
 
     def _gnss_update(self, fix: m.GnssFix) -> None:
         slam.update_in_place(self.x, self.P, [0, 1], np.eye(2), fix.position_m - self.x[:2], fix.covariance_m2,

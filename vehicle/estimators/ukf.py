@@ -19,8 +19,6 @@ import numpy as np
 
 from vehicle import unicycle_ekf as ekf
 from vehicle import unscented as ut
-from vehicle.cooperative import CooperativeFix
-from vehicle.ekf import UpdateResult
 from vehicle.estimators.ekf import UnicycleEkf
 
 
@@ -28,6 +26,7 @@ class UnicycleUkf(UnicycleEkf):
     """UKF over [x, y, theta, gyro_bias] (4,): see the module docstring."""
 
     name = "ukf"
+    unscented_fixes = True
 
     def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
         use_bias, steps = noise["use_bias"], noise["steps"]
@@ -40,7 +39,3 @@ class UnicycleUkf(UnicycleEkf):
             return ekf.propagate_mean(point, speed, rate - bias, dt)
 
         self.x, self.P = ut.propagate(self.x, self.P, move, Q)
-
-    def _cooperative_update(self, fix: CooperativeFix, unscented: bool = True) -> UpdateResult:
-        """The vehicle's cooperative rule with range and bearing predicted through sigma points."""
-        return super()._cooperative_update(fix, unscented=True)
