@@ -97,11 +97,16 @@ class TruthTrack:
         del self.stamps[:keep], self.poses[:keep]
 
 
+def pose_error(pose: np.ndarray, cov: np.ndarray, truth_pose: np.ndarray) -> tuple[np.ndarray, float]:
+    """Error (3,) of a pose estimate (3,) [m, m, rad] against truth (3,), yaw wrapped, and its NEES
+    under the estimate's covariance (3, 3)."""
+    error = np.array([pose[0] - truth_pose[0], pose[1] - truth_pose[1], wrap(pose[2] - truth_pose[2])])
+    return error, float(error @ np.linalg.solve(cov, error))
+
+
 def score(est: StateEstimate, truth_pose: np.ndarray) -> Score:
-    error = np.array([est.position_m[0] - truth_pose[0], est.position_m[1] - truth_pose[1],
-                      wrap(est.yaw_rad - truth_pose[2])])
     cov = est.pose_covariance[_POSE_BLOCK]
-    nees = float(error @ np.linalg.solve(cov, error))
+    error, nees = pose_error((est.position_m[0], est.position_m[1], est.yaw_rad), cov, truth_pose)
     return Score(est.vehicle_id, est.time_usec, error, cov, nees, est.reset_counter,
                  est, truth_pose)
 

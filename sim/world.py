@@ -22,6 +22,7 @@ from sim.kinematics import unicycle_step
 from sim.physical_faults import PhysicalFaults
 from sim.terrain import Terrain, load_terrain, procedural_terrain
 from sim.trajectories import make_trajectory, start_pads
+from sim.true_errors import TrueErrors, wobble, wobble_tones
 
 BLOCK_STEPS = 100
 
@@ -34,6 +35,7 @@ class _Vehicle:
     gyro_bias: np.ndarray
     ranging_rng: np.random.Generator
     camera_rng: np.random.Generator
+    errors: TrueErrors
     last_speed_mps: float = 0.0
     seq: dict[str, int] = field(default_factory=dict)
     noise: dict[str, np.ndarray] = field(default_factory=dict)
@@ -103,18 +105,22 @@ class World:
         spec, wc = config.sensors, config.world
         pads = start_pads(wc.vehicles, wc.spacing_m)
         self.vehicles: list[_Vehicle] = []
-        poses = []
+        poses, tones = [], []
         for index in range(wc.vehicles):
             vid = index + 1
             layout_rng = np.random.default_rng([wc.seed, vid, 1])
             kind = wc.trajectories[index % len(wc.trajectories)]
             trajectory, start = make_trajectory(kind, centre_m=pads[index], speed_mps=wc.speed_mps,
                                                 radius_m=wc.radius_m, rng=layout_rng)
-            rng = np.random.default_rng([wc.seed, vid])
+            rng, errors_rng = np.random.default_rng([wc.seed, vid]), np.random.default_rng([wc.seed, vid, 4])
+            tones.append(wobble_tones(wc.sensor_truth, errors_rng))
             self.vehicles.append(_Vehicle(vid, trajectory, rng, sensors.initial_gyro_bias(spec, rng),
-                                          np.random.default_rng([wc.seed, vid, 2]), np.random.default_rng([wc.seed, vid, 3])))
+                                          np.random.default_rng([wc.seed, vid, 2]), np.random.default_rng([wc.seed, vid, 3]),
+                                          TrueErrors.draw(wc.sensor_truth, errors_rng)))
             poses.append(start)
         self.poses = np.array(poses)
+        self._wobble = tuple(np.array(part) for part in zip(*tones))  # (N, 2, tones) x 2, (N, 2, 1)
+        self._wobbles = bool(wc.sensor_truth.wobble_speed_mps or wc.sensor_truth.wobble_yaw_rate_radps)
         self.faults = PhysicalFaults(config.faults)
         self._periods = {topic: _period_us(rate) for topic, rate in (
             ("odom", spec.odom_rate_hz), ("gnss", spec.gnss_rate_hz), ("ranging", spec.ranging_rate_hz),
@@ -155,6 +161,7 @@ class World:
                    "gnss": v.rng.normal(0.0, spec.gnss_sigma_m, (n, 2)) * truth.gnss_sigma_factor,
                    "ranging": v.ranging_rng.normal(0.0, [spec.range_sigma_m, spec.bearing_sigma_rad],
                                                    (n, len(self.vehicles), 2)) * truth.range_sigma_factor}
+        v.errors.draw_block(n, len(self.vehicles))
 
     def _step(self, out: TickOutput) -> None:
         """Sample every sensor at the step's stamp from the current poses, then move the poses."""
@@ -163,7 +170,8 @@ class World:
         if k == 0:
             for v in self.vehicles:
                 self._draw_block(v)
-        inputs = np.array([v.trajectory.inputs(t_us * 1e-6, pose) for v, pose in zip(self.vehicles, self.poses)])
+        law = np.array([v.trajectory.inputs(t_us * 1e-6, pose) for v, pose in zip(self.vehicles, self.poses)])
+        inputs = self._true_inputs(law, t_us)
         if t_us % self._periods["truth"] == 0:
             out.truth_stamps.append(t_us)
             out.truth.append(np.column_stack([self.poses, inputs]))
@@ -172,8 +180,20 @@ class World:
             v.gyro_bias = v.gyro_bias + v.noise["walk"][k]
         if t_us % self._periods["ranging"] == 0 and spec.ranging_max_m > 0 and spec.ranging_max_peers > 0:
             self._ranging(out, t_us, k)
-        self.poses = unicycle_step(self.poses, inputs[:, 0], inputs[:, 1], dt)
+        self._move(law, t_us, dt)
         self.steps_done += 1
+
+    def _true_inputs(self, law: np.ndarray, t_us: int) -> np.ndarray:
+        """[speed m/s, yaw rate rad/s] (N, 2) at ``t_us``: the trajectories' law (N, 2) plus the wobble."""
+        return law + wobble(t_us * 1e-6, *self._wobble) if self._wobbles else law
+
+    def _move(self, law: np.ndarray, t_us: int, dt: float) -> None:
+        """Integrate the poses over one step in ``sensor_truth.substeps`` arcs, the inputs varying
+        from one to the next (finer than any filter, which holds sampled inputs)."""
+        substeps = self.config.world.sensor_truth.substeps
+        for s in range(substeps):
+            inputs = self._true_inputs(law, round(t_us + s * self.step_us / substeps))
+            self.poses = unicycle_step(self.poses, inputs[:, 0], inputs[:, 1], dt / substeps)
 
     def _emit(self, rows: dict, v: _Vehicle, topic: str, t_us: int, row: np.ndarray) -> None:
         rows.setdefault(topic, []).append((t_us, v.next_seq(topic), row))
@@ -189,11 +209,15 @@ class World:
         gyro, accel = sensors.imu_sample(speed, accel_fwd, yaw_rate, v.gyro_bias, v.noise["gyro"][k], v.noise["accel"][k])
         if not silenced(vid, "imu", t_us, pose):
             self._emit(rows, v, "imu", t_us, np.concatenate([gyro, accel]))
-        if t_us % self._periods["odom"] == 0 and not silenced(vid, "odom", t_us, pose):
-            self._emit(rows, v, "odom", t_us, np.array([speed, yaw_rate]) + v.noise["odom"][k])
-        if t_us % self._periods["gnss"] == 0 and not silenced(vid, "gnss", t_us, pose):
-            fix = pose[:2] + v.noise["gnss"][k] + self.faults.spoof_offset_m(vid, t_us, pose)
-            self._emit(rows, v, "gnss", t_us, np.concatenate([fix, (np.eye(2) * spec.gnss_sigma_m**2).ravel()]))
+        if t_us % self._periods["odom"] == 0:
+            reading = v.errors.odometry(t_us, k, self._periods["odom"] * 1e-6, speed, yaw_rate, v.noise["odom"][k])
+            if not silenced(vid, "odom", t_us, pose):
+                self._emit(rows, v, "odom", t_us, reading)
+        if t_us % self._periods["gnss"] == 0:
+            error = v.errors.gnss_error(k, self._periods["gnss"] * 1e-6, v.noise["gnss"][k])
+            if not silenced(vid, "gnss", t_us, pose):
+                fix = pose[:2] + error + self.faults.spoof_offset_m(vid, t_us, pose)
+                self._emit(rows, v, "gnss", t_us, np.concatenate([fix, (np.eye(2) * spec.gnss_sigma_m**2).ravel()]))
         if self.terrain is not None and t_us % self._periods["camera"] == 0 and not silenced(vid, "camera", t_us, pose):
             frame = camera_frame(self.terrain, pose, v.camera_rng, size_px=spec.camera_size_px,
                                  noise_sigma=spec.camera_noise_grey)
@@ -214,7 +238,8 @@ class World:
             candidates = [j for j in np.argsort(dist[i], kind="stable") if j != i
                           and dist[i, j] <= spec.ranging_max_m and self.vehicles[j].vehicle_id not in jammed]
             for j in sorted(candidates[:spec.ranging_max_peers]):
-                rng_m, bearing = sensors.range_bearing(self.poses[i], xy[j], v.noise["ranging"][k, j])
+                noise = v.noise["ranging"][k, j] * v.errors.block["tail_ranging"][k, j]
+                rng_m, bearing = sensors.range_bearing(self.poses[i], xy[j], noise)
                 if rng_m <= spec.ranging_max_m:
                     row = np.array([self.vehicles[j].vehicle_id, rng_m, bearing, *cov])
                     self._emit(out.rows[v.vehicle_id], v, "ranging", t_us, row)
