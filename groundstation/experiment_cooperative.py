@@ -175,42 +175,40 @@ def _binned(tracks: dict[int, dict[int, dict[str, np.ndarray]]], key: str, bin_s
     return (np.flatnonzero(keep) + 0.5) * bin_s, np.sqrt(mean) if root_mean_square else mean
 
 
-def error_figure(tracks: dict[str, dict], setup: Setup, bin_s: float = 2.0) -> Figure:
-    """Position RMSE of the jammed vehicles over the jam, one line per variant (log scale)."""
+def _variant_lines(tracks: dict[str, dict], key: str, bin_s: float, root_mean_square: bool) -> tuple[Figure, Any]:
+    """A figure with one binned line of ``key`` per variant (the centralized reference dashed), log y."""
     fig = Figure(figsize=(9.0, 4.5), layout="constrained")
     ax = fig.subplots()
     for k, (name, by_seed) in enumerate(tracks.items()):
-        t, rmse = _binned(by_seed, "error_m", bin_s, True)
-        ax.plot(t, rmse, color=f"C{k}", lw=1.4 if name in (CENTRALIZED, "ci-ekf") else 1.0,
+        t, value = _binned(by_seed, key, bin_s, root_mean_square)
+        ax.plot(t, value, color=f"C{k}", lw=1.4 if name in (CENTRALIZED, "ci-ekf") else 1.0,
                 ls="--" if name == CENTRALIZED else "-", label=LABELS.get(name, name))
     ax.set_yscale("log")
     ax.set_xlabel("sim time [s]")
+    ax.grid(alpha=0.3, which="both")
+    return fig, ax
+
+
+def error_figure(tracks: dict[str, dict], setup: Setup, bin_s: float = 2.0) -> Figure:
+    """Position RMSE of the jammed vehicles over the jam, one line per variant (log scale)."""
+    fig, ax = _variant_lines(tracks, "error_m", bin_s, True)
     ax.set_ylabel("position RMSE of the jammed vehicles [m]")
     ax.set_title(f"GNSS jammed for {setup.jammed} of {setup.vehicles} vehicles from {setup.jam_start_s:g} s "
                  f"({setup.world} world; RMS over seeds and jammed vehicles per {bin_s:g} s)", fontsize="medium")
-    ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize="small", ncols=2)
     return fig
 
 
 def nees_figure(tracks: dict[str, dict], setup: Setup, bin_s: float = 2.0) -> Figure:
     """Pose ANEES of the jammed vehicles over the jam per variant, with the 3-dof expectation and the
-    chi-square band of the centralized reference's sample count (log scale)."""
-    fig = Figure(figsize=(9.0, 4.5), layout="constrained")
-    ax = fig.subplots()
-    for k, (name, by_seed) in enumerate(tracks.items()):
-        t, anees = _binned(by_seed, "nees", bin_s, False)
-        ax.plot(t, anees, color=f"C{k}", lw=1.4 if name in (CENTRALIZED, "ci-ekf") else 1.0,
-                ls="--" if name == CENTRALIZED else "-", label=LABELS.get(name, name))
+    chi-square band for the largest variant's count of jammed runs taken as independent (log scale)."""
+    fig, ax = _variant_lines(tracks, "nees", bin_s, False)
     runs = max(sum(len(s) for s in by_seed.values()) for by_seed in tracks.values())
     lo, hi = chi2.ppf([0.025, 0.975], NEES_DOF * runs) / runs
     ax.axhspan(lo, hi, color="grey", alpha=0.2, lw=0, label=f"95% band, {runs} independent runs")
     ax.axhline(NEES_DOF, color="black", lw=0.8, ls=":")
-    ax.set_yscale("log")
-    ax.set_xlabel("sim time [s]")
     ax.set_ylabel("pose ANEES (3 dof) of the jammed vehicles")
     ax.set_title(f"consistency during the jam ({setup.world} world; mean over seeds and jammed vehicles per {bin_s:g} s)",
                  fontsize="medium")
-    ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize="small", ncols=2, loc="upper left", framealpha=0.9)
     return fig
