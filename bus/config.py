@@ -82,6 +82,10 @@ class SensorSpec(_Strict):
     odom_yaw_rate_sigma_radps: float = Field(0.02, ge=0)
     gnss_rate_hz: float = Field(5.0, gt=0, le=100)
     gnss_sigma_m: float = Field(1.5, gt=0)
+    gnss_correlated_sigma_m: float = Field(0.0, ge=0, description="of gnss_sigma_m, the part that wanders slowly "
+                                           "(per axis; 0: white). ekf and ukf then estimate it as two "
+                                           "Gauss-Markov states; ekf-slam treats all of it as white")
+    gnss_correlation_s: float = Field(60.0, gt=0, le=1e5, description="correlation time of that part")
     truth_rate_hz: float = Field(50.0, gt=0, le=1000)
     ranging_rate_hz: float = Field(5.0, gt=0, le=100, description="vehicle-to-vehicle radio ranging")
     ranging_max_m: float = Field(150.0, ge=0, description="ranging reaches vehicles this close (0: no ranging)")
@@ -94,6 +98,13 @@ class SensorSpec(_Strict):
     camera_size_px: int = Field(80, ge=16, le=1024, description="square frame side (the paper's 80 px)")
     camera_noise_grey: float = Field(2.0, ge=0, le=100, description="pixel noise, grey levels (world)")
     keypoint_sigma_px: float = Field(0.7, gt=0, le=20, description="keypoint position noise the filter assumes")
+
+    @model_validator(mode="after")
+    def _correlated_part_is_a_part(self) -> "SensorSpec":
+        if self.gnss_correlated_sigma_m >= self.gnss_sigma_m:
+            raise ValueError(f"gnss_correlated_sigma_m ({self.gnss_correlated_sigma_m} m) must be below "
+                             f"gnss_sigma_m ({self.gnss_sigma_m} m): it is a part of the total")
+        return self
 
 
 class SensorTruth(_Strict):
@@ -134,6 +145,9 @@ class SensorTruth(_Strict):
 HONEST_WORLD = {"gnss_sigma_factor": 0.8, "substeps": 5, "wobble_speed_mps": 0.2, "wobble_yaw_rate_radps": 0.03,
                 "odom_scale_sigma": 0.005, "odom_slip_rate_hz": 0.02, "gnss_walk_sigma_m": 0.9,
                 "gnss_walk_tau_s": 60.0, "gnss_outlier_probability": 0.002, "heavy_tail_dof": 5.0}
+# What the filters are told in that world (the datasheet, rounded: the world's Gauss-Markov part is
+# 0.9 m over 60 s, the datasheet says 1 m and a minute).
+HONEST_DATASHEET = {"gnss_correlated_sigma_m": 1.0, "gnss_correlation_s": 60.0}
 
 
 class WorldConfig(_Strict):

@@ -23,7 +23,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy.stats import chi2
 
-from bus.config import HONEST_WORLD, SwarmConfig, build_config
+from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, build_config
 from groundstation.report.rundata import load_run
 
 SCORE_EVERY_US = 200_000
@@ -60,10 +60,11 @@ def cooperative_config(variant: str, seed: int, setup: Setup) -> SwarmConfig:
     """One variant's swarm on ``seed``: GNSS silent for the jammed vehicles over the jam."""
     blackouts = [{"name": f"jam-v{vid}", "kind": "blackout", "vehicle": vid, "sensor": "gnss",
                   "start_s": setup.jam_start_s, "for_s": setup.jam_s} for vid in setup.jammed_ids]
-    sensor_truth = HONEST_WORLD if setup.world == "honest" else {}
+    sensor_truth, datasheet = (HONEST_WORLD, HONEST_DATASHEET) if setup.world == "honest" else ({}, {})
     vehicle = VARIANTS[variant][1] if variant in VARIANTS else {}
     return build_config({"name": f"{variant}-seed{seed}", "world": {"vehicles": setup.vehicles, "seed": seed,
                                                                     "sensor_truth": sensor_truth},
+                         "sensors": datasheet,
                          "clock": {"duration_s": setup.jam_start_s + setup.jam_s}, "vehicle": vehicle,
                          "faults": blackouts})
 

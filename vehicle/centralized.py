@@ -4,13 +4,15 @@ decentralized filters cannot keep (so no Covariance Intersection is needed: noth
 twice). It is the accuracy yardstick of the decentralized variants, not a vehicle: it runs in one
 process next to the pure world (``swarm experiment cooperative``).
 
-Joint state X = [x_1 ... x_N] with x_i = [x, y, theta, gyro_bias] (4N,). Each vehicle's motion is the
+Joint state X = [x_1 ... x_N] with x_i = [x, y, theta, gyro_bias] (4N,), each block grown by the
+two GNSS error states when the datasheet has a correlated GNSS error (vehicle.gnss_error; 6N). Each vehicle's motion is the
 vehicle EKF's own (``vehicle.unicycle_ekf``: the same held inputs, the same F and Q), applied to its
 block of P and to its cross-covariances: P[i, :] <- F_i P[i, :], P[:, i] <- P[:, i] F_i^T, P[i, i] += Q_i.
 Blocks may stand at different times: process noise is independent between vehicles, so the joint
 covariance stays exact as long as every block a measurement involves is first propagated to its
 stamp. GNSS observes [x_i, y_i]; ranging observes the range and bearing of j seen from i (paper eq.
-4.1), H = [dh/dx_i, dh/dp_j] on both blocks. Every update is behind the vehicles' chi-square gate.
+4.1), H = [dh/dx_i, dh/dp_j] on both blocks.
+GNSS fixes are modelled as on the vehicle (position plus error states, the white part of the noise). Every update is behind the vehicles' chi-square gate.
 
 Pure: no bus, no clock.
 """
@@ -24,12 +26,9 @@ import numpy as np
 from bus import messages as m
 from bus.angles import wrap_angle
 from bus.config import SensorSpec
-from vehicle import unicycle_ekf as ekf
 from vehicle.cooperative import relative_model
 from vehicle.ekf import UpdateResult, gate_threshold, gated_update
 from vehicle.estimators.ekf import UnicycleEkf
-
-BLOCK = 4
 
 
 class _VehicleMotion(UnicycleEkf):
@@ -39,7 +38,7 @@ class _VehicleMotion(UnicycleEkf):
     motion: tuple[np.ndarray, np.ndarray] | None = None
 
     def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
-        self.x, F, Q = ekf.motion_model(self.x, speed, rate, dt, **noise)
+        self.x, F, Q = self._motion(speed, rate, dt, **noise)
         self.motion = (F, Q)
 
 
@@ -52,7 +51,8 @@ class CentralizedEkf:
         self._index = {vid: k for k, vid in enumerate(self.vehicle_ids)}
         self._motion = {vid: _VehicleMotion(vehicle_id=vid, spec=spec, gate_probability=gate_probability,
                                             altitude_m=0.0) for vid in self.vehicle_ids}
-        n = BLOCK * len(self.vehicle_ids)
+        self._block_dim = next(iter(self._motion.values())).state_dim if self._motion else 4
+        n = self._block_dim * len(self.vehicle_ids)
         self.x = np.zeros(n)
         self.P = np.zeros((n, n))
         self._gate = gate_threshold(2, gate_probability)
@@ -60,7 +60,7 @@ class CentralizedEkf:
 
     def block(self, vehicle_id: int) -> slice:
         k = self._index[vehicle_id]
-        return slice(BLOCK * k, BLOCK * (k + 1))
+        return slice(self._block_dim * k, self._block_dim * (k + 1))
 
     @property
     def initialized(self) -> bool:
@@ -87,10 +87,7 @@ class CentralizedEkf:
             motion.handle(topic, msg)
         elif isinstance(msg, m.GnssFix):
             self._propagate(msg.vehicle_id, msg.stamp_us)
-            s = self.block(msg.vehicle_id)
-            H = np.zeros((2, len(self.x)))
-            H[:, s.start:s.start + 2] = np.eye(2)
-            self._update(msg.position_m - self.x[s][:2], H, msg.covariance_m2)
+            self._gnss_update(msg)
         elif isinstance(msg, m.RangeBearing) and msg.target_id in self._index and msg.target_id != msg.vehicle_id:
             self._propagate(msg.vehicle_id, msg.stamp_us)
             self._propagate(msg.target_id, msg.stamp_us)
@@ -114,6 +111,15 @@ class CentralizedEkf:
         self.P[:, s] = self.P[:, s] @ F.T
         self.P[s, s] += Q
 
+    def _gnss_update(self, fix: m.GnssFix) -> None:
+        """A fix on one block, modelled as the vehicle models it."""
+        motion, s = self._motion[fix.vehicle_id], self.block(fix.vehicle_id)
+        motion.x = self.x[s]
+        predicted, H_block, R = motion.gnss_model(fix.covariance_m2)
+        H = np.zeros((2, len(self.x)))
+        H[:, s] = H_block
+        self._update(fix.position_m - predicted, H, R)
+
     def _ranging_update(self, msg: m.RangeBearing) -> None:
         """Range and bearing of ``target_id`` seen from ``vehicle_id`` (paper eq. 4.1) on both blocks."""
         si, sj = self.block(msg.vehicle_id), self.block(msg.target_id)
@@ -126,7 +132,8 @@ class CentralizedEkf:
 
     def _update(self, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> UpdateResult:
         self.x, self.P, result = gated_update(self.x, self.P, y, H, R, self._gate)
-        self.x[2::BLOCK] = (self.x[2::BLOCK] + np.pi) % (2.0 * np.pi) - np.pi
+        heading = self.x[2::self._block_dim]
+        self.x[2::self._block_dim] = (heading + np.pi) % (2.0 * np.pi) - np.pi
         self.accepted += int(result.accepted)
         self.rejected += int(not result.accepted)
         return result

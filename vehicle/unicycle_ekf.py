@@ -17,7 +17,7 @@ from bus.angles import wrap_angle as wrap
 from vehicle.ekf import UpdateResult, gated_update
 
 STATE_DIM = 4
-_H_GNSS = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+H_GNSS = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
 
 
 def propagate_mean(x: np.ndarray, speed_mps: float, yaw_rate_radps: float, dt_s: float) -> np.ndarray:
@@ -177,9 +177,21 @@ def is_spd4(P: np.ndarray) -> bool:
     return a33 - l30 * l30 - l31 * l31 - l32 * l32 > 0.0
 
 
-def gnss_update(x: np.ndarray, P: np.ndarray, fix_m: np.ndarray, cov_m2: np.ndarray,
+def is_spd(P: np.ndarray) -> bool:
+    """True when the symmetric matrix P (n, n) is finite and positive definite (:func:`is_spd4` for 4 x 4)."""
+    if P.shape == (4, 4):
+        return is_spd4(P)
+    try:
+        np.linalg.cholesky(P)
+    except np.linalg.LinAlgError:
+        return False
+    return bool(np.isfinite(P).all())
+
+
+def gnss_update(x: np.ndarray, P: np.ndarray, innovation_m: np.ndarray, H: np.ndarray, cov_m2: np.ndarray,
                 gate: float) -> tuple[np.ndarray, np.ndarray, UpdateResult]:
-    """Fuse a horizontal position fix (2,) with covariance (2, 2) behind a chi-square gate."""
-    x_new, P_new, result = gated_update(x, P, fix_m - x[:2], _H_GNSS, cov_m2, gate)
+    """Fuse a horizontal position fix's innovation (2,) with H (2, n) and covariance (2, 2) behind a
+    chi-square gate (H = :data:`H_GNSS` on the 4-state filter)."""
+    x_new, P_new, result = gated_update(x, P, innovation_m, H, cov_m2, gate)
     x_new[2] = wrap(x_new[2])
     return x_new, P_new, result

@@ -1,6 +1,8 @@
 """``ekf``: the default vehicle estimator, an EKF over [x, y, theta, gyro_bias] driven by odometry speed
 and gyro yaw rate (integrated between cycles: one prediction per loop cycle), GNSS-corrected behind
-the GNSS health monitor, with cooperative (Covariance Intersection) updates from neighbours.
+the GNSS health monitor, with cooperative (Covariance Intersection) updates from neighbours. When the
+datasheet gives a time-correlated part of the GNSS error (``gnss_correlated_sigma_m``), the state
+grows by that error's two Gauss-Markov states (vehicle.gnss_error), [..., e_x, e_y] (6,).
 
 Pure: no bus, no clock.
 """
@@ -23,16 +25,18 @@ from vehicle import unicycle_ekf as ekf
 from vehicle.adaptive import NoiseAdaptation
 from vehicle.alignment import GnssAlignment
 from vehicle.cooperative import CooperativeFix, CooperativeRule, Correction, apply_correction
+from vehicle.gnss_error import GnssErrorModel, aligned_covariance, augment_motion, observation
 from vehicle.ekf import UpdateResult, gate_threshold
 from vehicle.estimators.base import SEVERITY_INFO, SEVERITY_WARNING, EstimatorCounters, Notice
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 from vehicle.inputs import HeldInput
+from vehicle.wheel_slip import SlipGuard
 
 GYRO_STALE_PERIODS = 5
 NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch: constant altitude, level flight
 DIVERGENCE_INFLATION = 10.0
 DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^2
-_MUTABLE = ("x", "P", "time_us", "speed", "gyro", "odom_yaw", "counters", "gnss_health", "alignment", "_last_good", "iae")
+_MUTABLE = ("x", "P", "time_us", "speed", "gyro", "odom_yaw", "counters", "gnss_health", "alignment", "_last_good", "iae", "slip")
 
 
 class UnicycleEkf:
@@ -40,11 +44,14 @@ class UnicycleEkf:
 
     name = "ekf"
     unscented_fixes = False  # range and bearing of cooperative fixes through sigma points (ukf)
+    models_gnss_error = True  # estimate the datasheet's correlated GNSS error (ekf-slam does not)
 
     def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
                  cooperative: CooperativeRule = CooperativeRule(), adaptive_window: int = 0) -> None:
         self.vehicle_id, self._spec, self._altitude_m = vehicle_id, spec, altitude_m
         self._rule = cooperative
+        self._gnss_error = GnssErrorModel.from_spec(spec) if self.models_gnss_error else None
+        self.state_dim = 4 if self._gnss_error is None else 6
         # IAE of the GNSS and ranging noise (vehicle.adaptive); None: the datasheet's noise as told
         self.iae = NoiseAdaptation(adaptive_window) if adaptive_window else None
         self._gate = gate_threshold(2, gate_probability)
@@ -53,6 +60,7 @@ class UnicycleEkf:
         self.P: np.ndarray | None = None
         self.time_us = 0
         self.speed, self.gyro, self.odom_yaw = HeldInput(), HeldInput(), HeldInput()
+        self.slip = SlipGuard.for_datasheet(spec.odom_speed_sigma_mps, spec.imu_rate_hz)
         self.counters = EstimatorCounters()
         self.gnss_health = GnssHealth(GnssHealthSpec(gate_probability=gate_probability))
         self.alignment = GnssAlignment()
@@ -76,11 +84,8 @@ class UnicycleEkf:
         if msg.stamp_us < self.time_us:
             self.counters.stale += 1
             return
-        if isinstance(msg, m.ImuSample):
-            self.gyro.sample(msg.stamp_us, float(msg.gyro_radps[2]))
-        elif isinstance(msg, m.WheelOdometry):
-            self.speed.sample(msg.stamp_us, msg.speed_mps)
-            self.odom_yaw.sample(msg.stamp_us, msg.yaw_rate_radps)
+        if isinstance(msg, (m.ImuSample, m.WheelOdometry)):
+            self._inputs(msg)
         elif isinstance(msg, m.GnssFix):
             self._propagate_to(msg.stamp_us)
             self._fuse_gnss(msg)
@@ -89,6 +94,15 @@ class UnicycleEkf:
             result = self._cooperative_update(msg)
             self.counters.v2v_fused += int(result.accepted)
             self.counters.v2v_rejected += int(not result.accepted)
+
+    def _inputs(self, msg: m.ImuSample | m.WheelOdometry) -> None:
+        """Hold the gyro rate, or the wheel speed (slip taken off) and yaw rate, from their stamp on."""
+        if isinstance(msg, m.ImuSample):
+            self.gyro.sample(msg.stamp_us, float(msg.gyro_radps[2]))
+            self.slip.accelerometer(float(msg.accel_mps2[0]))
+        else:
+            self.speed.sample(msg.stamp_us, self.slip.correct(msg.stamp_us, msg.speed_mps))
+            self.odom_yaw.sample(msg.stamp_us, msg.yaw_rate_radps)
 
     def _cooperative_update(self, fix: CooperativeFix) -> UpdateResult:
         """One neighbour fix by the vehicle's cooperative rule (vehicle.cooperative), its radio noise
@@ -102,11 +116,19 @@ class UnicycleEkf:
     def _apply_correction(self, correction: Correction) -> None:
         self.x, self.P = apply_correction(self.x, self.P, correction)
 
-    def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
-        """Start at ``pose`` (3,) with covariance (3, 3); the gyro bias from its datasheet spread."""
-        self.x = np.append(pose, 0.0)
-        self.P = np.zeros((4, 4))
-        self.P[:3, :3] = covariance
+    def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int, *, from_fixes: bool = False) -> None:
+        """Start at ``pose`` (3,) with covariance (3, 3); the gyro bias from its datasheet spread, the
+        GNSS error states (if any) at 0 with theirs, tied to the position when it came ``from_fixes``."""
+        self.x = np.zeros(self.state_dim)
+        self.x[:3] = pose
+        if self._gnss_error is None:
+            self.P = np.zeros((4, 4))
+            self.P[:3, :3] = covariance
+        elif from_fixes:
+            self.P = aligned_covariance(covariance, self._gnss_error)
+        else:
+            self.P = np.diag([0.0, 0.0, 0.0, 0.0] + [self._gnss_error.variance_m2] * 2)
+            self.P[:3, :3] = covariance
         self.P[3, 3] = self._spec.gyro_bias_sigma_radps**2
         self.time_us = stamp_us
         for held in (self.speed, self.gyro, self.odom_yaw):
@@ -116,14 +138,12 @@ class UnicycleEkf:
         """No prior (a restart in flight): align from the GNSS track and the gyro (vehicle.alignment)."""
         if isinstance(msg, m.ImuSample):
             self.alignment.yaw_rate(msg.stamp_us, float(msg.gyro_radps[2]))
-            self.gyro.sample(msg.stamp_us, float(msg.gyro_radps[2]))
-        elif isinstance(msg, m.WheelOdometry):
-            self.speed.sample(msg.stamp_us, msg.speed_mps)
-            self.odom_yaw.sample(msg.stamp_us, msg.yaw_rate_radps)
+        if isinstance(msg, (m.ImuSample, m.WheelOdometry)):
+            self._inputs(msg)
         elif isinstance(msg, m.GnssFix):
             aligned = self.alignment.fix(msg.stamp_us, msg.position_m, msg.covariance_m2)
             if aligned is not None:
-                self._initialise(*aligned, msg.stamp_us)
+                self._initialise(*aligned, msg.stamp_us, from_fixes=True)
                 self.gnss_health.last_fix_us = msg.stamp_us
 
     def _propagate_to(self, stamp_us: int) -> None:
@@ -144,7 +164,27 @@ class UnicycleEkf:
 
     def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
         """The motion step on (x, P) (ekf.predict_fast's arguments)."""
-        self.x, self.P = ekf.predict_fast(self.x, self.P, speed, rate, dt, **noise)
+        if self._gnss_error is None:
+            self.x, self.P = ekf.predict_fast(self.x, self.P, speed, rate, dt, **noise)
+            return
+        self.x, F, Q = self._motion(speed, rate, dt, **noise)
+        P = F @ self.P @ F.T + Q
+        self.P = 0.5 * (P + P.T)
+
+    def _motion(self, speed: float, rate: float, dt: float, **noise: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The new state (state_dim,), F and Q (state_dim, state_dim) of one motion step: the unicycle's
+        (ekf.motion_model) and the GNSS error states' decay."""
+        head, F, Q = ekf.motion_model(self.x[:4], speed, rate, dt, **noise)
+        if self._gnss_error is None:
+            return head, F, Q
+        F, Q = augment_motion(F, Q, self._gnss_error, dt)
+        return np.concatenate([head, F[4, 4] * self.x[4:]]), F, Q
+
+    def gnss_model(self, reported_cov_m2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What a fix should read (2,), its H (2, state_dim) and the noise (2, 2) of its white part."""
+        if self._gnss_error is None:
+            return self.x[:2], ekf.H_GNSS, reported_cov_m2
+        return self.x[:2] + self.x[4:6], observation(self.state_dim), self._gnss_error.white(reported_cov_m2)
 
     def adapted_noise(self) -> dict[str, np.ndarray] | None:
         """IAE's current GNSS and ranging covariances (None: IAE off, or the window is not full yet)."""
@@ -152,11 +192,12 @@ class UnicycleEkf:
 
     def _fuse_gnss(self, fix: m.GnssFix) -> None:
         """Fuse a fix only if the GNSS health monitor trusts the receiver and the fix passes its tests."""
+        predicted, H, R = self.gnss_model(fix.covariance_m2)
+        y, HPH = fix.position_m - predicted, H @ self.P @ H.T
         if self.iae is not None:
-            R = self.iae.adapt("gnss", fix.position_m - self.x[:2], self.P[:2, :2], fix.covariance_m2)
-            fix = dataclasses.replace(fix, covariance_m2=R)
-        verdict = self.gnss_health.check(fix.stamp_us, fix.position_m - self.x[:2], self.P[:2, :2] + fix.covariance_m2,
-                                         fix.covariance_m2)
+            R = self.iae.adapt("gnss", y, HPH, R)
+        fix = dataclasses.replace(fix, covariance_m2=R)  # from here on: the white part, or IAE's
+        verdict = self.gnss_health.check(fix.stamp_us, y, HPH + R, R)
         if verdict.reset_offset_m is not None:
             self._reset_position(verdict.reset_offset_m, verdict.reset_variance_m2)
         if not verdict.fuse:
@@ -166,7 +207,9 @@ class UnicycleEkf:
         self.counters.gnss_accepted += 1
 
     def _gnss_update(self, fix: m.GnssFix) -> None:
-        self.x, self.P, _ = ekf.gnss_update(self.x, self.P, fix.position_m, fix.covariance_m2, self._gate)
+        """Fuse the fix (its covariance already the white part)."""
+        predicted, H, _ = self.gnss_model(fix.covariance_m2)
+        self.x, self.P, _ = ekf.gnss_update(self.x, self.P, fix.position_m - predicted, H, fix.covariance_m2, self._gate)
 
     def _reset_position(self, offset_m: np.ndarray, variance_m2: float) -> None:
         """Jump the position by ``offset_m`` (2,) with per-axis variance ``variance_m2``; decorrelate it."""
@@ -198,7 +241,7 @@ class UnicycleEkf:
 
     def _diverged(self) -> bool:
         """Non-finite state or a covariance that is no longer (finite and) positive definite."""
-        return not (math.isfinite(sum(self.x.tolist())) and ekf.is_spd4(self.P))
+        return not (math.isfinite(sum(self.x.tolist())) and ekf.is_spd(self.P))
 
     def _recover(self, t_us: int) -> None:
         if self._last_good is None:  # diverged before any good cycle: start over from nothing
@@ -212,7 +255,9 @@ class UnicycleEkf:
 
     def _inflated(self, P: np.ndarray) -> np.ndarray:
         """The fallback covariance after a divergence: inflated, with a floor."""
-        return DIVERGENCE_INFLATION * P + np.diag(DIVERGENCE_FLOOR)
+        floor = DIVERGENCE_FLOOR if self._gnss_error is None else \
+            np.append(DIVERGENCE_FLOOR, [self._gnss_error.variance_m2] * 2)
+        return DIVERGENCE_INFLATION * P + np.diag(floor)
 
     def _notice(self, notice: Notice) -> None:
         """Queue a notice unless it was said already (a replay re-runs cycles)."""
@@ -271,6 +316,7 @@ class UnicycleEkf:
         state["counters"] = dataclasses.replace(state["counters"])
         state["gnss_health"] = state["gnss_health"].copy()
         state["alignment"] = copy.copy(state["alignment"])
+        state["slip"] = state["slip"].copy()
         if state["iae"] is not None:
             state["iae"] = state["iae"].copy()
         return state

@@ -52,6 +52,7 @@ class EkfSlam(UnicycleEkf):
     """Vision EKF-SLAM: see the module docstring."""
 
     name = "ekf-slam"
+    models_gnss_error = False  # the map's camera fixes anchor the position; GNSS error taken as white
 
     def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
                  detector: str = "sift", reject: Reject | None = None, first_estimates: bool = True,

@@ -3,18 +3,23 @@ by side (same motion, same fixes, zero cross-covariances), with ranging it stays
 GNSS holds; in the jammed swarm of stage 4 it is the accuracy yardstick (test_cooperative_stages)."""
 
 import numpy as np
+import pytest
 
-from bus.config import build_config
+from bus.config import HONEST_DATASHEET, HONEST_WORLD, build_config
 from groundstation.centralized_reference import run_centralized
 from tests.offline import pose_nees_series
 
 
-def test_without_ranging_it_is_each_vehicles_own_ekf():
-    """Vehicle 1 of a 1-vehicle world: the joint filter and the vehicle EKF, fed the same samples."""
-    config = build_config({"world": {"vehicles": 1, "seed": 4, "trajectories": ["waypoints"]},
-                           "clock": {"duration_s": 20}, "sensors": {"ranging_max_m": 0.0}})
+@pytest.mark.parametrize("datasheet", [{}, HONEST_DATASHEET], ids=["white-gnss", "gnss-error-states"])
+def test_without_ranging_it_is_each_vehicles_own_ekf(datasheet):
+    """Vehicle 1 of a 1-vehicle world: the joint filter and the vehicle EKF, fed the same samples
+    (also with the GNSS error states, in the honest world that needs them)."""
+    world = {"sensor_truth": HONEST_WORLD} if datasheet else {}
+    config = build_config({"world": {"vehicles": 1, "seed": 4, "trajectories": ["waypoints"], **world},
+                           "clock": {"duration_s": 20}, "sensors": {"ranging_max_m": 0.0, **datasheet}})
     central = run_centralized(config, score_every_us=1_000_000)[1]
-    nees, errors = pose_nees_series(4, duration_s=20.0, trajectory="waypoints")
+    nees, errors = pose_nees_series(4, duration_s=20.0, trajectory="waypoints", world=world or None,
+                                    estimator_spec=config.sensors)
     np.testing.assert_allclose(central["error_m"], errors, atol=1e-9)
     np.testing.assert_allclose(central["nees"], nees, rtol=1e-6)
 
