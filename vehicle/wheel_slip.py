@@ -14,6 +14,7 @@ with Student-t(5) noise. Without accelerometer samples since the last reading no
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -71,5 +72,4 @@ class SlipGuard:
         return reading_mps - self.offset_mps
 
     def copy(self) -> "SlipGuard":
-        return SlipGuard(self.threshold_mps, self.imu_period_s, self.max_slip_s, self.offset_mps, self.slips,
-                         self._since_us, self._level, self._felt_mps, self._felt_samples, self._pending)
+        return copy.copy(self)  # every field is an immutable scalar
