@@ -20,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from bus.errors import ConfigError
 from bus.faults import LINK_KINDS, Fault, check_fault, named
+from bus.replay_config import ReplayConfig
 
 
 class _Strict(BaseModel):
@@ -166,8 +167,11 @@ class WorldConfig(_Strict):
 
 
 class VehicleConfig(_Strict):
-    estimator: Literal["ekf", "ukf", "ekf-slam"] = Field("ekf", description="the estimator every vehicle runs "
-                                                         "(vehicle.estimators): ekf, ukf, or ekf-slam (needs a camera)")
+    estimator: Literal["ekf", "ukf", "ekf-slam", "known-map"] = Field(
+        "ekf", description="the estimator every vehicle runs (vehicle.estimators): ekf, ukf, ekf-slam (a camera, or "
+        "a replay's landmark sightings) or known-map (landmark sightings against vehicle.landmarks)")
+    landmarks: tuple[tuple[int, float, float], ...] = Field((), max_length=10_000, description="known-map: the "
+                                                            "surveyed landmarks, (id, x m, y m)")
     features: Literal["sift", "orb"] = Field("sift", description="ekf-slam: keypoint detector")
     loop_rate_hz: float = Field(50.0, gt=0, le=1000)
     gate_probability: float = Field(0.9995, gt=0.5, lt=1.0, description="chi-square gate for GNSS")
@@ -201,6 +205,8 @@ class SwarmConfig(_Strict):
     sensors: SensorSpec = SensorSpec()
     vehicle: VehicleConfig = VehicleConfig()
     faults: tuple[Fault, ...] = Field((), description="fault timeline (physical, link and kill faults)")
+    replay: ReplayConfig | None = Field(None, description="replay a recorded data set instead of simulating "
+                                        "(world.vehicles is then the number of robots replayed)")
     fault_seed: int = Field(1, ge=0, le=2**63 - 1, description="seed of link-fault decisions; independent of "
                             "world.seed, which vehicles never see")
 
@@ -239,8 +245,23 @@ class SwarmConfig(_Strict):
 
     @model_validator(mode="after")
     def _slam_has_a_camera(self) -> "SwarmConfig":
-        if self.vehicle.estimator == "ekf-slam" and not self.sensors.camera_rate_hz:
+        if self.vehicle.estimator == "ekf-slam" and not self.sensors.camera_rate_hz and self.replay is None:
             raise ValueError("vehicle.estimator = 'ekf-slam' needs a camera: set sensors.camera_rate_hz (e.g. 10)")
+        if self.vehicle.estimator == "known-map" and not self.vehicle.landmarks:
+            raise ValueError("vehicle.estimator = 'known-map' needs the map: vehicle.landmarks")
+        return self
+
+    @model_validator(mode="after")
+    def _replay_fits(self) -> "SwarmConfig":
+        replay = self.replay
+        if replay is None:
+            return self
+        if self.world.vehicles != len(replay.robots):
+            raise ValueError(f"a replay of robots {list(replay.robots)} needs world.vehicles = {len(replay.robots)}")
+        low, high = replay.calibration_s
+        if replay.start_s < high and replay.start_s + self.clock.duration_s > low:
+            raise ValueError(f"the replayed window [{replay.start_s:g}, {replay.start_s + self.clock.duration_s:g}] s "
+                             f"overlaps the calibration interval [{low:g}, {high:g}] s: nothing calibrated is scored")
         return self
 
     def dump(self, path: Path) -> None:

@@ -23,7 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 GLOB = r"^[A-Za-z0-9_*?\[\]\-]{1,32}$"
 NAME = r"^[A-Za-z0-9_.\-]{0,64}$"
-LINK_TOPICS = ("imu", "odom", "gnss", "prior", "ranging", "camera", "mavlink")
+LINK_TOPICS = ("imu", "odom", "gnss", "prior", "ranging", "landmark", "camera", "mavlink")
 
 
 class _Fault(BaseModel):
@@ -74,7 +74,7 @@ class Blackout(_Fault):
 
     kind: Literal["blackout"] = "blackout"
     vehicle: int = Field(ge=1, le=250)
-    sensor: Literal["imu", "odom", "gnss", "ranging", "camera"]
+    sensor: Literal["imu", "odom", "gnss", "ranging", "landmark", "camera"]
 
 
 class Kill(_Fault):

@@ -30,7 +30,10 @@ LAYOUT = {
     "odom": (2, 1000, 1000.0),             # speed m/s, yaw rate rad/s
     "gnss": (6, 100, m.MAX_POSITION_M),    # position (2), covariance (2, 2)
     "ranging": (7, 2500, 1e6),             # target id, range m, bearing rad, covariance (2, 2)
+    "landmark": (7, 2500, 1e6),            # landmark id, range m, bearing rad, covariance (2, 2)
 }
+SIGHTINGS = ("ranging", "landmark")     # several per stamp (one camera frame sees many)
+MAX_LANDMARK_ID = 999_999
 TOPICS = tuple(LAYOUT)
 CAMERA_SIZES_PX = (8, 1024)     # frame side, inclusive bounds
 MAX_CAMERA_FRAMES = 100         # per batch
@@ -96,7 +99,11 @@ def _ranging(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.RangeBearing:
     return m.RangeBearing(vid, stamp, seq, int(r[0]), float(r[1]), float(r[2]), r[3:].reshape(2, 2))
 
 
-_MAKERS = {"prior": _prior, "imu": _imu, "odom": _odom, "gnss": _gnss, "ranging": _ranging}
+def _landmark(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.LandmarkSighting:
+    return m.LandmarkSighting(vid, stamp, seq, int(r[0]), float(r[1]), float(r[2]), r[3:].reshape(2, 2))
+
+
+_MAKERS = {"prior": _prior, "imu": _imu, "odom": _odom, "gnss": _gnss, "ranging": _ranging, "landmark": _landmark}
 
 
 def encode_batch(batch: SensorBatch) -> bytes:
@@ -157,9 +164,9 @@ def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.nda
         raise DecodeError(f"{topic}: stamps must be ordered and inside the tick ending at {stamp_us} us")
     if not np.all(np.abs(rows) <= max_abs):  # also rejects NaN and inf
         raise DecodeError(f"{topic}: values must be finite and within +-{max_abs:g}")
-    if topic != "ranging" and k > 1 and np.any(np.diff(stamps) == 0):
+    if topic not in SIGHTINGS and k > 1 and np.any(np.diff(stamps) == 0):
         raise DecodeError(f"{topic}: two samples with one stamp")
-    if topic in ("gnss", "ranging") and k and not _spd2(rows[:, -4:]):
+    if topic in ("gnss", *SIGHTINGS) and k and not _spd2(rows[:, -4:]):
         raise DecodeError(f"{topic}: covariance is not symmetric positive definite")
     if topic == "prior" and k and not _spd3(rows[:, 3:]):
         raise DecodeError("prior: covariance is not symmetric positive definite")
@@ -167,8 +174,12 @@ def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.nda
         target = rows[:, 0]
         if np.any(target != np.round(target)) or np.any(target < 1) or np.any(target > 250) or np.any(target == vehicle_id):
             raise DecodeError("ranging: target ids must be other vehicles, 1-250")
-        if np.any(rows[:, 1] < 0) or np.any(np.abs(rows[:, 2]) > 10.0):
-            raise DecodeError("ranging: range must be >= 0 and the bearing within +-10 rad")
+    if topic == "landmark" and k:
+        ident = rows[:, 0]
+        if np.any(ident != np.round(ident)) or np.any(ident < 0) or np.any(ident > MAX_LANDMARK_ID):
+            raise DecodeError(f"landmark: ids must be integers 0-{MAX_LANDMARK_ID}")
+    if topic in SIGHTINGS and k and (np.any(rows[:, 1] < 0) or np.any(np.abs(rows[:, 2]) > 10.0)):
+        raise DecodeError(f"{topic}: range must be >= 0 and the bearing within +-10 rad")
     return stamps, seq0, rows
 
 
@@ -213,7 +224,8 @@ TRUTH_WIDTH = 5  # x m, y m, theta rad, speed m/s, yaw rate rad/s
 @dataclass(frozen=True)
 class TruthBatch:
     """Truth of every vehicle at the truth stamps of one tick: stamps (k,) us, vehicle ids (n,),
-    rows (k, n, 5) [x, y, theta, speed, yaw rate]."""
+    rows (k, n, 5) [x, y, theta, speed, yaw rate]; a row of NaN where a vehicle has no truth (a
+    replayed data set's gaps)."""
 
     tick: int
     stamp_us: int
@@ -243,6 +255,8 @@ def decode_truth(payload: bytes) -> TruthBatch:
         raise DecodeError("TruthBatch: vehicle ids must be distinct, 1-250")
     if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or np.any(np.diff(stamps) <= 0)):
         raise DecodeError("TruthBatch: stamps must increase inside the tick")
-    if not np.all(np.abs(data) <= m.MAX_POSITION_M):
-        raise DecodeError("TruthBatch: values must be finite")
-    return TruthBatch(tick, stamp_us, stamps, ids, data.reshape(k, n, TRUTH_WIDTH))
+    rows = data.reshape(k, n, TRUTH_WIDTH)
+    gap = np.all(np.isnan(rows), axis=2, keepdims=True)  # no truth for that vehicle at that stamp
+    if not np.all((np.abs(rows) <= m.MAX_POSITION_M) | gap):
+        raise DecodeError("TruthBatch: values must be finite (no truth at a stamp: a whole row of NaN)")
+    return TruthBatch(tick, stamp_us, stamps, ids, rows)

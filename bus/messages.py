@@ -21,7 +21,7 @@ Seq = Annotated[int, Int(0, 2**63 - 1)]
 MAX_POSITION_M = 1e7
 
 __all__ = [
-    "ImuSample", "WheelOdometry", "GnssFix", "PosePrior", "RangeBearing", "Truth", "ClockTick", "TickAck",
+    "ImuSample", "WheelOdometry", "GnssFix", "PosePrior", "RangeBearing", "LandmarkSighting", "Truth", "ClockTick", "TickAck",
     "GroundStationAck", "VehicleStatus", "RunEnd", "encode", "decode",
 ]
 Rejected = Annotated[tuple[int, ...], Counts(len(REASONS))]
@@ -92,6 +92,20 @@ class RangeBearing:
     stamp_us: StampUs
     seq: Seq
     target_id: VehicleId
+    range_m: Annotated[float, Float(1e6)]
+    bearing_rad: Annotated[float, Float(10.0)]
+    covariance: Annotated[np.ndarray, Covariance((2, 2), 1e8)]
+
+
+@dataclass(frozen=True)
+class LandmarkSighting:
+    """A camera sighting of a mapped landmark: its id (a data set's subject number), range (m) and
+    bearing (rad, from the heading) seen from ``vehicle_id``, covariance (2, 2) over [range, bearing]."""
+
+    vehicle_id: VehicleId
+    stamp_us: StampUs
+    seq: Seq
+    landmark_id: Annotated[int, Int(0, 999_999)]
     range_m: Annotated[float, Float(1e6)]
     bearing_rad: Annotated[float, Float(10.0)]
     covariance: Annotated[np.ndarray, Covariance((2, 2), 1e8)]

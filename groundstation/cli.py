@@ -13,11 +13,13 @@ from bus.errors import SwarmlocError
 from groundstation.cli_errors import fail
 from groundstation.experiment_commands import experiment_app
 from groundstation.fault_commands import fault_app
+from groundstation.replay_commands import replay_app
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="swarmloc: multi-process swarm localization over zenoh, with MAVLink 2 state packets.")
 app.add_typer(fault_app, name="fault")
 app.add_typer(experiment_app, name="experiment")
+app.add_typer(replay_app, name="replay")
 
 
 def _run_node(config_path: Path, role: str, body: Callable, *, vehicle_config: bool = False) -> None:

@@ -82,6 +82,12 @@ class TruthTrack:
     def covers(self, stamp_us: int) -> bool:
         return bool(self.stamps) and self.stamps[0] <= stamp_us <= self.stamps[-1]
 
+    def in_gap(self, stamp_us: int) -> bool:
+        """``stamp_us`` (covered) touches a truth sample of NaN: the data set has no truth there."""
+        i = bisect.bisect_left(self.stamps, stamp_us)
+        near = [self.poses[i]] if self.stamps[i] == stamp_us else [self.poses[i - 1], self.poses[i]]
+        return any(np.isnan(p[0]) for p in near)
+
     def at(self, stamp_us: int) -> np.ndarray:
         i = bisect.bisect_left(self.stamps, stamp_us)
         if self.stamps[i] == stamp_us:
@@ -119,6 +125,7 @@ class Scorer:
     pending: list[tuple[int, int, int, StateEstimate]] = field(default_factory=list)  # heap
     tallies: dict[int, Tally] = field(default_factory=dict)
     unscored: int = 0
+    in_truth_gaps: int = 0  # estimates where a replayed data set has no truth (not scored)
     duplicates: int = 0
     late: int = 0
     dropped_full: int = 0
@@ -159,6 +166,9 @@ class Scorer:
                 log.warning("no truth for vehicle %d at %d us (truth covers %s); estimate not scored",
                             est.vehicle_id, est.time_usec,
                             f"{track.stamps[0]}..{track.stamps[-1]}" if track and track.stamps else "nothing")
+                continue
+            if track.in_gap(est.time_usec):
+                self.in_truth_gaps += 1
                 continue
             try:
                 result = score(est, track.at(est.time_usec))

@@ -50,7 +50,7 @@ def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, Vehic
     swarm = {"samples": total_n, "rmse_m": _round(math.sqrt(total_sq / total_n)) if total_n else None,
              "anees": _round(total_nees / total_n) if total_n else None, "nees_dof": NEES_DOF,
              "nees_bounds_95": [_round(b) for b in scorer.bounds], "unscored": scorer.unscored,
-             "duplicate_estimates": scorer.duplicates, "late_estimates": scorer.late}
+             "in_truth_gaps": scorer.in_truth_gaps, "duplicate_estimates": scorer.duplicates, "late_estimates": scorer.late}
     fault_counts = dict(sorted(Counter(f.kind for f in faults).items()))
     by_process = {name: counts_to_dict(counts) for name, counts in sorted((rejected or {}).items())}
     totals = Counter()

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bus.angles import wrap_angles
 from bus.errors import SwarmlocError
 
 ROBOTS = (1, 2, 3, 4, 5)
@@ -146,3 +147,21 @@ def _load_directory(folder: Path) -> MrclamData:
         odometry[:, 0] -= start_s
         robots[robot] = RobotLog(robot, groundtruth, odometry, sightings.reshape(-1, 4), int((~known).sum()))
     return MrclamData(robots, landmarks, start_s)
+
+
+def pose_at(groundtruth: np.ndarray, t_s: np.ndarray, max_gap_s: float = 0.5) -> np.ndarray:
+    """Ground truth (k, 4) [t, x, y, theta] interpolated at times ``t_s`` (n,): poses (n, 3), the
+    heading unwrapped before interpolating and wrapped after; NaN rows outside the recording or
+    between two samples more than ``max_gap_s`` apart (Vicon lost the robot)."""
+    t_s = np.asarray(t_s, dtype=float)
+    out = np.full((len(t_s), 3), np.nan)
+    times = groundtruth[:, 0]
+    if len(times) < 2:
+        return out
+    after = np.clip(np.searchsorted(times, t_s), 1, len(times) - 1)
+    ok = (t_s >= times[0]) & (t_s <= times[-1]) & (times[after] - times[after - 1] <= max_gap_s)
+    heading = np.unwrap(groundtruth[:, 3])
+    for column, values in enumerate((groundtruth[:, 1], groundtruth[:, 2], heading)):
+        out[ok, column] = np.interp(t_s[ok], times, values)
+    out[ok, 2] = wrap_angles(out[ok, 2])
+    return out

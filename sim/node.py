@@ -14,6 +14,7 @@ import logging
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -104,10 +105,20 @@ class _Prepared:
     comm_jammed: tuple[int, ...]
 
 
+def make_world(config: SwarmConfig) -> World:
+    """The simulated world, or the replay of a recorded data set (``config.replay``)."""
+    if config.replay is None:
+        return World(config)
+    from sim.mrclam import load_mrclam
+    from sim.replay import ReplayWorld
+
+    return ReplayWorld(config, load_mrclam(Path(config.replay.dataset)))
+
+
 class WorldNode:
     def __init__(self, bus: Bus, config: SwarmConfig) -> None:
         self.bus, self.config, keys = bus, config, bus.keys
-        self.world = World(config)
+        self.world = make_world(config)
         self.rejections = Rejections(log, "world")
         self.mailbox = Mailbox()
         control, acks = self.mailbox.lane("control", max_items=10_000), self.mailbox.lane("acks", max_items=100_000)

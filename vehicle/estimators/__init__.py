@@ -30,6 +30,12 @@ def get_estimator(config: VehicleProcessConfig, vehicle_id: int, *,
 
         return UnicycleUkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
                            altitude_m=config.altitude_m, cooperative=rule, adaptive_window=window)
+    if name == "known-map":
+        from vehicle.estimators.known_map import KnownMapEkf
+
+        return KnownMapEkf(vehicle_id=vehicle_id, spec=config.sensors, gate_probability=config.vehicle.gate_probability,
+                           altitude_m=config.altitude_m, cooperative=rule, adaptive_window=window,
+                           landmarks=config.vehicle.landmarks)
     if name == "ekf-slam":
         from vehicle.estimators.ekf_slam import EkfSlam
 

@@ -1,0 +1,45 @@
+"""What a replay of a recorded data set needs to know (``SwarmConfig.replay``): where the data set
+is, which of its robots fly as which vehicles, the window of it that is replayed, and the interval
+the sensor datasheet was calibrated on (never scored: the window must start after it ends)."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+
+class ReplayConfig(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    kind: str = Field("mrclam", pattern=r"^mrclam$", description="data set format (UTIAS MRCLAM, data sets 1-9)")
+    dataset: str = Field(min_length=1, description="the data set's directory or its .tar.xz")
+    robots: tuple[int, ...] = Field((1, 2, 3, 4, 5), min_length=1, max_length=5,
+                                    description="robots replayed, in order: vehicle 1 is the first")
+    start_s: float = Field(120.0, ge=0, le=1e6, description="replay from this data set time (s after its start)")
+    calibration_s: tuple[float, float] = Field((0.0, 120.0), description="data set interval the noise datasheet "
+                                               "was calibrated on [s]; the replayed window may not overlap it")
+    odom_lag_s: float = Field(0.0, ge=0, le=1, description="the robots follow an odometry command this much "
+                              "later (calibrated); the replay stamps each command when it takes effect")
+    sighting_sigmas: tuple[tuple[float, float], ...] = Field((), description="per replayed robot, its camera's "
+                                                             "(range m, bearing rad) sigma (calibrated); empty: "
+                                                             "the datasheet's range_sigma_m, bearing_sigma_rad")
+    withhold_landmarks: tuple[int, ...] = Field((), description="robots whose landmark sightings are withheld "
+                                                "(they localize from odometry and the others)")
+
+    @model_validator(mode="after")
+    def _sane(self) -> "ReplayConfig":
+        if any(r not in (1, 2, 3, 4, 5) for r in self.robots) or len(set(self.robots)) != len(self.robots):
+            raise ValueError(f"robots must be distinct robots 1-5, got {list(self.robots)}")
+        if any(r not in self.robots for r in self.withhold_landmarks):
+            raise ValueError(f"withhold_landmarks {list(self.withhold_landmarks)} names robots not replayed "
+                             f"({list(self.robots)})")
+        if self.sighting_sigmas and (len(self.sighting_sigmas) != len(self.robots)
+                                     or any(not (r > 0 and b > 0) for r, b in self.sighting_sigmas)):
+            raise ValueError("sighting_sigmas needs one positive (range, bearing) pair per replayed robot")
+        low, high = self.calibration_s
+        if not 0 <= low < high:
+            raise ValueError(f"calibration_s must be an interval [start, end] with 0 <= start < end, got {[low, high]}")
+        return self
+
+    def vehicle_of(self, robot: int) -> int | None:
+        """The vehicle id a robot flies as (None: not replayed)."""
+        return self.robots.index(robot) + 1 if robot in self.robots else None

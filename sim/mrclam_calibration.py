@@ -1,0 +1,165 @@
+"""Noise datasheet of an MRCLAM data set, calibrated against its ground truth on an interval that is
+then never scored (Leung et al., IJRR 2011). Pure: data in, numbers out.
+
+- Sightings (camera range and bearing to landmarks): residuals against the range and bearing the
+  Vicon pose and the surveyed landmark give; gross misreadings (beyond ``OUTLIER_SIGMAS`` robust
+  sigmas: wrong barcode, occlusion) are counted, not folded into the sigma; the sigma is the RMS of
+  the rest, bias included (the filter has no bias state).
+- Odometry lag: MRCLAM's odometry is the commanded speed and yaw rate; the robot follows a command
+  some 0.1-0.3 s later. The lag (one for the swarm, on a ``LAG_STEP_S`` grid up to ``MAX_LAG_S``) is
+  the one that best matches the commands to the speed and yaw rate of the Vicon track; the replay
+  stamps each command at the time it takes effect, as a sensor-to-sensor time offset is calibrated.
+- Odometry (commanded speed and yaw rate, lag removed, held between samples): integrated over windows of
+  ``WINDOW_S`` from the true pose, against the true pose at the window's end. A filter that takes a
+  held sample's noise as white with sigma s has a motion error of variance s^2 * (sample period) per
+  second; the sigma is the one that gives the measured along-track and heading error variance per
+  second of window.
+Pooled over the robots: one datasheet for the swarm, as a vehicle maker would print one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from bus.angles import wrap_angle, wrap_angles
+from sim.mrclam import MrclamData, RobotLog, pose_at
+
+OUTLIER_SIGMAS = 5.0
+LAG_STEP_S, MAX_LAG_S = 0.01, 0.5
+RATE_STEP_S = 0.02  # Vicon differentiated over this
+WINDOW_S = 1.0
+MOVING_MPS = 0.01  # windows where the robot is commanded to stand still say nothing about its wheels
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Datasheet sigmas and what they were measured on."""
+
+    odom_speed_sigma_mps: float
+    odom_yaw_rate_sigma_radps: float
+    range_sigma_m: float
+    bearing_sigma_rad: float
+    sightings: int
+    outliers: int
+    odometry_windows: int
+    odom_lag_s: float
+    interval_s: tuple[float, float]
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def sighting_residuals(log: RobotLog, targets: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
+    """[range m, bearing rad] residuals (k, 2) of the robot's sightings in [t0, t1) of the subjects in
+    ``targets`` (subject -> a function of time giving its (n, 2) position: see :func:`calibrate`)."""
+    s = log.sightings[(log.sightings[:, 0] >= t0) & (log.sightings[:, 0] < t1)]
+    s = s[np.isin(s[:, 1], list(targets))]
+    if not len(s):
+        return np.zeros((0, 2))
+    pose = pose_at(log.groundtruth, s[:, 0])
+    where = np.array([targets[int(subject)](t) for subject, t in zip(s[:, 1], s[:, 0])]).reshape(-1, 2)
+    d = where - pose[:, :2]
+    res = np.column_stack([s[:, 2] - np.hypot(d[:, 0], d[:, 1]),
+                           wrap_angles(s[:, 3] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))])
+    return res[np.all(np.isfinite(res), axis=1)]
+
+
+def odometry_errors(log: RobotLog, t0: float, t1: float, window_s: float = WINDOW_S) -> np.ndarray:
+    """Along-track (m) and heading (rad) error (k, 2) of the held odometry integrated over
+    consecutive windows in [t0, t1) from the true pose, against the true pose; moving windows only."""
+    od, out = log.odometry, []
+    for start in np.arange(t0, t1 - window_s, window_s):
+        before = np.flatnonzero(od[:, 0] <= start)
+        inside = np.flatnonzero((od[:, 0] > start) & (od[:, 0] < start + window_s))
+        if not len(before):
+            continue
+        rows = od[np.concatenate([before[-1:], inside])]
+        times = np.append(np.maximum(rows[:, 0], start), start + window_s)
+        if np.max(np.abs(rows[:, 1])) < MOVING_MPS:
+            continue
+        ends = pose_at(log.groundtruth, np.array([start, start + window_s]))
+        if not np.all(np.isfinite(ends)):
+            continue
+        dt = np.diff(times)
+        heading = ends[0, 2] + np.concatenate([[0.0], np.cumsum(rows[:, 2] * dt)])
+        step = rows[:, 1] * dt
+        x = ends[0, 0] + np.sum(step * np.cos(heading[:-1]))
+        y = ends[0, 1] + np.sum(step * np.sin(heading[:-1]))
+        c, s = np.cos(ends[1, 2]), np.sin(ends[1, 2])
+        out.append([c * (x - ends[1, 0]) + s * (y - ends[1, 1]), wrap_angle(heading[-1] - ends[1, 2])])
+    return np.array(out).reshape(-1, 2)
+
+
+def lag_mismatch(log: RobotLog, t0: float, t1: float, lags_s: np.ndarray) -> np.ndarray:
+    """Mean squared difference (len(lags),) between the held commands, delayed by each lag, and the
+    Vicon track's speed (m/s) and yaw rate (rad/s), each divided by its variance, over [t0, t1)."""
+    t = np.arange(t0, t1, RATE_STEP_S)
+    pose = pose_at(log.groundtruth, t)
+    speed = np.hypot(*np.gradient(pose[:, :2], RATE_STEP_S, axis=0).T)
+    rate = np.gradient(np.unwrap(np.nan_to_num(pose[:, 2])), RATE_STEP_S)
+    ok = np.isfinite(speed) & np.isfinite(pose[:, 2])
+    od = log.odometry
+    out = []
+    for lag in lags_s:
+        held = od[np.clip(np.searchsorted(od[:, 0], t - lag, side="right") - 1, 0, len(od) - 1)]
+        out.append(np.mean((held[ok, 1] - speed[ok]) ** 2) / max(np.var(speed[ok]), 1e-9)
+                   + np.mean((held[ok, 2] - rate[ok]) ** 2) / max(np.var(rate[ok]), 1e-9))
+    return np.array(out)
+
+
+def _robust_rms(residuals: np.ndarray) -> tuple[float, int]:
+    """RMS of the residuals (k,) within OUTLIER_SIGMAS robust sigmas of their median, and how many lie beyond."""
+    centre = np.median(residuals)
+    spread = 1.4826 * np.median(np.abs(residuals - centre))
+    inside = np.abs(residuals - centre) <= OUTLIER_SIGMAS * max(spread, 1e-9)
+    return float(np.sqrt(np.mean(residuals[inside] ** 2))), int((~inside).sum())
+
+
+def calibrate(data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...]) -> Calibration:
+    """The datasheet of ``robots`` measured on ``interval_s`` of ``data`` (see the module docstring)."""
+    t0, t1 = interval_s
+    residuals = np.vstack([sighting_residuals(data.robots[r], _landmark_positions(data), t0, t1) for r in robots])
+    lags = np.arange(0.0, MAX_LAG_S + 1e-9, LAG_STEP_S)
+    lag = float(lags[np.argmin(sum(lag_mismatch(data.robots[r], t0, t1, lags) for r in robots))])
+    odometry = np.vstack([odometry_errors(delayed(data.robots[r], lag), t0, t1) for r in robots])
+    if len(residuals) < 20 or len(odometry) < 10:
+        raise ValueError(f"too little to calibrate on in [{t0:g}, {t1:g}] s: {len(residuals)} landmark sightings, "
+                         f"{len(odometry)} moving odometry windows (need 20 and 10)")
+    range_sigma, range_out = _robust_rms(residuals[:, 0])
+    bearing_sigma, bearing_out = _robust_rms(residuals[:, 1])
+    periods = [np.median(np.diff(data.robots[r].odometry[:, 0])) for r in robots]
+    period = float(np.mean(periods))
+    per_second = np.mean(odometry**2, axis=0) / WINDOW_S
+    return Calibration(float(np.sqrt(per_second[0] / period)), float(np.sqrt(per_second[1] / period)),
+                       range_sigma, bearing_sigma, len(residuals), max(range_out, bearing_out), len(odometry),
+                       lag, (float(t0), float(t1)))
+
+
+def sighting_sigmas(data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...]) -> tuple[tuple[float, float], ...]:
+    """Each robot's own camera: (range m, bearing rad) sigma of its landmark sightings on ``interval_s``
+    (as in :func:`calibrate`; the pooled sigmas where a robot saw fewer than 20 landmarks)."""
+    pooled = None
+    out = []
+    landmarks = _landmark_positions(data)
+    for robot in robots:
+        residuals = sighting_residuals(data.robots[robot], landmarks, *interval_s)
+        if len(residuals) < 20:
+            pooled = pooled or calibrate(data, interval_s, robots)
+            out.append((pooled.range_sigma_m, pooled.bearing_sigma_rad))
+        else:
+            out.append((_robust_rms(residuals[:, 0])[0], _robust_rms(residuals[:, 1])[0]))
+    return tuple(out)
+
+
+def _landmark_positions(data: MrclamData) -> dict:
+    return {int(row[0]): (lambda t, xy=row[1:3].copy(): xy) for row in data.landmarks}
+
+
+def delayed(log: RobotLog, lag_s: float) -> RobotLog:
+    """The robot's log with its odometry stamped ``lag_s`` later (when each command takes effect)."""
+    odometry = log.odometry.copy()
+    odometry[:, 0] += lag_s
+    return dataclasses.replace(log, odometry=odometry)

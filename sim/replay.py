@@ -1,0 +1,157 @@
+"""The replay world: a recorded MRCLAM data set played on sim time, in the shape of ``sim.world.World``
+(``advance``, ``vehicle_ids``, ``comm_jammed``, ``faults``), so the world node runs either.
+
+Sim time 0 is data set time ``replay.start_s``; robot ``replay.robots[i]`` flies as vehicle i + 1.
+Each vehicle gets its launch prior at 0 (the Vicon pose, perturbed by the datasheet's prior sigma
+from the world seed), its recorded odometry stamped when it takes effect (``replay.odom_lag_s``
+later; the sample in force at the start, stamped 0, then the rest; a repeated stamp keeps the first), its landmark sightings (``landmark`` rows) and its sightings
+of replayed robots (``ranging`` rows), each with the datasheet's covariance. Sightings of robots that
+are not replayed are counted and skipped. Truth is the Vicon track interpolated onto the
+``truth_rate_hz`` grid, a row of NaN where Vicon has no pose (sim.mrclam.pose_at). Physical faults
+apply as in the simulated world: blackouts of ``odom``, ``landmark`` or ``ranging``, comm jamming
+at the true positions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bus.config import SwarmConfig
+from bus.feed import CameraBlock
+from sim.mrclam import DataError, MrclamData, pose_at
+from sim.physical_faults import PhysicalFaults
+
+Block = tuple[np.ndarray, np.ndarray]  # stamps (k,) us, rows (k, w)
+
+
+@dataclass
+class ReplayOutput:
+    """What one advance replayed: per vehicle, topic -> (stamps, first seq, rows); truth stamps (k,)
+    and rows (k, N, 5) [x, y, theta, speed, yaw rate]."""
+
+    feeds: dict[int, dict[str, tuple[np.ndarray, int, np.ndarray]]]
+    truth_stamps: np.ndarray
+    truth: np.ndarray
+
+    def blocks(self, vehicle_id: int) -> dict[str, tuple[np.ndarray, int, np.ndarray]]:
+        return self.feeds.get(vehicle_id, {})
+
+    def camera(self, vehicle_id: int) -> CameraBlock | None:
+        return None
+
+
+def _stamps_us(t_s: np.ndarray, start_s: float) -> np.ndarray:
+    return np.round((t_s - start_s) * 1e6).astype(np.int64)
+
+
+def odometry_rows(odometry: np.ndarray, start_s: float, end_s: float) -> Block:
+    """The odometry in force at ``start_s`` (stamped 0) and every later sample up to ``end_s``;
+    of samples sharing a stamp (us), the first."""
+    before = np.flatnonzero(odometry[:, 0] <= start_s)
+    inside = np.flatnonzero((odometry[:, 0] > start_s) & (odometry[:, 0] <= end_s))
+    rows = odometry[np.concatenate([before[-1:], inside])]
+    stamps = np.maximum(_stamps_us(rows[:, 0], start_s), 0)
+    keep = np.concatenate([[True], np.diff(stamps) > 0]) if len(stamps) else np.zeros(0, bool)
+    return stamps[keep], rows[keep, 1:3]
+
+
+def sighting_rows(sightings: np.ndarray, start_s: float, end_s: float, vehicle_of: dict[int, int],
+                  covariance: np.ndarray) -> tuple[Block, Block, int]:
+    """Landmark rows [id, range, bearing, cov (4)] and ranging rows [vehicle, range, bearing, cov (4)]
+    of the sightings in (start_s, end_s]; robots (subjects 1-5) map through ``vehicle_of`` and are
+    skipped (counted) when they are not replayed."""
+    s = sightings[(sightings[:, 0] > start_s) & (sightings[:, 0] <= end_s)]
+    stamps, cov = _stamps_us(s[:, 0], start_s), np.broadcast_to(covariance.ravel(), (len(s), 4))
+    robot = s[:, 1] <= 5
+    target = np.array([vehicle_of.get(int(r), 0) for r in s[robot, 1]], dtype=float)
+    replayed = target > 0
+    landmark = (stamps[~robot], np.column_stack([s[~robot, 1:4], cov[~robot]]))
+    peers = (stamps[robot][replayed], np.column_stack([target[replayed], s[robot, 2:4][replayed], cov[robot][replayed]]))
+    return landmark, peers, int((~replayed).sum())
+
+
+class ReplayWorld:
+    """A data set's robots as the world's vehicles: see the module docstring."""
+
+    def __init__(self, config: SwarmConfig, data: MrclamData) -> None:
+        replay, spec = config.replay, config.sensors
+        self.config, self.faults = config, PhysicalFaults(config.faults)
+        self.start_s, end_s = replay.start_s, replay.start_s + config.clock.duration_s
+        self.robots = {i + 1: robot for i, robot in enumerate(replay.robots)}
+        vehicle_of = {robot: vid for vid, robot in self.robots.items()}
+        sigmas = replay.sighting_sigmas or ((spec.range_sigma_m, spec.bearing_sigma_rad),) * len(self.robots)
+        self.skipped_sightings = 0
+        self._streams: dict[int, dict[str, Block]] = {}
+        for vid, robot in self.robots.items():
+            log = data.robots[robot]
+            covariance = np.diag(np.square(sigmas[vid - 1]))
+            landmark, peers, skipped = sighting_rows(log.sightings, self.start_s, end_s, vehicle_of, covariance)
+            if robot in replay.withhold_landmarks:
+                landmark = (landmark[0][:0], landmark[1][:0])
+            self.skipped_sightings += skipped
+            self._streams[vid] = {"prior": self._prior(vid, log.groundtruth, config),
+                                  "odom": odometry_rows(log.odometry + [replay.odom_lag_s, 0.0, 0.0], self.start_s, end_s),
+                                  "landmark": landmark, "ranging": peers}
+        self._cursor = {(vid, topic): 0 for vid, topics in self._streams.items() for topic in topics}
+        self._sent = dict.fromkeys(self._cursor, 0)  # sequence numbers count what was sent
+        step_us = round(1e6 / spec.truth_rate_hz)
+        grid = np.arange(0, round(config.clock.duration_s * 1e6) + 1, step_us, dtype=np.int64)
+        self._truth_stamps = grid
+        self._truth = np.stack([self._truth_rows(data.robots[r].groundtruth, grid) for r in replay.robots], axis=1)
+        self._done_us = -1
+
+    def _prior(self, vid: int, groundtruth: np.ndarray, config: SwarmConfig) -> Block:
+        """The launch prior: the Vicon pose at the start, perturbed within the datasheet's prior sigma."""
+        spec = config.sensors
+        sigma = np.array([spec.prior_sigma_m, spec.prior_sigma_m, spec.prior_heading_sigma_rad])
+        pose = pose_at(groundtruth, np.array([self.start_s]))[0]
+        if not np.all(np.isfinite(pose)):
+            raise DataError(f"robot {self.robots[vid]} has no ground truth at the replay's start ({self.start_s:g} s)")
+        rng = np.random.default_rng([config.world.seed, vid])
+        row = np.concatenate([pose + rng.normal(0.0, sigma), np.diag(sigma**2).ravel()])
+        return np.zeros(1, np.int64), row[None, :]
+
+    def _truth_rows(self, groundtruth: np.ndarray, grid_us: np.ndarray) -> np.ndarray:
+        """(k, 5) [x, y, theta, speed, yaw rate] on the grid; speed and yaw rate by central differences."""
+        t = self.start_s + grid_us * 1e-6
+        pose = pose_at(groundtruth, t)
+        dt = 0.02
+        ahead, behind = pose_at(groundtruth, t + dt), pose_at(groundtruth, t - dt)
+        speed = np.hypot(*(ahead[:, :2] - behind[:, :2]).T) / (2 * dt)
+        rate = ((ahead[:, 2] - behind[:, 2] + np.pi) % (2 * np.pi) - np.pi) / (2 * dt)
+        rows = np.column_stack([pose, np.nan_to_num(speed), np.nan_to_num(rate)])
+        rows[np.isnan(pose[:, 0])] = np.nan
+        return rows
+
+    def vehicle_ids(self) -> list[int]:
+        return list(self.robots)
+
+    def _true_pose(self, vid: int, t_us: int) -> np.ndarray:
+        i = min(np.searchsorted(self._truth_stamps, t_us), len(self._truth_stamps) - 1)
+        return self._truth[i, vid - 1, :3]
+
+    def comm_jammed(self, t_us: int) -> tuple[int, ...]:
+        return tuple(vid for vid in self.robots if self.faults.comm_jammed(t_us, self._true_pose(vid, t_us)))
+
+    def _silenced(self, vid: int, topic: str, t_us: int) -> bool:
+        return bool(self.faults.faults) and self.faults.silenced(vid, topic, t_us, self._true_pose(vid, t_us))
+
+    def advance(self, until_us: int) -> ReplayOutput:
+        """Everything recorded in (last advance, until_us]."""
+        feeds = {}
+        for vid, topics in self._streams.items():
+            feeds[vid] = {}
+            for topic, (stamps, rows) in topics.items():
+                first = self._cursor[vid, topic]
+                last = int(np.searchsorted(stamps, until_us, side="right"))
+                self._cursor[vid, topic] = last
+                keep = [i for i in range(first, last) if not self._silenced(vid, topic, int(stamps[i]))]
+                if keep:
+                    feeds[vid][topic] = (stamps[keep], self._sent[vid, topic], rows[keep])
+                    self._sent[vid, topic] += len(keep)
+        lo = int(np.searchsorted(self._truth_stamps, self._done_us, side="right"))
+        hi = int(np.searchsorted(self._truth_stamps, until_us, side="right"))
+        self._done_us = until_us
+        return ReplayOutput(feeds, self._truth_stamps[lo:hi], self._truth[lo:hi])
