@@ -159,7 +159,8 @@ def pose_at(groundtruth: np.ndarray, t_s: np.ndarray, max_gap_s: float = 0.5) ->
     if len(times) < 2:
         return out
     after = np.clip(np.searchsorted(times, t_s), 1, len(times) - 1)
-    ok = (t_s >= times[0]) & (t_s <= times[-1]) & (times[after] - times[after - 1] <= max_gap_s)
+    on_sample = (times[after] == t_s) | (times[after - 1] == t_s)
+    ok = (t_s >= times[0]) & (t_s <= times[-1]) & (on_sample | (times[after] - times[after - 1] <= max_gap_s))
     heading = np.unwrap(groundtruth[:, 3])
     for column, values in enumerate((groundtruth[:, 1], groundtruth[:, 2], heading)):
         out[ok, column] = np.interp(t_s[ok], times, values)

@@ -161,3 +161,29 @@ def swarm_in_memory(config, *, sample_every_us: int = 200_000) -> dict[int, dict
                                                            float(e[2] ** 2 / cov[2, 2])))
     names = ("t_s", "error_m", "nees", "nees_position", "nees_heading")
     return {vid: dict(zip(names, map(np.array, zip(*rows)))) for vid, rows in out.items()}
+
+
+def replay_in_memory(config, data, *, every_us: int = 1_000_000, estimators: dict | None = None) -> dict[int, np.ndarray]:
+    """A data-set replay (sim.replay) with every vehicle's estimator in this process, no bus: per
+    vehicle, rows [t us, position error m, pose NEES] every ``every_us`` where truth exists.
+    ``estimators`` replaces the configured ones (vehicle id -> estimator)."""
+    from sim.replay import ReplayWorld
+    from vehicle.estimators import get_estimator
+
+    world = ReplayWorld(config, data)
+    vehicle_config = config.for_vehicle()
+    estimators = estimators or {vid: get_estimator(vehicle_config, vid) for vid in world.vehicle_ids()}
+    tick_us, rows = 20_000, {vid: [] for vid in estimators}
+    for tick in range(round(config.clock.duration_s * 1e6) // tick_us + 1):
+        t = tick * tick_us
+        out = world.advance(t)
+        for vid, estimator in estimators.items():
+            for topic, msg in feed.SensorBatch(vid, tick, t, out.blocks(vid)).samples():
+                estimator.handle(topic, msg)
+            estimator.cycle(t)
+            truth = out.truth[-1, vid - 1, :3] if len(out.truth_stamps) and out.truth_stamps[-1] == t else None
+            if t % every_us == 0 and estimator.initialized and truth is not None and np.isfinite(truth[0]):
+                d = estimator.x[:3] - truth
+                d[2] = (d[2] + np.pi) % (2 * np.pi) - np.pi
+                rows[vid].append([t, np.hypot(d[0], d[1]), d @ np.linalg.solve(estimator.P[:3, :3], d)])
+    return {vid: np.array(r).reshape(-1, 3) for vid, r in rows.items()}

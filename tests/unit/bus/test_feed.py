@@ -138,3 +138,39 @@ def test_truth_round_trip_and_rejections():
     body["ids"] = np.array([1, 1, 3], "<i8").tobytes()
     with pytest.raises(DecodeError, match="distinct"):
         feed.decode_truth(msgpack.packb(body, use_bin_type=True))
+
+
+def _landmark_batch(rows: np.ndarray) -> bytes:
+    stamps = np.arange(len(rows), dtype=np.int64) // 2 * 10_000 + 50_000  # two sightings per frame
+    return feed.encode_batch(feed.SensorBatch(3, 1, 100_000, {"landmark": (stamps, 0, rows)}))
+
+
+LANDMARK_ROW = [12.0, 4.5, -0.2, 0.01, 0.0, 0.0, 0.0004]
+
+
+def test_landmark_sightings_round_trip_several_per_stamp():
+    rows = np.array([LANDMARK_ROW, [7.0, 2.0, 0.3, 0.04, 0.0, 0.0, 0.001]] * 2)
+    samples = feed.decode_batch(_landmark_batch(rows)).samples()
+    assert [msg.landmark_id for _, msg in samples] == [12, 7, 12, 7] and samples[0][0] == "landmark"
+    assert samples[1][1].range_m == 2.0 and np.allclose(samples[1][1].covariance, np.diag([0.04, 0.001]))
+
+
+@pytest.mark.parametrize("column, value, reason", [
+    (0, 2.5, "ids must be integers"), (0, -1.0, "ids must be integers"), (0, 2e6, "within"),
+    (1, -0.5, "range must be >= 0"), (2, 11.0, "bearing"), (3, -0.01, "positive definite"), (3, math.inf, "finite"),
+])
+def test_malformed_landmark_sightings_are_rejected_with_a_clear_error(column, value, reason):
+    rows = np.array([LANDMARK_ROW, LANDMARK_ROW])
+    rows[1, column] = value
+    with pytest.raises(DecodeError, match=reason):
+        feed.decode_batch(_landmark_batch(rows))
+
+
+def test_truth_rows_of_nan_mean_no_truth_and_partial_nan_is_refused():
+    rows = np.ones((2, 2, feed.TRUTH_WIDTH))
+    rows[1, 0] = np.nan
+    batch = feed.TruthBatch(1, 100_000, np.array([50_000, 100_000]), np.array([1, 2]), rows)
+    assert np.isnan(feed.decode_truth(feed.encode_truth(batch)).rows[1, 0]).all()
+    rows[0, 1, 2] = np.nan
+    with pytest.raises(DecodeError, match="a whole row of NaN"):
+        feed.decode_truth(feed.encode_truth(batch))

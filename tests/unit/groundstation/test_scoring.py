@@ -62,3 +62,14 @@ def test_a_degenerate_covariance_is_never_fatal_and_the_backlog_is_bounded(monke
     monkeypatch.setattr(scoring, "MAX_PENDING", 3)
     accepted = [scorer.add_estimate(_est(1, t, 0.0, 0.0)) for t in (10, 20, 30, 40, 50)]
     assert accepted == [True, True, True, False, False] and scorer.dropped_full == 2
+
+
+def test_estimates_where_truth_has_a_gap_are_counted_not_scored():
+    """A replayed data set's Vicon gap arrives as NaN truth: no interpolation across it."""
+    scorer = Scorer()
+    for t, pose in ((0, np.zeros(3)), (20, np.full(3, np.nan)), (40, np.full(3, np.nan)), (60, np.zeros(3))):
+        scorer.add_truth(1, t, pose)
+    for t in (0, 10, 30, 50, 60):
+        scorer.add_estimate(_est(1, t, 1.0, 0.0))
+    scored = scorer.release(float("inf"))
+    assert [s.stamp_us for s in scored] == [0, 60] and scorer.in_truth_gaps == 3 and scorer.unscored == 0
