@@ -16,6 +16,9 @@ in ``ekf``, the prediction moves the pose block and its cross-covariances in pla
    nothing and lies farther than half a cell from every mapped landmark, initialised with the
    paper's ``g(x, z)``, ``Gx``, ``Gz`` in one batch per frame.
 
+A replayed data set (sim.replay) brings landmark sightings with their identities instead of frames: a
+mapped one is updated, a new one initialised, the same way.
+
 Pure: no bus, no clock. Fusion-horizon snapshots copy (x, P) only where the horizon asks for one;
 the fallback for divergence recovery is refreshed once per ``GOOD_PERIOD_US``, not every cycle.
 """
@@ -71,6 +74,7 @@ class EkfSlam(UnicycleEkf):
         self._good_until_us = -1
         self._judged_until_us = -1  # garbage frames are reported once, replays or not
         self._seen_frames: dict[tuple[int, int], tuple] = {}  # front-end results by (stamp, seq), oldest first
+        self._slot: dict[int, int] = {}  # identified landmarks (replayed sightings): id -> map index; replaced, never changed
 
     @property
     def landmarks_xy(self) -> np.ndarray:
@@ -78,6 +82,13 @@ class EkfSlam(UnicycleEkf):
         return self.x[POSE_DIM:].reshape(-1, 2) if self.x is not None else np.zeros((0, 2))
 
     def handle(self, topic: str, msg: Any) -> None:
+        if isinstance(msg, m.LandmarkSighting):  # a replayed data set: landmarks with known identities
+            if self.x is not None and msg.stamp_us >= self.time_us:
+                self._propagate_to(msg.stamp_us)
+                self._on_sighting(msg)
+            elif self.x is not None:
+                self.counters.stale += 1
+            return
         if isinstance(msg, m.CameraFrame):
             if self.x is not None and msg.stamp_us >= self.time_us:
                 self._on_frame(msg)
@@ -89,7 +100,7 @@ class EkfSlam(UnicycleEkf):
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
         super()._initialise(pose, covariance, stamp_us)
         self.descriptors, self.first_xy, self._prior_xy = None, None, self.x[:2].copy()
-        self.counters.landmarks = 0
+        self.counters.landmarks, self._slot = 0, {}
 
     def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
         """The pose block moves; landmarks stay; cross-covariances follow in place. F's position-heading
@@ -121,6 +132,23 @@ class EkfSlam(UnicycleEkf):
         matched = self._update_matched(found, z, R, half_extent_m=0.5 * size * scale)
         self._add_landmarks(found, z, R, matched, cell_m=CELL_PX * scale)
         self.counters.frames_used += 1
+
+    def _on_sighting(self, msg: m.LandmarkSighting) -> None:
+        """A sighting of an identified landmark: the paper's update if it is mapped, else its
+        initialisation (g, Gx, Gz). Identities come with the data, so no association is needed."""
+        z = np.array([msg.range_m, msg.bearing_rad])
+        j = self._slot.get(msg.landmark_id)
+        if j is not None:
+            slam.update(self.x, self.P, POSE_DIM, j, z, msg.covariance, self._landmark_gate,
+                        linearize_at=(self._prior_xy, self.first_xy[j]) if self._first_estimates else None)
+            return
+        if self.counters.landmarks >= MAX_LANDMARKS:
+            return
+        self.x, self.P = slam.add_landmarks(self.x, self.P, z[None, :], msg.covariance)
+        first = self.x[-2:].reshape(1, 2).copy()
+        self.first_xy = first if self.first_xy is None else np.vstack([self.first_xy, first])
+        self._slot = {**self._slot, msg.landmark_id: self.counters.landmarks}
+        self.counters.landmarks += 1
 
     def _front_end(self, frame: m.CameraFrame) -> tuple[features.Features, np.ndarray, np.ndarray]:
         """Keypoints, [range, bearing] (k, 2) and their covariances (k, 2, 2) of a frame; remembered
@@ -218,9 +246,10 @@ class EkfSlam(UnicycleEkf):
             kept = self.counters.landmarks = (len(self.x) - POSE_DIM) // 2
             self.descriptors = None if self.descriptors is None else self.descriptors[:kept]
             self.first_xy = None if self.first_xy is None else self.first_xy[:kept]
+            self._slot = {ident: j for ident, j in self._slot.items() if j < kept}
             self._prior_xy = self.x[:2].copy()
         else:
-            self.descriptors, self.first_xy, self.counters.landmarks = None, None, 0
+            self.descriptors, self.first_xy, self.counters.landmarks, self._slot = None, None, 0, {}
 
     def snapshot(self) -> dict:
         state = super().snapshot()
@@ -228,4 +257,5 @@ class EkfSlam(UnicycleEkf):
         state["first_xy"] = self.first_xy
         state["_prior_xy"] = self._prior_xy      # replaced, never changed in place
         state["_good_until_us"] = self._good_until_us
+        state["_slot"] = self._slot              # replaced, never changed in place
         return state
