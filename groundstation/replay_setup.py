@@ -42,6 +42,10 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
 
     if choice.estimator not in ESTIMATORS:
         raise ConfigError(f"unknown estimator {choice.estimator!r}: use {', '.join(ESTIMATORS)}")
+    if not choice.robots or any(r not in (1, 2, 3, 4, 5) for r in choice.robots) or len(set(choice.robots)) != len(choice.robots):
+        raise ConfigError(f"robots must be distinct robots 1-5, got {list(choice.robots)}")
+    if any(r not in choice.robots for r in choice.withhold_landmarks):
+        raise ConfigError(f"--withhold-landmarks {list(choice.withhold_landmarks)} names robots not replayed")
     data = load_mrclam(choice.dataset)
     start = choice.calibration_s[1] if choice.start_s is None else choice.start_s
     end = data.duration_s if choice.duration_s is None else start + choice.duration_s
