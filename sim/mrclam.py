@@ -14,6 +14,7 @@ Every problem is a ``DataError`` naming the file and, for a bad line, its number
 
 from __future__ import annotations
 
+import dataclasses
 import tarfile
 import tempfile
 from dataclasses import dataclass
@@ -147,6 +148,13 @@ def _load_directory(folder: Path) -> MrclamData:
         odometry[:, 0] -= start_s
         robots[robot] = RobotLog(robot, groundtruth, odometry, sightings.reshape(-1, 4), int((~known).sum()))
     return MrclamData(robots, landmarks, start_s)
+
+
+def delayed(log: RobotLog, lag_s: float) -> RobotLog:
+    """The robot's log with its odometry stamped ``lag_s`` later (when each command takes effect)."""
+    odometry = log.odometry.copy()
+    odometry[:, 0] += lag_s
+    return dataclasses.replace(log, odometry=odometry)
 
 
 def pose_at(groundtruth: np.ndarray, t_s: np.ndarray, max_gap_s: float = 0.5) -> np.ndarray:

@@ -19,13 +19,12 @@ Pooled over the robots: one datasheet for the swarm, as a vehicle maker would pr
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
 from bus.angles import wrap_angle, wrap_angles
-from sim.mrclam import MrclamData, RobotLog, pose_at
+from sim.mrclam import MrclamData, RobotLog, delayed, pose_at
 
 OUTLIER_SIGMAS = 5.0
 LAG_STEP_S, MAX_LAG_S = 0.01, 0.5
@@ -48,19 +47,16 @@ class Calibration:
     odom_lag_s: float
     interval_s: tuple[float, float]
 
-    def as_dict(self) -> dict:
-        return asdict(self)
 
-
-def sighting_residuals(log: RobotLog, targets: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
-    """[range m, bearing rad] residuals (k, 2) of the robot's sightings in [t0, t1) of the subjects in
-    ``targets`` (subject -> a function of time giving its (n, 2) position: see :func:`calibrate`)."""
+def sighting_residuals(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
+    """[range m, bearing rad] residuals (k, 2) of the robot's sightings in [t0, t1) of the landmarks in
+    ``landmarks`` (subject -> surveyed position (2,) m)."""
     s = log.sightings[(log.sightings[:, 0] >= t0) & (log.sightings[:, 0] < t1)]
-    s = s[np.isin(s[:, 1], list(targets))]
+    s = s[np.isin(s[:, 1], list(landmarks))]
     if not len(s):
         return np.zeros((0, 2))
     pose = pose_at(log.groundtruth, s[:, 0])
-    where = np.array([targets[int(subject)](t) for subject, t in zip(s[:, 1], s[:, 0])]).reshape(-1, 2)
+    where = np.array([landmarks[int(subject)] for subject in s[:, 1]]).reshape(-1, 2)
     d = where - pose[:, :2]
     res = np.column_stack([s[:, 2] - np.hypot(d[:, 0], d[:, 1]),
                            wrap_angles(s[:, 3] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))])
@@ -154,12 +150,5 @@ def sighting_sigmas(data: MrclamData, interval_s: tuple[float, float], robots: t
     return tuple(out)
 
 
-def _landmark_positions(data: MrclamData) -> dict:
-    return {int(row[0]): (lambda t, xy=row[1:3].copy(): xy) for row in data.landmarks}
-
-
-def delayed(log: RobotLog, lag_s: float) -> RobotLog:
-    """The robot's log with its odometry stamped ``lag_s`` later (when each command takes effect)."""
-    odometry = log.odometry.copy()
-    odometry[:, 0] += lag_s
-    return dataclasses.replace(log, odometry=odometry)
+def _landmark_positions(data: MrclamData) -> dict[int, np.ndarray]:
+    return {int(row[0]): row[1:3].copy() for row in data.landmarks}

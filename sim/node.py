@@ -112,7 +112,12 @@ def make_world(config: SwarmConfig) -> World:
     from sim.mrclam import load_mrclam
     from sim.replay import ReplayWorld
 
-    return ReplayWorld(config, load_mrclam(Path(config.replay.dataset)))
+    data = load_mrclam(Path(config.replay.dataset))
+    world = ReplayWorld(config, data)
+    log.info("replaying robots %s of %s: %d sightings of unknown barcodes and %d of robots not replayed skipped",
+             list(config.replay.robots), config.replay.dataset,
+             sum(data.robots[r].unknown_barcodes for r in config.replay.robots), world.skipped_sightings)
+    return world
 
 
 class WorldNode:

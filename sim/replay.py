@@ -4,9 +4,10 @@
 Sim time 0 is data set time ``replay.start_s``; robot ``replay.robots[i]`` flies as vehicle i + 1.
 Each vehicle gets its launch prior at 0 (the Vicon pose, perturbed by the datasheet's prior sigma
 from the world seed), its recorded odometry stamped when it takes effect (``replay.odom_lag_s``
-later; the sample in force at the start, stamped 0, then the rest; a repeated stamp keeps the first), its landmark sightings (``landmark`` rows) and its sightings
-of replayed robots (``ranging`` rows), each with the datasheet's covariance. Sightings of robots that
-are not replayed are counted and skipped. Truth is the Vicon track interpolated onto the
+later; the sample in force at the start, stamped 0, then the rest; a repeated stamp keeps the
+first), its landmark sightings (``landmark`` rows) and its sightings of replayed robots
+(``ranging`` rows), each with its robot's calibrated covariance (``replay.sighting_sigmas``; the
+datasheet's without). Sightings of robots that are not replayed are counted and skipped. Truth is the Vicon track interpolated onto the
 ``truth_rate_hz`` grid, a row of NaN where Vicon has no pose (sim.mrclam.pose_at). Physical faults
 apply as in the simulated world: blackouts of ``odom``, ``landmark`` or ``ranging``, comm jamming
 at the true positions.
@@ -20,7 +21,8 @@ import numpy as np
 
 from bus.config import SwarmConfig
 from bus.feed import CameraBlock
-from sim.mrclam import DataError, MrclamData, pose_at
+from bus.angles import wrap_angles
+from sim.mrclam import DataError, MrclamData, delayed, pose_at
 from sim.physical_faults import PhysicalFaults
 
 Block = tuple[np.ndarray, np.ndarray]  # stamps (k,) us, rows (k, w)
@@ -82,7 +84,7 @@ class ReplayWorld:
         self.robots = {i + 1: robot for i, robot in enumerate(replay.robots)}
         vehicle_of = {robot: vid for vid, robot in self.robots.items()}
         sigmas = replay.sighting_sigmas or ((spec.range_sigma_m, spec.bearing_sigma_rad),) * len(self.robots)
-        self.skipped_sightings = 0
+        self.skipped_sightings = 0  # of robots not replayed (unknown barcodes: data.robots[r].unknown_barcodes)
         self._streams: dict[int, dict[str, Block]] = {}
         for vid, robot in self.robots.items():
             log = data.robots[robot]
@@ -91,8 +93,8 @@ class ReplayWorld:
             if robot in replay.withhold_landmarks:
                 landmark = (landmark[0][:0], landmark[1][:0])
             self.skipped_sightings += skipped
-            self._streams[vid] = {"prior": self._prior(vid, log.groundtruth, config),
-                                  "odom": odometry_rows(log.odometry + [replay.odom_lag_s, 0.0, 0.0], self.start_s, end_s),
+            self._streams[vid] = {"prior": self._prior(vid, log.groundtruth),
+                                  "odom": odometry_rows(delayed(log, replay.odom_lag_s).odometry, self.start_s, end_s),
                                   "landmark": landmark, "ranging": peers}
         self._cursor = {(vid, topic): 0 for vid, topics in self._streams.items() for topic in topics}
         self._sent = dict.fromkeys(self._cursor, 0)  # sequence numbers count what was sent
@@ -102,14 +104,14 @@ class ReplayWorld:
         self._truth = np.stack([self._truth_rows(data.robots[r].groundtruth, grid) for r in replay.robots], axis=1)
         self._done_us = -1
 
-    def _prior(self, vid: int, groundtruth: np.ndarray, config: SwarmConfig) -> Block:
+    def _prior(self, vid: int, groundtruth: np.ndarray) -> Block:
         """The launch prior: the Vicon pose at the start, perturbed within the datasheet's prior sigma."""
-        spec = config.sensors
+        spec = self.config.sensors
         sigma = np.array([spec.prior_sigma_m, spec.prior_sigma_m, spec.prior_heading_sigma_rad])
         pose = pose_at(groundtruth, np.array([self.start_s]))[0]
         if not np.all(np.isfinite(pose)):
             raise DataError(f"robot {self.robots[vid]} has no ground truth at the replay's start ({self.start_s:g} s)")
-        rng = np.random.default_rng([config.world.seed, vid])
+        rng = np.random.default_rng([self.config.world.seed, vid])
         row = np.concatenate([pose + rng.normal(0.0, sigma), np.diag(sigma**2).ravel()])
         return np.zeros(1, np.int64), row[None, :]
 
@@ -120,7 +122,7 @@ class ReplayWorld:
         dt = 0.02
         ahead, behind = pose_at(groundtruth, t + dt), pose_at(groundtruth, t - dt)
         speed = np.hypot(*(ahead[:, :2] - behind[:, :2]).T) / (2 * dt)
-        rate = ((ahead[:, 2] - behind[:, 2] + np.pi) % (2 * np.pi) - np.pi) / (2 * dt)
+        rate = wrap_angles(ahead[:, 2] - behind[:, 2]) / (2 * dt)
         rows = np.column_stack([pose, np.nan_to_num(speed), np.nan_to_num(rate)])
         rows[np.isnan(pose[:, 0])] = np.nan
         return rows

@@ -94,6 +94,11 @@ class UnicycleEkf:
             result = self._cooperative_update(msg)
             self.counters.v2v_fused += int(result.accepted)
             self.counters.v2v_rejected += int(not result.accepted)
+        elif isinstance(msg, m.LandmarkSighting):
+            self._landmark_sighting(msg)
+
+    def _landmark_sighting(self, msg: m.LandmarkSighting) -> None:
+        """A replayed camera sighting of a landmark: this filter has no map and ignores it."""
 
     def _inputs(self, msg: m.ImuSample | m.WheelOdometry) -> None:
         """Hold the gyro rate, or the wheel speed (slip taken off) and yaw rate, from their stamp on."""

@@ -82,13 +82,6 @@ class EkfSlam(UnicycleEkf):
         return self.x[POSE_DIM:].reshape(-1, 2) if self.x is not None else np.zeros((0, 2))
 
     def handle(self, topic: str, msg: Any) -> None:
-        if isinstance(msg, m.LandmarkSighting):  # a replayed data set: landmarks with known identities
-            if self.x is not None and msg.stamp_us >= self.time_us:
-                self._propagate_to(msg.stamp_us)
-                self._on_sighting(msg)
-            elif self.x is not None:
-                self.counters.stale += 1
-            return
         if isinstance(msg, m.CameraFrame):
             if self.x is not None and msg.stamp_us >= self.time_us:
                 self._on_frame(msg)
@@ -133,9 +126,10 @@ class EkfSlam(UnicycleEkf):
         self._add_landmarks(found, z, R, matched, cell_m=CELL_PX * scale)
         self.counters.frames_used += 1
 
-    def _on_sighting(self, msg: m.LandmarkSighting) -> None:
-        """A sighting of an identified landmark: the paper's update if it is mapped, else its
+    def _landmark_sighting(self, msg: m.LandmarkSighting) -> None:
+        """A replayed sighting of an identified landmark: the paper's update if it is mapped, else its
         initialisation (g, Gx, Gz). Identities come with the data, so no association is needed."""
+        self._propagate_to(msg.stamp_us)
         z = np.array([msg.range_m, msg.bearing_rad])
         j = self._slot.get(msg.landmark_id)
         if j is not None:

@@ -43,17 +43,9 @@ class KnownMapEkf(UnicycleEkf):
         self.sightings_fused = self.sightings_rejected = self.unknown_landmarks = 0
         self._failed_in_a_row: list[int] = []  # landmark ids of the current run of gate failures
 
-    def handle(self, topic: str, msg: Any) -> None:
-        if not isinstance(msg, m.LandmarkSighting):
-            super().handle(topic, msg)
-        elif self.x is not None and msg.stamp_us < self.time_us:
-            self.counters.stale += 1
-        elif self.x is not None:
-            self._propagate_to(msg.stamp_us)
-            self._sighting(msg)
-
-    def _sighting(self, msg: m.LandmarkSighting) -> None:
+    def _landmark_sighting(self, msg: m.LandmarkSighting) -> None:
         """One gated range-bearing update against the mapped landmark."""
+        self._propagate_to(msg.stamp_us)
         where = self._map.get(msg.landmark_id)
         if where is None:
             self.unknown_landmarks += 1

@@ -98,13 +98,18 @@ def test_garbage_bytes_raise_decode_error_only(payload):
 PAYLOAD = feed.encode_batch(_batch())
 
 
+def _mutated(payload: bytes, data) -> bytes:
+    """``payload`` with one to six bytes overwritten (hypothesis draws where and what)."""
+    out = bytearray(payload)
+    for _ in range(data.draw(st.integers(1, 6))):
+        out[data.draw(st.integers(0, len(out) - 1))] = data.draw(st.integers(0, 255))
+    return bytes(out)
+
+
 @given(st.data())
 def test_mutated_batches_decode_or_raise_decode_error(data):
-    payload = bytearray(PAYLOAD)
-    for _ in range(data.draw(st.integers(1, 6))):
-        payload[data.draw(st.integers(0, len(payload) - 1))] = data.draw(st.integers(0, 255))
     try:
-        batch = feed.decode_batch(bytes(payload))
+        batch = feed.decode_batch(_mutated(PAYLOAD, data))
     except DecodeError:
         return
     for _, msg in batch.samples():  # whatever passes is usable
@@ -118,7 +123,7 @@ json_like = st.recursive(
 )
 
 
-@given(st.sampled_from(["vehicle_id", "tick", "stamp_us", "imu", "odom", "gnss", "ranging", "prior", "x"]), json_like)
+@given(st.sampled_from(["vehicle_id", "tick", "stamp_us", "imu", "odom", "gnss", "ranging", "landmark", "prior", "x"]), json_like)
 def test_well_formed_msgpack_with_wrong_values_raises_decode_error(field, value):
     body = _body()
     body[field] = value
@@ -174,3 +179,16 @@ def test_truth_rows_of_nan_mean_no_truth_and_partial_nan_is_refused():
     rows[0, 1, 2] = np.nan
     with pytest.raises(DecodeError, match="a whole row of NaN"):
         feed.decode_truth(feed.encode_truth(batch))
+
+
+LANDMARK_PAYLOAD = _landmark_batch(np.array([LANDMARK_ROW] * 4))
+
+
+@given(st.data())
+def test_mutated_landmark_batches_decode_or_raise_decode_error(data):
+    try:
+        batch = feed.decode_batch(_mutated(LANDMARK_PAYLOAD, data))
+    except DecodeError:
+        return
+    for _, msg in batch.samples():  # whatever passes is usable
+        assert 0 <= msg.landmark_id <= feed.MAX_LANDMARK_ID and msg.range_m >= 0
