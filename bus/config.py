@@ -81,6 +81,11 @@ class SensorSpec(_Strict):
     odom_rate_hz: float = Field(50.0, gt=0, le=1000)
     odom_speed_sigma_mps: float = Field(0.05, ge=0)
     odom_yaw_rate_sigma_radps: float = Field(0.02, ge=0)
+    odom_turn_sigma_rad: float = Field(0.0, ge=0, le=1.0, description="odometry heading error per square root of "
+                                       "the angle turned (rad/sqrt(rad)): wheels that slip in turns. Replays only "
+                                       "(calibrated); the simulated world makes no such error")
+    odom_travel_sigma_m: float = Field(0.0, ge=0, le=1.0, description="odometry along-track error per square root of "
+                                       "the distance travelled (m/sqrt(m)). Replays only, as above")
     gnss_rate_hz: float = Field(5.0, gt=0, le=100)
     gnss_sigma_m: float = Field(1.5, gt=0)
     gnss_correlated_sigma_m: float = Field(0.0, ge=0, description="of gnss_sigma_m, the part that wanders slowly "
@@ -254,6 +259,10 @@ class SwarmConfig(_Strict):
     @model_validator(mode="after")
     def _replay_fits(self) -> "SwarmConfig":
         replay = self.replay
+        if replay is None and (self.sensors.odom_turn_sigma_rad or self.sensors.odom_travel_sigma_m):
+            raise ValueError("sensors.odom_turn_sigma_rad and odom_travel_sigma_m describe a replayed robot's "
+                             "odometry; the simulated world makes no such error, so a filter told of it would be "
+                             "told wrong (leave them 0)")
         if replay is None:
             return self
         if self.world.vehicles != len(replay.robots):

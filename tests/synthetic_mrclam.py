@@ -1,6 +1,7 @@
 """A synthetic MRCLAM-like data set with known noise (tests only): robots driving smooth curves in a
 room with surveyed landmarks, Vicon truth at 100 Hz, odometry at ~67 Hz that the robot follows
-``lag_s`` later with white noise of known sigma, and range-bearing sightings with known sigma."""
+``lag_s`` later with white noise of known sigma (and heading noise growing with the turns by
+``turn_sigma`` rad/sqrt(rad)), and range-bearing sightings with known sigma."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ LANDMARKS = np.array([[6 + i, x, y, 0.001, 0.001] for i, (x, y) in enumerate(
 
 def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 200.0, lag_s: float = 0.2,
               speed_sigma: float = 0.05, rate_sigma: float = 0.1, range_sigma: float = 0.1,
-              bearing_sigma: float = 0.02, sighting_rate_hz: float = 3.0) -> MrclamData:
+              bearing_sigma: float = 0.02, sighting_rate_hz: float = 3.0, turn_sigma: float = 0.0) -> MrclamData:
     logs = {}
     for robot in range(1, robots + 1):
         fine = np.arange(0.0, duration_s, 0.002)
@@ -22,6 +23,9 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
         phase = rng.uniform(0, 2 * np.pi)
         commands = np.column_stack([0.2 + 0.1 * np.sin(0.05 * command_t + phase), 0.3 * np.sin(0.11 * command_t + phase)])
         noisy = commands + rng.normal(0.0, [speed_sigma, rate_sigma], commands.shape)
+        # heading variance turn_sigma^2 per radian turned: over a 0.015 s hold, (sigma 0.015)^2 = turn^2 |w| 0.015
+        if turn_sigma:
+            noisy[:, 1] += turn_sigma * np.sqrt(np.abs(commands[:, 1]) / 0.015) * rng.standard_normal(len(commands))
         # the robot follows the (noisy) command lag_s later: the odometry reports the command without that noise
         held = noisy[np.clip(np.searchsorted(command_t, fine - lag_s, side="right") - 1, 0, None)]
         pose = np.zeros((len(fine), 3))

@@ -39,6 +39,12 @@ DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^
 _MUTABLE = ("x", "P", "time_us", "speed", "gyro", "odom_yaw", "counters", "gnss_health", "alignment", "_last_good", "iae", "slip")
 
 
+def swept(segments: list[tuple[int, float]]) -> float:
+    """sum |value| * duration over an input's hold segments [(duration us, value)]: the distance (m) or
+    the angle (rad) that a speed or a rate moved the vehicle by over them."""
+    return sum(abs(value) * held_us for held_us, value in segments) * 1e-6
+
+
 class UnicycleEkf:
     """EKF over [x, y, theta, gyro_bias] (4,): see the module docstring."""
 
@@ -162,8 +168,13 @@ class UnicycleEkf:
         fresh = self.gyro.stamp_us is not None and stamp_us - self.gyro.stamp_us <= GYRO_STALE_PERIODS * self._gyro_period_us
         rate, rate_var, rate_source = (gyro, spec.gyro_sigma_radps**2 * gyro_factor, self.gyro) if fresh else \
             (odom_yaw, spec.odom_yaw_rate_sigma_radps**2 * odom_factor, self.odom_yaw)
+        speed_var = spec.odom_speed_sigma_mps**2 * speed_factor
+        if spec.odom_travel_sigma_m:  # along-track error growing with the distance travelled
+            speed_var += spec.odom_travel_sigma_m**2 * swept(self.speed.segments) / (dt * dt)
+        if spec.odom_turn_sigma_rad and not fresh:  # heading error growing with the angle turned
+            rate_var += spec.odom_turn_sigma_rad**2 * swept(rate_source.segments) / (dt * dt)
         steps = ekf.pieces(self.speed.segments, rate_source.segments)
-        self._predict(speed, rate, dt, speed_var=spec.odom_speed_sigma_mps**2 * speed_factor, yaw_rate_var=rate_var,
+        self._predict(speed, rate, dt, speed_var=speed_var, yaw_rate_var=rate_var,
                       bias_walk_var=spec.gyro_bias_walk_radps_rtsec**2, use_bias=fresh, steps=steps)
         self.time_us = stamp_us
 

@@ -33,4 +33,12 @@ def test_the_vehicles_get_the_calibrated_datasheet_and_the_map_but_no_truth():
     vehicle = config.for_vehicle()
     assert len(vehicle.vehicle.landmarks) == 15 and vehicle.vehicle.estimator == "known-map"
     assert vehicle.sensors.odom_yaw_rate_sigma_radps == config.sensors.odom_yaw_rate_sigma_radps
+    assert vehicle.sensors.odom_turn_sigma_rad == config.sensors.odom_turn_sigma_rad > 0  # robots that slip in turns
     assert "replay" not in vehicle.model_dump() and "dataset" not in vehicle.model_dump_json()
+
+
+def test_odometry_errors_of_replayed_robots_are_refused_for_the_simulated_world():
+    from bus.config import build_config
+    from bus.errors import ConfigError
+    with pytest.raises((ConfigError, ValueError), match="the simulated world makes no such error"):
+        build_config({"sensors": {"odom_turn_sigma_rad": 0.1}})

@@ -3,10 +3,12 @@
 import numpy as np
 import pytest
 
+from bus import messages as m
 from bus.config import SensorSpec
 from tests.offline import pose_nees_series
 from vehicle import unicycle_ekf as ekf
 from vehicle.ekf import gate_threshold, gated_update
+from vehicle.estimators.ekf import UnicycleEkf
 
 
 def test_gate_threshold_matches_chi_square_quantiles():
@@ -76,3 +78,26 @@ def test_the_positive_definiteness_check_agrees_with_cholesky():
         P = np.eye(4)
         P[1, 2] = P[2, 1] = bad
         assert not ekf.is_spd4(P)
+
+
+def _after_odometry(spec: SensorSpec, speed_mps: float, yaw_rate_radps: float, seconds: float) -> np.ndarray:
+    """The covariance (4, 4) of the default EKF after ``seconds`` of constant odometry from a pose at 0."""
+    f = UnicycleEkf(vehicle_id=1, spec=spec, gate_probability=0.999, altitude_m=0.0)
+    f.handle("prior", m.PosePrior(1, 0, 0, np.zeros(3), np.diag([1e-4, 1e-4, 1e-4])))
+    period = round(1e6 / spec.odom_rate_hz)
+    for k in range(round(seconds * 1e6 / period) + 1):
+        f.handle("odometry", m.WheelOdometry(1, k * period, k, speed_mps, yaw_rate_radps))
+        f.cycle(k * period)
+    return f.P
+
+
+def test_odometry_error_grows_with_the_turns_and_the_distance_when_the_datasheet_says_so():
+    plain = SensorSpec(odom_speed_sigma_mps=0.01, odom_yaw_rate_sigma_radps=0.01)
+    turning = plain.model_copy(update={"odom_turn_sigma_rad": 0.1, "odom_travel_sigma_m": 0.05})
+    # a turn on the spot of 1 rad: heading variance grows by 0.1^2 per radian turned
+    grown = _after_odometry(turning, 0.0, 0.5, 2.0)[2, 2] - _after_odometry(plain, 0.0, 0.5, 2.0)[2, 2]
+    assert grown == pytest.approx(0.1**2 * 1.0, rel=0.02)
+    # 1 m straight ahead (along x): along-track variance grows by 0.05^2 per metre; no turn, no heading growth
+    straight, base = _after_odometry(turning, 0.5, 0.0, 2.0), _after_odometry(plain, 0.5, 0.0, 2.0)
+    assert straight[0, 0] - base[0, 0] == pytest.approx(0.05**2 * 1.0, rel=0.02)
+    assert straight[2, 2] == pytest.approx(base[2, 2])
