@@ -14,10 +14,11 @@ hundred times the datasheet).
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 FLOOR, CEILING = 0.25, 100.0
-GATE = chi2.ppf(0.999999, 2)  # innovations beyond this (spoofing, outliers) do not teach the estimate
+# the chi-square(2) 0.999999 quantile: innovations beyond it (spoofing, outliers) do not teach the estimate
+GATE = chdtri(2, 1e-6)
 
 
 class InnovationWindow:
