@@ -64,3 +64,9 @@ class HeldInput:
         """Forget the interval so far (the filter was re-initialised at ``t_us``); keep the held value."""
         self.start_us = self._segment_us = t_us
         self._integral, self._sq_us2, self._open = 0.0, 0.0, []
+
+
+def swept(segments: list[tuple[int, float]]) -> float:
+    """sum |value| * duration over an input's hold segments [(duration us, value)]: the distance (m) or
+    the angle (rad) that a speed or a rate moved the vehicle by over them."""
+    return sum(abs(value) * held_us for held_us, value in segments) * 1e-6

@@ -29,7 +29,7 @@ from vehicle.gnss_error import GnssErrorModel, aligned_covariance, augment_motio
 from vehicle.ekf import UpdateResult, gate_threshold
 from vehicle.estimators.base import SEVERITY_INFO, SEVERITY_WARNING, EstimatorCounters, Notice
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
-from vehicle.inputs import HeldInput
+from vehicle.inputs import HeldInput, swept
 from vehicle.wheel_slip import SlipGuard
 
 GYRO_STALE_PERIODS = 5
@@ -37,12 +37,6 @@ NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch: constant altitude, level flight
 DIVERGENCE_INFLATION = 10.0
 DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^2
 _MUTABLE = ("x", "P", "time_us", "speed", "gyro", "odom_yaw", "counters", "gnss_health", "alignment", "_last_good", "iae", "slip")
-
-
-def swept(segments: list[tuple[int, float]]) -> float:
-    """sum |value| * duration over an input's hold segments [(duration us, value)]: the distance (m) or
-    the angle (rad) that a speed or a rate moved the vehicle by over them."""
-    return sum(abs(value) * held_us for held_us, value in segments) * 1e-6
 
 
 class UnicycleEkf:
