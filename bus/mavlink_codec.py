@@ -81,6 +81,16 @@ class StateEstimate:
 
 
 @dataclass(frozen=True)
+class NoEstimate:
+    """An ODOMETRY whose pose covariance starts with NaN: in MAVLink's words the covariance, and so the
+    estimate, is unknown. A vehicle that has no estimate yet still broadcasts one at each V2V epoch,
+    so its neighbours know it has passed ``time_usec`` (lockstep waits on that)."""
+
+    vehicle_id: int
+    time_usec: int
+
+
+@dataclass(frozen=True)
 class Heartbeat:
     vehicle_id: int
     mav_type: int
@@ -153,6 +163,15 @@ class MavlinkEncoder:
         )
         return self._pack(msg)
 
+    def no_estimate(self, time_usec: int, reset_counter: int = 0) -> bytes:
+        """ODOMETRY saying "no estimate at ``time_usec``": NaN first pose covariance element, the rest zero."""
+        unknown = [math.nan] + [0.0] * 20
+        msg = self._mav.odometry_encode(
+            time_usec, mavlink2.MAV_FRAME_LOCAL_NED, mavlink2.MAV_FRAME_BODY_FRD, 0.0, 0.0, 0.0,
+            [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, unknown, unknown, reset_counter % 256,
+            mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS, 0)
+        return self._pack(msg)
+
     def estimator_status(self, status: EstimatorStatus) -> bytes:
         msg = self._mav.estimator_status_encode(status.time_usec, status.flags, 0.0, float(status.pos_horiz_ratio),
                                                 0.0, 0.0, 0.0, 0.0, float(status.pos_horiz_accuracy_m), 0.0)
@@ -196,8 +215,9 @@ class MavlinkDecoder:
         self._stream_timestamps: dict[tuple[int, int, int], int] = {}
         self.rejected: Counter[str] = Counter()
 
-    def decode(self, frame: bytes) -> StateEstimate | Heartbeat | EstimatorStatus | StatusText | None:
-        """One frame -> StateEstimate, Heartbeat, EstimatorStatus, StatusText, or None for other types.
+    def decode(self, frame: bytes) -> StateEstimate | NoEstimate | Heartbeat | EstimatorStatus | StatusText | None:
+        """One frame -> StateEstimate (NoEstimate for an ODOMETRY of unknown covariance), Heartbeat,
+        EstimatorStatus, StatusText, or None for other types.
 
         Raises DecodeError for malformed frames, MavlinkRejected for failed authentication.
         """
@@ -255,8 +275,10 @@ class MavlinkDecoder:
         self._stream_timestamps[stream] = stamp
 
 
-def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate:
+def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate | NoEstimate:
     sysid = msg.get_srcSystem()
+    if math.isnan(msg.pose_covariance[0]):
+        return NoEstimate(sysid, msg.time_usec)
     values = [msg.x, msg.y, msg.z, *msg.q, msg.vx, msg.vy, msg.vz, msg.yawspeed,
               *msg.pose_covariance, *msg.velocity_covariance]
     if not all(map(math.isfinite, values)):

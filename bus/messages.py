@@ -130,22 +130,23 @@ class ClockTick:
     published before it.
 
     ``wall_ns`` is the world's wall clock at publication; ``final`` marks the end of the run.
-    ``comm_jammed`` lists the vehicles inside an active comm-jamming zone (their V2V traffic is lost).
     ``v2v_published`` counts, per vehicle (entry id - 1), the V2V broadcasts it had sent by its last
     acknowledgement: in lockstep a vehicle waits until it has heard them all before it cycles on, so
     what it fuses never depends on how the bus interleaves keys.
     ``members`` lists the vehicles the world waits for (each acknowledged the previous tick, or is
     rejoining): in lockstep the ground station scores up to where all of them have published, so
     the order of metrics.csv never depends on when it hears their liveliness.
+    ``running`` lists the members that acknowledged the previous tick: each runs every cycle of this
+    one and broadcasts at every V2V epoch in it, so a neighbour may wait for those broadcasts.
     """
 
     tick: Annotated[int, Int(0, 2**53)]
     stamp_us: StampUs
     wall_ns: Annotated[int, Int(0, 2**63 - 1)]
     final: Annotated[bool, Bool()]
-    comm_jammed: Annotated[tuple[int, ...], Counts(250, 250)] = ()
     v2v_published: Annotated[tuple[int, ...], Counts(250)] = ()
     members: Annotated[tuple[int, ...], Counts(250, 250)] = ()
+    running: Annotated[tuple[int, ...], Counts(250, 250)] = ()
 
 
 @dataclass(frozen=True)

@@ -96,13 +96,12 @@ class Membership:
 
 @dataclass(frozen=True)
 class _Prepared:
-    """One tick's output, computed ahead: encoded batches, truth and the comm-jammed set."""
+    """One tick's output, computed ahead: encoded batches and truth."""
 
     tick: int
     stamp_us: int
     batches: list[tuple[str, bytes]]
     truth: bytes
-    comm_jammed: tuple[int, ...]
 
 
 def make_world(config: SwarmConfig) -> World:
@@ -229,16 +228,16 @@ class WorldNode:
         ids = self.world.vehicle_ids()
         rows = np.array(out.truth).reshape(len(out.truth_stamps), len(ids), feed.TRUTH_WIDTH)
         truth = feed.TruthBatch(tick, stamp, np.array(out.truth_stamps, dtype=np.int64), np.array(ids), rows)
-        return _Prepared(tick, stamp, batches, feed.encode_truth(truth), self.world.comm_jammed(stamp))
+        return _Prepared(tick, stamp, batches, feed.encode_truth(truth))
 
     def send(self, prepared: _Prepared, final: bool) -> None:
         for key, payload in prepared.batches:
             self.publish(key, payload)
         self.publish(self.bus.keys.truth(), prepared.truth)
         self.members.acked = set()
-        tick = m.ClockTick(prepared.tick, prepared.stamp_us, time.time_ns(), final, prepared.comm_jammed,
+        tick = m.ClockTick(prepared.tick, prepared.stamp_us, time.time_ns(), final,
                            self.members.v2v_published(self.config.world.vehicles),
-                           tuple(sorted(self.members.alive | self.members.joining)))
+                           tuple(sorted(self.members.alive | self.members.joining)), tuple(sorted(self.members.alive)))
         self.publish(self.bus.keys.clock(), m.encode(tick))
 
     def await_acks(self, tick: int, stop: threading.Event, timeout_s: float) -> None:

@@ -1,5 +1,5 @@
 """The replay world: a recorded MRCLAM data set played on sim time, in the shape of ``sim.world.World``
-(``advance``, ``vehicle_ids``, ``comm_jammed``, ``faults``), so the world node runs either.
+(``advance``, ``vehicle_ids``, ``faults``), so the world node runs either.
 
 Sim time 0 is data set time ``replay.start_s``; robot ``replay.robots[i]`` flies as vehicle i + 1.
 Each vehicle gets its launch prior at 0 (the Vicon pose, perturbed by the datasheet's prior sigma
@@ -140,6 +140,14 @@ class ReplayWorld:
     def _silenced(self, vid: int, topic: str, t_us: int) -> bool:
         return bool(self.faults.faults) and self.faults.silenced(vid, topic, t_us, self._true_pose(vid, t_us))
 
+    def _comm_lost(self, vid: int, target: int, t_us: int) -> bool:
+        """A sighting of a robot is useless when either end is comm-jammed then: the neighbour's
+        broadcast it pairs with is lost (as the simulated world drops such ranging)."""
+        if not self.faults.faults:
+            return False
+        jammed = self.comm_jammed(t_us)
+        return vid in jammed or target in jammed
+
     def advance(self, until_us: int) -> ReplayOutput:
         """Everything recorded in (last advance, until_us]."""
         feeds = {}
@@ -149,7 +157,8 @@ class ReplayWorld:
                 first = self._cursor[vid, topic]
                 last = int(np.searchsorted(stamps, until_us, side="right"))
                 self._cursor[vid, topic] = last
-                keep = [i for i in range(first, last) if not self._silenced(vid, topic, int(stamps[i]))]
+                keep = [i for i in range(first, last) if not self._silenced(vid, topic, int(stamps[i]))
+                        and not (topic == "ranging" and self._comm_lost(vid, int(rows[i, 0]), int(stamps[i])))]
                 if keep:
                     feeds[vid][topic] = (stamps[keep], self._sent[vid, topic], rows[keep])
                     self._sent[vid, topic] += len(keep)

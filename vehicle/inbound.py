@@ -1,14 +1,12 @@
 """A vehicle process's bus layer: everything that arrives is parsed here (totally: any key, any
-bytes), passed through the link faults of the fault plan and the comm jamming the world reports,
-and only then handed to the estimator side. Who is comm-jammed (a hint of where vehicles are) stays
-in this layer; the estimator never sees it.
+bytes), passed through the link faults of the fault plan, and only then handed to the estimator side.
+Comm jamming is the world's: it makes no ranging to or from a jammed vehicle, the one thing a lost
+broadcast would have spoilt.
 """
 
 from __future__ import annotations
 
-import bisect
 import logging
-from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,7 +23,6 @@ from bus.session import Envelope
 
 log = logging.getLogger("swarmloc.vehicle")
 ODOMETRY_ID = 331  # MAVLINK_MSG_ID_ODOMETRY: the V2V packet
-JAM_HISTORY = 500  # clock ticks remembered
 MAX_BATCH_BYTES = 1 << 20
 MAX_CLOCK_BYTES = 8 << 10
 MAX_PLAN_BYTES = 1 << 20
@@ -51,9 +48,7 @@ class Inbound:
         self.received_tick = -1            # the newest sensor batch that arrived
         self.received_stamp_us = -1        # and the end of the time it covers
         self.heard: dict[int, int] = {}    # V2V frames heard per sender
-        self._jam_stamps: deque[int] = deque(maxlen=JAM_HISTORY)
-        self._jam_sets: deque[frozenset[int]] = deque(maxlen=JAM_HISTORY)
-        self.jammed_v2v = 0
+        self.heard_until: dict[int, int] = {}  # the newest stamp heard per sender (before link faults)
 
     def take(self, item: Any) -> list[Delivery]:
         """File one mailbox item; returns what passes on (possibly nothing)."""
@@ -90,9 +85,6 @@ class Inbound:
         except DecodeError as exc:
             self.rejections.reject("malformed", item.key, str(exc))
             return []
-        if not self._jam_stamps or tick.stamp_us > self._jam_stamps[-1]:
-            self._jam_stamps.append(tick.stamp_us)
-            self._jam_sets.append(frozenset(tick.comm_jammed))
         return [Delivery("tick", payload=tick)]
 
     def _plan(self, item: Envelope) -> list[Delivery]:
@@ -141,7 +133,7 @@ class Inbound:
         return Delivery("sample", topic, payload, payload.stamp_us)
 
     def _v2v(self, item: Envelope, sender: int) -> list[Delivery]:
-        """A neighbour's ODOMETRY frame: counted as heard, then through link faults and comm jamming."""
+        """A neighbour's ODOMETRY frame: counted as heard, then through link faults."""
         frame = item.payload
         header = frame_header(frame) if len(frame) <= MAX_FRAME_BYTES else None
         if header is None or header[2] != ODOMETRY_ID or header[3] is None:
@@ -152,22 +144,9 @@ class Inbound:
             return []
         self.heard[sender] = self.heard.get(sender, 0) + 1
         stamp = header[3]
+        self.heard_until[sender] = max(stamp, self.heard_until.get(sender, -1))
         return self._offer(Arrival(item.key, f"v{sender}", "mavlink", stamp, ("v2v", (sender, stamp, frame))))
 
     def release(self, now_us: int) -> list[Delivery]:
         """Held packets due by ``now_us``."""
         return [self._delivery(p) for p in self.links.release(now_us)]
-
-    def comm_jammed(self, sender: int, stamp_us: int) -> bool:
-        """True when a V2V packet of ``sender`` stamped ``stamp_us`` was lost to comm jamming (either
-        end inside a jamming zone at that time); asked when the packet is used, a tick later."""
-        jammed = self.jammed_at(stamp_us)
-        if sender in jammed or self.vehicle_id in jammed:
-            self.jammed_v2v += 1
-            return True
-        return False
-
-    def jammed_at(self, stamp_us: int) -> frozenset[int]:
-        """Vehicles in a comm-jamming zone at the tick that covers ``stamp_us``."""
-        i = bisect.bisect_left(self._jam_stamps, stamp_us)
-        return self._jam_sets[i] if i < len(self._jam_sets) else (self._jam_sets[-1] if self._jam_sets else frozenset())

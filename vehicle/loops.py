@@ -31,6 +31,7 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
         tick = ticks.popleft()
         _wait_until_ready(node, tick, ticks, stop)
         for t_us in node.cycles_due(tick.stamp_us):
+            _wait_for_neighbours(node, tick, t_us, ticks, stop)
             start = time.perf_counter()
             node.cycle(t_us)
             node.stats.record(jitter_us=0.0, cycle_us=(time.perf_counter() - start) * 1e6, overran=False)
@@ -50,6 +51,22 @@ def _wait_until_ready(node: VehicleNode, tick: m.ClockTick, later: deque, stop: 
         log.warning("vehicle %d: inputs up to %d us incomplete after %g s (missing %s); cycling without them",
                     node.vehicle_id, tick.stamp_us, READY_TIMEOUT_S, node.missing_inputs(tick))
         node.write_off_missing(tick)
+
+
+def _wait_for_neighbours(node: VehicleNode, tick: m.ClockTick, t_us: int, later: deque, stop: threading.Event) -> None:
+    """Keep filing mailbox items until the neighbours' broadcasts the cycle at ``t_us`` pairs ranging
+    with have arrived (or time runs out: they are then written off as missing)."""
+    unheard = node.unheard_neighbours(tick, t_us)
+    deadline = time.monotonic() + READY_TIMEOUT_S
+    while unheard and not stop.is_set() and time.monotonic() < deadline:
+        newer = node.take(node.mailbox.get(0.05))
+        if newer is not None:
+            later.append(newer)
+        unheard = node.unheard_neighbours(tick, t_us)
+    if unheard:
+        log.warning("vehicle %d: broadcasts %s (neighbour, stamp us) not heard after %g s; fusing without them",
+                    node.vehicle_id, unheard, READY_TIMEOUT_S)
+        node.write_off_unheard(unheard)
 
 
 def run_realtime(node: VehicleNode, stop: threading.Event) -> None:

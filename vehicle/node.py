@@ -38,13 +38,18 @@ class WorldGone(SwarmlocError):
 
 class WorldWatch:
     """Is the world there? Its liveliness token says; gone for ``timeout_s`` means the run is over.
-    Also notes a ground station that (re)appears: ``gs_arrived`` until the loop has handled it."""
+    Also notes a ground station that (re)appears (``gs_arrived`` until the loop has handled it) and
+    neighbours that died (``departed``: nobody waits for their broadcasts)."""
 
     def __init__(self, *, timeout_s: float) -> None:
         self.timeout_s, self.seen, self.gone_since = timeout_s, False, None
         self.gs_arrived = False
+        self.departed: set[int] = set()  # neighbours whose liveliness token went away (and has not come back)
 
     def on_token(self, parsed, alive: bool) -> None:
+        if parsed is not None and parsed.role == "vehicle" and parsed.vehicle_id is not None:
+            (self.departed.discard if alive else self.departed.add)(parsed.vehicle_id)
+            return
         if parsed is not None and parsed.role == "groundstation":
             self.gs_arrived = self.gs_arrived or alive
             return
@@ -74,6 +79,8 @@ class VehicleNode:
             bus.subscribe(keys.v2v("*"), neighbours, MAX_FRAME_BYTES)
         bus.watch_liveliness(keys.alive("world", "*"), world)
         bus.watch_liveliness(keys.alive("groundstation", "*"), world)
+        if vc.cooperative:
+            bus.watch_liveliness(keys.alive("vehicle", "*"), world)
         self.inbound = Inbound(keys=keys, vehicle_id=vehicle_id, vehicles=config.vehicles, fault_seed=config.fault_seed,
                                faults=config.faults, rejections=self.rejections)
         self.outbound = Outbound(bus, config, vehicle_id, signing_key=signing_key)
@@ -81,11 +88,11 @@ class VehicleNode:
         realtime = config.clock.mode == "realtime"
         self.fusion = FusionHorizon(self.estimator, horizon_us=round(vc.fusion_horizon_s * 1e6),
                                     every_cycles=1 if realtime else 0)
-        self.v2v = V2V(vehicle_id, latency_us=round(vc.v2v_latency_s * 1e6), rejections=self.rejections,
-                       lost=self.inbound.comm_jammed)
+        self.v2v = V2V(vehicle_id, latency_us=round(vc.v2v_latency_s * 1e6), rejections=self.rejections)
         self.sequences = SequenceTracker()
         self.stats = LoopStats()
         self.period_us = round(1e6 / vc.loop_rate_hz)
+        self.finished_us: int | None = None  # lockstep: the stamp of the last tick acknowledged
         self.next_cycle_us = 0
         self.first_tick: m.ClockTick | None = None
         self.world_watch = WorldWatch(timeout_s=vc.world_timeout_s)
@@ -157,6 +164,27 @@ class VehicleNode:
         return all(heard.get(j, 0) + self._heard_floor.get(j, 0) >= n
                    for j, n in enumerate(tick.v2v_published, start=1) if j != self.vehicle_id)
 
+    def unheard_neighbours(self, tick: m.ClockTick, t_us: int) -> list[tuple[int, int]]:
+        """Lockstep, before the cycle at ``t_us``: (neighbour, stamp) of the broadcasts its maturing
+        ranging measurements pair with that have not arrived yet, for stamps inside ``tick`` (earlier
+        ones ``ready`` already waited for) from neighbours that run every cycle of it. Zenoh orders
+        one neighbour's broadcasts, so having heard a later stamp means the wanted one came (or the
+        neighbour, which broadcasts at every epoch, had none to send). Lets a tick span several
+        V2V latencies with what a cycle fuses still independent of the bus's timing. A neighbour
+        that died meanwhile (its liveliness token is gone) is not waited for."""
+        if not self.config.vehicle.cooperative:
+            return []
+        tick_start_us = tick.stamp_us if self.finished_us is None else self.finished_us  # a restart: from its first tick
+        until, departed = self.inbound.heard_until, self.world_watch.departed
+        return [(j, s) for j, s in self.v2v.awaited(t_us)
+                if s > tick_start_us and j in tick.running and until.get(j, -1) < s and j not in departed]
+
+    def write_off_unheard(self, unheard: list[tuple[int, int]]) -> None:
+        """After the wait for them timed out: count those broadcasts as heard (they are missing)."""
+        until = self.inbound.heard_until
+        for j, s in unheard:
+            until[j] = max(until.get(j, -1), s)
+
     def missing_inputs(self, tick: m.ClockTick) -> str:
         """What ``ready`` still waits for, in words (for the log)."""
         parts = []
@@ -217,6 +245,7 @@ class VehicleNode:
             self.publish_status(tick.stamp_us, final=True)
         self.outbound.flush()
         self.outbound.ack(tick.tick)
+        self.finished_us = tick.stamp_us
 
     def cycles_due(self, stamp_us: int) -> list[int]:
         """The fixed-rate cycle times up to ``stamp_us`` that have not run yet."""

@@ -1,6 +1,7 @@
 """What a vehicle sends: its signed MAVLink stream (ODOMETRY at ``mavlink_rate_hz``, HEARTBEAT and
-ESTIMATOR_STATUS at 1 Hz, STATUSTEXT for notices), the V2V broadcast at the ranging epochs, its
-loop statistics and its lockstep acknowledgements.
+ESTIMATOR_STATUS at 1 Hz, STATUSTEXT for notices), the V2V broadcast at every ranging epoch (its
+estimate, or a NoEstimate ODOMETRY before it has one), its loop statistics and its lockstep
+acknowledgements.
 
 MAVLink is a byte stream: the frames of one lockstep tick travel as one message (as several frames
 share one UDP datagram); in realtime each cycle's frames go out at once.
@@ -38,11 +39,14 @@ class Outbound:
         notices = estimator.take_notices()
         for notice in notices:
             self._frames.append(self.encoder.statustext(notice.severity, notice.text[:50]))
+        on_v2v, on_mavlink = t_us % self._v2v_period_us == 0, t_us % self._mavlink_period_us == 0
         if not estimator.initialized:
+            if on_v2v:  # neighbours in lockstep wait for every epoch's broadcast: say there is none
+                self._v2v.put(self.encoder.no_estimate(t_us, reset_counter))
+                self.v2v_sent += 1
             return
         if any(n.status_changed for n in notices):
             self._frames.append(self.encoder.estimator_status(estimator.status(t_us)))
-        on_v2v, on_mavlink = t_us % self._v2v_period_us == 0, t_us % self._mavlink_period_us == 0
         if on_v2v or on_mavlink:
             odometry = self.encoder.odometry(estimator.estimate(t_us, reset_counter))
             if on_mavlink:

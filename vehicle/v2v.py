@@ -2,8 +2,8 @@
 measurements that wait ``latency_us`` for the neighbour's estimate of the same instant.
 
 A ranging measurement stamped t becomes a CooperativeFix at the first cycle at or after
-t + latency, once the neighbour's ODOMETRY for t has been heard (and neither end was comm-jammed
-then); it reaches the estimator through the fusion horizon (which replays from t). The fixed wait
+t + latency, once the neighbour's ODOMETRY for t has been heard (the world makes no ranging to or
+from a comm-jammed vehicle); it reaches the estimator through the fusion horizon (which replays from t). The fixed wait
 makes lockstep runs reproducible: what is fused at a cycle never depends on how fast the
 neighbour's packet travelled.
 
@@ -17,13 +17,12 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections import OrderedDict
-from typing import Callable
 
 import numpy as np
 
 from bus import messages as m
 from bus.errors import DecodeError
-from bus.mavlink_codec import MavlinkDecoder, MavlinkRejected, StateEstimate
+from bus.mavlink_codec import MavlinkDecoder, MavlinkRejected, NoEstimate, StateEstimate
 from bus.rejections import Rejections
 from vehicle.cooperative import CooperativeFix
 
@@ -32,9 +31,8 @@ MAX_WAITING = 10_000
 
 
 class V2V:
-    def __init__(self, vehicle_id: int, *, latency_us: int, rejections: Rejections,
-                 lost: Callable[[int, int], bool] = lambda sender, stamp_us: False) -> None:
-        self.vehicle_id, self.latency_us, self.rejections, self._lost = vehicle_id, latency_us, rejections, lost
+    def __init__(self, vehicle_id: int, *, latency_us: int, rejections: Rejections) -> None:
+        self.vehicle_id, self.latency_us, self.rejections = vehicle_id, latency_us, rejections
         self._decoder = MavlinkDecoder()  # neighbours' keys are not ours to hold: no authentication here
         self._estimates: dict[int, OrderedDict[int, tuple[np.ndarray, np.ndarray]]] = {}
         self._waiting: list[tuple[int, int, m.RangeBearing]] = []
@@ -52,6 +50,8 @@ class V2V:
         except DecodeError as exc:
             self.rejections.reject("malformed", f"v2v from {sender}", str(exc))
             return
+        if isinstance(est, NoEstimate) and est.vehicle_id == sender and est.time_usec == stamp_us:
+            return  # the neighbour had no estimate at that epoch
         if not isinstance(est, StateEstimate) or est.vehicle_id != sender or est.time_usec != stamp_us:
             self.rejections.reject("impersonation", f"v2v from {sender}", "sender or stamp differs from the frame's")
             return
@@ -68,13 +68,18 @@ class V2V:
         heapq.heappush(self._waiting, (measurement.stamp_us, next(self._order), measurement))
         return True
 
+    def awaited(self, now_us: int) -> list[tuple[int, int]]:
+        """(neighbour, stamp) of every ranging measurement that matures by ``now_us``: whose
+        broadcasts the cycle at ``now_us`` pairs them with."""
+        return [(msg.target_id, stamp) for stamp, _, msg in self._waiting if stamp + self.latency_us <= now_us]
+
     def mature(self, now_us: int) -> list[CooperativeFix]:
         """Ranging measurements whose wait is over, paired with the neighbour's estimate."""
         out = []
         while self._waiting and self._waiting[0][0] + self.latency_us <= now_us:
             msg = heapq.heappop(self._waiting)[2]
             found = self._estimates.get(msg.target_id, {}).get(msg.stamp_us)
-            if found is None or self._lost(msg.target_id, msg.stamp_us):
+            if found is None:
                 self.missing += 1
                 continue
             out.append(CooperativeFix(msg.vehicle_id, msg.stamp_us, msg.seq, msg.target_id, msg.range_m,

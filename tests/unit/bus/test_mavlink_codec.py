@@ -8,7 +8,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from bus.errors import DecodeError
 from bus.mavlink_codec import (COMPONENT_ID, EstimatorStatus, Heartbeat, StatusText, MavlinkDecoder, MavlinkEncoder, MavlinkRejected,
-                               StateEstimate, signing_now)
+                               NoEstimate, StateEstimate, signing_now)
 
 KEY = bytes(range(32))
 
@@ -28,6 +28,19 @@ def test_odometry_round_trip_keeps_pose_covariance_and_metadata():
     np.testing.assert_allclose(out.position_m, est.position_m, rtol=1e-6)
     np.testing.assert_allclose(out.pose_covariance, est.pose_covariance, rtol=1e-6)
     np.testing.assert_allclose(out.velocity_covariance, est.velocity_covariance, rtol=1e-6)
+
+
+def test_an_odometry_of_unknown_covariance_says_no_estimate_and_nothing_else():
+    """MAVLink: "If unknown, assign NaN value to first element in the array"; any other non-finite
+    field is still degenerate."""
+    frame = MavlinkEncoder(vehicle_id=4, signing_key=KEY).no_estimate(1_200_000)
+    assert MavlinkDecoder(signing_key=KEY).decode(frame) == NoEstimate(4, 1_200_000)
+    est = _estimate()
+    cov = est.pose_covariance.copy()
+    cov[1, 1] = np.nan
+    with pytest.raises(MavlinkRejected):
+        MavlinkDecoder().decode(MavlinkEncoder(vehicle_id=3).odometry(StateEstimate(
+            3, est.time_usec, est.position_m, 0.0, est.velocity_mps, 0.0, cov, est.velocity_covariance)))
 
 
 def test_frames_are_mavlink2_with_vehicle_sysid_and_compid_191():

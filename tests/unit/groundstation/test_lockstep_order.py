@@ -36,7 +36,7 @@ def test_a_late_liveliness_token_does_not_reorder_the_metrics(tmp_path):
     gs.handle(LivelinessEvent(keys.alive("vehicle", 1), True))
 
     def tick(k: int) -> None:
-        gs.handle(Envelope(keys.clock(), m.encode(m.ClockTick(k, k * STEP_US, 0, False, (), (0, 0), (1, 2)))))
+        gs.handle(Envelope(keys.clock(), m.encode(m.ClockTick(k, k * STEP_US, 0, False, (0, 0), (1, 2)))))
 
     tick(0)
     for t in stamps[:3]:

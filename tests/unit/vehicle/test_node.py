@@ -16,7 +16,7 @@ from bus.mailbox import Oversized
 from bus.mavlink_codec import MavlinkDecoder, MavlinkEncoder, StateEstimate, StatusText, split_frames
 from bus.memory import MemoryHub
 from bus.rejections import counts_to_dict
-from bus.session import Envelope
+from bus.session import Envelope, LivelinessEvent
 from vehicle.node import VehicleNode
 
 
@@ -85,13 +85,51 @@ def test_a_tick_waits_for_its_batch_and_for_every_broadcast_the_neighbours_sent(
     node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
     first = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, 0, False))))
     assert node.ready(first)
-    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 100_000, 0, False, (), (0, 2, 1)))))
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 100_000, 0, False, (0, 2, 1)))))
     assert not node.ready(tick)  # batch 1 still on its way
     node.take(Envelope(keys.feed(1), _batch(1, 1, 100_000, {})))
     assert not node.ready(tick)  # vehicle 2 sent two broadcasts, vehicle 3 one
     for vid, t in ((2, 0), (2, 200_000), (3, 0)):
         node.take(Envelope(keys.v2v(vid), MavlinkEncoder(vehicle_id=vid).odometry(_estimate(vid, t))))
     assert node.ready(tick)
+
+
+def _ranging(vid: int, stamps_us: list[int], targets: list[int]) -> dict:
+    rows = np.array([[j, 10.0, 0.1, 0.09, 0.0, 0.0, 0.0004] for j in targets])
+    return {"ranging": (np.array(stamps_us), 0, rows)}
+
+
+def test_a_cycle_inside_a_long_tick_waits_for_the_broadcasts_its_ranging_pairs_with():
+    """A tick of 0.5 s spans several V2V latencies: the cycle at t + latency waits for the neighbour's
+    broadcast of t when that neighbour runs the whole tick, and not otherwise."""
+    node, _ = _node()
+    keys = node.bus.keys
+    node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+    first = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, 0, False, (), (1, 2, 3), (1, 2, 3)))))
+    for t in node.cycles_due(first.stamp_us):
+        node.cycle(t)
+    node.finish_tick(first)
+    node.take(Envelope(keys.feed(1), _batch(1, 1, 500_000, _ranging(1, [200_000, 200_000], [2, 3]))))
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 500_000, 0, False, (), (1, 2, 3), (1, 2)))))
+    assert node.ready(tick)
+    assert node.unheard_neighbours(tick, 280_000) == []              # not matured yet
+    assert node.unheard_neighbours(tick, 300_000) == [(2, 200_000)]  # 3 is rejoining: not waited for
+    node.take(Envelope(keys.v2v(2), MavlinkEncoder(vehicle_id=2).no_estimate(200_000)))
+    assert node.unheard_neighbours(tick, 300_000) == []
+    assert node.rejections.total == 0  # "no estimate" is a broadcast, not a fault
+
+
+def test_a_neighbour_that_died_is_not_waited_for():
+    node, _ = _node()
+    keys = node.bus.keys
+    node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+    first = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, 0, False, (), (1, 2), (1, 2)))))
+    node.finish_tick(first)
+    node.take(Envelope(keys.feed(1), _batch(1, 1, 500_000, _ranging(1, [200_000], [2]))))
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 500_000, 0, False, (), (1, 2), (1, 2)))))
+    assert node.unheard_neighbours(tick, 300_000) == [(2, 200_000)]
+    node.take(LivelinessEvent(keys.alive("vehicle", 2), alive=False))
+    assert node.unheard_neighbours(tick, 300_000) == []
 
 
 def test_vehicle_subscriptions_never_reach_truth():
