@@ -116,13 +116,16 @@ class Transport:
 
 
 def zenoh_config(conf: BusConfig, transport: Transport = Transport()):
-    """A zenoh.Config from our BusConfig: explicit endpoints, multicast scouting off, and the
-    transport's login, TLS files, credentials dictionary and access control."""
+    """A zenoh.Config from our BusConfig: explicit endpoints, multicast scouting off, shared memory
+    off (our messages are a few KB; zenoh would put those over 3 KB in 16 MB pools mapped into every
+    process, +45 MB RSS per vehicle and slower), and the transport's login, TLS files, credentials
+    dictionary and access control."""
     import zenoh
 
     zconf = zenoh.Config()
     settings: dict[str, object] = {"mode": conf.mode, "connect/endpoints": list(conf.connect),
-                                   "listen/endpoints": list(conf.listen), "scouting/multicast/enabled": False}
+                                   "listen/endpoints": list(conf.listen), "scouting/multicast/enabled": False,
+                                   "transport/shared_memory/enabled": False}
     if transport.user:
         settings["transport/auth/usrpwd"] = {"user": transport.user, "password": transport.password,
                                              **({"dictionary_file": transport.credentials_file}
