@@ -40,13 +40,19 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
             return
 
 
-def _wait_until_ready(node: VehicleNode, tick: m.ClockTick, later: deque, stop: threading.Event) -> None:
-    """Keep filing mailbox items until the tick's inputs are complete (or time runs out)."""
+def _file_until(node: VehicleNode, done, later: deque, stop: threading.Event) -> None:
+    """Keep filing mailbox items (clock ticks that come meanwhile go to ``later``) until ``done()``
+    or READY_TIMEOUT_S is over."""
     deadline = time.monotonic() + READY_TIMEOUT_S
-    while not node.ready(tick) and not stop.is_set() and time.monotonic() < deadline:
+    while not done() and not stop.is_set() and time.monotonic() < deadline:
         newer = node.take(node.mailbox.get(0.05))
         if newer is not None:
             later.append(newer)
+
+
+def _wait_until_ready(node: VehicleNode, tick: m.ClockTick, later: deque, stop: threading.Event) -> None:
+    """Keep filing mailbox items until the tick's inputs are complete (or time runs out)."""
+    _file_until(node, lambda: node.ready(tick), later, stop)
     if not node.ready(tick):
         log.warning("vehicle %d: inputs up to %d us incomplete after %g s (missing %s); cycling without them",
                     node.vehicle_id, tick.stamp_us, READY_TIMEOUT_S, node.missing_inputs(tick))
@@ -56,13 +62,10 @@ def _wait_until_ready(node: VehicleNode, tick: m.ClockTick, later: deque, stop: 
 def _wait_for_neighbours(node: VehicleNode, tick: m.ClockTick, t_us: int, later: deque, stop: threading.Event) -> None:
     """Keep filing mailbox items until the neighbours' broadcasts the cycle at ``t_us`` pairs ranging
     with have arrived (or time runs out: they are then written off as missing)."""
+    if not node.unheard_neighbours(tick, t_us):
+        return
+    _file_until(node, lambda: not node.unheard_neighbours(tick, t_us), later, stop)
     unheard = node.unheard_neighbours(tick, t_us)
-    deadline = time.monotonic() + READY_TIMEOUT_S
-    while unheard and not stop.is_set() and time.monotonic() < deadline:
-        newer = node.take(node.mailbox.get(0.05))
-        if newer is not None:
-            later.append(newer)
-        unheard = node.unheard_neighbours(tick, t_us)
     if unheard:
         log.warning("vehicle %d: broadcasts %s (neighbour, stamp us) not heard after %g s; fusing without them",
                     node.vehicle_id, unheard, READY_TIMEOUT_S)
