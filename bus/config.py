@@ -61,7 +61,8 @@ class ClockConfig(_Strict):
     start_timeout_s: float = Field(60.0, gt=0, description="wall time to wait for every process to join")
     gone_timeout_s: float = Field(30.0, gt=0, description="wall time the world and the ground station wait for "
                                   "each other after one disappears, before ending the run")
-    gs_lag_ticks: int = Field(5, ge=1, le=10_000, description="lockstep: how many ticks the ground station may lag")
+    gs_lag_ticks: int = Field(1, ge=1, le=10_000, description="lockstep: how many ticks the ground station may lag "
+                              "(what a ground-station crash can lose: 0.5 s of scoring at the default tick)")
 
     @model_validator(mode="after")
     def _default_tick(self) -> "ClockConfig":
