@@ -99,6 +99,13 @@ class SensorSpec(_Strict):
     ranging_max_peers: int = Field(4, ge=0, le=249, description="the radio ranges at most this many peers, the nearest")
     range_sigma_m: float = Field(0.3, gt=0)
     bearing_sigma_rad: float = Field(0.02, gt=0)
+    range_correlated_sigma_per_m: float = Field(0.0, ge=0, le=0.5, description="of a camera's landmark range "
+                                                "error, the part that persists in time, per metre of range "
+                                                "(0.03: 3 %; 0: white). known-map estimates it per landmark")
+    range_correlation_s: float = Field(5.0, gt=0, le=1e4, description="correlation time of that part")
+    odom_scale_prior_sigma: float = Field(0.0, ge=0, le=0.5, description="how far the wheel odometry's speed "
+                                          "and yaw-rate scales may be off (0.1: 10 %); known-map then "
+                                          "estimates both (0: taken as exact)")
     prior_sigma_m: float = Field(0.5, gt=0, description="launch-pad survey of the start position")
     prior_heading_sigma_rad: float = Field(0.05, gt=0)
     camera_rate_hz: float = Field(0.0, ge=0, le=100, description="down-looking camera frames (0: no camera)")

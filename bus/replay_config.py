@@ -20,8 +20,9 @@ class ReplayConfig(BaseModel):
     odom_lag_s: float = Field(0.0, ge=0, le=1, description="the robots follow an odometry command this much "
                               "later (calibrated); the replay stamps each command when it takes effect")
     sighting_sigmas: tuple[tuple[float, float], ...] = Field((), description="per replayed robot, its camera's "
-                                                             "(range m, bearing rad) sigma (calibrated); empty: "
-                                                             "the datasheet's range_sigma_m, bearing_sigma_rad")
+                                                             "(range sigma per metre of range, bearing sigma rad), "
+                                                             "calibrated; empty: the datasheet's range_sigma_m "
+                                                             "(m) and bearing_sigma_rad")
     withhold_landmarks: tuple[int, ...] = Field((), description="robots whose landmark sightings are withheld "
                                                 "(they localize from odometry and the others)")
 

@@ -6,8 +6,8 @@ Each vehicle gets its launch prior at 0 (the Vicon pose, perturbed by the datash
 from the world seed), its recorded odometry stamped when it takes effect (``replay.odom_lag_s``
 later; the sample in force at the start, stamped 0, then the rest; a repeated stamp keeps the
 first), its landmark sightings (``landmark`` rows) and its sightings of replayed robots
-(``ranging`` rows), each with its robot's calibrated covariance (``replay.sighting_sigmas``; the
-datasheet's without). Sightings of robots that are not replayed are counted and skipped. Truth is the Vicon track interpolated onto the
+(``ranging`` rows), each with its robot's calibrated covariance (``replay.sighting_sigmas``: range
+sigma per metre of the range read, bearing sigma; the datasheet's range and bearing sigma without). Sightings of robots that are not replayed are counted and skipped. Truth is the Vicon track interpolated onto the
 ``truth_rate_hz`` grid, a row of NaN where Vicon has no pose (sim.mrclam.pose_at). Physical faults
 apply as in the simulated world: blackouts of ``odom``, ``landmark`` or ``ranging``, comm jamming
 at the true positions.
@@ -60,12 +60,15 @@ def odometry_rows(odometry: np.ndarray, start_s: float, end_s: float) -> Block:
 
 
 def sighting_rows(sightings: np.ndarray, start_s: float, end_s: float, vehicle_of: dict[int, int],
-                  covariance: np.ndarray) -> tuple[Block, Block, int]:
+                  sigmas: tuple[float, float], relative: bool) -> tuple[Block, Block, int]:
     """Landmark rows [id, range, bearing, cov (4)] and ranging rows [vehicle, range, bearing, cov (4)]
-    of the sightings in (start_s, end_s]; robots (subjects 1-5) map through ``vehicle_of`` and are
-    skipped (counted) when they are not replayed."""
+    of the sightings in (start_s, end_s], the covariance diagonal from ``sigmas`` (range, bearing),
+    the range sigma per metre of the range read when ``relative``; robots (subjects 1-5) map through
+    ``vehicle_of`` and are skipped (counted) when they are not replayed."""
     s = sightings[(sightings[:, 0] > start_s) & (sightings[:, 0] <= end_s)]
-    stamps, cov = _stamps_us(s[:, 0], start_s), np.broadcast_to(covariance.ravel(), (len(s), 4))
+    stamps = _stamps_us(s[:, 0], start_s)
+    range_sigma = sigmas[0] * s[:, 2] if relative else np.full(len(s), sigmas[0])
+    cov = np.column_stack([range_sigma**2, np.zeros(len(s)), np.zeros(len(s)), np.full(len(s), sigmas[1] ** 2)])
     robot = s[:, 1] <= 5
     target = np.array([vehicle_of.get(int(r), 0) for r in s[robot, 1]], dtype=float)
     replayed = target > 0
@@ -83,13 +86,13 @@ class ReplayWorld:
         self.start_s, end_s = replay.start_s, replay.start_s + config.clock.duration_s
         self.robots = {i + 1: robot for i, robot in enumerate(replay.robots)}
         vehicle_of = {robot: vid for vid, robot in self.robots.items()}
+        relative = bool(replay.sighting_sigmas)  # calibrated: range sigma per metre; else the datasheet's, in m
         sigmas = replay.sighting_sigmas or ((spec.range_sigma_m, spec.bearing_sigma_rad),) * len(self.robots)
         self.skipped_sightings = 0  # of robots not replayed (unknown barcodes: data.robots[r].unknown_barcodes)
         self._streams: dict[int, dict[str, Block]] = {}
         for vid, robot in self.robots.items():
             log = data.robots[robot]
-            covariance = np.diag(np.square(sigmas[vid - 1]))
-            landmark, peers, skipped = sighting_rows(log.sightings, self.start_s, end_s, vehicle_of, covariance)
+            landmark, peers, skipped = sighting_rows(log.sightings, self.start_s, end_s, vehicle_of, sigmas[vid - 1], relative)
             if robot in replay.withhold_landmarks:
                 landmark = (landmark[0][:0], landmark[1][:0])
             self.skipped_sightings += skipped

@@ -1,7 +1,11 @@
 """A synthetic MRCLAM-like data set with known noise (tests only): robots driving smooth curves in a
 room with surveyed landmarks, Vicon truth at 100 Hz, odometry at ~67 Hz that the robot follows
 ``lag_s`` later with white noise of known sigma (and heading noise growing with the turns by
-``turn_sigma`` rad/sqrt(rad)), and range-bearing sightings with known sigma."""
+``turn_sigma`` rad/sqrt(rad)), and range-bearing sightings with known sigma. Optionally the wheels'
+scales are off (the robot moves at (1 + ``odom_scale``) times the speed and yaw rate the odometry
+reports) and the range error grows with the range (``range_sigma_per_m``, white) and persists (a
+Gauss-Markov error per robot and landmark, ``range_correlated_per_m`` of the range, correlation time
+``range_correlation_s``)."""
 
 from __future__ import annotations
 
@@ -15,7 +19,9 @@ LANDMARKS = np.array([[6 + i, x, y, 0.001, 0.001] for i, (x, y) in enumerate(
 
 def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 200.0, lag_s: float = 0.2,
               speed_sigma: float = 0.05, rate_sigma: float = 0.1, range_sigma: float = 0.1,
-              bearing_sigma: float = 0.02, sighting_rate_hz: float = 3.0, turn_sigma: float = 0.0) -> MrclamData:
+              bearing_sigma: float = 0.02, sighting_rate_hz: float = 3.0, turn_sigma: float = 0.0,
+              odom_scale: tuple[float, float] = (0.0, 0.0), range_sigma_per_m: float = 0.0,
+              range_correlated_per_m: float = 0.0, range_correlation_s: float = 5.0) -> MrclamData:
     logs = {}
     for robot in range(1, robots + 1):
         fine = np.arange(0.0, duration_s, 0.002)
@@ -27,7 +33,7 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
         if turn_sigma:
             noisy[:, 1] += turn_sigma * np.sqrt(np.abs(commands[:, 1]) / 0.015) * rng.standard_normal(len(commands))
         # the robot follows the (noisy) command lag_s later: the odometry reports the command without that noise
-        held = noisy[np.clip(np.searchsorted(command_t, fine - lag_s, side="right") - 1, 0, None)]
+        held = noisy[np.clip(np.searchsorted(command_t, fine - lag_s, side="right") - 1, 0, None)] * (1.0 + np.asarray(odom_scale))
         pose = np.zeros((len(fine), 3))
         pose[0] = [rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-np.pi, np.pi)]
         for k in range(1, len(fine)):
@@ -36,7 +42,7 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
             pose[k] = [x + v * 0.002 * np.cos(th), y + v * 0.002 * np.sin(th), th + w * 0.002]
         pose[:, 2] = (pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
         truth = np.column_stack([fine, pose])[::5]
-        sightings = []
+        sightings, persisting = [], {}  # landmark -> (time s, relative range error)
         for t in np.sort(rng.uniform(1.0, duration_s, int(sighting_rate_hz * duration_s))):
             k = int(t / 0.002)
             x, y, th = pose[k]
@@ -45,7 +51,14 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
             seen = np.flatnonzero(np.abs(bearing) < 0.5)
             if len(seen):
                 j = rng.choice(seen)
-                sightings.append([fine[k], LANDMARKS[j, 0], np.hypot(*d[j]) + rng.normal(0, range_sigma),
-                                  bearing[j] + rng.normal(0, bearing_sigma)])
+                true_range = np.hypot(*d[j])
+                noise = rng.normal(0, range_sigma)
+                if range_sigma_per_m or range_correlated_per_m:  # (no draws otherwise: other tests' data unchanged)
+                    before, error = persisting.get(j, (fine[k], rng.normal(0.0, range_correlated_per_m)))
+                    phi = np.exp(-(fine[k] - before) / range_correlation_s)
+                    error = phi * error + range_correlated_per_m * np.sqrt(1.0 - phi * phi) * rng.standard_normal()
+                    persisting[j] = (fine[k], error)
+                    noise += true_range * (error + rng.normal(0.0, range_sigma_per_m))
+                sightings.append([fine[k], LANDMARKS[j, 0], true_range + noise, bearing[j] + rng.normal(0, bearing_sigma)])
         logs[robot] = RobotLog(robot, truth, np.column_stack([command_t, commands]), np.array(sightings).reshape(-1, 4), 0)
     return MrclamData(logs, LANDMARKS, 0.0)

@@ -51,7 +51,8 @@ class UnicycleEkf:
         self.vehicle_id, self._spec, self._altitude_m = vehicle_id, spec, altitude_m
         self._rule = cooperative
         self._gnss_error = GnssErrorModel.from_spec(spec) if self.models_gnss_error else None
-        self.state_dim = 4 if self._gnss_error is None else 6
+        self.base_dim = 4 if self._gnss_error is None else 6  # what this class's own models cover
+        self.state_dim = self.base_dim  # subclasses may add states after the base ones
         # IAE of the GNSS and ranging noise (vehicle.adaptive); None: the datasheet's noise as told
         self.iae = NoiseAdaptation(adaptive_window) if adaptive_window else None
         self._gate = gate_threshold(2, gate_probability)
@@ -124,7 +125,7 @@ class UnicycleEkf:
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int, *, from_fixes: bool = False) -> None:
         """Start at ``pose`` (3,) with covariance (3, 3); the gyro bias from its datasheet spread, the
         GNSS error states (if any) at 0 with theirs, tied to the position when it came ``from_fixes``."""
-        self.x = np.zeros(self.state_dim)
+        self.x = np.zeros(self.base_dim)
         self.x[:3] = pose
         if self._gnss_error is None:
             self.P = np.zeros((4, 4))
@@ -182,19 +183,20 @@ class UnicycleEkf:
         self.P = 0.5 * (P + P.T)
 
     def _motion(self, speed: float, rate: float, dt: float, **noise: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The new state (state_dim,), F and Q (state_dim, state_dim) of one motion step: the unicycle's
+        """The new base state (base_dim,), F and Q (base_dim, base_dim) of one motion step: the unicycle's
         (ekf.motion_model) and the GNSS error states' decay."""
         head, F, Q = ekf.motion_model(self.x[:4], speed, rate, dt, **noise)
         if self._gnss_error is None:
             return head, F, Q
         F, Q = augment_motion(F, Q, self._gnss_error, dt)
-        return np.concatenate([head, F[4, 4] * self.x[4:]]), F, Q
+        return np.concatenate([head, F[4, 4] * self.x[4:6]]), F, Q
 
     def gnss_model(self, reported_cov_m2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What a fix should read (2,), its H (2, state_dim) and the noise (2, 2) of its white part."""
         if self._gnss_error is None:
-            return self.x[:2], ekf.H_GNSS, reported_cov_m2
-        return self.x[:2] + self.x[4:6], observation(self.state_dim), self._gnss_error.white(reported_cov_m2)
+            H = ekf.H_GNSS if len(self.x) == 4 else np.hstack([ekf.H_GNSS, np.zeros((2, len(self.x) - 4))])
+            return self.x[:2], H, reported_cov_m2
+        return self.x[:2] + self.x[4:6], observation(len(self.x)), self._gnss_error.white(reported_cov_m2)
 
     def adapted_noise(self) -> dict[str, np.ndarray] | None:
         """IAE's current GNSS and ranging covariances (None: IAE off, or the window is not full yet)."""
@@ -264,9 +266,11 @@ class UnicycleEkf:
         self._notice(Notice(t_us, SEVERITY_WARNING, "estimator reset: non-finite or indefinite covariance"))
 
     def _inflated(self, P: np.ndarray) -> np.ndarray:
-        """The fallback covariance after a divergence: inflated, with a floor."""
-        floor = DIVERGENCE_FLOOR if self._gnss_error is None else \
-            np.append(DIVERGENCE_FLOOR, [self._gnss_error.variance_m2] * 2)
+        """The fallback covariance after a divergence: inflated, with a floor (none on added states)."""
+        floor = np.zeros(len(P))
+        floor[:4] = DIVERGENCE_FLOOR
+        if self._gnss_error is not None:
+            floor[4:6] = self._gnss_error.variance_m2
         return DIVERGENCE_INFLATION * P + np.diag(floor)
 
     def _notice(self, notice: Notice) -> None:

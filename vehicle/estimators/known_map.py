@@ -7,6 +7,16 @@ known constant, so only the pose rows of H), behind a chi-square gate: a misread
 occluded target fails it and is counted, not fused. Odometry, GNSS and cooperative fixes act as in
 ``ekf``.
 
+Errors that persist (``vehicle.added_states``), each on when its datasheet field is nonzero: the
+wheel odometry's speed and yaw-rate scale errors (two states after the base ones, prior sigma
+``odom_scale_prior_sigma``, a slow random walk), and the camera's time-correlated range error, one
+Gauss-Markov state per landmark in view (sigma ``range_correlated_sigma_per_m`` of the range,
+correlation time ``range_correlation_s``): a camera that reads a landmark 3 % long reads it 3 % long
+for seconds, and fusing five such sightings a second as independent would make the filter sure of a
+biased pose. That part is taken out of each sighting's reported range variance (the rest is white).
+A landmark's state is dropped (marginalized) when it has not been seen for ``FORGET_AFTER``
+correlation times: by then it is uncorrelated with what a new sighting would read.
+
 Losing track and finding it again: when ``LOST_AFTER`` sightings in a row of at least two different
 landmarks all fail the gate, the pose is no longer where the filter believes; its covariance is
 widened by ``RELOCALIZE_SIGMA`` (position and heading, cross terms dropped) so the next sightings
@@ -21,6 +31,7 @@ import numpy as np
 
 from bus import messages as m
 from bus.angles import wrap_angle
+from vehicle import added_states
 from vehicle import ekf_slam_core as slam
 from vehicle.ekf import gated_update, gate_threshold
 from vehicle.estimators.base import SEVERITY_WARNING, Notice
@@ -28,6 +39,9 @@ from vehicle.estimators.ekf import UnicycleEkf
 
 LOST_AFTER = 8                              # sightings in a row failing the gate
 RELOCALIZE_SIGMA = np.array([1.0, 1.0, 0.5])  # m, m, rad added to the pose's spread when lost
+SCALE_WALK_PER_RTSEC = 1e-3  # the odometry scale states' random walk (1/sqrt(s)): wheels wear, loads change
+FORGET_AFTER = 5.0           # correlation times unseen before a landmark's range-error state is dropped
+WHITE_FLOOR = 0.1            # of a sighting's range variance, at least this much is taken as white
 
 
 class KnownMapEkf(UnicycleEkf):
@@ -42,6 +56,44 @@ class KnownMapEkf(UnicycleEkf):
         self.counters.landmarks = len(self._map)
         self.sightings_fused = self.sightings_rejected = self.unknown_landmarks = 0
         self._failed_in_a_row: list[int] = []  # landmark ids of the current run of gate failures
+        spec = self._spec
+        self._scale_sigma = spec.odom_scale_prior_sigma
+        self._range_sigma, self._range_tau = spec.range_correlated_sigma_per_m, spec.range_correlation_s
+        self._first_range_state = self.base_dim + (2 if self._scale_sigma else 0)
+        self.state_dim = self._first_range_state
+        self._range_states: dict[int, int] = {}  # landmark id -> index of its range-error state
+        self._last_seen_us: dict[int, int] = {}
+
+    def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int, *, from_fixes: bool = False) -> None:
+        super()._initialise(pose, covariance, stamp_us, from_fixes=from_fixes)
+        self._range_states, self._last_seen_us = {}, {}
+        if self._scale_sigma:
+            self.x, self.P = added_states.append_states(self.x, self.P, np.full(2, self._scale_sigma**2))
+        self.state_dim = len(self.x)
+
+    def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
+        """The motion step with the odometry scale states (when estimated) and the range-error
+        states' decay; the base filter's own step when there are neither."""
+        if len(self.x) == self.base_dim:
+            super()._predict(speed, rate, dt, **noise)
+            return
+        b, coupling = self.base_dim, None
+        if self._scale_sigma:
+            k_speed = float(self.x[b])
+            k_rate = 0.0 if noise.get("use_bias") else float(self.x[b + 1])  # a fresh gyro's rate is not the wheels'
+            noise["steps"] = added_states.scaled_steps(noise.get("steps"), k_speed, k_rate)
+            coupling = np.zeros((b, 2))
+            coupling[:3] = added_states.scale_jacobian(float(self.x[2]), speed, rate, dt, k_speed, k_rate)
+            if noise.get("use_bias"):
+                coupling[:, 1] = 0.0
+            speed, rate = speed * (1.0 + k_speed), rate * (1.0 + k_rate)
+        head, F, Q = self._motion(speed, rate, dt, **noise)
+        decay, decay_var = added_states.gauss_markov(dt, self._range_tau, self._range_sigma)
+        self.P = added_states.propagate(self.P, F, Q, coupling, SCALE_WALK_PER_RTSEC**2 * dt, decay, decay_var,
+                                        self._first_range_state)
+        tail = self.x[b:].copy()
+        tail[self._first_range_state - b:] *= decay
+        self.x = np.concatenate([head, tail])
 
     def _landmark_sighting(self, msg: m.LandmarkSighting) -> None:
         """One gated range-bearing update against the mapped landmark."""
@@ -51,10 +103,22 @@ class KnownMapEkf(UnicycleEkf):
             self.unknown_landmarks += 1
             return
         predicted, H_pose, _ = slam.observe(np.concatenate([self.x[:3], where]), 3, 0)
-        H = np.zeros((2, self.state_dim))
-        H[:, :3] = H_pose
+        R = np.array(msg.covariance, dtype=float)
+        if self._range_sigma:
+            state = self._range_state(msg.landmark_id, msg.stamp_us)
+            stretch = 1.0 + self.x[state]
+            H = np.zeros((2, len(self.x)))
+            H[:, :3] = H_pose
+            H[0, :3] *= stretch
+            H[0, state] = predicted[0]
+            correlated = (self._range_sigma * predicted[0]) ** 2
+            R[0, 0] = max(R[0, 0] - correlated, WHITE_FLOOR * R[0, 0])
+            predicted = np.array([predicted[0] * stretch, predicted[1]])
+        else:
+            H = np.zeros((2, len(self.x)))
+            H[:, :3] = H_pose
         y = np.array([msg.range_m - predicted[0], wrap_angle(msg.bearing_rad - predicted[1])])
-        self.x, self.P, result = gated_update(self.x, self.P, y, H, msg.covariance, self._landmark_gate)
+        self.x, self.P, result = gated_update(self.x, self.P, y, H, R, self._landmark_gate)
         self.x[2] = wrap_angle(self.x[2])
         if result.accepted:
             self.sightings_fused += 1
@@ -64,6 +128,25 @@ class KnownMapEkf(UnicycleEkf):
         self._failed_in_a_row.append(msg.landmark_id)
         if len(self._failed_in_a_row) >= LOST_AFTER and len(set(self._failed_in_a_row)) >= 2:
             self._relocalize(msg.stamp_us)
+
+    def _range_state(self, landmark_id: int, t_us: int) -> int:
+        """The index of the landmark's range-error state, added (at 0, stationary variance) when it
+        has none; states of landmarks unseen for FORGET_AFTER correlation times are dropped first."""
+        self._last_seen_us[landmark_id] = t_us
+        if landmark_id in self._range_states:
+            return self._range_states[landmark_id]
+        horizon_us = FORGET_AFTER * self._range_tau * 1e6
+        stale = [ident for ident in self._range_states if t_us - self._last_seen_us[ident] > horizon_us]
+        if stale:
+            self.x, self.P = added_states.drop_states(self.x, self.P, [self._range_states[i] for i in stale])
+            kept = sorted((index, ident) for ident, index in self._range_states.items() if ident not in stale)
+            self._range_states = {ident: self._first_range_state + k for k, (_, ident) in enumerate(kept)}
+            for ident in stale:
+                del self._last_seen_us[ident]
+        self._range_states[landmark_id] = len(self.x)
+        self.x, self.P = added_states.append_states(self.x, self.P, np.array([self._range_sigma**2]))
+        self.state_dim = len(self.x)
+        return self._range_states[landmark_id]
 
     def _relocalize(self, t_us: int) -> None:
         """Widen the pose's spread so the map can pull it back (see the module docstring)."""
@@ -80,5 +163,7 @@ class KnownMapEkf(UnicycleEkf):
     def snapshot(self) -> dict:
         state = super().snapshot()
         state.update(sightings_fused=self.sightings_fused, sightings_rejected=self.sightings_rejected,
-                     unknown_landmarks=self.unknown_landmarks, _failed_in_a_row=list(self._failed_in_a_row))
+                     unknown_landmarks=self.unknown_landmarks, _failed_in_a_row=list(self._failed_in_a_row),
+                     _range_states=dict(self._range_states), _last_seen_us=dict(self._last_seen_us),
+                     state_dim=self.state_dim)
         return state

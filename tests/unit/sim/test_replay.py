@@ -28,11 +28,15 @@ def test_odometry_in_force_at_the_start_is_stamped_zero_and_repeated_stamps_keep
 def test_sightings_split_into_landmarks_and_replayed_robots():
     sightings = np.array([[10.1, 7, 3.0, 0.1], [10.2, 2, 4.0, -0.2], [10.3, 5, 2.0, 0.3], [10.3, 9, 1.0, 0.0]])
     cov = np.diag([0.01, 0.0004])
-    (ls, landmark), (ps, peers), skipped = sighting_rows(sightings, 10.0, 11.0, {1: 1, 2: 2}, cov)
+    (ls, landmark), (ps, peers), skipped = sighting_rows(sightings, 10.0, 11.0, {1: 1, 2: 2}, (0.1, 0.02), False)
     assert ls.tolist() == [100_000, 300_000] and landmark[:, 0].tolist() == [7, 9]
     assert ps.tolist() == [200_000] and peers[0, :3].tolist() == [2, 4.0, -0.2]  # robot 2 is vehicle 2
     assert skipped == 1  # robot 5 is not replayed
     assert np.allclose(peers[0, 3:], cov.ravel()) and np.allclose(landmark[:, 3:], cov.ravel())
+    # calibrated cameras: the range sigma is per metre of the range read
+    (_, landmark), (_, peers), _ = sighting_rows(sightings, 10.0, 11.0, {1: 1, 2: 2}, (0.04, 0.02), True)
+    assert np.allclose(landmark[:, 3], (0.04 * np.array([3.0, 1.0])) ** 2) and np.allclose(peers[:, 3], (0.04 * 4.0) ** 2)
+    assert np.allclose(landmark[:, 6], 0.02**2)
 
 
 def test_the_world_replays_every_row_once_in_ticks_that_decode():
@@ -49,7 +53,8 @@ def test_the_world_replays_every_row_once_in_ticks_that_decode():
                 counts[vid, topic] = seq0 + len(rows)
                 if topic == "landmark":
                     expected = [0.1, 0.02] if vid == 1 else [0.2, 0.03]
-                    assert np.allclose(rows[:, 3], expected[0] ** 2) and np.allclose(rows[:, 6], expected[1] ** 2)
+                    assert np.allclose(rows[:, 3], (expected[0] * rows[:, 1]) ** 2)  # per metre of range
+                    assert np.allclose(rows[:, 6], expected[1] ** 2)
     log = data.robots[2]
     lagged = log.odometry[:, 0] + 0.2
     assert counts[2, "odom"] == 1 + np.sum((lagged > 100.0) & (lagged <= 140.0))
@@ -88,7 +93,7 @@ def test_truth_is_nan_where_vicon_lost_the_robot():
 
 def test_calibration_recovers_the_noise_a_data_set_was_made_with():
     data = synthetic(np.random.default_rng(4), robots=3, duration_s=300.0, lag_s=0.2, speed_sigma=0.05,
-                     rate_sigma=0.1, range_sigma=0.1, bearing_sigma=0.02)
+                     rate_sigma=0.1, range_sigma=0.0, range_sigma_per_m=0.04, bearing_sigma=0.02)
     cal = calibrate(data, (0.0, 300.0), (1, 2, 3))
     assert cal.odom_lag_s == pytest.approx(0.2, abs=0.021)
     # with a speed that hardly changes, time and distance travelled cannot be told apart: what counts is the
@@ -96,9 +101,19 @@ def test_calibration_recovers_the_noise_a_data_set_was_made_with():
     along = cal.odom_speed_sigma_mps**2 * 0.015 * 5 + cal.odom_travel_sigma_m**2 * 1.0
     heading = cal.odom_yaw_rate_sigma_radps**2 * 0.015 * 5 + cal.odom_turn_sigma_rad**2 * 0.95
     assert along == pytest.approx(0.05**2 * 0.015 * 5, rel=0.3) and heading == pytest.approx(0.1**2 * 0.015 * 5, rel=0.3)
-    assert cal.range_sigma_m == pytest.approx(0.1, rel=0.15) and cal.bearing_sigma_rad == pytest.approx(0.02, rel=0.15)
+    assert cal.bearing_sigma_rad == pytest.approx(0.02, rel=0.15)
     per_robot = sighting_sigmas(data, (0.0, 300.0), (1, 2, 3))
-    assert all(r == pytest.approx(0.1, rel=0.2) and b == pytest.approx(0.02, rel=0.2) for r, b in per_robot)
+    assert all(r == pytest.approx(0.04, rel=0.2) and b == pytest.approx(0.02, rel=0.2) for r, b in per_robot)
+    assert cal.range_correlated_sigma_per_m < 0.01  # white noise: nothing persists
+
+
+def test_calibration_finds_range_error_that_persists():
+    data = synthetic(np.random.default_rng(8), robots=3, duration_s=300.0, range_sigma=0.0, range_sigma_per_m=0.015,
+                     range_correlated_per_m=0.04, range_correlation_s=3.0, sighting_rate_hz=6.0)
+    cal = calibrate(data, (0.0, 300.0), (1, 2, 3))
+    assert cal.range_correlated_sigma_per_m == pytest.approx(0.04, rel=0.25)
+    # the correlation time is the coarser estimate (seeds 8-10 give 6.2, 2.0, 3.1 s for 3 s): within 2.5x
+    assert 3.0 / 2.5 <= cal.range_correlation_s <= 3.0 * 2.5
 
 
 def test_calibration_finds_heading_error_that_grows_with_the_turns():

@@ -18,12 +18,12 @@ from vehicle.estimators import known_map
 RUNS, SAMPLES_FROM_S = 12, 20
 
 
-def _config(seed: int, **replay) -> object:
+def _config(seed: int, sensors: dict | None = None, **replay) -> object:
     """The synthetic data set's own noise as the datasheet (the filter's nominal model)."""
     return build_config({
         "world": {"vehicles": 1, "seed": seed}, "clock": {"duration_s": 80.0, "tick_s": 0.02},
         "sensors": {"odom_speed_sigma_mps": 0.05, "odom_yaw_rate_sigma_radps": 0.1, "range_sigma_m": 0.1,
-                    "bearing_sigma_rad": 0.02, "prior_sigma_m": 0.05, "prior_heading_sigma_rad": 0.02},
+                    "bearing_sigma_rad": 0.02, "prior_sigma_m": 0.05, "prior_heading_sigma_rad": 0.02, **(sensors or {})},
         "vehicle": {"estimator": "known-map", "cooperative": False,
                     "landmarks": [(int(i), float(x), float(y)) for i, x, y in LANDMARKS[:, :3]]},
         "replay": {"dataset": "synthetic", "robots": [1], "start_s": 20.0, "calibration_s": [0, 20], "odom_lag_s": 0.2,
@@ -38,6 +38,34 @@ def test_nees_is_inside_the_chi_square_band_over_seeded_runs():
         nees += rows[rows[:, 0] >= SAMPLES_FROM_S * 1e6, 2].tolist()
     low, high = chi2.ppf([0.025, 0.975], 3 * len(nees)) / len(nees)
     assert low <= np.mean(nees) <= high, (np.mean(nees), low, high)
+
+
+PERSISTING = {"range_correlated_sigma_per_m": 0.04, "range_correlation_s": 3.0, "odom_scale_prior_sigma": 0.1}
+
+
+def _persisting_errors_nees(sensors: dict) -> tuple[float, float, float]:
+    """ANEES and its 95 % band over seeded runs of a data set whose wheels are 6 % and -8 % off and
+    whose range errors persist (4 % of the range, 3 s), for a filter told ``sensors``."""
+    nees = []
+    for seed in range(RUNS):
+        data = synthetic(np.random.default_rng(200 + seed), robots=1, duration_s=101.0, range_sigma=0.0,
+                         range_sigma_per_m=0.015, range_correlated_per_m=0.04, range_correlation_s=3.0,
+                         odom_scale=(0.06, -0.08), sighting_rate_hz=6.0)
+        config = _config(seed, sensors, sighting_sigmas=[[float(np.hypot(0.015, 0.04)), 0.02]])
+        rows = replay_in_memory(config, data, every_us=10_000_000)[1]
+        nees += rows[rows[:, 0] >= SAMPLES_FROM_S * 1e6, 2].tolist()
+    low, high = chi2.ppf([0.025, 0.975], 3 * len(nees)) / len(nees)
+    return float(np.mean(nees)), float(low), float(high)
+
+
+def test_persisting_errors_modelled_keep_nees_inside_the_band():
+    anees, low, high = _persisting_errors_nees(PERSISTING)
+    assert low <= anees <= high, (anees, low, high)
+
+
+def test_persisting_errors_taken_as_white_make_the_filter_overconfident():
+    anees, _, high = _persisting_errors_nees({})  # the control: the same data, nothing modelled
+    assert anees > 2 * high, anees
 
 
 class _WrongPrior(known_map.KnownMapEkf):

@@ -1,0 +1,80 @@
+"""States a filter adds after its pose for errors of its sensors that persist in time: the wheel
+odometry's scale errors and the camera's time-correlated range errors (``known-map``). Pure
+functions on (x (n,), P (n, n)).
+
+Odometry scale: the robot moves at (1 + k_v) times the speed and (1 + k_w) times the yaw rate its
+odometry reports (Thrun et al., Probabilistic Robotics, 5.4: systematic odometry error; estimated
+as states, as in odometry self-calibration). Range error: a sighting reads range r (1 + s_l) + white
+noise, s_l a first-order Gauss-Markov process per landmark (stationary sigma sigma_s, correlation
+time tau): x_{k+1} = phi x_k + w, phi = exp(-dt / tau), var(w) = sigma_s^2 (1 - phi^2).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def append_states(x: np.ndarray, P: np.ndarray, variances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x (n,), P (n, n) grown by len(variances) states at 0, uncorrelated, with those variances."""
+    k = len(variances)
+    grown = np.zeros((len(x) + k, len(x) + k))
+    grown[:len(x), :len(x)] = P
+    grown[len(x):, len(x):] = np.diag(variances)
+    return np.concatenate([x, np.zeros(k)]), grown
+
+
+def drop_states(x: np.ndarray, P: np.ndarray, indices: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """x, P with the states at ``indices`` marginalized out (a Gaussian's marginal: rows and
+    columns deleted)."""
+    keep = np.setdiff1d(np.arange(len(x)), indices)
+    return x[keep], P[np.ix_(keep, keep)]
+
+
+def scaled_steps(steps: list[tuple[float, float, float]] | None, k_speed: float,
+                 k_rate: float) -> list[tuple[float, float, float]] | None:
+    """Input pieces [(dt s, speed m/s, yaw rate rad/s)] as the robot really moved them."""
+    if not steps:
+        return steps
+    return [(dt, v * (1.0 + k_speed), w * (1.0 + k_rate)) for dt, v, w in steps]
+
+
+def scale_jacobian(theta: float, speed: float, rate: float, dt: float, k_speed: float, k_rate: float) -> np.ndarray:
+    """d [x, y, theta] / d [k_v, k_w] (3, 2) of one midpoint motion step with the reported
+    ``speed`` (m/s) and ``rate`` (rad/s) over ``dt`` (s)."""
+    true_speed, true_rate = speed * (1.0 + k_speed), rate * (1.0 + k_rate)
+    mid = theta + 0.5 * true_rate * dt
+    c, s = math.cos(mid), math.sin(mid)
+    half_turn = 0.5 * rate * dt * true_speed * dt  # d mid / d k_w times the chord
+    return np.array([[speed * dt * c, -half_turn * s],
+                     [speed * dt * s, half_turn * c],
+                     [0.0, rate * dt]])
+
+
+def gauss_markov(dt: float, tau: float, sigma: float) -> tuple[float, float]:
+    """phi and the process noise variance of one step of a first-order Gauss-Markov state."""
+    phi = math.exp(-dt / tau)
+    return phi, sigma * sigma * (1.0 - phi * phi)
+
+
+def propagate(P: np.ndarray, F_head: np.ndarray, Q_head: np.ndarray, coupling: np.ndarray | None,
+              scale_walk_var: float, decay: float, decay_var: float, first_decaying: int) -> np.ndarray:
+    """P (n, n) after one motion step of a state laid out [head (h), scale states (c), decaying
+    states (from ``first_decaying`` on)]: the head moves by F_head (h, h) with noise Q_head and
+    depends on the scale states through ``coupling`` (h, c) (None: no scale states); the scale
+    states random-walk with ``scale_walk_var`` each; the decaying states decay by ``decay`` with
+    ``decay_var`` noise each. Written as the full F P F^T + Q (n stays below ~25)."""
+    n, h = len(P), len(F_head)
+    F = np.eye(n)
+    F[:h, :h] = F_head
+    scales = np.arange(h, h + (0 if coupling is None else coupling.shape[1]))
+    if coupling is not None:
+        F[:h, scales] = coupling
+    decaying = np.arange(first_decaying, n)
+    F[decaying, decaying] = decay
+    out = F @ P @ F.T
+    out[:h, :h] += Q_head
+    out[scales, scales] += scale_walk_var
+    out[decaying, decaying] += decay_var
+    return 0.5 * (out + out.T)
