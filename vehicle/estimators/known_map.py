@@ -102,21 +102,17 @@ class KnownMapEkf(UnicycleEkf):
         if where is None:
             self.unknown_landmarks += 1
             return
+        state = self._range_state(msg.landmark_id, msg.stamp_us) if self._range_sigma else None
         predicted, H_pose, _ = slam.observe(np.concatenate([self.x[:3], where]), 3, 0)
+        H = np.zeros((2, len(self.x)))
+        H[:, :3] = H_pose
         R = np.array(msg.covariance, dtype=float)
-        if self._range_sigma:
-            state = self._range_state(msg.landmark_id, msg.stamp_us)
+        if state is not None:  # range read = r (1 + s_l) + white (vehicle.added_states)
             stretch = 1.0 + self.x[state]
-            H = np.zeros((2, len(self.x)))
-            H[:, :3] = H_pose
             H[0, :3] *= stretch
             H[0, state] = predicted[0]
-            correlated = (self._range_sigma * predicted[0]) ** 2
-            R[0, 0] = max(R[0, 0] - correlated, WHITE_FLOOR * R[0, 0])
+            R[0, 0] = max(R[0, 0] - (self._range_sigma * predicted[0]) ** 2, WHITE_FLOOR * R[0, 0])
             predicted = np.array([predicted[0] * stretch, predicted[1]])
-        else:
-            H = np.zeros((2, len(self.x)))
-            H[:, :3] = H_pose
         y = np.array([msg.range_m - predicted[0], wrap_angle(msg.bearing_rad - predicted[1])])
         self.x, self.P, result = gated_update(self.x, self.P, y, H, R, self._landmark_gate)
         self.x[2] = wrap_angle(self.x[2])
