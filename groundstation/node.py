@@ -286,6 +286,7 @@ class GroundStation:
         is served first, so acknowledging on receipt would let a backlog of estimates grow without
         bound behind it (lockstep backpressure, and what a killed ground station loses)."""
         if self._ack_due is not None and self.mailbox.empty():
+            self.run.flush()  # what is scored is on disk before the world may move on: a crash loses only what is not
             self._ack_pub.put(m.encode(m.GroundStationAck(self._ack_due)))
             self._ack_due = None
 
