@@ -46,7 +46,8 @@ LAG_STEP_S, MAX_LAG_S = 0.01, 0.5
 RATE_STEP_S = 0.02  # Vicon differentiated over this
 WINDOW_S = 5.0
 MOVING_MPS = 0.01  # windows where the robot is commanded to stand still say nothing about its wheels
-LAG_EDGES_S = np.array([0.1, 0.5, 1.0, 2.0, 4.0])  # lag bins of the range error's correlation: short lags, where pairs are many and tell most
+# lag bins of the range error's correlation: short lags only, where pairs are many and tell most
+LAG_EDGES_S = np.array([0.1, 0.5, 1.0, 2.0, 4.0])
 MAX_CORRELATED_FRACTION = 0.95  # some of the range error is always left white
 MIN_RANGE_M = 0.5  # closer, a relative range error says more about the truth's interpolation than the camera
 
@@ -104,6 +105,20 @@ def _inliers(residuals: np.ndarray) -> np.ndarray:
     return np.abs(residuals - centre) <= OUTLIER_SIGMAS * max(spread, 1e-9)
 
 
+def _lag_products(t: np.ndarray, e: np.ndarray, sums: np.ndarray, counts: np.ndarray, lags: np.ndarray) -> None:
+    """Add to the per-bin sums the products e_i e_j, counts and lags of the pairs of one landmark's
+    sightings (times t (k,) s, sorted; errors e (k,)) whose lag falls in a LAG_EDGES_S bin."""
+    for step in range(1, len(t)):
+        lag = t[step:] - t[:-step]
+        if lag.min() > LAG_EDGES_S[-1]:
+            return
+        bins = np.digitize(lag, LAG_EDGES_S) - 1
+        inside = (bins >= 0) & (bins < len(sums))
+        np.add.at(sums, bins[inside], e[step:][inside] * e[:-step][inside])
+        np.add.at(counts, bins[inside], 1)
+        np.add.at(lags, bins[inside], lag[inside])
+
+
 def range_correlation(errors: list[np.ndarray]) -> tuple[float, float, float]:
     """(sigma, c, tau s) of the relative range error (error / true range): its RMS, and
     rho(lag) ~ c exp(-lag / tau) fitted to the correlation of pairs of sightings of one landmark by
@@ -112,22 +127,13 @@ def range_correlation(errors: list[np.ndarray]) -> tuple[float, float, float]:
     rel_all = rows[:, 3] / rows[:, 2]
     keep = _inliers(rel_all)
     mean, var = float(np.mean(rel_all[keep])), float(np.var(rel_all[keep]))
-    sums, counts, lags = np.zeros(len(LAG_EDGES_S) - 1), np.zeros(len(LAG_EDGES_S) - 1), np.zeros(len(LAG_EDGES_S) - 1)
+    sums, counts, lags = (np.zeros(len(LAG_EDGES_S) - 1) for _ in range(3))
     for robot_rows in errors:
         rel = robot_rows[:, 3] / robot_rows[:, 2]
         ok = _inliers(rel) if len(rel) else np.zeros(0, bool)
         for subject in np.unique(robot_rows[ok, 1]):
             mine = ok & (robot_rows[:, 1] == subject)
-            t, e = robot_rows[mine, 0], rel[mine] - mean
-            for step in range(1, len(t)):
-                lag = t[step:] - t[:-step]
-                if lag.min() > LAG_EDGES_S[-1]:
-                    break
-                bins = np.digitize(lag, LAG_EDGES_S) - 1
-                inside = (bins >= 0) & (bins < len(sums))
-                np.add.at(sums, bins[inside], e[step:][inside] * e[:-step][inside])
-                np.add.at(counts, bins[inside], 1)
-                np.add.at(lags, bins[inside], lag[inside])
+            _lag_products(robot_rows[mine, 0], rel[mine] - mean, sums, counts, lags)
     rho = sums / np.maximum(counts, 1) / max(var, 1e-12)
     usable = (counts >= 20) & (rho > 3.0 / np.sqrt(np.maximum(counts, 1)))  # 3 standard errors of no correlation
     if usable.sum() < 2:

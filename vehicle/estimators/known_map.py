@@ -79,13 +79,12 @@ class KnownMapEkf(UnicycleEkf):
             return
         b, coupling = self.base_dim, None
         if self._scale_sigma:
-            k_speed = float(self.x[b])
-            k_rate = 0.0 if noise.get("use_bias") else float(self.x[b + 1])  # a fresh gyro's rate is not the wheels'
+            wheel_rate = not noise.get("use_bias")  # a fresh gyro's rate is not the wheels'
+            k_speed, k_rate = float(self.x[b]), float(self.x[b + 1]) if wheel_rate else 0.0
             noise["steps"] = added_states.scaled_steps(noise.get("steps"), k_speed, k_rate)
             coupling = np.zeros((b, 2))
             coupling[:3] = added_states.scale_jacobian(float(self.x[2]), speed, rate, dt, k_speed, k_rate)
-            if noise.get("use_bias"):
-                coupling[:, 1] = 0.0
+            coupling[:, 1] *= wheel_rate
             speed, rate = speed * (1.0 + k_speed), rate * (1.0 + k_rate)
         head, F, Q = self._motion(speed, rate, dt, **noise)
         decay, decay_var = added_states.gauss_markov(dt, self._range_tau, self._range_sigma)
