@@ -26,7 +26,9 @@ def _numbers(text: str, what: str, kind=int) -> tuple:
 def mrclam(
     dataset: Path = typer.Argument(..., help="an MRCLAM data set (1-9): its directory or its .tar.xz"),
     robots: str = typer.Option("1,2,3,4,5", help="robots to replay, comma-separated; vehicle 1 is the first"),
-    estimator: str = typer.Option("known-map", help="dead-reckoning, known-map (the surveyed landmarks) or slam"),
+    estimator: str = typer.Option("known-map", help="dead-reckoning, known-map (the surveyed landmarks), slam, or "
+                                  "centralized (the reference: one filter over every robot with the map and every "
+                                  "robot sighting, in this process, no bus)"),
     cooperative: bool = typer.Option(False, help="also fuse the robots' sightings of each other (covariance intersection)"),
     start: Optional[float] = typer.Option(None, help="data set second the replay starts [default: the calibration's end]"),
     duration: Optional[float] = typer.Option(None, help="seconds replayed [default: to the data set's end]"),
@@ -58,11 +60,37 @@ def mrclam(
         fail(f"--calibrate must be START,END in seconds, got {calibrate!r}")
     choice = ReplayChoice(str(dataset), _numbers(robots, "--robots"), estimator, cooperative, start, duration,
                           interval, _numbers(withhold_landmarks, "--withhold-landmarks"), seed)
+    if estimator == "centralized" and mode != "lockstep":
+        fail("the centralized reference runs in this process as fast as it can: --mode realtime does not apply")
     try:
         config = replay_config(choice, name=name or f"mrclam-{estimator}{'-coop' if cooperative else ''}",
                                overrides={"clock": {"mode": mode, "speed": speed}})
+        if estimator == "centralized":
+            _reference(config, out)
+            return
         run_dir, failures, notes = launch(config, out, show_progress=not quiet, stop=stop_on_signals(),
                                           secure=not insecure)
     except SwarmlocError as exc:
         fail(str(exc))
     _print_result(run_dir, failures, notes)
+
+
+def _reference(config, out: Path) -> None:
+    """The centralized reference on the replay: a run directory with config.json and reference.json
+    (per robot and swarm RMSE, max error, ANEES, in summary.json's shape), and the table printed."""
+    import json
+
+    from rich.console import Console
+
+    from groundstation.centralized_reference import run_centralized, tracks_summary
+    from groundstation.display import rmse_table
+    from groundstation.launcher import unique_run_dir
+
+    run_dir = unique_run_dir(out, config.name)
+    config.dump(run_dir / "config.json")
+    summary = {"name": config.name, "status": "finished", "reference": "centralized", "seed": config.world.seed,
+               "duration_s": config.clock.duration_s, **tracks_summary(run_centralized(config))}
+    (run_dir / "reference.json").write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
+    console = Console()
+    console.print(rmse_table(summary, title=f"{config.name}: centralized reference (one process, no bus)"))
+    console.print(f"run directory: {run_dir}")

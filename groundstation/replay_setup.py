@@ -5,7 +5,9 @@ vehicles, the datasheet calibrated on an interval of the data set that is then n
 Variants: ``dead-reckoning`` (the ``ekf`` on odometry alone), ``known-map`` (landmark sightings against
 the surveyed landmarks of ``Landmark_Groundtruth.dat``), ``slam`` (``ekf-slam``: the landmarks are
 mapped as they are seen); ``cooperative`` adds the robots' sightings of each other, fused with
-covariance intersection against the seen robot's broadcast estimate.
+covariance intersection against the seen robot's broadcast estimate. ``centralized`` is the
+reference (groundstation.centralized_reference): one filter over every robot, run in one process,
+with known-map's models, the surveyed landmarks and every robot-to-robot sighting fused exactly.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ from dataclasses import dataclass
 from bus.config import SwarmConfig, build_config
 from bus.errors import ConfigError
 
-ESTIMATORS = {"dead-reckoning": "ekf", "known-map": "known-map", "slam": "ekf-slam"}
+ESTIMATORS = {"dead-reckoning": "ekf", "known-map": "known-map", "slam": "ekf-slam", "centralized": "known-map"}
+USES_MAP = ("known-map", "centralized")
 PRIOR_SIGMA_M, PRIOR_HEADING_SIGMA_RAD = 0.05, 0.02  # the start pose, surveyed (the data set's Vicon)
 RATE_HZ = 50.0  # the vehicles' loop; the world's ticks and truth grid
 # The robots' wheel scales are not calibrated (the first minutes turn too little to tell a scale from
@@ -71,7 +74,7 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
                     "range_correlation_s": cal.range_correlation_s, "odom_scale_prior_sigma": ODOM_SCALE_PRIOR_SIGMA,
                     "prior_heading_sigma_rad": PRIOR_HEADING_SIGMA_RAD},
         "vehicle": {"estimator": ESTIMATORS[choice.estimator], "cooperative": choice.cooperative,
-                    "landmarks": landmarks if choice.estimator == "known-map" else []},
+                    "landmarks": landmarks if choice.estimator in USES_MAP else []},
         "replay": {"dataset": str(choice.dataset), "robots": list(choice.robots), "start_s": start,
                    "calibration_s": list(choice.calibration_s), "odom_lag_s": cal.odom_lag_s,
                    "sighting_sigmas": [list(pair) for pair in sighting_sigmas(data, choice.calibration_s, choice.robots)],

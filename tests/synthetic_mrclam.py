@@ -21,8 +21,9 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
               speed_sigma: float = 0.05, rate_sigma: float = 0.1, range_sigma: float = 0.1,
               bearing_sigma: float = 0.02, sighting_rate_hz: float = 3.0, turn_sigma: float = 0.0,
               odom_scale: tuple[float, float] = (0.0, 0.0), range_sigma_per_m: float = 0.0,
-              range_correlated_per_m: float = 0.0, range_correlation_s: float = 5.0) -> MrclamData:
-    logs = {}
+              range_correlated_per_m: float = 0.0, range_correlation_s: float = 5.0,
+              robot_sighting_rate_hz: float = 0.0) -> MrclamData:
+    logs, poses = {}, {}
     for robot in range(1, robots + 1):
         fine = np.arange(0.0, duration_s, 0.002)
         command_t = np.arange(0.0, duration_s, 0.015)
@@ -61,4 +62,27 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
                     noise += true_range * (error + rng.normal(0.0, range_sigma_per_m))
                 sightings.append([fine[k], LANDMARKS[j, 0], true_range + noise, bearing[j] + rng.normal(0, bearing_sigma)])
         logs[robot] = RobotLog(robot, truth, np.column_stack([command_t, commands]), np.array(sightings).reshape(-1, 4), 0)
+        poses[robot] = pose
+    if robot_sighting_rate_hz:  # drawn after everything else: the rest of the data is as without them
+        for robot, log in logs.items():
+            seen = _robot_sightings(rng, poses, robot, duration_s, robot_sighting_rate_hz, range_sigma, bearing_sigma)
+            both = np.vstack([log.sightings, seen])
+            logs[robot] = RobotLog(robot, log.groundtruth, log.odometry, both[np.argsort(both[:, 0], kind="stable")], 0)
     return MrclamData(logs, LANDMARKS, 0.0)
+
+
+def _robot_sightings(rng: np.random.Generator, poses: dict[int, np.ndarray], robot: int, duration_s: float,
+                     rate_hz: float, range_sigma: float, bearing_sigma: float) -> np.ndarray:
+    """Rows [t, subject, range, bearing] of ``robot`` seeing the other robots (subjects 1-5) within
+    0.5 rad of its heading, white noise, at ``rate_hz`` attempts a second."""
+    rows = []
+    for t in np.sort(rng.uniform(1.0, duration_s, int(rate_hz * duration_s))):
+        k = int(t / 0.002)
+        x, y, th = poses[robot][k]
+        for other, pose in poses.items():
+            dx, dy = pose[k, 0] - x, pose[k, 1] - y
+            bearing = (np.arctan2(dy, dx) - th + np.pi) % (2 * np.pi) - np.pi
+            if other != robot and abs(bearing) < 0.5:
+                rows.append([k * 0.002, other, np.hypot(dx, dy) + rng.normal(0, range_sigma),
+                             bearing + rng.normal(0, bearing_sigma)])
+    return np.array(rows).reshape(-1, 4)

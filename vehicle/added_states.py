@@ -58,23 +58,22 @@ def gauss_markov(dt: float, tau: float, sigma: float) -> tuple[float, float]:
     return phi, sigma * sigma * (1.0 - phi * phi)
 
 
-def propagate(P: np.ndarray, F_head: np.ndarray, Q_head: np.ndarray, coupling: np.ndarray | None,
-              scale_walk_var: float, decay: float, decay_var: float, first_decaying: int) -> np.ndarray:
-    """P (n, n) after one motion step of a state laid out [head (h), scale states (c), decaying
+def transition(n: int, F_head: np.ndarray, Q_head: np.ndarray, coupling: np.ndarray | None,
+               scale_walk_var: float, decay: float, decay_var: float, first_decaying: int) -> tuple[np.ndarray, np.ndarray]:
+    """F and Q (n, n) of one motion step of a state laid out [head (h), scale states (c), decaying
     states (from ``first_decaying`` on)]: the head moves by F_head (h, h) with noise Q_head and
     depends on the scale states through ``coupling`` (h, c) (None: no scale states); the scale
     states random-walk with ``scale_walk_var`` each; the decaying states decay by ``decay`` with
-    ``decay_var`` noise each. Written as the full F P F^T + Q (n stays below ~25)."""
-    n, h = len(P), len(F_head)
-    F = np.eye(n)
+    ``decay_var`` noise each. Written as full matrices (n stays below ~25)."""
+    h = len(F_head)
+    F, Q = np.eye(n), np.zeros((n, n))
     F[:h, :h] = F_head
+    Q[:h, :h] = Q_head
     scales = np.arange(h, h + (0 if coupling is None else coupling.shape[1]))
     if coupling is not None:
         F[:h, scales] = coupling
     decaying = np.arange(first_decaying, n)
     F[decaying, decaying] = decay
-    out = F @ P @ F.T
-    out[:h, :h] += Q_head
-    out[scales, scales] += scale_walk_var
-    out[decaying, decaying] += decay_var
-    return 0.5 * (out + out.T)
+    Q[scales, scales] = scale_walk_var
+    Q[decaying, decaying] = decay_var
+    return F, Q

@@ -4,15 +4,19 @@ decentralized filters cannot keep (so no Covariance Intersection is needed: noth
 twice). It is the accuracy yardstick of the decentralized variants, not a vehicle: it runs in one
 process next to the pure world (``swarm experiment cooperative``).
 
-Joint state X = [x_1 ... x_N] with x_i = [x, y, theta, gyro_bias] (4N,), each block grown by the
-two GNSS error states when the datasheet has a correlated GNSS error (vehicle.gnss_error; 6N). Each vehicle's motion is the
-vehicle EKF's own (``vehicle.unicycle_ekf``: the same held inputs, the same F and Q), applied to its
-block of P and to its cross-covariances: P[i, :] <- F_i P[i, :], P[:, i] <- P[:, i] F_i^T, P[i, i] += Q_i.
-Blocks may stand at different times: process noise is independent between vehicles, so the joint
-covariance stays exact as long as every block a measurement involves is first propagated to its
-stamp. GNSS observes [x_i, y_i]; ranging observes the range and bearing of j seen from i (paper eq.
-4.1), H = [dh/dx_i, dh/dp_j] on both blocks.
-GNSS fixes are modelled as on the vehicle (position plus error states, the white part of the noise). Every update is behind the vehicles' chi-square gate.
+Joint state X = [x_1 ... x_N], each block x_i the state of one vehicle estimator (``ekf``:
+[x, y, theta, gyro_bias], grown by the two GNSS error states when the datasheet has a correlated
+GNSS error (vehicle.gnss_error); ``known-map``: also its odometry scale states and the range-error
+states of the landmarks in view, so a block grows and shrinks). Each block keeps its vehicle
+estimator's own models and book-keeping (the same held inputs, F and Q, sighting model, gate and
+re-localization), and their effect lands on the joint covariance: a motion step P[i, :] <- F_i P[i, :],
+P[:, i] <- P[:, i] F_i^T, P[i, i] += Q_i; an update by H over block i with the joint gain, so the
+other blocks move through their cross-covariances; added states uncorrelated, dropped states
+marginalized. Blocks may stand at different times: process noise is independent between vehicles,
+so the joint covariance stays exact as long as every block a measurement involves is first
+propagated to its stamp. GNSS observes [x_i, y_i] as on the vehicle (position plus error states, the
+white part of the noise); ranging observes the range and bearing of j seen from i (paper eq. 4.1),
+H = [dh/dx_i, dh/dp_j] on both blocks. Every update is behind the vehicles' chi-square gate.
 
 Pure: no bus, no clock.
 """
@@ -26,45 +30,74 @@ import numpy as np
 from bus import messages as m
 from bus.angles import wrap_angle
 from bus.config import SensorSpec
+from vehicle import added_states
 from vehicle.cooperative import relative_model
 from vehicle.ekf import UpdateResult, gate_threshold, gated_update
 from vehicle.estimators.ekf import UnicycleEkf
 
 
-class _VehicleMotion(UnicycleEkf):
-    """One vehicle's inputs (held and integrated exactly as on the vehicle); its prediction moves
-    the mean and leaves F and Q for the joint covariance instead of a private one."""
+class _JointBlock:
+    """Mixin of a vehicle estimator whose (x, P) is one block of a :class:`CentralizedEkf`: it keeps
+    its own models (motion, sightings, added states) and book-keeping, while its motion steps,
+    updates, added or dropped states and spread resets act on the joint state, cross-covariances
+    included. Its ``x`` and ``P`` are the block's, refreshed after each of those."""
 
-    motion: tuple[np.ndarray, np.ndarray] | None = None
+    fast_predict = False
+    joint: "CentralizedEkf"
 
-    def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
-        self.x, F, Q = self._motion(speed, rate, dt, **noise)
-        self.motion = (F, Q)
+    def _apply_motion(self, F: np.ndarray, Q: np.ndarray) -> None:
+        self.joint._move_block(self.vehicle_id, F, Q)
+
+    def _fuse(self, y: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> UpdateResult:
+        return self.joint._update_block(self.vehicle_id, y, H, R, gate)
+
+    def _append_states(self, variances: np.ndarray) -> None:
+        self.joint._grow_block(self.vehicle_id, variances)
+        self.state_dim = len(self.x)
+
+    def _drop_states(self, indices: list[int]) -> None:
+        self.joint._shrink_block(self.vehicle_id, indices)
+        self.state_dim = len(self.x)
+
+    def _set_spread(self, indices: list[int], variances: np.ndarray) -> None:
+        self.joint._spread_block(self.vehicle_id, indices, variances)
+
+
+def _joint_block_class(estimator: type[UnicycleEkf]) -> type:
+    return type(f"Joint{estimator.__name__}", (_JointBlock, estimator), {})
 
 
 class CentralizedEkf:
     """EKF over every vehicle of ``vehicle_ids`` (module docstring). Feed it every vehicle's samples
-    in stamp order (``handle``) and call ``cycle(t_us)`` once per loop period."""
+    in stamp order (``handle``) and call ``cycle(t_us)`` once per loop period. ``estimator`` is the
+    vehicle estimator whose models each block uses (``ekf``, or ``known-map`` with its
+    ``landmarks``)."""
 
-    def __init__(self, vehicle_ids: list[int], *, spec: SensorSpec, gate_probability: float) -> None:
+    def __init__(self, vehicle_ids: list[int], *, spec: SensorSpec, gate_probability: float,
+                 estimator: type[UnicycleEkf] = UnicycleEkf, **estimator_arguments: Any) -> None:
         self.vehicle_ids = list(vehicle_ids)
-        self._index = {vid: k for k, vid in enumerate(self.vehicle_ids)}
-        self._motion = {vid: _VehicleMotion(vehicle_id=vid, spec=spec, gate_probability=gate_probability,
-                                            altitude_m=0.0) for vid in self.vehicle_ids}
-        self._block_dim = next(iter(self._motion.values())).state_dim if self._motion else 4
-        n = self._block_dim * len(self.vehicle_ids)
-        self.x = np.zeros(n)
-        self.P = np.zeros((n, n))
+        block_class = _joint_block_class(estimator)
+        self._vehicles = {vid: block_class(vehicle_id=vid, spec=spec, gate_probability=gate_probability,
+                                           altitude_m=0.0, **estimator_arguments) for vid in self.vehicle_ids}
+        for vehicle in self._vehicles.values():
+            vehicle.joint = self
+        self._dims = {vid: 0 for vid in self.vehicle_ids}  # each block's size; 0 before its prior
+        self.x = np.zeros(0)
+        self.P = np.zeros((0, 0))
         self._gate = gate_threshold(2, gate_probability)
         self.accepted, self.rejected = 0, 0
 
     def block(self, vehicle_id: int) -> slice:
-        k = self._index[vehicle_id]
-        return slice(self._block_dim * k, self._block_dim * (k + 1))
+        start = 0
+        for vid in self.vehicle_ids:
+            if vid == vehicle_id:
+                return slice(start, start + self._dims[vid])
+            start += self._dims[vid]
+        raise KeyError(vehicle_id)
 
     @property
     def initialized(self) -> bool:
-        return all(v.initialized for v in self._motion.values())
+        return all(v.initialized for v in self._vehicles.values())
 
     def pose(self, vehicle_id: int) -> tuple[np.ndarray, np.ndarray]:
         """Pose estimate (3,) [m, m, rad] and its covariance (3, 3) of one vehicle."""
@@ -72,53 +105,108 @@ class CentralizedEkf:
         return self.x[s][:3].copy(), self.P[s, s][:3, :3].copy()
 
     def handle(self, topic: str, msg: Any) -> None:
-        """One sample of any vehicle; unknown vehicles, and anything before every prior, are ignored."""
-        motion = self._motion.get(msg.vehicle_id)
-        if motion is None:
+        """One sample of any vehicle; unknown vehicles, and a vehicle's samples before its prior, are ignored."""
+        vehicle = self._vehicles.get(msg.vehicle_id)
+        if vehicle is None:
             return
         if isinstance(msg, m.PosePrior):
-            motion.handle(topic, msg)
-            s = self.block(msg.vehicle_id)
-            self.x[s], self.P[s, :], self.P[:, s] = motion.x, 0.0, 0.0
-            self.P[s, s] = motion.P
-        elif not self.initialized:
+            vehicle.handle(topic, msg)
+            self._replace_block(msg.vehicle_id, vehicle.x, vehicle.P)
+        elif not vehicle.initialized:
             return
-        elif isinstance(msg, (m.ImuSample, m.WheelOdometry)):
-            motion.handle(topic, msg)
         elif isinstance(msg, m.GnssFix):
             self._propagate(msg.vehicle_id, msg.stamp_us)
             self._gnss_update(msg)
-        elif isinstance(msg, m.RangeBearing) and msg.target_id in self._index and msg.target_id != msg.vehicle_id:
-            self._propagate(msg.vehicle_id, msg.stamp_us)
-            self._propagate(msg.target_id, msg.stamp_us)
-            self._ranging_update(msg)
+        elif isinstance(msg, m.RangeBearing):
+            target = self._vehicles.get(msg.target_id)
+            if target is not None and target.initialized and target is not vehicle:
+                self._propagate(msg.vehicle_id, msg.stamp_us)
+                self._propagate(msg.target_id, msg.stamp_us)
+                self._ranging_update(msg)
+        else:  # inputs, and what the vehicle's own estimator models (landmark sightings)
+            vehicle.handle(topic, msg)
+            self._pull(msg.vehicle_id)
 
     def cycle(self, t_us: int) -> None:
-        """Propagate every vehicle to ``t_us``."""
-        if self.initialized:
-            for vid in self.vehicle_ids:
+        """Propagate every vehicle (that has its prior) to ``t_us``."""
+        for vid, vehicle in self._vehicles.items():
+            if vehicle.initialized:
                 self._propagate(vid, t_us)
 
     def _propagate(self, vehicle_id: int, t_us: int) -> None:
-        motion, s = self._motion[vehicle_id], self.block(vehicle_id)
-        motion.x, motion.motion = self.x[s].copy(), None
-        motion._propagate_to(t_us)
-        if motion.motion is None:
-            return
-        F, Q = motion.motion
-        self.x[s] = motion.x
+        self._vehicles[vehicle_id]._propagate_to(t_us)
+        self._pull(vehicle_id)
+
+    def _pull(self, vehicle_id: int) -> None:
+        """The block's mean from its vehicle estimator (which moves it between joint operations)."""
+        self.x[self.block(vehicle_id)] = self._vehicles[vehicle_id].x
+
+    def _push(self, vehicle_id: int) -> None:
+        """The block's mean and covariance back to its vehicle estimator."""
+        s, vehicle = self.block(vehicle_id), self._vehicles[vehicle_id]
+        vehicle.x, vehicle.P = self.x[s].copy(), self.P[s, s].copy()
+
+    def _replace_block(self, vehicle_id: int, x: np.ndarray, P: np.ndarray) -> None:
+        """A fresh block (a prior): uncorrelated with every other."""
+        s = self.block(vehicle_id)
+        keep = np.r_[0:s.start, s.stop:len(self.x)]
+        at, n = s.start, len(x)
+        self.x = np.concatenate([self.x[:at], x, self.x[s.stop:]])
+        grown = np.zeros((len(keep) + n, len(keep) + n))
+        others = np.r_[0:at, at + n:len(grown)]
+        grown[np.ix_(others, others)] = self.P[np.ix_(keep, keep)]
+        grown[at:at + n, at:at + n] = P
+        self.P, self._dims[vehicle_id] = grown, n
+        self._push(vehicle_id)
+
+    def _move_block(self, vehicle_id: int, F: np.ndarray, Q: np.ndarray) -> None:
+        """One motion step of a block: P[i, :] <- F P[i, :], P[:, i] <- P[:, i] F^T, P[i, i] += Q."""
+        s = self.block(vehicle_id)
         self.P[s, :] = F @ self.P[s, :]
         self.P[:, s] = self.P[:, s] @ F.T
         self.P[s, s] += Q
+        self.P[s, s] = 0.5 * (self.P[s, s] + self.P[s, s].T)
+        self._vehicles[vehicle_id].P = self.P[s, s].copy()
+
+    def _grow_block(self, vehicle_id: int, variances: np.ndarray) -> None:
+        """States at 0 with these variances after the block's last, uncorrelated."""
+        self._pull(vehicle_id)
+        at, k = self.block(vehicle_id).stop, len(variances)
+        self.x = np.insert(self.x, at, np.zeros(k))
+        self.P = np.insert(np.insert(self.P, [at] * k, 0.0, axis=0), [at] * k, 0.0, axis=1)
+        self.P[at:at + k, at:at + k] = np.diag(variances)
+        self._dims[vehicle_id] += k
+        self._push(vehicle_id)
+
+    def _shrink_block(self, vehicle_id: int, indices: list[int]) -> None:
+        """The block's states at ``indices`` (within the block) marginalized out."""
+        self._pull(vehicle_id)
+        s = self.block(vehicle_id)
+        self.x, self.P = added_states.drop_states(self.x, self.P, [s.start + i for i in indices])
+        self._dims[vehicle_id] -= len(indices)
+        self._push(vehicle_id)
+
+    def _spread_block(self, vehicle_id: int, indices: list[int], variances: np.ndarray) -> None:
+        """The block's states at ``indices`` uncorrelated with every joint state, with these variances."""
+        rows = [self.block(vehicle_id).start + i for i in indices]
+        self.P[rows, :] = 0.0
+        self.P[:, rows] = 0.0
+        self.P[rows, rows] = variances
+        self._push(vehicle_id)
+
+    def _update_block(self, vehicle_id: int, y: np.ndarray, H_block: np.ndarray, R: np.ndarray, gate: float
+                      ) -> UpdateResult:
+        """A vehicle estimator's own update (H over its block) on the joint state."""
+        self._pull(vehicle_id)
+        s = self.block(vehicle_id)
+        H = np.zeros((len(y), len(self.x)))
+        H[:, s] = H_block
+        return self._update(y, H, R, gate)
 
     def _gnss_update(self, fix: m.GnssFix) -> None:
         """A fix on one block, modelled as the vehicle models it."""
-        motion, s = self._motion[fix.vehicle_id], self.block(fix.vehicle_id)
-        motion.x = self.x[s]
-        predicted, H_block, R = motion.gnss_model(fix.covariance_m2)
-        H = np.zeros((2, len(self.x)))
-        H[:, s] = H_block
-        self._update(fix.position_m - predicted, H, R)
+        predicted, H, R = self._vehicles[fix.vehicle_id].gnss_model(fix.covariance_m2)
+        self._update_block(fix.vehicle_id, fix.position_m - predicted, H, R, self._gate)
 
     def _ranging_update(self, msg: m.RangeBearing) -> None:
         """Range and bearing of ``target_id`` seen from ``vehicle_id`` (paper eq. 4.1) on both blocks."""
@@ -128,12 +216,16 @@ class CentralizedEkf:
         H[:, si] = H_i
         H[:, sj.start:sj.start + 2] = H_j
         y = np.array([msg.range_m - predicted[0], wrap_angle(msg.bearing_rad - predicted[1])])
-        self._update(y, H, msg.covariance)
+        self._update(y, H, msg.covariance, self._gate)
 
-    def _update(self, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> UpdateResult:
-        self.x, self.P, result = gated_update(self.x, self.P, y, H, R, self._gate)
-        heading = self.x[2::self._block_dim]
-        self.x[2::self._block_dim] = (heading + np.pi) % (2.0 * np.pi) - np.pi
+    def _update(self, y: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> UpdateResult:
+        """A joint gated update; every block moves (through its cross-covariances), so all are pushed."""
+        self.x, self.P, result = gated_update(self.x, self.P, y, H, R, gate)
+        for vid in self.vehicle_ids:
+            if self._dims[vid]:
+                heading = self.block(vid).start + 2
+                self.x[heading] = wrap_angle(self.x[heading])
+                self._push(vid)
         self.accepted += int(result.accepted)
         self.rejected += int(not result.accepted)
         return result

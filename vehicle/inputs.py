@@ -3,8 +3,13 @@
 A sampled input (odometry speed, gyro rate) is held from one sample to the next (zero-order hold).
 Over a propagation interval [t0, t1] the filter needs its mean, sum(v_i o_i) / dt, where o_i is
 how long sample i was held inside the interval, and the variance of that mean for a sample noise
-sigma: sigma^2 sum(o_i^2) / dt^2 (independent sample noise; one sample held over the whole
-interval gives sigma^2, n evenly spread samples sigma^2 / n).
+sigma (independent between samples): sigma^2 sum(o_i h_i) / dt^2, h_i the whole hold of sample i.
+A sample held across a propagation boundary carries one error into both intervals: its pieces o
+and h - o add sigma^2 h^2 in total, as the one error held for h does (sum(o_i^2) would count only
+o^2 + (h - o)^2, as little as half, and make a filter cycling at a rate that does not divide the
+input's overconfident). A hold still open at the close counts the longer of the time since its
+sample and the previous hold. One sample held over the whole interval gives sigma^2, n evenly
+spread samples sigma^2 / n.
 """
 
 from __future__ import annotations
@@ -21,7 +26,8 @@ class HeldInput:
     start_us: int = 0                # time of the last close (propagation)
     _segment_us: int = 0             # start of the current hold inside the interval
     _integral: float = 0.0           # value x us
-    _sq_us2: float = 0.0             # sum of squared hold durations of closed segments (us^2)
+    _sq_us2: float = 0.0             # sum of o_i h_i of closed segments (us^2): see the module docstring
+    _last_hold_us: int = 0           # the previous sample's whole hold
     segments: list = None            # (duration us, value) of the closed holds of the last interval
 
     def __post_init__(self) -> None:
@@ -31,8 +37,9 @@ class HeldInput:
         """A new sample at ``stamp_us`` (>= the last close); it is held from now on."""
         if self.value is not None:
             held = stamp_us - self._segment_us
+            self._last_hold_us = stamp_us - self.stamp_us
             self._integral += self.value * held
-            self._sq_us2 += float(held) * held
+            self._sq_us2 += float(held) * self._last_hold_us
             if held > 0:
                 self._open.append((held, self.value))
         self._segment_us = max(stamp_us, self.start_us)
@@ -49,14 +56,15 @@ class HeldInput:
             return 0.0, 1.0
         held = t_us - self._segment_us
         integral = self._integral + self.value * held
-        sq = self._sq_us2 + float(held) * held
+        sq = self._sq_us2 + float(held) * max(t_us - self.stamp_us, self._last_hold_us)
         self.segments = self._open + ([(held, self.value)] if held > 0 else [])
         self.restart(t_us)
         return integral / dt, sq / (float(dt) * dt)
 
     def copy(self) -> "HeldInput":
         """An independent copy (for the fusion horizon's checkpoints)."""
-        twin = HeldInput(self.value, self.stamp_us, self.start_us, self._segment_us, self._integral, self._sq_us2)
+        twin = HeldInput(self.value, self.stamp_us, self.start_us, self._segment_us, self._integral, self._sq_us2,
+                         self._last_hold_us)
         twin.segments, twin._open = list(self.segments), list(self._open)
         return twin
 

@@ -19,6 +19,7 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
 from bus import messages as m
+from bus.angles import wrap_angle
 from bus.config import SensorSpec
 from bus.mavlink_codec import EstimatorStatus, StateEstimate
 from vehicle import unicycle_ekf as ekf
@@ -26,7 +27,7 @@ from vehicle.adaptive import NoiseAdaptation
 from vehicle.alignment import GnssAlignment
 from vehicle.cooperative import CooperativeFix, CooperativeRule, Correction, apply_correction
 from vehicle.gnss_error import GnssErrorModel, aligned_covariance, augment_motion, observation
-from vehicle.ekf import UpdateResult, gate_threshold
+from vehicle.ekf import UpdateResult, gate_threshold, gated_update
 from vehicle.estimators.base import SEVERITY_INFO, SEVERITY_WARNING, EstimatorCounters, Notice
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 from vehicle.inputs import HeldInput, swept
@@ -45,6 +46,7 @@ class UnicycleEkf:
     name = "ekf"
     unscented_fixes = False  # range and bearing of cooperative fixes through sigma points (ukf)
     models_gnss_error = True  # estimate the datasheet's correlated GNSS error (ekf-slam does not)
+    fast_predict = True  # ekf.predict_fast without GNSS error states; off: F and Q through _apply_motion
 
     def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
                  cooperative: CooperativeRule = CooperativeRule(), adaptive_window: int = 0) -> None:
@@ -175,12 +177,28 @@ class UnicycleEkf:
 
     def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
         """The motion step on (x, P) (ekf.predict_fast's arguments)."""
-        if self._gnss_error is None:
+        if self._gnss_error is None and self.fast_predict:
             self.x, self.P = ekf.predict_fast(self.x, self.P, speed, rate, dt, **noise)
             return
         self.x, F, Q = self._motion(speed, rate, dt, **noise)
+        self._apply_motion(F, Q)
+
+    def _apply_motion(self, F: np.ndarray, Q: np.ndarray) -> None:
+        """P <- F P F^T + Q, F and Q (n, n) of one motion step over the whole state."""
         P = F @ self.P @ F.T + Q
         self.P = 0.5 * (P + P.T)
+
+    def _fuse(self, y: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> UpdateResult:
+        """One gated EKF update with innovation y (m,), H (m, n), noise R (m, m); heading wrapped."""
+        self.x, self.P, result = gated_update(self.x, self.P, y, H, R, gate)
+        self.x[2] = wrap_angle(self.x[2])
+        return result
+
+    def _set_spread(self, indices: list[int], variances: np.ndarray) -> None:
+        """Give the states at ``indices`` these variances, uncorrelated with every other state."""
+        self.P[indices, :] = 0.0
+        self.P[:, indices] = 0.0
+        self.P[indices, indices] = variances
 
     def _motion(self, speed: float, rate: float, dt: float, **noise: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The new base state (base_dim,), F and Q (base_dim, base_dim) of one motion step: the unicycle's
@@ -226,9 +244,7 @@ class UnicycleEkf:
     def _reset_position(self, offset_m: np.ndarray, variance_m2: float) -> None:
         """Jump the position by ``offset_m`` (2,) with per-axis variance ``variance_m2``; decorrelate it."""
         self.x[:2] += offset_m
-        self.P[:2, 2:] = 0.0
-        self.P[2:, :2] = 0.0
-        self.P[:2, :2] = np.eye(2) * variance_m2
+        self._set_spread([0, 1], np.full(2, variance_m2))
         self.counters.resets += 1
 
     def cycle(self, t_us: int) -> None:

@@ -33,7 +33,7 @@ from bus import messages as m
 from bus.angles import wrap_angle
 from vehicle import added_states
 from vehicle import ekf_slam_core as slam
-from vehicle.ekf import gated_update, gate_threshold
+from vehicle.ekf import gate_threshold
 from vehicle.estimators.base import SEVERITY_WARNING, Notice
 from vehicle.estimators.ekf import UnicycleEkf
 
@@ -88,8 +88,8 @@ class KnownMapEkf(UnicycleEkf):
             speed, rate = speed * (1.0 + k_speed), rate * (1.0 + k_rate)
         head, F, Q = self._motion(speed, rate, dt, **noise)
         decay, decay_var = added_states.gauss_markov(dt, self._range_tau, self._range_sigma)
-        self.P = added_states.propagate(self.P, F, Q, coupling, SCALE_WALK_PER_RTSEC**2 * dt, decay, decay_var,
-                                        self._first_range_state)
+        self._apply_motion(*added_states.transition(len(self.x), F, Q, coupling, SCALE_WALK_PER_RTSEC**2 * dt, decay,
+                                                    decay_var, self._first_range_state))
         tail = self.x[b:].copy()
         tail[self._first_range_state - b:] *= decay
         self.x = np.concatenate([head, tail])
@@ -113,8 +113,7 @@ class KnownMapEkf(UnicycleEkf):
             R[0, 0] = max(R[0, 0] - (self._range_sigma * predicted[0]) ** 2, WHITE_FLOOR * R[0, 0])
             predicted = np.array([predicted[0] * stretch, predicted[1]])
         y = np.array([msg.range_m - predicted[0], wrap_angle(msg.bearing_rad - predicted[1])])
-        self.x, self.P, result = gated_update(self.x, self.P, y, H, R, self._landmark_gate)
-        self.x[2] = wrap_angle(self.x[2])
+        result = self._fuse(y, H, R, self._landmark_gate)
         if result.accepted:
             self.sightings_fused += 1
             self._failed_in_a_row = []
@@ -133,24 +132,30 @@ class KnownMapEkf(UnicycleEkf):
         horizon_us = FORGET_AFTER * self._range_tau * 1e6
         stale = [ident for ident in self._range_states if t_us - self._last_seen_us[ident] > horizon_us]
         if stale:
-            self.x, self.P = added_states.drop_states(self.x, self.P, [self._range_states[i] for i in stale])
+            self._drop_states([self._range_states[i] for i in stale])
             kept = sorted((index, ident) for ident, index in self._range_states.items() if ident not in stale)
             self._range_states = {ident: self._first_range_state + k for k, (_, ident) in enumerate(kept)}
             for ident in stale:
                 del self._last_seen_us[ident]
         self._range_states[landmark_id] = len(self.x)
-        self.x, self.P = added_states.append_states(self.x, self.P, np.array([self._range_sigma**2]))
-        self.state_dim = len(self.x)
+        self._append_states(np.array([self._range_sigma**2]))
         return self._range_states[landmark_id]
+
+    def _append_states(self, variances: np.ndarray) -> None:
+        """States at 0 with these variances after the last one (added_states.append_states)."""
+        self.x, self.P = added_states.append_states(self.x, self.P, variances)
+        self.state_dim = len(self.x)
+
+    def _drop_states(self, indices: list[int]) -> None:
+        """The states at ``indices`` marginalized out (added_states.drop_states)."""
+        self.x, self.P = added_states.drop_states(self.x, self.P, indices)
+        self.state_dim = len(self.x)
 
     def _relocalize(self, t_us: int) -> None:
         """Widen the pose's spread so the map can pull it back (see the module docstring)."""
         failed = len(self._failed_in_a_row)
         self._failed_in_a_row = []
-        variances = np.diagonal(self.P)[:3] + RELOCALIZE_SIGMA**2
-        self.P[:3, :] = 0.0
-        self.P[:, :3] = 0.0
-        self.P[:3, :3] = np.diag(variances)
+        self._set_spread([0, 1, 2], np.diagonal(self.P)[:3] + RELOCALIZE_SIGMA**2)
         self.counters.resets += 1
         self._notice(Notice(t_us, SEVERITY_WARNING, f"lost track: {failed} landmark sightings in a row failed "
                                                     "the gate; re-localizing against the map"))

@@ -18,15 +18,15 @@ from vehicle.estimators import known_map
 RUNS, SAMPLES_FROM_S = 12, 20
 
 
-def _config(seed: int, sensors: dict | None = None, **replay) -> object:
+def _config(seed: int, sensors: dict | None = None, robots: int = 1, **replay) -> object:
     """The synthetic data set's own noise as the datasheet (the filter's nominal model)."""
     return build_config({
-        "world": {"vehicles": 1, "seed": seed}, "clock": {"duration_s": 80.0, "tick_s": 0.02},
+        "world": {"vehicles": robots, "seed": seed}, "clock": {"duration_s": 80.0, "tick_s": 0.02},
         "sensors": {"odom_speed_sigma_mps": 0.05, "odom_yaw_rate_sigma_radps": 0.1, "range_sigma_m": 0.1,
                     "bearing_sigma_rad": 0.02, "prior_sigma_m": 0.05, "prior_heading_sigma_rad": 0.02, **(sensors or {})},
         "vehicle": {"estimator": "known-map", "cooperative": False,
                     "landmarks": [(int(i), float(x), float(y)) for i, x, y in LANDMARKS[:, :3]]},
-        "replay": {"dataset": "synthetic", "robots": [1], "start_s": 20.0, "calibration_s": [0, 20], "odom_lag_s": 0.2,
+        "replay": {"dataset": "synthetic", "robots": list(range(1, robots + 1)), "start_s": 20.0, "calibration_s": [0, 20], "odom_lag_s": 0.2,
                    **replay}})
 
 
