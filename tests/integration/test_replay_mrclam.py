@@ -5,6 +5,7 @@ than 0.3 m, and a replay is reproducible to the byte."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -53,3 +54,17 @@ def test_a_window_overlapping_the_calibration_is_refused(tmp_path):
     result = _replay(tmp_path, "--start", "60")
     assert result.returncode == 1 and "overlaps the calibration interval" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_the_centralized_reference_is_the_yardstick(known_map_runs, tmp_path):
+    """One filter over all five robots in one process (no bus): it writes reference.json in the
+    summary's shape, and with every sighting fused exactly it is more accurate than the robots'
+    own known-map filters on the same window."""
+    result = _replay(tmp_path, "--estimator", "centralized")
+    assert result.returncode == 0, result.stdout + result.stderr
+    reference = json.loads((tmp_path / "replay" / "reference.json").read_text())
+    assert reference["reference"] == "centralized" and set(reference["vehicles"]) == {"1", "2", "3", "4", "5"}
+    assert all(v["samples"] >= 500 and v["rmse_m"] < 0.3 for v in reference["vehicles"].values())
+    assert reference["swarm"]["rmse_m"] < read_summary(known_map_runs[0])["swarm"]["rmse_m"]
+    refused = _replay(tmp_path, "--estimator", "centralized", "--mode", "realtime")
+    assert refused.returncode == 1 and "--mode realtime does not apply" in refused.stderr
