@@ -2,11 +2,7 @@
 
 from __future__ import annotations
 
-import multiprocessing
-import os
 import queue
-from concurrent.futures import ProcessPoolExecutor
-from typing import Callable, Iterable
 
 import numpy as np
 
@@ -192,14 +188,3 @@ def replay_in_memory(config, data, *, every_us: int = 1_000_000, estimators: dic
                 rows[vid].append([t, np.hypot(d[0], d[1]), d @ np.linalg.solve(estimator.P[:3, :3], d)])
     return {vid: np.array(r).reshape(-1, 3) for vid, r in rows.items()}
 
-
-def monte_carlo(run: Callable, arguments: Iterable[tuple]) -> list:
-    """``run(*a)`` for each ``a`` of ``arguments``, in order, spread over the machine's cores:
-    seeded Monte Carlo runs are independent, so the suite's longest statistical tests need not
-    leave a core idle. Workers are spawned (never forked), ``run`` must be importable."""
-    arguments = list(arguments)
-    workers = min(len(arguments), os.cpu_count() or 1)
-    if workers <= 1:
-        return [run(*a) for a in arguments]
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        return list(pool.map(run, *zip(*arguments)))
