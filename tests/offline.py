@@ -187,4 +187,3 @@ def replay_in_memory(config, data, *, every_us: int = 1_000_000, estimators: dic
                 d[2] = (d[2] + np.pi) % (2 * np.pi) - np.pi
                 rows[vid].append([t, np.hypot(d[0], d[1]), d @ np.linalg.solve(estimator.P[:3, :3], d)])
     return {vid: np.array(r).reshape(-1, 3) for vid, r in rows.items()}
-
