@@ -88,7 +88,8 @@ class VehicleNode:
         realtime = config.clock.mode == "realtime"
         self.fusion = FusionHorizon(self.estimator, horizon_us=round(vc.fusion_horizon_s * 1e6),
                                     every_cycles=1 if realtime else 0)
-        self.v2v = V2V(vehicle_id, latency_us=round(vc.v2v_latency_s * 1e6), rejections=self.rejections)
+        self.v2v = V2V(vehicle_id, latency_us=round(vc.v2v_latency_s * 1e6), rejections=self.rejections,
+                       period_us=round(1e6 / config.sensors.ranging_rate_hz))
         self.sequences = SequenceTracker()
         self.stats = LoopStats()
         self.period_us = round(1e6 / vc.loop_rate_hz)

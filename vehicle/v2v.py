@@ -2,10 +2,14 @@
 measurements that wait ``latency_us`` for the neighbour's estimate of the same instant.
 
 A ranging measurement stamped t becomes a CooperativeFix at the first cycle at or after
-t + latency, once the neighbour's ODOMETRY for t has been heard (the world makes no ranging to or
-from a comm-jammed vehicle); it reaches the estimator through the fusion horizon (which replays from t). The fixed wait
-makes lockstep runs reproducible: what is fused at a cycle never depends on how fast the
-neighbour's packet travelled.
+t + latency, once the neighbour's ODOMETRY for the broadcast epoch at or before t has been heard
+(the world makes no ranging to or from a comm-jammed vehicle); it reaches the estimator through the
+fusion horizon (which replays from t). The fixed wait makes lockstep runs reproducible: what is
+fused at a cycle never depends on how fast the neighbour's packet travelled. The simulated world
+ranges at the epochs; a replayed camera sights a robot whenever it does, so the neighbour's
+position is carried from its epoch e to t along its broadcast heading at its broadcast speed,
+p(t) = p(e) + v (t - e) [cos yaw, sin yaw], its covariance grown by (var v + v^2 var yaw) (t - e)^2
+on both axes (t - e is under one broadcast period).
 
 Neighbours' frames are decoded and checked when they arrive: the sender must be the vehicle whose
 key it came on, the covariance must be usable. Authenticity rests on the router: only vehicle j's
@@ -17,6 +21,7 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections import OrderedDict
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,11 +35,34 @@ HISTORY = 64        # broadcasts kept per neighbour (12 s at 5 Hz)
 MAX_WAITING = 10_000
 
 
+@dataclass(frozen=True)
+class Broadcast:
+    """What a neighbour's broadcast tells about it: position (2,) m and its covariance (2, 2), heading
+    rad and its variance, forward speed m/s and its variance."""
+
+    xy_m: np.ndarray
+    cov_m2: np.ndarray
+    yaw_rad: float
+    yaw_var: float
+    speed_mps: float
+    speed_var: float
+
+    def carried(self, dt_us: int) -> tuple[np.ndarray, np.ndarray]:
+        """Position and covariance ``dt_us`` after the broadcast (module docstring); itself at 0."""
+        if dt_us == 0:
+            return self.xy_m, self.cov_m2
+        dt = dt_us * 1e-6
+        step = self.speed_mps * dt * np.array([np.cos(self.yaw_rad), np.sin(self.yaw_rad)])
+        spread = (self.speed_var + self.speed_mps**2 * self.yaw_var) * dt * dt
+        return self.xy_m + step, self.cov_m2 + spread * np.eye(2)
+
+
 class V2V:
-    def __init__(self, vehicle_id: int, *, latency_us: int, rejections: Rejections) -> None:
+    def __init__(self, vehicle_id: int, *, latency_us: int, rejections: Rejections, period_us: int) -> None:
         self.vehicle_id, self.latency_us, self.rejections = vehicle_id, latency_us, rejections
+        self.period_us = period_us  # between the neighbours' broadcast epochs
         self._decoder = MavlinkDecoder()  # neighbours' keys are not ours to hold: no authentication here
-        self._estimates: dict[int, OrderedDict[int, tuple[np.ndarray, np.ndarray]]] = {}
+        self._estimates: dict[int, OrderedDict[int, Broadcast]] = {}
         self._waiting: list[tuple[int, int, m.RangeBearing]] = []
         self._order = itertools.count()
         self.sent = 0
@@ -56,7 +84,9 @@ class V2V:
             self.rejections.reject("impersonation", f"v2v from {sender}", "sender or stamp differs from the frame's")
             return
         history = self._estimates.setdefault(sender, OrderedDict())
-        history[stamp_us] = (est.position_m[:2].copy(), est.pose_covariance[:2, :2].copy())
+        history[stamp_us] = Broadcast(est.position_m[:2].copy(), est.pose_covariance[:2, :2].copy(), est.yaw_rad,
+                                      float(est.pose_covariance[5, 5]), float(est.velocity_mps[0]),
+                                      float(est.velocity_covariance[0, 0]))
         while len(history) > HISTORY:
             history.popitem(last=False)
 
@@ -71,17 +101,22 @@ class V2V:
     def awaited(self, now_us: int) -> list[tuple[int, int]]:
         """(neighbour, stamp) of every ranging measurement that matures by ``now_us``: whose
         broadcasts the cycle at ``now_us`` pairs them with."""
-        return [(msg.target_id, stamp) for stamp, _, msg in self._waiting if stamp + self.latency_us <= now_us]
+        return [(msg.target_id, self.epoch(stamp)) for stamp, _, msg in self._waiting if stamp + self.latency_us <= now_us]
+
+    def epoch(self, stamp_us: int) -> int:
+        """The neighbours' broadcast epoch at or before ``stamp_us``."""
+        return stamp_us - stamp_us % self.period_us
 
     def mature(self, now_us: int) -> list[CooperativeFix]:
         """Ranging measurements whose wait is over, paired with the neighbour's estimate."""
         out = []
         while self._waiting and self._waiting[0][0] + self.latency_us <= now_us:
             msg = heapq.heappop(self._waiting)[2]
-            found = self._estimates.get(msg.target_id, {}).get(msg.stamp_us)
+            epoch = self.epoch(msg.stamp_us)
+            found = self._estimates.get(msg.target_id, {}).get(epoch)
             if found is None:
                 self.missing += 1
                 continue
             out.append(CooperativeFix(msg.vehicle_id, msg.stamp_us, msg.seq, msg.target_id, msg.range_m,
-                                      msg.bearing_rad, msg.covariance, *found))
+                                      msg.bearing_rad, msg.covariance, *found.carried(msg.stamp_us - epoch)))
         return out

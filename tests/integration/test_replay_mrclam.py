@@ -68,3 +68,19 @@ def test_the_centralized_reference_is_the_yardstick(known_map_runs, tmp_path):
     assert reference["swarm"]["rmse_m"] < read_summary(known_map_runs[0])["swarm"]["rmse_m"]
     refused = _replay(tmp_path, "--estimator", "centralized", "--mode", "realtime")
     assert refused.returncode == 1 and "--mode realtime does not apply" in refused.stderr
+
+
+def test_cooperation_keeps_robots_without_landmarks_localized(tmp_path):
+    """Landmark sightings withheld from robots 2 and 3: with cooperation every robot sighting is
+    paired with the seen robot's broadcast (a camera sights robots between the broadcast epochs) and
+    the swarm's error is far below the robots' own (measured 0.19 m against 0.44 m; robot 3 0.23
+    against 0.93 m)."""
+    summaries = {}
+    for name, extra in (("alone", ()), ("together", ("--cooperative",))):
+        result = _replay(tmp_path / name, "--estimator", "known-map", "--withhold-landmarks", "2,3", *extra)
+        assert result.returncode == 0, result.stdout + result.stderr
+        summaries[name] = read_summary(tmp_path / name / "replay")
+    together = summaries["together"]
+    assert all(v["v2v_missing"] == 0 for v in together["vehicles"].values())
+    assert all(together["vehicles"][vid]["v2v_fused"] > 50 for vid in ("2", "3"))
+    assert together["swarm"]["rmse_m"] < 0.6 * summaries["alone"]["swarm"]["rmse_m"]

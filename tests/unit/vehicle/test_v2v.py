@@ -1,0 +1,53 @@
+"""The V2V side (vehicle.v2v): a ranging measurement is paired with the neighbour's broadcast of the
+epoch at or before it, the neighbour carried to the measurement's instant along its heading (a
+replayed camera sights robots between the broadcast epochs; the simulated world ranges on them)."""
+
+import logging
+
+import numpy as np
+
+from bus import messages as m
+from bus.mavlink_codec import MavlinkEncoder, StateEstimate
+from bus.rejections import Rejections
+from vehicle.v2v import V2V
+
+PERIOD_US = 200_000
+
+
+def _heard(yaw: float) -> V2V:
+    """Vehicle 1's V2V, having heard vehicle 2 at epoch 0.2 s: at (3, 4) m, heading ``yaw``, 0.5 m/s."""
+    v2v = V2V(1, latency_us=100_000, rejections=Rejections(logging.getLogger("test"), "test"), period_us=PERIOD_US)
+    pose_cov = np.diag([0.04, 0.04, 1e-6, 1e-6, 1e-6, 0.01])
+    est = StateEstimate(2, PERIOD_US, np.array([3.0, 4.0, 0.0]), yaw, np.array([0.5, 0.0, 0.0]), 0.0, pose_cov,
+                        np.diag([0.0025, 1e-6, 1e-6, 1e-6, 1e-6, 1e-4]))
+    v2v.hear(2, PERIOD_US, MavlinkEncoder(vehicle_id=2).odometry(est))
+    return v2v
+
+
+def _ranging(stamp_us: int) -> m.RangeBearing:
+    return m.RangeBearing(1, stamp_us, 0, 2, 5.0, 0.0, np.diag([0.01, 1e-4]))
+
+
+def test_a_measurement_on_an_epoch_takes_the_broadcast_as_it_is():
+    v2v = _heard(0.0)
+    v2v.hold(_ranging(PERIOD_US))
+    assert v2v.awaited(PERIOD_US + 100_000) == [(2, PERIOD_US)]
+    (fix,) = v2v.mature(PERIOD_US + 100_000)
+    assert np.allclose(fix.neighbour_xy_m, [3.0, 4.0]) and np.allclose(fix.neighbour_cov_m2, np.diag([0.04, 0.04]))
+
+
+def test_a_measurement_between_epochs_carries_the_neighbour_to_its_instant():
+    v2v = _heard(np.pi / 2)  # heading north: 0.5 m/s for 0.1 s is 5 cm north
+    v2v.hold(_ranging(PERIOD_US + 100_000))
+    assert v2v.awaited(PERIOD_US + 200_000) == [(2, PERIOD_US)]  # waits for the epoch's broadcast
+    (fix,) = v2v.mature(PERIOD_US + 200_000)
+    assert np.allclose(fix.neighbour_xy_m, [3.0, 4.05], atol=1e-6)
+    grown = (0.0025 + 0.25 * 0.01) * 0.1**2  # (var v + v^2 var yaw) dt^2
+    assert np.allclose(fix.neighbour_cov_m2, np.diag([0.04 + grown] * 2), atol=1e-9)
+    assert v2v.missing == 0
+
+
+def test_a_measurement_whose_epoch_was_not_heard_is_missing():
+    v2v = _heard(0.0)
+    v2v.hold(_ranging(2 * PERIOD_US + 50_000))  # pairs with epoch 0.4 s: never heard
+    assert v2v.mature(10**7) == [] and v2v.missing == 1
