@@ -7,6 +7,7 @@ from typing import Optional
 
 import typer
 
+from bus.config import SwarmConfig
 from bus.errors import SwarmlocError
 from groundstation.cli_errors import fail
 from groundstation.replay_setup import ESTIMATORS
@@ -75,7 +76,7 @@ def mrclam(
     _print_result(run_dir, failures, notes)
 
 
-def _reference(config, out: Path) -> None:
+def _reference(config: SwarmConfig, out: Path) -> None:
     """The centralized reference on the replay: a run directory with config.json and reference.json
     (per robot and swarm RMSE, max error, ANEES, in summary.json's shape), and the table printed."""
     import json
