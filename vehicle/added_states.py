@@ -1,6 +1,7 @@
 """States a filter adds after its pose for errors of its sensors that persist in time: the wheel
-odometry's scale errors and the camera's time-correlated range errors (``known-map``). Pure
-functions on (x (n,), P (n, n)).
+odometry's scale errors and the camera's time-correlated range errors (``known-map``), and the
+state surgery the vehicle filters and the centralized reference share: inserting uncorrelated
+states, marginalizing states out, resetting a state's spread. Functions on (x (n,), P (n, n)).
 
 Odometry scale: the robot moves at (1 + k_v) times the speed and (1 + k_w) times the yaw rate its
 odometry reports (Thrun et al., Probabilistic Robotics, 5.4: systematic odometry error; estimated
@@ -16,13 +17,28 @@ import math
 import numpy as np
 
 
+def insert_states(x: np.ndarray, P: np.ndarray, at: int, x_new: np.ndarray, P_new: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """x (n,), P (n, n) with states x_new (k,), covariance P_new (k, k), inserted before index ``at``,
+    uncorrelated with the others."""
+    n, k = len(x), len(x_new)
+    others = np.r_[0:at, at + k:n + k]
+    grown = np.zeros((n + k, n + k))
+    grown[np.ix_(others, others)] = P
+    grown[at:at + k, at:at + k] = P_new
+    return np.concatenate([x[:at], x_new, x[at:]]), grown
+
+
 def append_states(x: np.ndarray, P: np.ndarray, variances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """x (n,), P (n, n) grown by len(variances) states at 0, uncorrelated, with those variances."""
-    k = len(variances)
-    grown = np.zeros((len(x) + k, len(x) + k))
-    grown[:len(x), :len(x)] = P
-    grown[len(x):, len(x):] = np.diag(variances)
-    return np.concatenate([x, np.zeros(k)]), grown
+    return insert_states(x, P, len(x), np.zeros(len(variances)), np.diag(variances))
+
+
+def set_spread(P: np.ndarray, indices: list[int], variances: np.ndarray) -> None:
+    """In place: the states at ``indices`` get these variances, uncorrelated with every other state."""
+    P[indices, :] = 0.0
+    P[:, indices] = 0.0
+    P[indices, indices] = variances
 
 
 def drop_states(x: np.ndarray, P: np.ndarray, indices: list[int]) -> tuple[np.ndarray, np.ndarray]:

@@ -149,14 +149,9 @@ class CentralizedEkf:
     def _replace_block(self, vehicle_id: int, x: np.ndarray, P: np.ndarray) -> None:
         """A fresh block (a prior): uncorrelated with every other."""
         s = self.block(vehicle_id)
-        keep = np.r_[0:s.start, s.stop:len(self.x)]
-        at, n = s.start, len(x)
-        self.x = np.concatenate([self.x[:at], x, self.x[s.stop:]])
-        grown = np.zeros((len(keep) + n, len(keep) + n))
-        others = np.r_[0:at, at + n:len(grown)]
-        grown[np.ix_(others, others)] = self.P[np.ix_(keep, keep)]
-        grown[at:at + n, at:at + n] = P
-        self.P, self._dims[vehicle_id] = grown, n
+        self.x, self.P = added_states.drop_states(self.x, self.P, list(range(s.start, s.stop)))
+        self.x, self.P = added_states.insert_states(self.x, self.P, s.start, x, P)
+        self._dims[vehicle_id] = len(x)
         self._push(vehicle_id)
 
     def _move_block(self, vehicle_id: int, F: np.ndarray, Q: np.ndarray) -> None:
@@ -171,11 +166,9 @@ class CentralizedEkf:
     def _grow_block(self, vehicle_id: int, variances: np.ndarray) -> None:
         """States at 0 with these variances after the block's last, uncorrelated."""
         self._pull(vehicle_id)
-        at, k = self.block(vehicle_id).stop, len(variances)
-        self.x = np.insert(self.x, at, np.zeros(k))
-        self.P = np.insert(np.insert(self.P, [at] * k, 0.0, axis=0), [at] * k, 0.0, axis=1)
-        self.P[at:at + k, at:at + k] = np.diag(variances)
-        self._dims[vehicle_id] += k
+        at = self.block(vehicle_id).stop
+        self.x, self.P = added_states.insert_states(self.x, self.P, at, np.zeros(len(variances)), np.diag(variances))
+        self._dims[vehicle_id] += len(variances)
         self._push(vehicle_id)
 
     def _shrink_block(self, vehicle_id: int, indices: list[int]) -> None:
@@ -188,10 +181,7 @@ class CentralizedEkf:
 
     def _spread_block(self, vehicle_id: int, indices: list[int], variances: np.ndarray) -> None:
         """The block's states at ``indices`` uncorrelated with every joint state, with these variances."""
-        rows = [self.block(vehicle_id).start + i for i in indices]
-        self.P[rows, :] = 0.0
-        self.P[:, rows] = 0.0
-        self.P[rows, rows] = variances
+        added_states.set_spread(self.P, [self.block(vehicle_id).start + i for i in indices], variances)
         self._push(vehicle_id)
 
     def _update_block(self, vehicle_id: int, y: np.ndarray, H_block: np.ndarray, R: np.ndarray, gate: float

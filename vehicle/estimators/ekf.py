@@ -22,6 +22,7 @@ from bus import messages as m
 from bus.angles import wrap_angle
 from bus.config import SensorSpec
 from bus.mavlink_codec import EstimatorStatus, StateEstimate
+from vehicle import added_states
 from vehicle import unicycle_ekf as ekf
 from vehicle.adaptive import NoiseAdaptation
 from vehicle.alignment import GnssAlignment
@@ -196,9 +197,7 @@ class UnicycleEkf:
 
     def _set_spread(self, indices: list[int], variances: np.ndarray) -> None:
         """Give the states at ``indices`` these variances, uncorrelated with every other state."""
-        self.P[indices, :] = 0.0
-        self.P[:, indices] = 0.0
-        self.P[indices, indices] = variances
+        added_states.set_spread(self.P, indices, variances)
 
     def _motion(self, speed: float, rate: float, dt: float, **noise: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The new base state (base_dim,), F and Q (base_dim, base_dim) of one motion step: the unicycle's
