@@ -29,6 +29,7 @@ state the same way).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable, Literal
 
@@ -63,13 +64,37 @@ class CooperativeFix:
 @dataclass(frozen=True)
 class Correction:
     """A fused fix in measurement space: dz (2,) = z+ - z_hat, M (2, 2) before and M+ (2, 2) after,
-    C (3, 2) = cov(pose, z), and the weight w."""
+    C (3, 2) = cov(pose, z), the weight w, and cov(x, z) (n, 2) of the whole state when the
+    measurement is linear in the pose (None: through the regression on the pose, ``regression_on_z``)."""
 
     dz: np.ndarray
     M: np.ndarray
     M_new: np.ndarray
     C: np.ndarray
     w: float
+    cov_xz: np.ndarray | None = None
+
+
+Sym2 = tuple[float, float, float]  # a symmetric 2 x 2 matrix as (a00, a01, a11): the fix's algebra on floats
+
+
+def _sym(A: np.ndarray) -> Sym2:
+    """(a00, a01, a11) of a symmetric 2 x 2 array."""
+    (a, b), (_, d) = A.tolist()
+    return a, b, d
+
+
+def _inv_sym(a: float, b: float, d: float) -> Sym2:
+    det = a * d - b * b
+    return d / det, -b / det, a / det
+
+
+def _add_sym(*terms: Sym2) -> Sym2:
+    return sum(t[0] for t in terms), sum(t[1] for t in terms), sum(t[2] for t in terms)
+
+
+def _array(a: Sym2) -> np.ndarray:
+    return np.array([[a[0], a[1]], [a[1], a[2]]])
 
 
 def relative_model(x: np.ndarray, neighbour_xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -81,26 +106,6 @@ def relative_model(x: np.ndarray, neighbour_xy_m: np.ndarray) -> tuple[np.ndarra
     H[0, :2] = [-dx / r, -dy / r]
     H[1, :3] = [dy / r2, -dx / r2, -1.0]
     return np.array([r, wrap_angle(np.arctan2(dy, dx) - x[2])]), H, -H[:, :2]
-
-
-def inverse2(S: np.ndarray) -> np.ndarray:
-    """Inverses of 2 x 2 matrices (..., 2, 2) in closed form (no LAPACK call: this runs for every
-    ranging measurement)."""
-    adjugate = np.stack([S[..., 1, 1], -S[..., 0, 1], -S[..., 1, 0], S[..., 0, 0]], axis=-1).reshape(S.shape)
-    return adjugate / _det2(S)[..., None, None]
-
-
-def _det2(A: np.ndarray) -> np.ndarray:
-    """Determinants of 2 x 2 matrices (..., 2, 2)."""
-    return A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
-
-
-def neighbour_measurement(x: np.ndarray, fix: CooperativeFix) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Range-bearing innovation y (2,) at pose x (3+,), H = dh/dx_pose (2, 3), the radio's noise R
-    (2, 2) and the neighbour's share S = H_j P_j H_j^T (2, 2)."""
-    predicted, H, Hj = relative_model(x[:POSE], fix.neighbour_xy_m)
-    y = np.array([fix.range_m - predicted[0], wrap_angle(fix.bearing_rad - predicted[1])])
-    return y, H, fix.covariance, Hj @ fix.neighbour_cov_m2 @ Hj.T
 
 
 def implied_position(x: np.ndarray, P_pp: np.ndarray, fix: CooperativeFix) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -118,7 +123,8 @@ def implied_position(x: np.ndarray, P_pp: np.ndarray, fix: CooperativeFix) -> tu
 
 @dataclass(frozen=True)
 class CooperativeRule:
-    """How a vehicle fuses a neighbour fix: see the module docstring."""
+    """How a vehicle fuses a neighbour fix: see the module docstring. The 2 x 2 algebra of a fix runs on
+    plain floats (numpy's per-call cost dominates 2 x 2 products; every ranging measurement pays it)."""
 
     fusion: Fusion = "split-ci"
     weight: Weight = "optimal"
@@ -126,22 +132,36 @@ class CooperativeRule:
     def fix_information(self, R: np.ndarray, S: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Information (k, 2, 2) the fix brings at weights w (k,): split CI (1 - w) ((1 - w) R + S)^-1
         = (R + S / (1 - w))^-1, plain CI (1 - w) (R + S)^-1, naive (R + S)^-1."""
-        w = np.asarray(w, dtype=float)[:, None, None]
+        i00, i01, i11 = self._fix_information(_sym(R), _sym(S), np.asarray(w, dtype=float))
+        return np.stack([np.stack([i00, i01], -1), np.stack([i01, i11], -1)], -2)
+
+    def _fix_information(self, R: Sym2, S: Sym2, w):
+        """``fix_information`` on floats or on 1-D arrays of weights, as (i00, i01, i11)."""
         if self.fusion == "naive":
-            return np.broadcast_to(inverse2(R + S), w.shape[:1] + (2, 2))
+            i00, i01, i11 = _inv_sym(*_add_sym(R, S))
+            return i00 + 0.0 * w, i01 + 0.0 * w, i11 + 0.0 * w
+        u = 1.0 - w
         if self.fusion == "split-ci":
-            return (1.0 - w) * inverse2((1.0 - w) * R + S)
-        return (1.0 - w) * inverse2(R + S)[None]
+            e00, e01, e11 = u * R[0] + S[0], u * R[1] + S[1], u * R[2] + S[2]
+            f = u / (e00 * e11 - e01 * e01)
+            return f * e11, -f * e01, f * e00
+        q00, q01, q11 = _inv_sym(*_add_sym(R, S))
+        return u * q00, u * q01, u * q11
 
     def choose_weight(self, M: np.ndarray, R: np.ndarray, S: np.ndarray) -> float:
         """w in [0, 1] for own covariance M (2, 2) of the measured quantity and the fix's noise R, S."""
+        return self._weight(_sym(M), _sym(R), _sym(S))
+
+    def _weight(self, M: Sym2, R: Sym2, S: Sym2) -> float:
         if self.fusion == "naive":
             return 1.0
         if self.weight == "closed-form":
-            return closed_form_weight(M, R + S)
+            return closed_form_weight(_array(M), _array(_add_sym(R, S)))
         w = WEIGHT_GRID  # det(w M^-1 + fix information), the fused information about z (eq. 4.10)
-        fused = w[:, None, None] * inverse2(M)[None] + self.fix_information(R, S, w)
-        return float(w[int(np.argmax(_det2(fused)))])
+        m00, m01, m11 = _inv_sym(*M)
+        i00, i01, i11 = self._fix_information(R, S, w)
+        a, b, d = w * m00 + i00, w * m01 + i01, w * m11 + i11
+        return float(w[int(np.argmax(a * d - b * b))])
 
     def fuse(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix, gate: float, unscented: bool = False,
              adapt: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
@@ -150,57 +170,89 @@ class CooperativeRule:
         out or when w = 1. ``unscented``: range and bearing through sigma points of the pose marginal
         (paper eqs. 4.1-4.9) instead of the linearization. ``adapt(y, M + S, R)``: the radio noise to
         use instead of R (IAE, vehicle.adaptive)."""
-        y, M, C, R, S = self.measurement(x, P[:POSE, :POSE], fix, unscented)
+        y, M, C, R, S, cov_xz = self.measurement(x, P, fix, unscented)
         if adapt is not None:
-            R = adapt(y, M + S, R)
-        nis = float(y @ inverse2(M + R + S) @ y)
+            R = _sym(adapt(np.array(y), _array(_add_sym(M, S)), _array(R)))
+        y0, y1 = y
+        t00, t01, t11 = _inv_sym(*_add_sym(M, R, S))
+        nis = t00 * y0 * y0 + 2.0 * t01 * y0 * y1 + t11 * y1 * y1
         result = UpdateResult(bool(nis <= gate), nis, nis / gate)
         if not result.accepted:
             return None, result
-        w = self.choose_weight(M, R, S)
+        w = self._weight(M, R, S)
         if w >= 1.0 and self.fusion != "naive":
             return None, result
-        fix_info = self.fix_information(R, S, np.array([w]))[0]
-        own_info = w * inverse2(M) if w > 0.0 else np.zeros((2, 2))
-        M_new = inverse2(own_info + fix_info)
-        return Correction(M_new @ fix_info @ y, M, 0.5 * (M_new + M_new.T), C, w), result
+        i00, i01, i11 = self._fix_information(R, S, w)
+        own = tuple(w * v for v in _inv_sym(*M)) if w > 0.0 else (0.0, 0.0, 0.0)
+        n00, n01, n11 = _inv_sym(*_add_sym(own, (i00, i01, i11)))
+        g0, g1 = i00 * y0 + i01 * y1, i01 * y0 + i11 * y1  # fix information times y
+        dz = np.array([n00 * g0 + n01 * g1, n01 * g0 + n11 * g1])
+        return Correction(dz, _array(M), _array((n00, n01, n11)), C, w, cov_xz), result
 
-    def measurement(self, x: np.ndarray, P_pp: np.ndarray, fix: CooperativeFix,
-                     unscented: bool) -> tuple[np.ndarray, ...]:
-        """Innovation y (2,), own covariance of the measured quantity M (2, 2), the cross-covariance
-        C = cov(pose, z) (3, 2), the independent noise R and the neighbour's share S (2, 2 each)."""
-        if self.fusion == "paper":
-            y, H, R, S = implied_position(x, P_pp, fix)
-        elif unscented:
+    def measurement(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
+                    unscented: bool) -> tuple[tuple[float, float], Sym2, np.ndarray, Sym2, Sym2, np.ndarray | None]:
+        """Innovation y (2 floats), own covariance of the measured quantity M, the cross-covariance
+        C = cov(pose, z) (3, 2), the independent noise R and the neighbour's share S (M, R, S as
+        ``Sym2``), and cov(x, z) (n, 2) when the measurement is linear in the pose (else None)."""
+        P_pp = P[:POSE, :POSE]
+        if unscented and self.fusion != "paper":
             def h(pose: np.ndarray) -> np.ndarray:
                 return relative_model(pose, fix.neighbour_xy_m)[0]
 
             z_hat, M, C = ut.measure(x[:POSE], P_pp, h, angle_rows=(1,))
-            _, _, R, S = neighbour_measurement(x, fix)
-            return np.array([fix.range_m - z_hat[0], wrap_angle(fix.bearing_rad - z_hat[1])]), M, C, R, S
+            y, _, R, S = _linearized(x, fix)
+            y = (fix.range_m - float(z_hat[0]), wrap_angle(fix.bearing_rad - float(z_hat[1])))
+            return y, _sym(M), C, R, S, None
+        if self.fusion == "paper":
+            y, H, R, S = implied_position(x, P_pp, fix)
+            y, R, S = tuple(y.tolist()), _sym(R), _sym(S)
         else:
-            y, H, R, S = neighbour_measurement(x, fix)
-        C = P_pp @ H.T
-        return y, H @ C, C, R, S
+            y, H, R, S = _linearized(x, fix)
+        cov_xz = P[:, :POSE] @ H.T
+        C = cov_xz[:POSE]
+        return y, _sym(H @ C), C, R, S, cov_xz
+
+
+def _linearized(x: np.ndarray, fix: CooperativeFix) -> tuple[tuple[float, float], np.ndarray, Sym2, Sym2]:
+    """``neighbour_measurement`` on floats: the innovation y, H = dh/dx_pose (2, 3), R and
+    S = H_j P_j H_j^T (H_j = -H[:, :2])."""
+    px, py, theta = x[:POSE].tolist()
+    nx, ny = fix.neighbour_xy_m.tolist()
+    dx, dy = nx - px, ny - py
+    r2 = max(dx * dx + dy * dy, 1e-6)
+    r = math.sqrt(r2)
+    y = (fix.range_m - r, wrap_angle(fix.bearing_rad - wrap_angle(math.atan2(dy, dx) - theta)))
+    h00, h01, h10, h11 = -dx / r, -dy / r, dy / r2, -dx / r2
+    p, q, s = _sym(fix.neighbour_cov_m2)
+    S = (h00 * h00 * p + 2.0 * h00 * h01 * q + h01 * h01 * s,
+         h00 * h10 * p + (h00 * h11 + h01 * h10) * q + h01 * h11 * s,
+         h10 * h10 * p + 2.0 * h10 * h11 * q + h11 * h11 * s)
+    H = np.array([[h00, h01, 0.0], [h10, h11, -1.0]])
+    return y, H, _sym(fix.covariance), S
 
 
 def closed_form_weight(M: np.ndarray, R: np.ndarray) -> float:
     """The w in [0, 1] maximising det(w M^-1 + (1 - w) R^-1) (plain CI of two 2 x 2 estimates) in
     closed form: with A = M^-1, B = R^-1, D = A - B it is the quadratic det(B) + w tr(adj(B) D) +
     w^2 det(D), so the best w is an end point or the vertex."""
-    A, B = inverse2(M), inverse2(R)
-    D = A - B
-    linear = B[1, 1] * D[0, 0] + B[0, 0] * D[1, 1] - B[0, 1] * D[1, 0] - B[1, 0] * D[0, 1]  # tr(adj(B) D)
-    quadratic = float(_det2(D))
+    a00, a01, a11 = _inv_sym(*_sym(M))
+    b00, b01, b11 = _inv_sym(*_sym(R))
+    d00, d01, d11 = a00 - b00, a01 - b01, a11 - b11
+    linear = b11 * d00 + b00 * d11 - 2.0 * b01 * d01  # tr(adj(B) D)
+    quadratic = d00 * d11 - d01 * d01
     candidates = [0.0, 1.0]
     if quadratic < 0.0:
-        candidates.append(float(np.clip(-linear / (2.0 * quadratic), 0.0, 1.0)))
+        candidates.append(min(max(-linear / (2.0 * quadratic), 0.0), 1.0))
     return max(candidates, key=lambda w: linear * w + quadratic * w * w)
 
 
 def regression_on_z(P: np.ndarray, correction: Correction) -> np.ndarray:
-    """A = cov(x, z) M^-1 (n, 2), with cov(x, z) = P_{.p} P_pp^-1 C: how every state follows z."""
-    return np.linalg.solve(P[:POSE, :POSE], P[:POSE, :]).T @ correction.C @ inverse2(correction.M)
+    """A = cov(x, z) M^-1 (n, 2), with cov(x, z) = P_{.p} P_pp^-1 C (or as the correction carries it
+    for a measurement linear in the pose): how every state follows z."""
+    M_inv = _array(_inv_sym(*_sym(correction.M)))
+    if correction.cov_xz is not None:
+        return correction.cov_xz @ M_inv
+    return np.linalg.solve(P[:POSE, :POSE], P[:POSE, :]).T @ correction.C @ M_inv
 
 
 def apply_correction(x: np.ndarray, P: np.ndarray, correction: Correction) -> tuple[np.ndarray, np.ndarray]:

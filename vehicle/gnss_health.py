@@ -18,6 +18,7 @@ to 3 sigma (so a spoofer far away cannot capture the filter), and the position j
 from __future__ import annotations
 
 import copy
+import math
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -72,8 +73,8 @@ class GnssHealth:
     def check(self, stamp_us: int, innovation: np.ndarray, S: np.ndarray, R: np.ndarray) -> FixVerdict:
         """Judge one fix: innovation (2,), its covariance S (2, 2) and the fix's own R (2, 2) (m, m^2)."""
         self.last_fix_us = stamp_us
-        w = np.linalg.solve(np.linalg.cholesky(S), innovation)
-        ratio = float(w @ w) / gate_threshold(2, self.spec.gate_probability)
+        w = _whitened(innovation, S)
+        ratio = (w[0] * w[0] + w[1] * w[1]) / gate_threshold(2, self.spec.gate_probability)
         mean_ratio = self._mean_ratio(w) if self.healthy and ratio <= 1.0 else 0.0
         consistent = ratio <= 1.0 and mean_ratio <= 1.0
         self.last_test_ratio, self.last_mean_test_ratio = ratio, mean_ratio
@@ -125,14 +126,15 @@ class GnssHealth:
         if self.healthy and self.last_fix_us is not None and stamp_us - self.last_fix_us > timeout_us:
             self._set(stamp_us, False, "no fix, jamming suspected")
 
-    def _mean_ratio(self, w: np.ndarray) -> float:
+    def _mean_ratio(self, w: tuple[float, float]) -> float:
         self._window.append(w)
         if len(self._window) > self.spec.mean_window:
             self._window.popleft()
-        if len(self._window) < self.spec.mean_window:
+        n = len(self._window)
+        if n < self.spec.mean_window:
             return 0.0
-        mean = np.mean(self._window, axis=0)
-        return float(len(self._window) * mean @ mean) / gate_threshold(2, self.spec.mean_gate_probability)
+        mean0, mean1 = sum(v[0] for v in self._window) / n, sum(v[1] for v in self._window) / n
+        return n * (mean0 * mean0 + mean1 * mean1) / gate_threshold(2, self.spec.mean_gate_probability)
 
     def _judge_healthy(self, stamp_us: int, consistent: bool, reason: str) -> None:
         if consistent:
@@ -158,3 +160,15 @@ class GnssHealth:
         self._window.clear()
         self._outage.clear()
         self.transitions.append((stamp_us, healthy, reason))
+
+
+def _whitened(innovation: np.ndarray, S: np.ndarray) -> tuple[float, float]:
+    """L^-1 y for the Cholesky factor L of the 2 x 2 covariance S (a fix's innovation whitened), on
+    floats; a covariance that is not positive definite raises ValueError."""
+    (s00, s01), (_, s11) = S.tolist()
+    y0, y1 = innovation.tolist()
+    l00 = math.sqrt(s00)
+    l10 = s01 / l00
+    l11 = math.sqrt(s11 - l10 * l10)
+    w0 = y0 / l00
+    return w0, (y1 - l10 * w0) / l11

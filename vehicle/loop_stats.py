@@ -2,9 +2,24 @@
 
 from __future__ import annotations
 
-from collections import deque
-
 import numpy as np
+
+
+class _Ring:
+    """The last ``size`` samples in a preallocated array (a percentile is then one partition, with
+    no conversion of a Python container; it is asked for at every status, once a sim second)."""
+
+    def __init__(self, size: int) -> None:
+        self._values = np.empty(size)
+        self._count = 0
+
+    def append(self, value: float) -> None:
+        self._values[self._count % len(self._values)] = value
+        self._count += 1
+
+    def p99(self) -> float:
+        filled = self._values[:min(self._count, len(self._values))]
+        return float(np.percentile(filled, 99)) if len(filled) else 0.0
 
 
 class LoopStats:
@@ -13,8 +28,8 @@ class LoopStats:
     def __init__(self, window: int = 20_000) -> None:
         self.cycles = 0
         self.overruns = 0
-        self._jitter_us: deque[float] = deque(maxlen=window)
-        self._cycle_us: deque[float] = deque(maxlen=window)
+        self._jitter_us = _Ring(window)
+        self._cycle_us = _Ring(window)
 
     def record(self, *, jitter_us: float, cycle_us: float, overran: bool) -> None:
         self.cycles += 1
@@ -22,12 +37,8 @@ class LoopStats:
         self._jitter_us.append(jitter_us)
         self._cycle_us.append(cycle_us)
 
-    @staticmethod
-    def _p99(samples: deque[float]) -> float:
-        return float(np.percentile(samples, 99)) if samples else 0.0
-
     def jitter_p99_us(self) -> float:
-        return self._p99(self._jitter_us)
+        return self._jitter_us.p99()
 
     def cycle_p99_us(self) -> float:
-        return self._p99(self._cycle_us)
+        return self._cycle_us.p99()
