@@ -204,7 +204,8 @@ class VehicleConfig(_Strict):
                                  "innovations of the last adaptive_window fixes instead of trusting the datasheet")
     adaptive_window: int = Field(40, ge=5, le=10_000, description="IAE window, fixes per sensor")
     v2v_latency_s: float = Field(0.1, ge=0, le=5, description="ranging waits this long for the neighbour's estimate")
-    mavlink_rate_hz: float = Field(50.0, gt=0, le=1000, description="ODOMETRY to the ground station (<= loop rate)")
+    mavlink_rate_hz: float = Field(10.0, gt=0, le=1000, description="ODOMETRY to the ground station (<= loop rate; "
+                                   "a telemetry rate: the ground station scores every estimate it receives)")
     realtime_allowance_s: float = Field(0.005, ge=0, le=1, description="realtime: a cycle waits this long past its "
                                         "deadline for the tick's sensor batch")
     world_timeout_s: float = Field(60.0, gt=0, description="a vehicle whose world is gone this long gives up")

@@ -11,6 +11,10 @@ from pathlib import Path
 
 import pytest
 
+from bus.config import VehicleConfig
+
+ESTIMATES_PER_S = round(VehicleConfig().mavlink_rate_hz)  # ODOMETRY frames a vehicle sends the ground station
+
 
 def swarm_command(out: Path, *args: str) -> list[str]:
     return [sys.executable, "-m", "groundstation.cli", "up", "--quiet", "--out", str(out), *args]

@@ -8,7 +8,7 @@ import json
 import pytest
 
 from groundstation.chaos import ALL_KINDS
-from tests.integration.conftest import read_summary, run_swarm
+from tests.integration.conftest import ESTIMATES_PER_S, read_summary, run_swarm
 
 pytestmark = pytest.mark.integration
 
@@ -29,6 +29,6 @@ def test_chaos_run_survives_every_kind_of_fault(tmp_path):
     assert summary["events"]["fault_added"] == summary["events"]["fault_started"] == len(planned)
     assert summary["events"]["fault_expired"] == len(planned)  # every chaos fault ends inside the run
     for vid in map(str, range(1, 7)):  # scored to the end (MAVLink loss and replays cost some samples)
-        assert summary["vehicles"][vid]["samples"] > 0.6 * 120 * 50, vid
+        assert summary["vehicles"][vid]["samples"] > 0.6 * 120 * ESTIMATES_PER_S, vid
         track = (run / "tum" / f"est_v{vid}.tum").read_text().splitlines()
         assert len(track) == summary["vehicles"][vid]["samples"] and float(track[-1].split()[0]) > 119.0

@@ -12,7 +12,7 @@ import pytest
 from bus.config import build_config
 from bus.secrets import role_env, write_secrets
 from groundstation.launcher import Child, free_port, wait_for_port
-from tests.integration.conftest import read_summary
+from tests.integration.conftest import ESTIMATES_PER_S, read_summary
 
 pytestmark = pytest.mark.integration
 
@@ -49,5 +49,5 @@ def test_vehicles_starting_together_claim_distinct_ids(tmp_path):
     claims = json.loads((run_dir / "claims.json").read_text())
     assert sorted(claims["ids"].values()) == [1, 2, 3] and set(claims["ids"]) == {"alpha", "bravo", "charlie"}
     summary = read_summary(run_dir)
-    assert {vid: v["samples"] for vid, v in summary["vehicles"].items()} == {"1": 301, "2": 301, "3": 301}
+    assert {vid: v["samples"] for vid, v in summary["vehicles"].items()} == {vid: 6 * ESTIMATES_PER_S + 1 for vid in ("1", "2", "3")}
     assert all(v["mavlink_rejected"] == 0 for v in summary["vehicles"].values())  # each signed with its own key

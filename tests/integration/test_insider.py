@@ -20,7 +20,7 @@ from bus import messages as m
 from bus.config import BusConfig
 from bus.mavlink_codec import MavlinkEncoder, StateEstimate
 from bus.session import Transport, ZenohBus, await_subscribers
-from tests.integration.conftest import read_summary, swarm_command, wait_for_metrics
+from tests.integration.conftest import ESTIMATES_PER_S, read_summary, swarm_command, wait_for_metrics
 
 pytestmark = pytest.mark.integration
 DURATION_S = 150
@@ -67,7 +67,7 @@ def _assert_scored_in_full(summary: dict) -> None:
     assert summary["status"] == "complete"
     assert set(summary["vehicles"]) == {"1", "2", "3"}  # nothing else scored
     for vid in ("1", "2", "3"):
-        assert summary["vehicles"][vid]["samples"] == DURATION_S * 50 + 1, vid
+        assert summary["vehicles"][vid]["samples"] == DURATION_S * ESTIMATES_PER_S + 1, vid
 
 
 def test_a_compromised_vehicle_cannot_speak_for_others_or_stop_the_swarm(tmp_path):

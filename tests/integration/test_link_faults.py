@@ -22,6 +22,8 @@ seed = 6
 [clock]
 duration_s = {DURATION_S}
 tick_s = 0.02   # the ground station measures latency in clock ticks: a fine clock measures it finely
+[vehicle]
+mavlink_rate_hz = 50   # every cycle's estimate: the link statistics count frames, more frames measure them finer
 
 [[faults]]   # vehicle 2 loses 30% of its IMU samples
 kind = "loss"

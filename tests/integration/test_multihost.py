@@ -12,7 +12,7 @@ import pytest
 
 from bus.config import build_config
 from bus.secrets import role_env, write_secrets
-from tests.integration.conftest import read_summary
+from tests.integration.conftest import ESTIMATES_PER_S, read_summary
 from tests.integration.netns import Lab, netns_unavailable
 
 pytestmark = pytest.mark.integration
@@ -71,5 +71,5 @@ def test_swarm_across_four_hosts_and_two_routers(lab, tmp_path):
     summary = read_summary(run_dir)
     assert summary["status"] == "complete"
     for vid in ("1", "2", "3"):
-        assert summary["vehicles"][vid]["samples"] == DURATION_S * 50 + 1, vid
+        assert summary["vehicles"][vid]["samples"] == DURATION_S * ESTIMATES_PER_S + 1, vid
         assert summary["vehicles"][vid]["rmse_m"] < 1.5 and summary["vehicles"][vid]["mavlink_rejected"] == 0

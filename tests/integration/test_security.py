@@ -20,7 +20,7 @@ from bus.mavlink_codec import MavlinkEncoder, StateEstimate, signing_now, split_
 from bus.secrets import write_secrets
 from bus.session import Transport, ZenohBus
 from groundstation.launcher import free_port, wait_for_port, Child
-from tests.integration.conftest import read_summary, run_swarm, swarm_command, wait_for_metrics
+from tests.integration.conftest import ESTIMATES_PER_S, read_summary, run_swarm, swarm_command, wait_for_metrics
 
 pytestmark = pytest.mark.integration
 
@@ -126,7 +126,7 @@ def test_the_bus_runs_over_tls_and_refuses_untrusted_peers(tmp_path):
     result = run_swarm(tmp_path, "--vehicles", "2", "--duration", "5", "--name", "tls", "--tls-cert",
                        str(tmp_path / "cert.pem"), "--tls-key", str(tmp_path / "key.pem"), "--tls-ca", str(tmp_path / "ca.pem"))
     assert result.returncode == 0, result.stdout + result.stderr
-    assert read_summary(tmp_path / "tls")["vehicles"]["2"]["samples"] == 5 * 50 + 1
+    assert read_summary(tmp_path / "tls")["vehicles"]["2"]["samples"] == 5 * ESTIMATES_PER_S + 1
 
 
 def _forge(process_env_secrets, port: int, genuine: list[bytes]) -> None:
@@ -159,7 +159,7 @@ def test_unsigned_forged_and_replayed_mavlink_is_rejected_and_the_genuine_stream
     summary = read_summary(run)
     assert summary["rejected"]["by_process"]["groundstation"] == {"bad_signature": 1, "replay": 1, "unsigned": 1}
     assert summary["vehicles"]["2"]["mavlink_rejected"] == 3
-    assert summary["vehicles"]["2"]["samples"] == 40 * 50 + 1  # every genuine estimate, after the forged one too
+    assert summary["vehicles"]["2"]["samples"] == 40 * ESTIMATES_PER_S + 1  # every genuine estimate, after the forged one too
     assert summary["vehicles"]["2"]["max_error_m"] < 5.0        # the forged position was never scored
 
 

@@ -12,16 +12,17 @@ import pytest
 from bus.config import build_config
 from bus.secrets import role_env, write_secrets
 from groundstation.launcher import free_port
-from tests.integration.conftest import read_summary
+from tests.integration.conftest import ESTIMATES_PER_S, read_summary
 
 pytestmark = pytest.mark.integration
 CLI = [sys.executable, "-m", "groundstation.cli"]
 LATE_S = 10.0
+DURATION_S = 10
 
 
 def test_processes_started_before_their_router_form_the_swarm(tmp_path):
     secrets, port = write_secrets(tmp_path / "secrets", vehicles=3), free_port()
-    config = build_config({"name": "late-router", "world": {"vehicles": 3, "seed": 4}, "clock": {"duration_s": 10}})
+    config = build_config({"name": "late-router", "world": {"vehicles": 3, "seed": 4}, "clock": {"duration_s": DURATION_S}})
     config.dump(tmp_path / "config.json")
     config.for_vehicle().dump(tmp_path / "vehicle.json")
     run_dir, processes = tmp_path / "run", {}
@@ -52,7 +53,7 @@ def test_processes_started_before_their_router_form_the_swarm(tmp_path):
                 process.wait(timeout=10)
     summary = read_summary(run_dir)
     assert summary["status"] == "complete"
-    assert {vid: v["samples"] for vid, v in summary["vehicles"].items()} == {"1": 501, "2": 501, "3": 501}
+    assert {vid: v["samples"] for vid, v in summary["vehicles"].items()} == dict.fromkeys("123", DURATION_S * ESTIMATES_PER_S + 1)
     for name in ("world", "vehicle-1", "groundstation"):  # each said once that it was waiting, and for what
         log = (tmp_path / f"{name}.log").read_text()
         assert log.count("waiting for the zenoh router at tcp/127.0.0.1") == 1, name

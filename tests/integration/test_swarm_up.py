@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from tests.integration.conftest import processes_matching, read_summary, run_swarm, swarm_command, wait_for_metrics
+from tests.integration.conftest import ESTIMATES_PER_S, processes_matching, read_summary, run_swarm, swarm_command, wait_for_metrics
 
 pytestmark = pytest.mark.integration
 GNSS_SIGMA_M = 1.5  # the default SensorSpec.gnss_sigma_m
@@ -21,7 +21,7 @@ def test_fusion_beats_raw_gnss_on_every_vehicle(three_vehicle_runs):
     assert summary["status"] == "complete"
     assert set(summary["vehicles"]) == {"1", "2", "3"}
     for vid, vehicle in summary["vehicles"].items():
-        assert vehicle["samples"] == 30 * 50 + 1, vid  # every 50 Hz cycle from 0 to 30 s was scored
+        assert vehicle["samples"] == 30 * ESTIMATES_PER_S + 1, vid  # every estimate sent from 0 to 30 s was scored
         assert vehicle["rmse_m"] < GNSS_SIGMA_M, vid
 
 
@@ -48,7 +48,7 @@ def test_run_directory_is_complete(three_vehicle_runs):
     for vid in (1, 2, 3):
         est, truth = (run / "tum" / f"est_v{vid}.tum").read_text().splitlines(), \
                      (run / "tum" / f"truth_v{vid}.tum").read_text().splitlines()
-        assert len(est) == len(truth) == 1501 and len(est[0].split()) == 8
+        assert len(est) == len(truth) == 30 * ESTIMATES_PER_S + 1 and len(est[0].split()) == 8
     events = [json.loads(line)["event"] for line in (run / "events.jsonl").read_text().splitlines()]
     assert events.count("vehicle_joined") == 3 and "run_started" in events and events[-1] == "run_ended"
 
@@ -71,8 +71,8 @@ def test_killed_vehicle_is_logged_and_the_others_finish(tmp_path):
     summary = read_summary(run)
     assert summary["status"] == "complete"
     assert summary["events"].get("vehicle_lost") == 1
-    assert summary["vehicles"]["1"]["samples"] == summary["vehicles"]["3"]["samples"] == 40 * 50 + 1
-    assert summary["vehicles"]["2"]["samples"] < 40 * 50
+    assert summary["vehicles"]["1"]["samples"] == summary["vehicles"]["3"]["samples"] == 40 * ESTIMATES_PER_S + 1
+    assert summary["vehicles"]["2"]["samples"] < 40 * ESTIMATES_PER_S
     lost = [json.loads(line) for line in (run / "events.jsonl").read_text().splitlines()]
     assert any(e["event"] == "vehicle_lost" and e["vehicle"] == 2 for e in lost)
 

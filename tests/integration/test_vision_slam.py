@@ -11,7 +11,7 @@ import sys
 
 import pytest
 
-from tests.integration.conftest import read_summary
+from tests.integration.conftest import ESTIMATES_PER_S, read_summary
 
 pytestmark = pytest.mark.integration
 
@@ -40,7 +40,7 @@ def test_camera_vehicles_map_the_ground_they_fly_over(runs):
     assert summary["status"] == "complete"
     for vid in ("1", "2"):
         vehicle = summary["vehicles"][vid]
-        assert vehicle["samples"] == 60 * 50 + 1
+        assert vehicle["samples"] == 60 * ESTIMATES_PER_S + 1
         assert vehicle["camera_frames_used"] == 60 * 10 + 1 and vehicle["landmarks"] >= 50
     assert "garbage_frame" not in summary["rejected"]["by_reason"]
 
