@@ -77,6 +77,15 @@ class LinkFaultStage:
         """Keep the plan's link faults that can select traffic to this receiver."""
         self.faults = tuple(f for f in faults if isinstance(f, _LinkFault) and fnmatch.fnmatchcase(self.receiver, f.dst))
 
+    def untouched(self, key: str, count: int = 1) -> bool:
+        """True when no fault of the plan can select traffic to this receiver: ``count`` arrivals on
+        ``key`` are then counted as offered (later faults draw for them as they would have) and pass
+        as they are, without being offered one by one."""
+        if self.faults:
+            return False
+        self._arrivals[key] += count
+        return True
+
     def offer(self, arrival: Arrival) -> list[Any]:
         """Take one arriving packet. One that no active fault selects is returned at once; otherwise
         its copies (0, 1 or 2) come out of :meth:`release` at stamp + delay, in that order, so that

@@ -11,9 +11,12 @@ position is carried from its epoch e to t along its broadcast heading at its bro
 p(t) = p(e) + v (t - e) [cos yaw, sin yaw], its covariance grown by (var v + v^2 var yaw) (t - e)^2
 on both axes (t - e is under one broadcast period).
 
-Neighbours' frames are decoded and checked when they arrive: the sender must be the vehicle whose
-key it came on, the covariance must be usable. Authenticity rests on the router: only vehicle j's
-login may publish on ``v/j/v2v`` (bus.access); a vehicle holds no other vehicle's signing key.
+Neighbours' frames are kept as they arrive and decoded and checked when a measurement pairs with
+them (the radio ranges at most a few peers per epoch, while every neighbour's broadcast is heard: in
+a 20-vehicle swarm four frames in five were decoded for nothing): the sender must be the vehicle
+whose key it came on, the covariance must be usable; what fails is counted then. Authenticity rests
+on the router: only vehicle j's login may publish on ``v/j/v2v`` (bus.access); a vehicle holds no
+other vehicle's signing key.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from bus.rejections import Rejections
 from vehicle.cooperative import CooperativeFix
 
 HISTORY = 64        # broadcasts kept per neighbour (12 s at 5 Hz)
+MAX_COPIES = 4      # frames kept per neighbour and epoch (a link fault duplicates; more is a flood)
 MAX_WAITING = 10_000
 
 
@@ -57,38 +61,67 @@ class Broadcast:
         return self.xy_m + step, self.cov_m2 + spread * np.eye(2)
 
 
+@dataclass
+class _Epoch:
+    """A neighbour's frames for one broadcast epoch, decoded on first use: the last good one counts."""
+
+    frames: list[bytes]
+    decoded: int = 0
+    broadcast: Broadcast | None = None
+
+
 class V2V:
     def __init__(self, vehicle_id: int, *, latency_us: int, rejections: Rejections, period_us: int) -> None:
         self.vehicle_id, self.latency_us, self.rejections = vehicle_id, latency_us, rejections
         self.period_us = period_us  # between the neighbours' broadcast epochs
         self._decoder = MavlinkDecoder()  # neighbours' keys are not ours to hold: no authentication here
-        self._estimates: dict[int, OrderedDict[int, Broadcast]] = {}
+        self._heard: dict[int, OrderedDict[int, _Epoch]] = {}
         self._waiting: list[tuple[int, int, m.RangeBearing]] = []
         self._order = itertools.count()
         self.sent = 0
         self.missing = 0
 
     def hear(self, sender: int, stamp_us: int, frame: bytes) -> None:
-        """A neighbour's ODOMETRY frame (after link faults): decoded, checked and kept by stamp."""
+        """A neighbour's ODOMETRY frame (after link faults): kept by stamp until a measurement needs it."""
+        history = self._heard.setdefault(sender, OrderedDict())
+        epoch = history.get(stamp_us)
+        if epoch is None:
+            history[stamp_us] = _Epoch([frame])
+            while len(history) > HISTORY:
+                history.popitem(last=False)
+        elif len(epoch.frames) < MAX_COPIES:
+            epoch.frames.append(frame)
+        else:
+            self.rejections.reject("unexpected", f"v2v from {sender}", f"over {MAX_COPIES} frames for epoch {stamp_us}")
+
+    def _broadcast(self, sender: int, stamp_us: int) -> Broadcast | None:
+        """The neighbour's broadcast of epoch ``stamp_us``: its frames decoded now if not yet."""
+        epoch = self._heard.get(sender, {}).get(stamp_us)
+        if epoch is None:
+            return None
+        for frame in epoch.frames[epoch.decoded:]:
+            epoch.broadcast = self._decoded(sender, stamp_us, frame) or epoch.broadcast
+        epoch.decoded = len(epoch.frames)
+        return epoch.broadcast
+
+    def _decoded(self, sender: int, stamp_us: int, frame: bytes) -> Broadcast | None:
+        """One frame checked: None (counted) if it is not a usable estimate of ``sender`` at ``stamp_us``."""
         try:
             est = self._decoder.decode(frame)
         except MavlinkRejected as exc:
             self.rejections.reject(exc.reason, f"v2v from {sender}", str(exc))
-            return
+            return None
         except DecodeError as exc:
             self.rejections.reject("malformed", f"v2v from {sender}", str(exc))
-            return
+            return None
         if isinstance(est, NoEstimate) and est.vehicle_id == sender and est.time_usec == stamp_us:
-            return  # the neighbour had no estimate at that epoch
+            return None  # the neighbour had no estimate at that epoch
         if not isinstance(est, StateEstimate) or est.vehicle_id != sender or est.time_usec != stamp_us:
             self.rejections.reject("impersonation", f"v2v from {sender}", "sender or stamp differs from the frame's")
-            return
-        history = self._estimates.setdefault(sender, OrderedDict())
-        history[stamp_us] = Broadcast(est.position_m[:2].copy(), est.pose_covariance[:2, :2].copy(), est.yaw_rad,
-                                      float(est.pose_covariance[5, 5]), float(est.velocity_mps[0]),
-                                      float(est.velocity_covariance[0, 0]))
-        while len(history) > HISTORY:
-            history.popitem(last=False)
+            return None
+        return Broadcast(est.position_m[:2].copy(), est.pose_covariance[:2, :2].copy(), est.yaw_rad,
+                         float(est.pose_covariance[5, 5]), float(est.velocity_mps[0]),
+                         float(est.velocity_covariance[0, 0]))
 
     def hold(self, measurement: m.RangeBearing) -> bool:
         """Keep a ranging measurement until its neighbour's broadcast is due; False when full."""
@@ -113,7 +146,7 @@ class V2V:
         while self._waiting and self._waiting[0][0] + self.latency_us <= now_us:
             msg = heapq.heappop(self._waiting)[2]
             epoch = self.epoch(msg.stamp_us)
-            found = self._estimates.get(msg.target_id, {}).get(epoch)
+            found = self._broadcast(msg.target_id, epoch)
             if found is None:
                 self.missing += 1
                 continue

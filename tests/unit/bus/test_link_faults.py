@@ -107,3 +107,19 @@ def test_faults_select_by_source_destination_topic_and_time():
     assert offer("v3", "mavlink", 1.5) and offer("v1", "imu", 1.5)
     assert offer("v1", "mavlink", 0.9) and offer("v1", "mavlink", 2.0)
     assert LinkFaultStage("v1", seed=0, faults=(fault,)).faults == ()  # not addressed to v1
+
+
+def test_traffic_passed_untouched_before_a_fault_leaves_its_draws_as_if_offered():
+    """The bus layer skips offering packet by packet while no fault targets the receiver; a fault set
+    later must still decide each packet as it would have had every earlier one been offered."""
+    loss = (Loss(name="l", percent=50),)
+    offered, counted = LinkFaultStage("v1", seed=3), LinkFaultStage("v1", seed=3)
+    for t in range(100):
+        assert offered.offer(Arrival("k", "v2", "imu", t, t)) == [t]
+    assert counted.untouched("k", 100) and not LinkFaultStage("v1", seed=3, faults=loss).untouched("k")
+    offered.set_plan(loss), counted.set_plan(loss)
+    after = [Arrival("k", "v2", "imu", t, t) for t in range(100, 400)]
+    for stage in (offered, counted):
+        assert all(stage.offer(a) == [] for a in after)  # selected: they come out of release()
+    kept = offered.release(10**9)
+    assert kept == counted.release(10**9) and 100 < len(kept) < 200

@@ -64,11 +64,14 @@ def test_any_bytes_on_any_key_are_counted_never_raised(payload, topic, ident):
     assert node.rejections.total >= before
 
 
-def test_neighbour_estimates_with_degenerate_covariances_are_refused():
+def test_neighbour_estimates_with_degenerate_covariances_are_refused_when_used():
     node, _ = _node()
-    for cov in (np.zeros((6, 6)), np.diag([1.0, -1.0, 1, 1, 1, 1]), np.diag([1e12, 1.0, 1, 1, 1, 1])):
-        frame = MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, 200_000, cov))
-        node.v2v.hear(2, 200_000, frame)
+    for k, cov in enumerate((np.zeros((6, 6)), np.diag([1.0, -1.0, 1, 1, 1, 1]), np.diag([1e12, 1.0, 1, 1, 1, 1]))):
+        epoch = 200_000 * (k + 1)
+        node.v2v.hear(2, epoch, MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, epoch, cov)))
+        node.v2v.hold(m.RangeBearing(1, epoch, k, 2, 5.0, 0.0, np.diag([0.01, 1e-4])))
+    assert node.rejections.total == 0  # kept, not decoded: no measurement needed them yet
+    assert node.v2v.mature(10**6) == [] and node.v2v.missing == 3
     assert counts_to_dict(node.rejections.as_counts()) == {"degenerate": 3}
 
 
@@ -161,7 +164,8 @@ def test_divergence_guard_resets_instead_of_publishing_nan():
     node.take(Envelope(node.bus.keys.feed(1), _batch(1, 0, 0, PRIOR)))
     node.cycle(0)
     node.estimator.P[0, 0] = np.nan  # a numerical accident inside the filter
-    node.cycle(20_000)
+    for t_us in range(20_000, 100_001, 20_000):  # to the next estimate sent (10 Hz)
+        node.cycle(t_us)
     node.outbound.flush()
     decoder, decoded = MavlinkDecoder(), []
     while not out.empty():

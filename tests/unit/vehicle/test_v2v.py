@@ -51,3 +51,17 @@ def test_a_measurement_whose_epoch_was_not_heard_is_missing():
     v2v = _heard(0.0)
     v2v.hold(_ranging(2 * PERIOD_US + 50_000))  # pairs with epoch 0.4 s: never heard
     assert v2v.mature(10**7) == [] and v2v.missing == 1
+
+
+def test_copies_of_one_epoch_are_decoded_when_used_and_the_last_good_one_counts():
+    v2v = _heard(0.0)
+    v2v.hear(2, PERIOD_US, b"\xfd not a frame")                              # a broken copy after the good one
+    v2v.hear(2, PERIOD_US, MavlinkEncoder(vehicle_id=2).no_estimate(PERIOD_US))  # and "no estimate"
+    assert v2v.rejections.total == 0  # nothing decoded before a measurement needs the epoch
+    v2v.hold(_ranging(PERIOD_US))
+    (fix,) = v2v.mature(PERIOD_US + 100_000)
+    assert np.allclose(fix.neighbour_xy_m, [3.0, 4.0])
+    assert v2v.rejections.total == 1  # the broken copy, counted when it was looked at
+    for _ in range(10):
+        v2v.hear(2, 2 * PERIOD_US, b"flood")
+    assert v2v.rejections.total == 1 + 10 - 4  # copies beyond four per epoch are refused as they come
