@@ -34,7 +34,6 @@ from dataclasses import dataclass
 from typing import Callable, Literal
 
 import numpy as np
-from scipy.linalg.blas import dger
 
 from bus.angles import wrap_angle
 from vehicle import unscented as ut
@@ -262,17 +261,6 @@ def apply_correction(x: np.ndarray, P: np.ndarray, correction: Correction) -> tu
     x_new[2] = wrap_angle(x_new[2])
     P_new = P + A @ (correction.M_new - correction.M) @ A.T
     return x_new, 0.5 * (P_new + P_new.T)
-
-
-def apply_correction_in_place(x: np.ndarray, P: np.ndarray, correction: Correction) -> None:
-    """``apply_correction`` on a large state (a SLAM map, P C-contiguous) without n x n temporaries:
-    the change of P is A D A^T with D = M+ - M (2, 2), applied as two rank-1 updates."""
-    A = regression_on_z(P, correction)
-    x += A @ correction.dz
-    x[2] = wrap_angle(x[2])
-    values, vectors = np.linalg.eigh(correction.M_new - correction.M)
-    for value, u in zip(values, (A @ vectors).T):
-        dger(float(value), u, u, a=P.T, overwrite_a=True)
 
 
 def cooperative_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix, gate: float,

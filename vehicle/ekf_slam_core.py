@@ -30,6 +30,7 @@ import numpy as np
 from scipy.linalg.blas import dger
 
 from bus.angles import wrap_angle
+from vehicle.cooperative import Correction, regression_on_z
 from vehicle.ekf import UpdateResult
 
 
@@ -129,3 +130,14 @@ def predict_pose(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray, pos
     P[:q, q:] = F @ P[:q, q:]
     P[q:, :q] = P[:q, q:].T
     P[:q, :q] = F @ P[:q, :q] @ F.T + Q
+
+
+def apply_correction_in_place(x: np.ndarray, P: np.ndarray, correction: Correction) -> None:
+    """``apply_correction`` on a large state (a SLAM map, P C-contiguous) without n x n temporaries:
+    the change of P is A D A^T with D = M+ - M (2, 2), applied as two rank-1 updates."""
+    A = regression_on_z(P, correction)
+    x += A @ correction.dz
+    x[2] = wrap_angle(x[2])
+    values, vectors = np.linalg.eigh(correction.M_new - correction.M)
+    for value, u in zip(values, (A @ vectors).T):
+        dger(float(value), u, u, a=P.T, overwrite_a=True)

@@ -35,7 +35,7 @@ from bus import messages as m
 from bus.config import SensorSpec
 from vehicle import ekf_slam_core as slam
 from vehicle import unicycle_ekf as ekf
-from vehicle.cooperative import CooperativeRule, Correction, apply_correction_in_place
+from vehicle.cooperative import CooperativeRule, Correction
 from vehicle.ekf import gate_threshold
 from vehicle.estimators.ekf import DIVERGENCE_FLOOR, DIVERGENCE_INFLATION, UnicycleEkf
 from vehicle.vision import association, features
@@ -106,7 +106,7 @@ class EkfSlam(UnicycleEkf):
 
     def _apply_correction(self, correction: Correction) -> None:
         """The map follows the pose in place (no n x n temporaries)."""
-        apply_correction_in_place(self.x, self.P, correction)
+        slam.apply_correction_in_place(self.x, self.P, correction)
 
     def _gnss_update(self, fix: m.GnssFix) -> None:
         slam.update_in_place(self.x, self.P, [0, 1], np.eye(2), fix.position_m - self.x[:2], fix.covariance_m2,

@@ -10,8 +10,8 @@ from scipy.stats import chi2
 
 from bus.config import build_config
 from tests.offline import swarm_in_memory
-from vehicle.cooperative import (WEIGHT_GRID, CooperativeFix, CooperativeRule, apply_correction_in_place,
-                                 cooperative_update, relative_model)
+from vehicle.cooperative import WEIGHT_GRID, CooperativeFix, CooperativeRule, cooperative_update, relative_model
+from vehicle.ekf_slam_core import apply_correction_in_place
 
 RUNS = 3000
 P = np.diag([1.0, 1.0, 0.01, 1e-6])
