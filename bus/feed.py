@@ -137,8 +137,8 @@ def _column(raw: Any, dtype: str, name: str) -> np.ndarray:
 def _spd2(c: np.ndarray) -> bool:
     """All rows (k, 4) are symmetric positive-definite 2x2 matrices (row-major)."""
     a, b, cc, d = c[:, 0], c[:, 1], c[:, 2], c[:, 3]
-    return bool(np.all(np.abs(b - cc) <= 1e-9 * np.maximum(np.abs(b), 1e-300)) and np.all(a > 0)
-                and np.all(a * d - b * cc > 0))
+    return bool((np.abs(b - cc) <= 1e-9 * np.maximum(np.abs(b), 1e-300)).all() and (a > 0).all()
+                and (a * d - b * cc > 0).all())
 
 
 def _spd3(c: np.ndarray) -> bool:
@@ -146,7 +146,7 @@ def _spd3(c: np.ndarray) -> bool:
     M = c.reshape(-1, 3, 3)
     if not np.allclose(M, np.transpose(M, (0, 2, 1)), rtol=1e-9, atol=0.0):
         return False
-    return bool(np.all(M[:, 0, 0] > 0) and np.all(np.linalg.det(M[:, :2, :2]) > 0) and np.all(np.linalg.det(M) > 0))
+    return bool((M[:, 0, 0] > 0).all() and (np.linalg.det(M[:, :2, :2]) > 0).all() and (np.linalg.det(M) > 0).all())
 
 
 def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.ndarray, int, np.ndarray]:
@@ -160,11 +160,12 @@ def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.nda
         raise DecodeError(f"{topic}: {k} stamps need {k * width} values (at most {max_rows} rows), got {len(rows)}")
     seq0 = _int(raw, "seq0", 0, MAX_SEQ)
     rows = rows.reshape(k, width)
-    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or np.any(np.diff(stamps) < 0)):
+    steps = stamps[1:] - stamps[:-1]  # ndarray methods, not np.any / np.all: this runs per batch per topic
+    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or (steps < 0).any()):
         raise DecodeError(f"{topic}: stamps must be ordered and inside the tick ending at {stamp_us} us")
-    if not np.all(np.abs(rows) <= max_abs):  # also rejects NaN and inf
+    if not (np.abs(rows) <= max_abs).all():  # also rejects NaN and inf
         raise DecodeError(f"{topic}: values must be finite and within +-{max_abs:g}")
-    if topic not in SIGHTINGS and k > 1 and np.any(np.diff(stamps) == 0):
+    if topic not in SIGHTINGS and k > 1 and (steps == 0).any():
         raise DecodeError(f"{topic}: two samples with one stamp")
     if topic in ("gnss", *SIGHTINGS) and k and not _spd2(rows[:, -4:]):
         raise DecodeError(f"{topic}: covariance is not symmetric positive definite")
@@ -172,13 +173,13 @@ def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.nda
         raise DecodeError("prior: covariance is not symmetric positive definite")
     if topic == "ranging" and k:
         target = rows[:, 0]
-        if np.any(target != np.round(target)) or np.any(target < 1) or np.any(target > 250) or np.any(target == vehicle_id):
+        if ((target != np.round(target)) | (target < 1) | (target > 250) | (target == vehicle_id)).any():
             raise DecodeError("ranging: target ids must be other vehicles, 1-250")
     if topic == "landmark" and k:
         ident = rows[:, 0]
-        if np.any(ident != np.round(ident)) or np.any(ident < 0) or np.any(ident > MAX_LANDMARK_ID):
+        if ((ident != np.round(ident)) | (ident < 0) | (ident > MAX_LANDMARK_ID)).any():
             raise DecodeError(f"landmark: ids must be integers 0-{MAX_LANDMARK_ID}")
-    if topic in SIGHTINGS and k and (np.any(rows[:, 1] < 0) or np.any(np.abs(rows[:, 2]) > 10.0)):
+    if topic in SIGHTINGS and k and ((rows[:, 1] < 0) | (np.abs(rows[:, 2]) > 10.0)).any():
         raise DecodeError(f"{topic}: range must be >= 0 and the bearing within +-10 rad")
     return stamps, seq0, rows
 
