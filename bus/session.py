@@ -204,11 +204,6 @@ class ZenohBus:
         self._keep.append(pub)
         return pub
 
-    def _direct(self, callback: Callable[[Any], None]) -> Any:
-        """``callback`` run on zenoh's receiving thread: it only enqueues, never blocks, so the default
-        hand-over to a Python thread per sample (a second thread switch and GIL hand-off) buys nothing."""
-        return self._zenoh.handlers.Callback(callback, indirect=False)
-
     def subscribe(self, key_expr: str, inbox: Inbox, max_bytes: int | None = None) -> None:
         """Samples on ``key_expr`` go to ``inbox`` as Envelopes; those over ``max_bytes`` as Oversized."""
         check_subscription(self.role, self.keys, key_expr)
@@ -221,7 +216,7 @@ class ZenohBus:
             else:
                 inbox.put(Envelope(str(sample.key_expr), sample.payload.to_bytes()))
 
-        self._keep.append(self._session.declare_subscriber(key_expr, self._direct(on_sample)))
+        self._keep.append(self._session.declare_subscriber(key_expr, on_sample))
 
     def declare_token(self, key: str) -> None:
         self._keep.append(self._session.liveliness().declare_token(key))
@@ -232,7 +227,7 @@ class ZenohBus:
         def on_change(sample) -> None:
             inbox.put(LivelinessEvent(str(sample.key_expr), sample.kind == put_kind))
 
-        self._keep.append(self._session.liveliness().declare_subscriber(key_expr, self._direct(on_change), history=True))
+        self._keep.append(self._session.liveliness().declare_subscriber(key_expr, on_change, history=True))
 
     def queryable(self, key: str, inbox: Inbox) -> None:
         """Queries on ``key`` arrive in ``inbox`` as Request items (answered later by the loop thread)."""
@@ -249,7 +244,7 @@ class ZenohBus:
                 return
             inbox.put(Request(str(query.key_expr), payload.to_bytes() if payload else b"", respond))
 
-        self._keep.append(self._session.declare_queryable(key, self._direct(on_query)))
+        self._keep.append(self._session.declare_queryable(key, on_query))
 
     def get(self, key: str, payload: bytes, timeout_s: float) -> list[bytes]:
         """Ask the queryables on ``key``; their replies (empty when nobody answers within the timeout)."""
