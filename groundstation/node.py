@@ -328,7 +328,7 @@ class GroundStation:
         self.event("run_ended", status=status, vehicles_lost=lost)
         self.rejections.counts["inbox_full"] = self.mailbox.dropped()
         summary = build_summary(self.config, self.scorer, self.statuses, dict(sorted(self.events.items())), status,
-                                self.faults.faults, self.intake, self._rejected())
+                                self.faults.faults, self.intake, self.rejected_by_process())
         self.run.write_json("summary.json", summary)
         for vid, landmark_map in sorted(self.maps.items()):
             self.run.write_json(f"map_v{vid}.json", map_record(landmark_map))
@@ -337,7 +337,7 @@ class GroundStation:
         self.run.close()
         return summary
 
-    def _rejected(self) -> dict[str, tuple[int, ...]]:
+    def rejected_by_process(self) -> dict[str, tuple[int, ...]]:
         """Rejected input by process: the ground station's own, the world's (from its run end) and
         every vehicle's (from its last status)."""
         out = {"groundstation": self.rejections.as_counts()}

@@ -84,3 +84,17 @@ def test_any_bytes_on_any_key_are_never_fatal(tmp_path_factory, payload, topic, 
     gs.handle(Request("swarm/ctl/faults/request", payload, lambda reply: None))
     gs.handle(LivelinessEvent(f"swarm/alive/vehicle/{ident}", True))
     gs.run.close()
+
+
+def test_the_realtime_live_table_shows_a_running_ground_station(tmp_path):
+    """`swarm up --mode realtime` without --quiet redraws the RMSE table every half second from the
+    running ground station (it once called an attribute the station no longer had, and died)."""
+    from groundstation.display import live_display
+
+    gs = _gs(tmp_path)
+    _truth(gs, [0, 500_000])
+    gs.handle(Envelope(gs.bus.keys.mavlink(1), _frame(1, 500_000)))
+    gs.handle(Envelope(gs.bus.keys.clock(), m.encode(m.ClockTick(25, 500_000, 0, False))))
+    assert gs.sim_time_us == 500_000
+    with live_display("realtime", 10.0, quiet=False) as on_progress:
+        on_progress(gs)
