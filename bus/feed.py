@@ -160,12 +160,12 @@ def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.nda
         raise DecodeError(f"{topic}: {k} stamps need {k * width} values (at most {max_rows} rows), got {len(rows)}")
     seq0 = _int(raw, "seq0", 0, MAX_SEQ)
     rows = rows.reshape(k, width)
-    steps = stamps[1:] - stamps[:-1]  # ndarray methods, not np.any / np.all: this runs per batch per topic
-    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or (steps < 0).any()):
+    earlier, later = stamps[:-1], stamps[1:]  # compared, never subtracted: int64 differences wrap
+    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or (later < earlier).any()):
         raise DecodeError(f"{topic}: stamps must be ordered and inside the tick ending at {stamp_us} us")
     if not (np.abs(rows) <= max_abs).all():  # also rejects NaN and inf
         raise DecodeError(f"{topic}: values must be finite and within +-{max_abs:g}")
-    if topic not in SIGHTINGS and k > 1 and (steps == 0).any():
+    if topic not in SIGHTINGS and k > 1 and (later == earlier).any():
         raise DecodeError(f"{topic}: two samples with one stamp")
     if topic in ("gnss", *SIGHTINGS) and k and not _spd2(rows[:, -4:]):
         raise DecodeError(f"{topic}: covariance is not symmetric positive definite")
@@ -198,7 +198,7 @@ def _camera_block(raw: Any, stamp_us: int) -> CameraBlock:
     if not isinstance(pixels, bytes) or k > MAX_CAMERA_FRAMES or len(scale) != k or len(pixels) != k * size * size:
         raise DecodeError(f"camera: {k} frames of {size} x {size} px need {k} scales and {k * size * size} "
                           f"pixel bytes (at most {MAX_CAMERA_FRAMES} frames)")
-    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or np.any(np.diff(stamps) <= 0)):
+    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or (stamps[1:] <= stamps[:-1]).any()):
         raise DecodeError(f"camera: stamps must be increasing and inside the tick ending at {stamp_us} us")
     if not np.all((scale > 0) & (scale <= MAX_METRES_PER_PIXEL)):
         raise DecodeError(f"camera: ground scale must be in (0, {MAX_METRES_PER_PIXEL:g}] m per pixel")
@@ -254,7 +254,7 @@ def decode_truth(payload: bytes) -> TruthBatch:
         raise DecodeError(f"TruthBatch: {k} stamps x {n} vehicles need {k * n * TRUTH_WIDTH} values")
     if np.any(ids < 1) or np.any(ids > 250) or len(set(ids.tolist())) != n:
         raise DecodeError("TruthBatch: vehicle ids must be distinct, 1-250")
-    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or np.any(np.diff(stamps) <= 0)):
+    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or (stamps[1:] <= stamps[:-1]).any()):
         raise DecodeError("TruthBatch: stamps must increase inside the tick")
     rows = data.reshape(k, n, TRUTH_WIDTH)
     gap = np.all(np.isnan(rows), axis=2, keepdims=True)  # no truth for that vehicle at that stamp

@@ -192,3 +192,17 @@ def test_mutated_landmark_batches_decode_or_raise_decode_error(data):
         return
     for _, msg in batch.samples():  # whatever passes is usable
         assert 0 <= msg.landmark_id <= feed.MAX_LANDMARK_ID and msg.range_m >= 0
+
+
+@pytest.mark.parametrize("topic", ["imu", "ranging"])
+def test_stamps_whose_differences_overflow_are_refused(topic):
+    """Order is checked by comparing stamps, never by subtracting them: 200 ms followed by a stamp
+    near -2^63 has a difference that wraps to a positive int64 (hypothesis found it)."""
+    width = feed.LAYOUT[topic][0]
+    rows = np.zeros((2, width))
+    if topic == "ranging":
+        rows[:, 0], rows[:, 1], rows[:, 3], rows[:, 6] = 3, 5.0, 0.01, 1e-4
+    stamps = np.array([200_000, -(2**63) + 100_000], dtype=np.int64)
+    payload = feed.encode_batch(feed.SensorBatch(2, 1, 500_000, {topic: (stamps, 0, rows)}))
+    with pytest.raises(DecodeError, match="stamps must be ordered"):
+        feed.decode_batch(payload)
