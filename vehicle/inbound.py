@@ -111,7 +111,7 @@ class Inbound:
         self.received_stamp_us = max(self.received_stamp_us, batch.stamp_us)
         samples = batch.samples()
         if self.links.untouched(item.key, len(samples)):
-            return [Delivery("sample", topic, msg, msg.stamp_us) for topic, msg in samples]
+            return [self._delivery(sample) for sample in samples]
         out = []
         for topic, msg in samples:
             arrival = Arrival(item.key, f"v{self.vehicle_id}", topic, msg.stamp_us, (topic, msg))
@@ -148,9 +148,10 @@ class Inbound:
         self.heard[sender] = self.heard.get(sender, 0) + 1
         stamp = header[3]
         self.heard_until[sender] = max(stamp, self.heard_until.get(sender, -1))
+        heard = ("v2v", (sender, stamp, frame))
         if self.links.untouched(item.key):
-            return [Delivery("v2v", payload=(sender, stamp, frame), stamp_us=stamp)]
-        return self._offer(Arrival(item.key, f"v{sender}", "mavlink", stamp, ("v2v", (sender, stamp, frame))))
+            return [self._delivery(heard)]
+        return self._offer(Arrival(item.key, f"v{sender}", "mavlink", stamp, heard))
 
     def release(self, now_us: int) -> list[Delivery]:
         """Held packets due by ``now_us``."""
