@@ -149,6 +149,16 @@ def _spd3(c: np.ndarray) -> bool:
     return bool((M[:, 0, 0] > 0).all() and (np.linalg.det(M[:, :2, :2]) > 0).all() and (np.linalg.det(M) > 0).all())
 
 
+def _outside_tick(stamps: np.ndarray, stamp_us: int, *, strictly: bool) -> bool:
+    """Stamps (k,) us not all inside the tick ending at ``stamp_us``, or out of order (``strictly``:
+    also two equal). Compared, never subtracted: int64 differences wrap."""
+    if not len(stamps):
+        return False
+    earlier, later = stamps[:-1], stamps[1:]
+    backwards = (later <= earlier) if strictly else (later < earlier)
+    return bool(stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or backwards.any())
+
+
 def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.ndarray, int, np.ndarray]:
     width, max_rows, max_abs = LAYOUT[topic]
     if not isinstance(raw, dict) or raw.keys() != {"stamp", "seq0", "data"}:
@@ -160,12 +170,11 @@ def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.nda
         raise DecodeError(f"{topic}: {k} stamps need {k * width} values (at most {max_rows} rows), got {len(rows)}")
     seq0 = _int(raw, "seq0", 0, MAX_SEQ)
     rows = rows.reshape(k, width)
-    earlier, later = stamps[:-1], stamps[1:]  # compared, never subtracted: int64 differences wrap
-    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or (later < earlier).any()):
+    if _outside_tick(stamps, stamp_us, strictly=False):
         raise DecodeError(f"{topic}: stamps must be ordered and inside the tick ending at {stamp_us} us")
     if not (np.abs(rows) <= max_abs).all():  # also rejects NaN and inf
         raise DecodeError(f"{topic}: values must be finite and within +-{max_abs:g}")
-    if topic not in SIGHTINGS and k > 1 and (later == earlier).any():
+    if topic not in SIGHTINGS and (stamps[1:] == stamps[:-1]).any():
         raise DecodeError(f"{topic}: two samples with one stamp")
     if topic in ("gnss", *SIGHTINGS) and k and not _spd2(rows[:, -4:]):
         raise DecodeError(f"{topic}: covariance is not symmetric positive definite")
@@ -198,7 +207,7 @@ def _camera_block(raw: Any, stamp_us: int) -> CameraBlock:
     if not isinstance(pixels, bytes) or k > MAX_CAMERA_FRAMES or len(scale) != k or len(pixels) != k * size * size:
         raise DecodeError(f"camera: {k} frames of {size} x {size} px need {k} scales and {k * size * size} "
                           f"pixel bytes (at most {MAX_CAMERA_FRAMES} frames)")
-    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or (stamps[1:] <= stamps[:-1]).any()):
+    if _outside_tick(stamps, stamp_us, strictly=True):
         raise DecodeError(f"camera: stamps must be increasing and inside the tick ending at {stamp_us} us")
     if not np.all((scale > 0) & (scale <= MAX_METRES_PER_PIXEL)):
         raise DecodeError(f"camera: ground scale must be in (0, {MAX_METRES_PER_PIXEL:g}] m per pixel")
@@ -254,7 +263,7 @@ def decode_truth(payload: bytes) -> TruthBatch:
         raise DecodeError(f"TruthBatch: {k} stamps x {n} vehicles need {k * n * TRUTH_WIDTH} values")
     if np.any(ids < 1) or np.any(ids > 250) or len(set(ids.tolist())) != n:
         raise DecodeError("TruthBatch: vehicle ids must be distinct, 1-250")
-    if k and (stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or (stamps[1:] <= stamps[:-1]).any()):
+    if _outside_tick(stamps, stamp_us, strictly=True):
         raise DecodeError("TruthBatch: stamps must increase inside the tick")
     rows = data.reshape(k, n, TRUTH_WIDTH)
     gap = np.all(np.isnan(rows), axis=2, keepdims=True)  # no truth for that vehicle at that stamp

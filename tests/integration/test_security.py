@@ -159,7 +159,8 @@ def test_unsigned_forged_and_replayed_mavlink_is_rejected_and_the_genuine_stream
     summary = read_summary(run)
     assert summary["rejected"]["by_process"]["groundstation"] == {"bad_signature": 1, "replay": 1, "unsigned": 1}
     assert summary["vehicles"]["2"]["mavlink_rejected"] == 3
-    assert summary["vehicles"]["2"]["samples"] == 40 * ESTIMATES_PER_S + 1  # every genuine estimate, after the forged one too
+    # every genuine estimate, after the forged one too
+    assert summary["vehicles"]["2"]["samples"] == 40 * ESTIMATES_PER_S + 1
     assert summary["vehicles"]["2"]["max_error_m"] < 5.0        # the forged position was never scored
 
 

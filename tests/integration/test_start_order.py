@@ -53,7 +53,8 @@ def test_processes_started_before_their_router_form_the_swarm(tmp_path):
                 process.wait(timeout=10)
     summary = read_summary(run_dir)
     assert summary["status"] == "complete"
-    assert {vid: v["samples"] for vid, v in summary["vehicles"].items()} == dict.fromkeys("123", DURATION_S * ESTIMATES_PER_S + 1)
+    samples = {vid: v["samples"] for vid, v in summary["vehicles"].items()}
+    assert samples == dict.fromkeys(("1", "2", "3"), DURATION_S * ESTIMATES_PER_S + 1)
     for name in ("world", "vehicle-1", "groundstation"):  # each said once that it was waiting, and for what
         log = (tmp_path / f"{name}.log").read_text()
         assert log.count("waiting for the zenoh router at tcp/127.0.0.1") == 1, name

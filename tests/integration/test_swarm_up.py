@@ -10,7 +10,8 @@ import time
 
 import pytest
 
-from tests.integration.conftest import ESTIMATES_PER_S, processes_matching, read_summary, run_swarm, swarm_command, wait_for_metrics
+from tests.integration.conftest import (ESTIMATES_PER_S, processes_matching, read_summary, run_swarm, swarm_command,
+                                       wait_for_metrics)
 
 pytestmark = pytest.mark.integration
 GNSS_SIGMA_M = 1.5  # the default SensorSpec.gnss_sigma_m
