@@ -23,7 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 GLOB = r"^[A-Za-z0-9_*?\[\]\-]{1,32}$"
 NAME = r"^[A-Za-z0-9_.\-]{0,64}$"
-LINK_TOPICS = ("imu", "odom", "gnss", "prior", "ranging", "landmark", "camera", "mavlink")
+LINK_TOPICS = ("imu", "odom", "gnss", "prior", "ranging", "seen", "landmark", "camera", "mavlink")
 
 
 class _Fault(BaseModel):

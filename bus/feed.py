@@ -30,9 +30,10 @@ LAYOUT = {
     "odom": (2, 1000, 1000.0),             # speed m/s, yaw rate rad/s
     "gnss": (6, 100, m.MAX_POSITION_M),    # position (2), covariance (2, 2)
     "ranging": (7, 2500, 1e6),             # target id, range m, bearing rad, covariance (2, 2)
+    "seen": (7, 2500, 1e6),                # observer id, range m, bearing rad, covariance (2, 2)
     "landmark": (7, 2500, 1e6),            # landmark id, range m, bearing rad, covariance (2, 2)
 }
-SIGHTINGS = ("ranging", "landmark")     # several per stamp (one camera frame sees many)
+SIGHTINGS = ("ranging", "seen", "landmark")     # several per stamp (one camera frame sees many)
 MAX_LANDMARK_ID = 999_999
 TOPICS = tuple(LAYOUT)
 CAMERA_SIZES_PX = (8, 1024)     # frame side, inclusive bounds
@@ -99,11 +100,16 @@ def _ranging(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.RangeBearing:
     return m.RangeBearing(vid, stamp, seq, int(r[0]), float(r[1]), float(r[2]), r[3:].reshape(2, 2))
 
 
+def _seen(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.SeenBy:
+    return m.SeenBy(vid, stamp, seq, int(r[0]), float(r[1]), float(r[2]), r[3:].reshape(2, 2))
+
+
 def _landmark(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.LandmarkSighting:
     return m.LandmarkSighting(vid, stamp, seq, int(r[0]), float(r[1]), float(r[2]), r[3:].reshape(2, 2))
 
 
-_MAKERS = {"prior": _prior, "imu": _imu, "odom": _odom, "gnss": _gnss, "ranging": _ranging, "landmark": _landmark}
+_MAKERS = {"prior": _prior, "imu": _imu, "odom": _odom, "gnss": _gnss, "ranging": _ranging, "seen": _seen,
+           "landmark": _landmark}
 
 
 def encode_batch(batch: SensorBatch) -> bytes:
@@ -180,10 +186,11 @@ def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.nda
         raise DecodeError(f"{topic}: covariance is not symmetric positive definite")
     if topic == "prior" and k and not _spd3(rows[:, 3:]):
         raise DecodeError("prior: covariance is not symmetric positive definite")
-    if topic == "ranging" and k:
-        target = rows[:, 0]
-        if ((target != np.round(target)) | (target < 1) | (target > 250) | (target == vehicle_id)).any():
-            raise DecodeError("ranging: target ids must be other vehicles, 1-250")
+    if topic in ("ranging", "seen") and k:
+        peer = rows[:, 0]
+        if ((peer != np.round(peer)) | (peer < 1) | (peer > 250) | (peer == vehicle_id)).any():
+            who = "target" if topic == "ranging" else "observer"
+            raise DecodeError(f"{topic}: {who} ids must be other vehicles, 1-250")
     if topic == "landmark" and k:
         ident = rows[:, 0]
         if ((ident != np.round(ident)) | (ident < 0) | (ident > MAX_LANDMARK_ID)).any():

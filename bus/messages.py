@@ -21,7 +21,7 @@ Seq = Annotated[int, Int(0, 2**63 - 1)]
 MAX_POSITION_M = 1e7
 
 __all__ = [
-    "ImuSample", "WheelOdometry", "GnssFix", "PosePrior", "RangeBearing", "LandmarkSighting", "Truth", "ClockTick", "TickAck",
+    "ImuSample", "WheelOdometry", "GnssFix", "PosePrior", "RangeBearing", "SeenBy", "LandmarkSighting", "Truth", "ClockTick", "TickAck",
     "GroundStationAck", "VehicleStatus", "RunEnd", "encode", "decode",
 ]
 Rejected = Annotated[tuple[int, ...], Counts(len(REASONS))]
@@ -92,6 +92,21 @@ class RangeBearing:
     stamp_us: StampUs
     seq: Seq
     target_id: VehicleId
+    range_m: Annotated[float, Float(1e6)]
+    bearing_rad: Annotated[float, Float(10.0)]
+    covariance: Annotated[np.ndarray, Covariance((2, 2), 1e8)]
+
+
+@dataclass(frozen=True)
+class SeenBy:
+    """A neighbour's sighting of this vehicle, relayed to it: range (m) and bearing (rad, from the
+    observer's heading) of ``vehicle_id`` seen from ``observer_id``, covariance (2, 2) over [range,
+    bearing]. The seen vehicle fuses it with the observer's broadcast pose (vehicle.cooperative)."""
+
+    vehicle_id: VehicleId
+    stamp_us: StampUs
+    seq: Seq
+    observer_id: VehicleId
     range_m: Annotated[float, Float(1e6)]
     bearing_rad: Annotated[float, Float(10.0)]
     covariance: Annotated[np.ndarray, Covariance((2, 2), 1e8)]

@@ -25,6 +25,8 @@ class ReplayConfig(BaseModel):
                                                              "(m) and bearing_sigma_rad")
     withhold_landmarks: tuple[int, ...] = Field((), description="robots whose landmark sightings are withheld "
                                                 "(they localize from odometry and the others)")
+    relay_sightings: bool = Field(True, description="each robot sighting is also sent to the robot seen (``seen`` "
+                                  "rows), as the observer's radio would pass it on; cooperative vehicles fuse it")
 
     @model_validator(mode="after")
     def _sane(self) -> "ReplayConfig":

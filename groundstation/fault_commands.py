@@ -162,7 +162,7 @@ def add(
     kind: str = typer.Argument(..., help=f"one of: {', '.join(KINDS)}"),
     to: Optional[str] = typer.Option(None, "--to", help="link faults: receiving endpoint glob (v*, v3, gs)"),
     src: Optional[str] = typer.Option(None, "--from", help="link faults: sending endpoint glob"),
-    topic: Optional[str] = typer.Option(None, help="link faults: topic glob (imu, odom, gnss, ranging, mavlink)"),
+    topic: Optional[str] = typer.Option(None, help="link faults: topic glob (imu, odom, gnss, ranging, seen, mavlink)"),
     delay: Optional[str] = typer.Option(None, help="delay: e.g. 200ms"),
     jitter: Optional[str] = typer.Option(None, help="delay: e.g. 50ms"),
     distribution: Optional[str] = typer.Option(None, help="delay: uniform, normal or pareto"),

@@ -31,6 +31,8 @@ def mrclam(
                                   "centralized (the reference: one filter over every robot with the map and every "
                                   "robot sighting, in this process, no bus)"),
     cooperative: bool = typer.Option(False, help="also fuse the robots' sightings of each other (covariance intersection)"),
+    relay: bool = typer.Option(True, help="cooperative: each sighting also reaches the robot seen, which fuses it "
+                               "with the observer's broadcast pose"),
     start: Optional[float] = typer.Option(None, help="data set second the replay starts [default: the calibration's end]"),
     duration: Optional[float] = typer.Option(None, help="seconds replayed [default: to the data set's end]"),
     calibrate: str = typer.Option("0,120", help="data set interval START,END (s) the noise datasheet is calibrated "
@@ -60,7 +62,7 @@ def mrclam(
     if len(interval) != 2:
         fail(f"--calibrate must be START,END in seconds, got {calibrate!r}")
     choice = ReplayChoice(str(dataset), _numbers(robots, "--robots"), estimator, cooperative, start, duration,
-                          interval, _numbers(withhold_landmarks, "--withhold-landmarks"), seed)
+                          interval, _numbers(withhold_landmarks, "--withhold-landmarks"), seed, relay)
     if estimator == "centralized" and mode != "lockstep":
         fail("the centralized reference runs in this process as fast as it can: --mode realtime does not apply")
     try:

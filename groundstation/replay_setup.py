@@ -40,6 +40,7 @@ class ReplayChoice:
     calibration_s: tuple[float, float] = (0.0, 120.0)
     withhold_landmarks: tuple[int, ...] = ()
     seed: int = 0
+    relay_sightings: bool = True
 
 
 def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = None) -> SwarmConfig:
@@ -79,7 +80,7 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
         "replay": {"dataset": str(choice.dataset), "robots": list(choice.robots), "start_s": start,
                    "calibration_s": list(choice.calibration_s), "odom_lag_s": cal.odom_lag_s,
                    "sighting_sigmas": [list(pair) for pair in sighting_sigmas(data, choice.calibration_s, choice.robots)],
-                   "withhold_landmarks": list(choice.withhold_landmarks)},
+                   "withhold_landmarks": list(choice.withhold_landmarks), "relay_sightings": choice.relay_sightings},
     }
     for section, values in (overrides or {}).items():
         config.setdefault(section, {}).update({k: v for k, v in values.items() if v is not None})

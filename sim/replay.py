@@ -7,7 +7,11 @@ from the world seed), its recorded odometry stamped when it takes effect (``repl
 later; the sample in force at the start, stamped 0, then the rest; a repeated stamp keeps the
 first), its landmark sightings (``landmark`` rows) and its sightings of replayed robots
 (``ranging`` rows), each with its robot's calibrated covariance (``replay.sighting_sigmas``: range
-sigma per metre of the range read, bearing sigma; the datasheet's range and bearing sigma without). Sightings of robots that are not replayed are counted and skipped. Truth is the Vicon track interpolated onto the
+sigma per metre of the range read, bearing sigma; the datasheet's range and bearing sigma without).
+Every robot sighting that is delivered is also relayed to the robot seen (``seen`` rows: observer,
+range, bearing, covariance), as the observer's radio would pass it on, so both ends can use it
+(``replay.relay_sightings``, on by default).
+Sightings of robots that are not replayed are counted and skipped. Truth is the Vicon track interpolated onto the
 ``truth_rate_hz`` grid, a row of NaN where Vicon has no pose (sim.mrclam.pose_at). Physical faults
 apply as in the simulated world: blackouts of ``odom``, ``landmark`` or ``ranging``, comm jamming
 at the true positions.
@@ -77,6 +81,23 @@ def sighting_rows(sightings: np.ndarray, start_s: float, end_s: float, vehicle_o
     return landmark, peers, int((~replayed).sum())
 
 
+def relayed_sightings(feeds: dict[int, dict[str, tuple[np.ndarray, int, np.ndarray]]]) -> dict[int, Block]:
+    """The robot sightings of one advance (``ranging`` blocks per observer) as each seen robot's
+    ``seen`` rows [observer, range, bearing, cov (4)], in stamp order (observers in id order at one stamp)."""
+    blocks = [(observer, *topics["ranging"]) for observer, topics in sorted(feeds.items()) if "ranging" in topics]
+    if not blocks:
+        return {}
+    stamps = np.concatenate([block[1] for block in blocks])
+    seen = np.concatenate([block[3][:, 0] for block in blocks]).astype(int)
+    rows = np.concatenate([np.column_stack([np.full(len(block[1]), float(block[0])), block[3][:, 1:]]) for block in blocks])
+    out = {}
+    for vid in np.unique(seen).tolist():
+        mine = np.flatnonzero(seen == vid)
+        mine = mine[np.argsort(stamps[mine], kind="stable")]
+        out[vid] = (stamps[mine], rows[mine])
+    return out
+
+
 class ReplayWorld:
     """A data set's robots as the world's vehicles: see the module docstring."""
 
@@ -88,6 +109,7 @@ class ReplayWorld:
         vehicle_of = {robot: vid for vid, robot in self.robots.items()}
         relative = bool(replay.sighting_sigmas)  # calibrated: range sigma per metre; else the datasheet's, in m
         sigmas = replay.sighting_sigmas or ((spec.range_sigma_m, spec.bearing_sigma_rad),) * len(self.robots)
+        self._relay = replay.relay_sightings
         self.skipped_sightings = 0  # of robots not replayed (unknown barcodes: data.robots[r].unknown_barcodes)
         self._streams: dict[int, dict[str, Block]] = {}
         for vid, robot in self.robots.items():
@@ -151,6 +173,13 @@ class ReplayWorld:
         jammed = self.comm_jammed(t_us)
         return vid in jammed or target in jammed
 
+    def _add_relayed(self, feeds: dict[int, dict[str, tuple[np.ndarray, int, np.ndarray]]]) -> None:
+        """The seen robots' ``seen`` blocks, numbered on from what each was sent before."""
+        for vid, (stamps, rows) in relayed_sightings(feeds).items():
+            sent = self._sent.get((vid, "seen"), 0)
+            feeds.setdefault(vid, {})["seen"] = (stamps, sent, rows)
+            self._sent[vid, "seen"] = sent + len(stamps)
+
     def advance(self, until_us: int) -> ReplayOutput:
         """Everything recorded in (last advance, until_us]."""
         feeds = {}
@@ -165,6 +194,8 @@ class ReplayWorld:
                 if keep:
                     feeds[vid][topic] = (stamps[keep], self._sent[vid, topic], rows[keep])
                     self._sent[vid, topic] += len(keep)
+        if self._relay:
+            self._add_relayed(feeds)
         lo = int(np.searchsorted(self._truth_stamps, self._done_us, side="right"))
         hi = int(np.searchsorted(self._truth_stamps, until_us, side="right"))
         self._done_us = until_us

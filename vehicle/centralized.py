@@ -112,7 +112,7 @@ class CentralizedEkf:
         if isinstance(msg, m.PosePrior):
             vehicle.handle(topic, msg)
             self._replace_block(msg.vehicle_id, vehicle.x, vehicle.P)
-        elif not vehicle.initialized:
+        elif not vehicle.initialized or isinstance(msg, m.SeenBy):  # a relay: the observer's own sighting counts
             return
         elif isinstance(msg, m.GnssFix):
             self._propagate(msg.vehicle_id, msg.stamp_us)

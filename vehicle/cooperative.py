@@ -2,7 +2,9 @@
 
 Vehicle i measures neighbour j: z = [range, bearing] with h = [|p_j - p_i|, atan2(dy, dx) - theta_i].
 Neighbour j broadcasts its own estimate p_j with covariance P_j (the V2V packet {id, x_hat, P, t}),
-which enters as extra measurement noise S = H_j P_j H_j^T next to the radio's own noise R. Estimates of
+which enters as extra measurement noise S = H_j P_j H_j^T next to the radio's own noise R. The same
+measurement relayed to j (``SeenFix``: a camera sighting on replayed data) tells j about itself: h
+as seen from i's broadcast pose, S = H_i P_i H_i^T over i's [x, y, heading]. Estimates of
 vehicles that fuse each other become correlated in unknown ways (data incest), so the update is a
 Covariance Intersection (paper eq. 4.10: P+^-1 = w P^-1 + (1 - w) P_B^-1), done as a Kalman update
 with the prior P / w and the measurement's shared part scaled by 1 / (1 - w). How it is done
@@ -43,6 +45,7 @@ POSE = 3
 WEIGHT_GRID = np.linspace(0.0, 1.0, 101)   # w = 0: only the fix; w = 1: do not fuse
 Fusion = Literal["split-ci", "ci", "paper", "naive"]
 Weight = Literal["optimal", "closed-form"]
+Sym2 = tuple[float, float, float]  # a symmetric 2 x 2 matrix as (a00, a01, a11): the fix's algebra on floats
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,60 @@ class CooperativeFix:
     neighbour_xy_m: np.ndarray       # (2,)
     neighbour_cov_m2: np.ndarray     # (2, 2)
 
+    def predicted(self, pose: np.ndarray) -> np.ndarray:
+        """[range, bearing] (2,) expected from own pose (3,)."""
+        return relative_model(pose, self.neighbour_xy_m)[0]
+
+    def linearized(self, x: np.ndarray) -> tuple[tuple[float, float], np.ndarray, Sym2, Sym2]:
+        return _linearized(x, self)
+
+    def implied(self, x: np.ndarray, P_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return implied_position(x, P_pp, self)
+
+
+@dataclass(frozen=True)
+class SeenFix:
+    """A neighbour's sighting of this vehicle (relayed to it) paired with the observer's broadcast
+    pose at the same stamp: z = [range, bearing] with h = [|p_i - p_o|, atan2(dy, dx) - theta_o]
+    (d = p_i - p_o), the observer's pose error entering as S = H_o P_o H_o^T over [x, y, yaw]."""
+
+    vehicle_id: int
+    stamp_us: int
+    seq: int
+    observer_id: int
+    range_m: float
+    bearing_rad: float
+    covariance: np.ndarray           # (2, 2) over [range m, bearing rad]
+    observer_pose: np.ndarray        # (3,) [x m, y m, yaw rad]
+    observer_cov: np.ndarray         # (3, 3)
+
+    def predicted(self, pose: np.ndarray) -> np.ndarray:
+        """[range, bearing] (2,) the observer should have seen with this vehicle at ``pose`` (3,)."""
+        dx, dy = pose[0] - self.observer_pose[0], pose[1] - self.observer_pose[1]
+        return np.array([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - self.observer_pose[2])])
+
+    def linearized(self, x: np.ndarray) -> tuple[tuple[float, float], np.ndarray, Sym2, Sym2]:
+        """Innovation y, H = dh/dx_pose (2, 3) (no heading term: the bearing is the observer's), R and S."""
+        px, py = x[:2].tolist()
+        ox, oy, oyaw = self.observer_pose.tolist()
+        dx, dy = px - ox, py - oy
+        r2 = max(dx * dx + dy * dy, 1e-6)
+        r = math.sqrt(r2)
+        y = (self.range_m - r, wrap_angle(self.bearing_rad - wrap_angle(math.atan2(dy, dx) - oyaw)))
+        H = np.array([[dx / r, dy / r, 0.0], [-dy / r2, dx / r2, 0.0]])
+        H_o = np.array([[-dx / r, -dy / r, 0.0], [dy / r2, -dx / r2, -1.0]])
+        return y, H, _sym(self.covariance), _sym(H_o @ self.observer_cov @ H_o.T)
+
+    def implied(self, x: np.ndarray, P_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The paper's form: own position as the sighting implies it, p = p_o + r [cos, sin](theta_o +
+        beta), with P = G P_o G^T + J R J^T (G = dp / d pose_o, J = dp / d[r, beta]); H = [I 0], R = 0."""
+        angle = self.observer_pose[2] + self.bearing_rad
+        c, s = np.cos(angle), np.sin(angle)
+        p = self.observer_pose[:2] + self.range_m * np.array([c, s])
+        G = np.array([[1.0, 0.0, -self.range_m * s], [0.0, 1.0, self.range_m * c]])
+        J = np.array([[c, -self.range_m * s], [s, self.range_m * c]])
+        return p - x[:2], np.eye(2, POSE), np.zeros((2, 2)), G @ self.observer_cov @ G.T + J @ self.covariance @ J.T
+
 
 @dataclass(frozen=True)
 class Correction:
@@ -72,9 +129,6 @@ class Correction:
     C: np.ndarray
     w: float
     cov_xz: np.ndarray | None = None
-
-
-Sym2 = tuple[float, float, float]  # a symmetric 2 x 2 matrix as (a00, a01, a11): the fix's algebra on floats
 
 
 def _sym(A: np.ndarray) -> Sym2:
@@ -162,7 +216,7 @@ class CooperativeRule:
         a, b, d = w * m00 + i00, w * m01 + i01, w * m11 + i11
         return float(w[int(np.argmax(a * d - b * b))])
 
-    def fuse(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix, gate: float, unscented: bool = False,
+    def fuse(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix | SeenFix, gate: float, unscented: bool = False,
              adapt: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
              ) -> tuple[Correction | None, UpdateResult]:
         """Gate the fix on its plain NIS, choose w and fuse it in measurement space; None when gated
@@ -188,25 +242,22 @@ class CooperativeRule:
         dz = np.array([n00 * g0 + n01 * g1, n01 * g0 + n11 * g1])
         return Correction(dz, _array(M), _array((n00, n01, n11)), C, w, cov_xz), result
 
-    def measurement(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix,
+    def measurement(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix | SeenFix,
                     unscented: bool) -> tuple[tuple[float, float], Sym2, np.ndarray, Sym2, Sym2, np.ndarray | None]:
         """Innovation y (2 floats), own covariance of the measured quantity M, the cross-covariance
         C = cov(pose, z) (3, 2), the independent noise R and the neighbour's share S (M, R, S as
         ``Sym2``), and cov(x, z) (n, 2) when the measurement is linear in the pose (else None)."""
         P_pp = P[:POSE, :POSE]
         if unscented and self.fusion != "paper":
-            def h(pose: np.ndarray) -> np.ndarray:
-                return relative_model(pose, fix.neighbour_xy_m)[0]
-
-            z_hat, M, C = ut.measure(x[:POSE], P_pp, h, angle_rows=(1,))
-            y, _, R, S = _linearized(x, fix)
+            z_hat, M, C = ut.measure(x[:POSE], P_pp, fix.predicted, angle_rows=(1,))
+            _, _, R, S = fix.linearized(x)
             y = (fix.range_m - float(z_hat[0]), wrap_angle(fix.bearing_rad - float(z_hat[1])))
             return y, _sym(M), C, R, S, None
         if self.fusion == "paper":
-            y, H, R, S = implied_position(x, P_pp, fix)
+            y, H, R, S = fix.implied(x, P_pp)
             y, R, S = tuple(y.tolist()), _sym(R), _sym(S)
         else:
-            y, H, R, S = _linearized(x, fix)
+            y, H, R, S = fix.linearized(x)
         cov_xz = P[:, :POSE] @ H.T
         C = cov_xz[:POSE]
         return y, _sym(H @ C), C, R, S, cov_xz
@@ -263,7 +314,7 @@ def apply_correction(x: np.ndarray, P: np.ndarray, correction: Correction) -> tu
     return x_new, 0.5 * (P_new + P_new.T)
 
 
-def cooperative_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix, gate: float,
+def cooperative_update(x: np.ndarray, P: np.ndarray, fix: CooperativeFix | SeenFix, gate: float,
                        rule: CooperativeRule = CooperativeRule(), unscented: bool = False
                        ) -> tuple[np.ndarray, np.ndarray, UpdateResult]:
     """One fix fused into (x (n,), P (n, n)) by ``rule``: the new state and covariance (unchanged when

@@ -20,6 +20,7 @@ from bus.mailbox import Mailbox
 from bus.rejections import Rejections
 from bus.session import Bus, LivelinessEvent, await_subscribers
 from bus.landmark_map import LandmarkMap
+from vehicle.cooperative import SeenFix
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
 from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_FRAME_BYTES, MAX_PLAN_BYTES, Delivery, Inbound
@@ -135,7 +136,7 @@ class VehicleNode:
             self.fusion.expect(d.stamp_us)
         elif d.kind == "v2v":
             self.v2v.hear(*d.payload)
-        elif d.topic == "ranging":
+        elif d.topic in ("ranging", "seen"):
             self.sequences.see(d.topic, d.payload.seq)
             if self.config.vehicle.cooperative and self.v2v.hold(d.payload):
                 self.fusion.expect(d.stamp_us)
@@ -211,7 +212,7 @@ class VehicleNode:
         for delivery in self.inbound.release(t_us):
             self._deliver(delivery)
         for fix in self.v2v.mature(t_us):
-            self.fusion.push("ranging", fix)
+            self.fusion.push("seen" if isinstance(fix, SeenFix) else "ranging", fix)
         self.fusion.cycle(t_us)
         self.outbound.cycle(t_us, self.estimator, self.reset_counter)
         if self.outbound.status_due(t_us):

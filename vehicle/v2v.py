@@ -9,7 +9,10 @@ fused at a cycle never depends on how fast the neighbour's packet travelled. The
 ranges at the epochs; a replayed camera sights a robot whenever it does, so the neighbour's
 position is carried from its epoch e to t along its broadcast heading at its broadcast speed,
 p(t) = p(e) + v (t - e) [cos yaw, sin yaw], its covariance grown by (var v + v^2 var yaw) (t - e)^2
-on both axes (t - e is under one broadcast period).
+on both axes (t - e is under one broadcast period). A neighbour's sighting of this vehicle relayed
+to it (``SeenBy``) waits the same way for the observer's broadcast and becomes a SeenFix with the
+observer's whole pose and its covariance carried to t (``Broadcast.carried_pose``): the bearing was
+measured from the observer's heading, so the heading's uncertainty counts.
 
 Neighbours' frames are kept as they arrive and decoded and checked when a measurement pairs with
 them (the radio ranges at most a few peers per epoch, while every neighbour's broadcast is heard: in
@@ -29,36 +32,55 @@ from dataclasses import dataclass
 import numpy as np
 
 from bus import messages as m
+from bus.angles import wrap_angle
 from bus.errors import DecodeError
 from bus.mavlink_codec import MavlinkDecoder, MavlinkRejected, NoEstimate, StateEstimate
 from bus.rejections import Rejections
-from vehicle.cooperative import CooperativeFix
+from vehicle.cooperative import CooperativeFix, SeenFix
 
 HISTORY = 64        # broadcasts kept per neighbour (12 s at 5 Hz)
 MAX_COPIES = 4      # frames kept per neighbour and epoch (a link fault duplicates; more is a flood)
 MAX_WAITING = 10_000
+_POSE = [0, 1, 5]   # x, y, yaw in ODOMETRY's pose covariance
 
 
 @dataclass(frozen=True)
 class Broadcast:
-    """What a neighbour's broadcast tells about it: position (2,) m and its covariance (2, 2), heading
-    rad and its variance, forward speed m/s and its variance."""
+    """What a neighbour's broadcast tells about it: pose [x m, y m, yaw rad] (3,) and its covariance
+    (3, 3), forward speed m/s and yaw rate rad/s with their variances."""
 
-    xy_m: np.ndarray
-    cov_m2: np.ndarray
-    yaw_rad: float
-    yaw_var: float
+    pose: np.ndarray
+    pose_cov: np.ndarray
     speed_mps: float
     speed_var: float
+    yaw_rate_radps: float = 0.0
+    yaw_rate_var: float = 0.0
 
     def carried(self, dt_us: int) -> tuple[np.ndarray, np.ndarray]:
-        """Position and covariance ``dt_us`` after the broadcast (module docstring); itself at 0."""
+        """Position (2,) and covariance (2, 2) ``dt_us`` after the broadcast (module docstring);
+        itself at 0."""
+        xy, cov = self.pose[:2], self.pose_cov[:2, :2]
         if dt_us == 0:
-            return self.xy_m, self.cov_m2
-        dt = dt_us * 1e-6
-        step = self.speed_mps * dt * np.array([np.cos(self.yaw_rad), np.sin(self.yaw_rad)])
-        spread = (self.speed_var + self.speed_mps**2 * self.yaw_var) * dt * dt
-        return self.xy_m + step, self.cov_m2 + spread * np.eye(2)
+            return xy, cov
+        dt, yaw = dt_us * 1e-6, float(self.pose[2])
+        step = self.speed_mps * dt * np.array([np.cos(yaw), np.sin(yaw)])
+        spread = (self.speed_var + self.speed_mps**2 * self.pose_cov[2, 2]) * dt * dt
+        return xy + step, cov + spread * np.eye(2)
+
+    def carried_pose(self, dt_us: int) -> tuple[np.ndarray, np.ndarray]:
+        """Pose (3,) and covariance (3, 3) ``dt_us`` after the broadcast: unicycle motion at the
+        broadcast speed and yaw rate, linearised (F P F^T + speed and yaw-rate variances times dt^2)."""
+        if dt_us == 0:
+            return self.pose, self.pose_cov
+        dt, yaw = dt_us * 1e-6, float(self.pose[2])
+        heading = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+        F = np.eye(3)
+        F[:2, 2] = self.speed_mps * dt * np.array([-heading[1], heading[0]])
+        noise = self.speed_var * dt * dt * np.outer(heading, heading)
+        noise[2, 2] = self.yaw_rate_var * dt * dt
+        pose = self.pose + dt * np.array([self.speed_mps * heading[0], self.speed_mps * heading[1], self.yaw_rate_radps])
+        pose[2] = wrap_angle(pose[2])
+        return pose, F @ self.pose_cov @ F.T + noise
 
 
 @dataclass
@@ -119,12 +141,13 @@ class V2V:
         if not isinstance(est, StateEstimate) or est.vehicle_id != sender or est.time_usec != stamp_us:
             self.rejections.reject("impersonation", f"v2v from {sender}", "sender or stamp differs from the frame's")
             return None
-        return Broadcast(est.position_m[:2].copy(), est.pose_covariance[:2, :2].copy(), est.yaw_rad,
-                         float(est.pose_covariance[5, 5]), float(est.velocity_mps[0]),
-                         float(est.velocity_covariance[0, 0]))
+        pose = np.array([est.position_m[0], est.position_m[1], est.yaw_rad])
+        return Broadcast(pose, est.pose_covariance[np.ix_(_POSE, _POSE)], float(est.velocity_mps[0]),
+                         float(est.velocity_covariance[0, 0]), est.yaw_rate_radps, float(est.velocity_covariance[5, 5]))
 
-    def hold(self, measurement: m.RangeBearing) -> bool:
-        """Keep a ranging measurement until its neighbour's broadcast is due; False when full."""
+    def hold(self, measurement: m.RangeBearing | m.SeenBy) -> bool:
+        """Keep a ranging measurement, or a neighbour's sighting of this vehicle, until the
+        neighbour's broadcast is due; False when full."""
         if len(self._waiting) >= MAX_WAITING:
             self.rejections.reject("inbox_full", "ranging waiting for V2V", "too many waiting")
             return False
@@ -134,22 +157,31 @@ class V2V:
     def awaited(self, now_us: int) -> list[tuple[int, int]]:
         """(neighbour, stamp) of every ranging measurement that matures by ``now_us``: whose
         broadcasts the cycle at ``now_us`` pairs them with."""
-        return [(msg.target_id, self.epoch(stamp)) for stamp, _, msg in self._waiting if stamp + self.latency_us <= now_us]
+        return [(_peer(msg), self.epoch(stamp)) for stamp, _, msg in self._waiting if stamp + self.latency_us <= now_us]
 
     def epoch(self, stamp_us: int) -> int:
         """The neighbours' broadcast epoch at or before ``stamp_us``."""
         return stamp_us - stamp_us % self.period_us
 
-    def mature(self, now_us: int) -> list[CooperativeFix]:
-        """Ranging measurements whose wait is over, paired with the neighbour's estimate."""
-        out = []
+    def mature(self, now_us: int) -> list[CooperativeFix | SeenFix]:
+        """Measurements whose wait is over, paired with the neighbour's estimate carried to their stamp."""
+        out: list[CooperativeFix | SeenFix] = []
         while self._waiting and self._waiting[0][0] + self.latency_us <= now_us:
             msg = heapq.heappop(self._waiting)[2]
             epoch = self.epoch(msg.stamp_us)
-            found = self._broadcast(msg.target_id, epoch)
+            found = self._broadcast(_peer(msg), epoch)
             if found is None:
                 self.missing += 1
                 continue
-            out.append(CooperativeFix(msg.vehicle_id, msg.stamp_us, msg.seq, msg.target_id, msg.range_m,
-                                      msg.bearing_rad, msg.covariance, *found.carried(msg.stamp_us - epoch)))
+            if isinstance(msg, m.SeenBy):
+                out.append(SeenFix(msg.vehicle_id, msg.stamp_us, msg.seq, msg.observer_id, msg.range_m,
+                                   msg.bearing_rad, msg.covariance, *found.carried_pose(msg.stamp_us - epoch)))
+            else:
+                out.append(CooperativeFix(msg.vehicle_id, msg.stamp_us, msg.seq, msg.target_id, msg.range_m,
+                                          msg.bearing_rad, msg.covariance, *found.carried(msg.stamp_us - epoch)))
         return out
+
+
+def _peer(msg: m.RangeBearing | m.SeenBy) -> int:
+    """The neighbour whose broadcast a measurement pairs with: the one ranged, or the observer."""
+    return msg.observer_id if isinstance(msg, m.SeenBy) else msg.target_id

@@ -26,7 +26,7 @@ from vehicle import added_states
 from vehicle import unicycle_ekf as ekf
 from vehicle.adaptive import NoiseAdaptation
 from vehicle.alignment import GnssAlignment
-from vehicle.cooperative import CooperativeFix, CooperativeRule, Correction, apply_correction
+from vehicle.cooperative import CooperativeFix, CooperativeRule, Correction, SeenFix, apply_correction
 from vehicle.gnss_error import GnssErrorModel, aligned_covariance, augment_motion, observation
 from vehicle.ekf import UpdateResult, gate_threshold, gated_update
 from vehicle.estimators.base import SEVERITY_INFO, SEVERITY_WARNING, EstimatorCounters, Notice
@@ -93,7 +93,7 @@ class UnicycleEkf:
         elif isinstance(msg, m.GnssFix):
             self._propagate_to(msg.stamp_us)
             self._fuse_gnss(msg)
-        elif isinstance(msg, CooperativeFix):
+        elif isinstance(msg, (CooperativeFix, SeenFix)):
             self._propagate_to(msg.stamp_us)
             result = self._cooperative_update(msg)
             self.counters.v2v_fused += int(result.accepted)
@@ -113,7 +113,7 @@ class UnicycleEkf:
             self.speed.sample(msg.stamp_us, self.slip.correct(msg.stamp_us, msg.speed_mps))
             self.odom_yaw.sample(msg.stamp_us, msg.yaw_rate_radps)
 
-    def _cooperative_update(self, fix: CooperativeFix) -> UpdateResult:
+    def _cooperative_update(self, fix: CooperativeFix | SeenFix) -> UpdateResult:
         """One neighbour fix by the vehicle's cooperative rule (vehicle.cooperative), its radio noise
         learnt by IAE when that is on."""
         adapt = None if self.iae is None else partial(self.iae.adapt, "ranging")

@@ -10,6 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from bus import feed
+from bus import messages as m
 from bus.config import build_config
 from bus.errors import DecodeError
 from sim.world import World
@@ -123,7 +124,8 @@ json_like = st.recursive(
 )
 
 
-@given(st.sampled_from(["vehicle_id", "tick", "stamp_us", "imu", "odom", "gnss", "ranging", "landmark", "prior", "x"]), json_like)
+@given(st.sampled_from(["vehicle_id", "tick", "stamp_us", "imu", "odom", "gnss", "ranging", "seen", "landmark", "prior",
+                        "x"]), json_like)
 def test_well_formed_msgpack_with_wrong_values_raises_decode_error(field, value):
     body = _body()
     body[field] = value
@@ -181,17 +183,54 @@ def test_truth_rows_of_nan_mean_no_truth_and_partial_nan_is_refused():
         feed.decode_truth(feed.encode_truth(batch))
 
 
+SEEN_ROW = [4.0, 3.2, 0.4, 0.02, 0.0, 0.0, 0.0003]   # observer 4, range, bearing, covariance (2, 2)
+
+
+def _seen_batch(rows: np.ndarray) -> bytes:
+    stamps = np.array([20_000, 20_000, 60_000][:len(rows)], dtype=np.int64)
+    return feed.encode_batch(feed.SensorBatch(3, 1, 100_000, {"seen": (stamps, 7, rows)}))
+
+
+def test_relayed_sightings_round_trip_as_seen_by():
+    rows = np.array([SEEN_ROW, [1.0, 1.5, -2.0, 0.01, 0.0, 0.0, 0.001], SEEN_ROW])
+    samples = feed.decode_batch(_seen_batch(rows)).samples()
+    assert [topic for topic, _ in samples] == ["seen"] * 3
+    first, second = samples[0][1], samples[1][1]
+    assert isinstance(first, m.SeenBy) and (first.vehicle_id, first.observer_id, first.seq) == (3, 4, 7)
+    assert (second.observer_id, second.range_m, second.bearing_rad, second.seq) == (1, 1.5, -2.0, 8)
+    assert np.allclose(second.covariance, np.diag([0.01, 0.001]))
+
+
+@pytest.mark.parametrize("column, value, reason", [
+    (0, 3.0, "observer ids must be other vehicles"), (0, 0.0, "observer ids"), (0, 251.0, "observer ids"),
+    (0, 1.5, "observer ids"), (1, -0.5, "range must be >= 0"), (2, 11.0, "bearing"), (6, 0.0, "positive definite"),
+])
+def test_malformed_relayed_sightings_are_rejected_with_a_clear_error(column, value, reason):
+    rows = np.array([SEEN_ROW, SEEN_ROW])
+    rows[1, column] = value
+    with pytest.raises(DecodeError, match=reason):
+        feed.decode_batch(_seen_batch(rows))
+
+
 LANDMARK_PAYLOAD = _landmark_batch(np.array([LANDMARK_ROW] * 4))
+SEEN_PAYLOAD = _seen_batch(np.array([SEEN_ROW] * 3))
 
 
-@given(st.data())
-def test_mutated_landmark_batches_decode_or_raise_decode_error(data):
+def _usable_sighting(msg) -> bool:
+    if isinstance(msg, m.SeenBy):
+        return 1 <= msg.observer_id <= 250 and msg.observer_id != msg.vehicle_id and msg.range_m >= 0
+    return 0 <= msg.landmark_id <= feed.MAX_LANDMARK_ID and msg.range_m >= 0
+
+
+@pytest.mark.parametrize("payload", [LANDMARK_PAYLOAD, SEEN_PAYLOAD], ids=["landmark", "seen"])
+@given(data=st.data())
+def test_mutated_sighting_batches_decode_or_raise_decode_error(payload, data):
     try:
-        batch = feed.decode_batch(_mutated(LANDMARK_PAYLOAD, data))
+        batch = feed.decode_batch(_mutated(payload, data))
     except DecodeError:
         return
     for _, msg in batch.samples():  # whatever passes is usable
-        assert 0 <= msg.landmark_id <= feed.MAX_LANDMARK_ID and msg.range_m >= 0
+        assert _usable_sighting(msg)
 
 
 @pytest.mark.parametrize("topic", ["imu", "ranging"])

@@ -74,6 +74,35 @@ def test_withheld_landmarks_and_blackouts_send_nothing():
     assert not np.any((odom >= 10_000_000) & (odom <= 15_000_000)) and np.any(odom > 15_000_000)
 
 
+def _rows_over(world: ReplayWorld, vid: int, topic: str, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    """Stamps (k,) and rows (k, 7) of one vehicle's ``topic`` over ``seconds`` of 20 ms ticks."""
+    stamps, rows = [np.zeros(0, np.int64)], [np.zeros((0, 7))]
+    for tick in range(1, round(seconds * 50) + 1):
+        block = world.advance(tick * 20_000).blocks(vid).get(topic)
+        if block is not None:
+            stamps.append(block[0])
+            rows.append(block[2])
+    return np.concatenate(stamps), np.concatenate(rows)
+
+
+def test_each_robot_sighting_is_relayed_to_the_robot_seen_unless_it_was_lost():
+    """Vehicle 1's ``seen`` rows are vehicle 2's sightings of it, row for row (observer 2 first),
+    and a ranging blackout of the observer silences the relay with the sighting; no relay when it is off."""
+    data = synthetic(np.random.default_rng(5), duration_s=140.0, robot_sighting_rate_hz=10.0)
+    seen_stamps, seen = _rows_over(ReplayWorld(_config(), data), 1, "seen", 40.0)
+    sighted_stamps, sighted = _rows_over(ReplayWorld(_config(), data), 2, "ranging", 40.0)
+    assert len(seen) > 20 and np.array_equal(seen_stamps, sighted_stamps)
+    assert np.all(seen[:, 0] == 2) and np.all(sighted[:, 0] == 1) and np.array_equal(seen[:, 1:], sighted[:, 1:])
+    start_us = int(seen_stamps[0])  # a blackout over the first 2 s of sightings
+    blackout = {"kind": "blackout", "vehicle": 2, "sensor": "ranging", "start_s": start_us * 1e-6, "for_s": 2.0}
+    config = _config().model_copy(update={"faults": build_config({"world": {"vehicles": 2}, "faults": [blackout]}).faults})
+    stamps, _ = _rows_over(ReplayWorld(config, data), 1, "seen", 40.0)
+    inside = (seen_stamps >= start_us) & (seen_stamps <= start_us + 2_000_000)
+    assert inside.sum() >= 3 and np.array_equal(stamps, seen_stamps[~inside])
+    unrelayed, _ = _rows_over(ReplayWorld(_config(relay_sightings=False), data), 1, "seen", 40.0)
+    assert len(unrelayed) == 0
+
+
 def test_truth_is_nan_where_vicon_lost_the_robot():
     data = synthetic(np.random.default_rng(3), duration_s=141.0)
     gt = data.robots[1].groundtruth

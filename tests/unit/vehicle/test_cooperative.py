@@ -10,7 +10,8 @@ from scipy.stats import chi2
 
 from bus.config import build_config
 from tests.offline import swarm_in_memory
-from vehicle.cooperative import WEIGHT_GRID, CooperativeFix, CooperativeRule, cooperative_update, relative_model
+from vehicle.cooperative import (WEIGHT_GRID, CooperativeFix, CooperativeRule, SeenFix, cooperative_update,
+                                  relative_model)
 from vehicle.ekf_slam_core import apply_correction_in_place
 
 RUNS = 3000
@@ -100,6 +101,74 @@ def test_split_ci_keeps_the_radio_noise_whole_and_fuses_tighter_than_plain_ci():
     _, P_split, _ = cooperative_update(TRUTH, P, fix, 1e9, CooperativeRule("split-ci"))
     _, P_plain, _ = cooperative_update(TRUTH, P, fix, 1e9, CooperativeRule("ci"))
     assert np.linalg.det(P_split[:3, :3]) < np.linalg.det(P_plain[:3, :3]) < np.linalg.det(P[:3, :3])
+
+
+OBSERVER = np.array([30.0, 10.0, -2.5])       # the neighbour that sights us: x m, y m, heading rad
+OBSERVER_P = np.diag([0.2, 0.2, 2e-4])
+
+
+def _seen_fix(x_own: np.ndarray, observer: np.ndarray, rng: np.random.Generator | None = None) -> SeenFix:
+    """The sighting the observer at OBSERVER takes of a vehicle at ``x_own`` (3,), noisy with R when
+    ``rng`` is given, paired with the observer's broadcast pose ``observer`` (3,)."""
+    dx, dy = x_own[:2] - OBSERVER[:2]
+    z = np.array([np.hypot(dx, dy), np.arctan2(dy, dx) - OBSERVER[2]])
+    if rng is not None:
+        z = z + rng.multivariate_normal(np.zeros(2), R)
+    return SeenFix(1, 0, 0, 2, z[0], z[1], R, observer, OBSERVER_P)
+
+
+def test_a_relayed_sighting_linearizes_its_own_model():
+    """H is the derivative of the predicted [range, bearing] with respect to own pose (none on own
+    heading: the bearing is the observer's), S = H_o P_o H_o^T with H_o the derivative with respect
+    to the observer's pose; the paper's implied position is where the sighting puts us."""
+    x = np.array([2.0, -1.0, 0.7, 0.0])
+    fix = _seen_fix(x[:3], OBSERVER)
+    y, H, R_sym, S = fix.linearized(x)
+    step = 1e-6
+    numeric = np.column_stack([(fix.predicted(x[:3] + step * e) - fix.predicted(x[:3] - step * e)) / (2 * step)
+                               for e in np.eye(3)])
+    assert np.allclose(H, numeric, atol=1e-7) and np.allclose(y, 0.0, atol=1e-12)
+
+    def seen_from(observer: np.ndarray) -> np.ndarray:
+        return SeenFix(1, 0, 0, 2, 0.0, 0.0, R, observer, OBSERVER_P).predicted(x[:3])
+
+    H_o = np.column_stack([(seen_from(OBSERVER + step * e) - seen_from(OBSERVER - step * e)) / (2 * step)
+                           for e in np.eye(3)])
+    S_expected = H_o @ OBSERVER_P @ H_o.T
+    assert np.allclose([S_expected[0, 0], S_expected[0, 1], S_expected[1, 1]], S, rtol=1e-6)
+    assert np.allclose([R_sym[0], R_sym[2]], np.diag(R))
+    innovation, H_paper, _, _ = fix.implied(x, OBSERVER_P)
+    assert np.allclose(innovation, 0.0, atol=1e-9) and np.allclose(H_paper, np.eye(2, 3))
+
+
+def _seen_anees(shared: bool, rule: CooperativeRule, seed: int = 2) -> float:
+    """Average pose NEES after one relayed sighting. ``shared``: the observer's whole position error
+    is also part of ours (the rest of ours independent), each estimate still true to its covariance."""
+    rng = np.random.default_rng(seed)
+    nees = []
+    for _ in range(RUNS):
+        e = rng.multivariate_normal(np.zeros(4), P)
+        observer_error = rng.multivariate_normal(np.zeros(3), OBSERVER_P)
+        if shared:
+            e[:2] = observer_error[:2] + rng.multivariate_normal(np.zeros(2), P[:2, :2] - OBSERVER_P[:2, :2])
+        fix = _seen_fix(TRUTH[:3], OBSERVER + observer_error, rng)
+        x_new, P_new, _ = cooperative_update(TRUTH + e, P, fix, 1e9, rule)
+        d = (x_new - TRUTH)[:3]
+        nees.append(float(d @ np.linalg.solve(P_new[:3, :3], d)))
+    return float(np.mean(nees))
+
+
+def test_a_relayed_sighting_is_consistent_and_ci_covers_shared_errors():
+    """With independent errors the plain update of a relayed sighting is consistent (ANEES inside the
+    two-sided band: the model and S are right; leaving out the observer's heading takes it above the
+    band); with the observer's position error part of our own, it becomes over-confident and every
+    CI rule stays below the band's top."""
+    lower, upper = chi2.ppf(0.025, 3 * RUNS) / RUNS, chi2.ppf(0.975, 3 * RUNS) / RUNS
+    naive = CooperativeRule("naive")
+    assert lower < _seen_anees(False, naive) < upper
+    assert _seen_anees(True, naive) > upper
+    for rule in RULES:
+        assert _seen_anees(True, rule) < upper and _seen_anees(False, rule) < upper, rule
 
 
 def test_the_in_place_update_of_a_slam_state_equals_the_dense_one():

@@ -9,6 +9,7 @@ import numpy as np
 from bus import messages as m
 from bus.mavlink_codec import MavlinkEncoder, StateEstimate
 from bus.rejections import Rejections
+from vehicle.cooperative import SeenFix
 from vehicle.v2v import V2V
 
 PERIOD_US = 200_000
@@ -65,3 +66,20 @@ def test_copies_of_one_epoch_are_decoded_when_used_and_the_last_good_one_counts(
     for _ in range(10):
         v2v.hear(2, 2 * PERIOD_US, b"flood")
     assert v2v.rejections.total == 1 + 10 - 4  # copies beyond four per epoch are refused as they come
+
+
+def test_a_relayed_sighting_pairs_with_the_observers_whole_pose_carried_to_its_instant():
+    """Vehicle 2 sighted vehicle 1 0.1 s after its broadcast: vehicle 1 gets vehicle 2's pose moved
+    0.05 m along its heading (pi / 2: along y) and the pose covariance F P F^T + Q, where a heading
+    error now moves the carried position across the heading: cov(x, yaw) = -v dt var(yaw)."""
+    v2v = _heard(np.pi / 2)
+    v2v.hold(m.SeenBy(1, PERIOD_US + 100_000, 0, 2, 5.0, 0.1, np.diag([0.01, 1e-4])))
+    assert v2v.awaited(PERIOD_US + 200_000) == [(2, PERIOD_US)]
+    (fix,) = v2v.mature(PERIOD_US + 200_000)
+    assert isinstance(fix, SeenFix) and (fix.observer_id, fix.range_m, fix.bearing_rad) == (2, 5.0, 0.1)
+    assert np.allclose(fix.observer_pose, [3.0, 4.05, np.pi / 2], atol=1e-9)
+    v_dt, dt2 = 0.5 * 0.1, 0.1**2
+    expected = np.array([[0.04 + v_dt**2 * 0.01, 0.0, -v_dt * 0.01],
+                         [0.0, 0.04 + 0.0025 * dt2, 0.0],           # speed variance along the heading
+                         [-v_dt * 0.01, 0.0, 0.01 + 1e-4 * dt2]])   # yaw-rate variance on the heading
+    assert np.allclose(fix.observer_cov, expected, atol=1e-12)
