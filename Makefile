@@ -3,6 +3,9 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+# the suite runs in two pytest-xdist workers, a test file per worker at a time (module fixtures run once);
+# PARALLEL= runs it in one process
+PARALLEL ?= -n 2 --dist loadfile
 
 .PHONY: demo test unit integration fuzz test-docker bench soak clean
 
@@ -16,13 +19,13 @@ demo: $(STAMP)
 	$(BIN)/swarm up --vehicles 5 --duration 60 --mode lockstep --seed 1 --out runs --name demo
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q $(PARALLEL)
 
 unit: $(STAMP)
-	$(BIN)/python -m pytest -q tests/unit
+	$(BIN)/python -m pytest -q $(PARALLEL) tests/unit
 
 integration: $(STAMP)
-	$(BIN)/python -m pytest -q tests/integration
+	$(BIN)/python -m pytest -q $(PARALLEL) tests/integration
 
 fuzz: $(STAMP)
 	$(BIN)/python -m pytest -q tests/unit/bus --hypothesis-profile=fuzz-long -k "garbage or mutated or arbitrary or wrong_values or claim_decoders"
