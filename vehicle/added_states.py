@@ -16,6 +16,9 @@ import math
 
 import numpy as np
 
+SCALE_WALK_PER_RTSEC = 1e-3  # the odometry scale states' random walk (1/sqrt(s)): wheels wear, loads change
+WHITE_FLOOR = 0.1            # of a sighting's range variance, at least this much is taken as white
+
 
 def insert_states(x: np.ndarray, P: np.ndarray, at: int, x_new: np.ndarray, P_new: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
@@ -66,6 +69,35 @@ def scale_jacobian(theta: float, speed: float, rate: float, dt: float, k_speed: 
     return np.array([[speed * dt * c, -half_turn * s],
                      [speed * dt * s, half_turn * c],
                      [0.0, rate * dt]])
+
+
+def scaled_inputs(x: np.ndarray, scales_at: int, speed: float, rate: float, dt: float,
+                  noise: dict, wheel_rate: bool) -> tuple[float, float, dict, np.ndarray]:
+    """The inputs as the robot really moved them, given the scale states [k_v, k_w] at x[scales_at:]:
+    speed (m/s), yaw rate (rad/s), the noise arguments with their hold pieces scaled too, and the
+    coupling d [x, y, theta, ...] / d [k_v, k_w] (scales_at, 2) of the motion step. ``wheel_rate``:
+    the yaw rate is the wheels' (a gyro's is not scaled; column k_w is then zero)."""
+    k_speed, k_rate = float(x[scales_at]), float(x[scales_at + 1]) if wheel_rate else 0.0
+    noise = {**noise, "steps": scaled_steps(noise.get("steps"), k_speed, k_rate)}
+    coupling = np.zeros((scales_at, 2))
+    coupling[:3] = scale_jacobian(float(x[2]), speed, rate, dt, k_speed, k_rate)
+    coupling[:, 1] *= wheel_rate
+    return speed * (1.0 + k_speed), rate * (1.0 + k_rate), noise, coupling
+
+
+def stretched_range(H: np.ndarray, R: np.ndarray, predicted: np.ndarray, state: int, s: float,
+                    correlated_sigma_per_m: float, white_floor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A range-bearing sighting's model when its range error is the state ``state`` (value ``s``):
+    range read = r (1 + s) + white. H (2, n) and predicted [range m, bearing rad] (2,) of the plain
+    model become the stretched ones (row 0 times 1 + s, d range / d s = r); R (2, 2), the reported
+    noise, keeps only its white part (at least ``white_floor`` of the reported range variance).
+    Returns new arrays."""
+    stretch = 1.0 + s
+    H, R = H.copy(), np.array(R, dtype=float)
+    H[0] *= stretch
+    H[0, state] = predicted[0]
+    R[0, 0] = max(R[0, 0] - (correlated_sigma_per_m * predicted[0]) ** 2, white_floor * R[0, 0])
+    return H, R, np.array([predicted[0] * stretch, predicted[1]])
 
 
 def gauss_markov(dt: float, tau: float, sigma: float) -> tuple[float, float]:

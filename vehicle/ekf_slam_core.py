@@ -141,3 +141,26 @@ def apply_correction_in_place(x: np.ndarray, P: np.ndarray, correction: Correcti
     values, vectors = np.linalg.eigh(correction.M_new - correction.M)
     for value, u in zip(values, (A @ vectors).T):
         dger(float(value), u, u, a=P.T, overwrite_a=True)
+
+
+def add_landmark_with_range_error(x: np.ndarray, P: np.ndarray, z: np.ndarray, R_white: np.ndarray,
+                                  error_state: int) -> tuple[np.ndarray, np.ndarray]:
+    """Append a landmark seen at z = [range m, bearing rad] when the range reads r (1 + s) + white,
+    s the state at ``error_state`` (vehicle.added_states), R_white (2, 2) the white noise: the
+    paper's g(x, z) at the range r = z_r / (1 + s), with that state among the ones the landmark
+    depends on (G over [x, y, theta, s]), so that later sightings with the same error do not count
+    it twice. The augmented (x, P)."""
+    stretch = 1.0 + float(x[error_state])
+    point, Gx, Gz = landmark_from(x, np.array([z[0] / stretch, z[1]]))
+    Gz[:, 0] /= stretch                                    # d l / d z_r
+    Gs = -(point - x[:2])[:, None] / stretch               # d l / d s (2, 1)
+    idx = [0, 1, 2, error_state]
+    G = np.hstack([Gx, Gs])                                # (2, 4)
+    n = len(x)
+    P_new = np.empty((n + 2, n + 2))
+    P_new[:n, :n] = P
+    cross = G @ P[idx, :]
+    P_new[n:, :n] = cross
+    P_new[:n, n:] = cross.T
+    P_new[n:, n:] = G @ P[np.ix_(idx, idx)] @ G.T + Gz @ R_white @ Gz.T
+    return np.concatenate([x, point]), P_new

@@ -17,7 +17,13 @@ in ``ekf``, the prediction moves the pose block and its cross-covariances in pla
    paper's ``g(x, z)``, ``Gx``, ``Gz`` in one batch per frame.
 
 A replayed data set (sim.replay) brings landmark sightings with their identities instead of frames: a
-mapped one is updated, a new one initialised, the same way.
+mapped one is updated, a new one initialised, the same way. Errors that persist, each on when its
+datasheet field is nonzero, as in ``known-map`` (vehicle.added_states): the wheel odometry's speed
+and yaw-rate scale errors (two states after the pose), and the camera's time-correlated range
+error, a Gauss-Markov state per landmark in view held in ``RANGE_SLOTS`` slots after those: a
+landmark seen again gets its slot back, a new one takes a free slot or the one of the landmark seen
+longest ago (its state marginalized: by then it hardly correlates with a new reading). The state is
+then [pose (4), k_v, k_w, s_1..s_RANGE_SLOTS, map]: ``head_dim`` states before the map.
 
 Pure: no bus, no clock. Fusion-horizon snapshots copy (x, P) only where the horizon asks for one;
 the fallback for divergence recovery is refreshed once per ``GOOD_PERIOD_US``, not every cycle.
@@ -32,7 +38,9 @@ import cv2
 import numpy as np
 
 from bus import messages as m
+from bus.angles import wrap_angle
 from bus.config import SensorSpec
+from vehicle import added_states
 from vehicle import ekf_slam_core as slam
 from vehicle import unicycle_ekf as ekf
 from vehicle.cooperative import CooperativeRule, Correction
@@ -47,6 +55,7 @@ GOOD_PERIOD_US = 1_000_000   # divergence fallback refreshed this often (it is a
 CONSENSUS_M = 0.3           # matches must agree on one rigid motion within this [m]
 FRAMES_REMEMBERED = 32      # front-end results kept for replays (3.2 s at 10 Hz; the horizon is 0.5 s)
 MAX_LANDMARKS = 2000         # the map stops growing here (update cost is O(n^2))
+RANGE_SLOTS = 8              # range-error states: landmarks in view at once, with their recent past
 
 Reject = Callable[[str, str, str], None]
 
@@ -75,11 +84,17 @@ class EkfSlam(UnicycleEkf):
         self._judged_until_us = -1  # garbage frames are reported once, replays or not
         self._seen_frames: dict[tuple[int, int], tuple] = {}  # front-end results by (stamp, seq), oldest first
         self._slot: dict[int, int] = {}  # identified landmarks (replayed sightings): id -> map index; replaced, never changed
+        self._scale_sigma = spec.odom_scale_prior_sigma
+        self._range_sigma, self._range_tau = spec.range_correlated_sigma_per_m, spec.range_correlation_s
+        self._first_range_slot = POSE_DIM + (2 if self._scale_sigma else 0)
+        self.head_dim = self._first_range_slot + (RANGE_SLOTS if self._range_sigma else 0)
+        self._range_slot_of: dict[int, int] = {}  # landmark id -> its range-error state's index
+        self._last_seen_us: dict[int, int] = {}   # landmark id -> its last sighting
 
     @property
     def landmarks_xy(self) -> np.ndarray:
         """Mapped landmarks (m, 2) [m]."""
-        return self.x[POSE_DIM:].reshape(-1, 2) if self.x is not None else np.zeros((0, 2))
+        return self.x[self.head_dim:].reshape(-1, 2) if self.x is not None else np.zeros((0, 2))
 
     def handle(self, topic: str, msg: Any) -> None:
         if isinstance(msg, m.CameraFrame):
@@ -92,15 +107,33 @@ class EkfSlam(UnicycleEkf):
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
         super()._initialise(pose, covariance, stamp_us)
+        variances = [self._scale_sigma**2] * (2 if self._scale_sigma else 0) + \
+            [self._range_sigma**2] * (self.head_dim - self._first_range_slot)
+        self.x, self.P = added_states.append_states(self.x, self.P, np.array(variances))
+        self._range_slot_of, self._last_seen_us = {}, {}
         self.descriptors, self.first_xy, self._prior_xy = None, None, self.x[:2].copy()
         self.counters.landmarks, self._slot = 0, {}
 
     def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
         """The pose block moves; landmarks stay; cross-covariances follow in place. F's position-heading
-        terms are the displacement between propagated estimates (first-estimates Jacobian)."""
+        terms are the displacement between propagated estimates (first-estimates Jacobian). The
+        scale states scale the inputs, the range-error states decay (module docstring)."""
+        coupling = None
+        if self._scale_sigma:  # a fresh gyro's rate is not the wheels'
+            speed, rate, noise, coupling = added_states.scaled_inputs(self.x, POSE_DIM, speed, rate, dt, noise,
+                                                                      wheel_rate=not noise.get("use_bias"))
         pose_next, F, Q = ekf.motion_model(self.x[:POSE_DIM], speed, rate, dt, **noise)
         if self._first_estimates and self._prior_xy is not None:
             F[0, 2], F[1, 2] = -(pose_next[1] - self._prior_xy[1]), pose_next[0] - self._prior_xy[0]
+        head = self.head_dim
+        if head > POSE_DIM:
+            decay, decay_var = added_states.gauss_markov(dt, self._range_tau, self._range_sigma) \
+                if self._range_sigma else (1.0, 0.0)
+            F, Q = added_states.transition(head, F, Q, coupling, added_states.SCALE_WALK_PER_RTSEC**2 * dt, decay,
+                                           decay_var, self._first_range_slot)
+            tail = self.x[POSE_DIM:head].copy()
+            tail[self._first_range_slot - POSE_DIM:] *= decay
+            pose_next = np.concatenate([pose_next, tail])
         slam.predict_pose(self.x, self.P, F, Q, pose_next)
         self._prior_xy = pose_next[:2].copy()
 
@@ -132,17 +165,62 @@ class EkfSlam(UnicycleEkf):
         self._propagate_to(msg.stamp_us)
         z = np.array([msg.range_m, msg.bearing_rad])
         j = self._slot.get(msg.landmark_id)
+        if j is None and self.counters.landmarks >= MAX_LANDMARKS:
+            return
+        error = self._range_error_state(msg.landmark_id, msg.stamp_us) if self._range_sigma else None
         if j is not None:
-            slam.update(self.x, self.P, POSE_DIM, j, z, msg.covariance, self._landmark_gate,
-                        linearize_at=(self._prior_xy, self.first_xy[j]) if self._first_estimates else None)
+            self._update_identified(j, z, np.asarray(msg.covariance, dtype=float), error)
             return
-        if self.counters.landmarks >= MAX_LANDMARKS:
-            return
-        self.x, self.P = slam.add_landmarks(self.x, self.P, z[None, :], msg.covariance)
+        if error is None:
+            self.x, self.P = slam.add_landmarks(self.x, self.P, z[None, :], msg.covariance)
+        else:
+            white = self._white(np.asarray(msg.covariance, dtype=float), msg.range_m)
+            self.x, self.P = slam.add_landmark_with_range_error(self.x, self.P, z, white, error)
         first = self.x[-2:].reshape(1, 2).copy()
         self.first_xy = first if self.first_xy is None else np.vstack([self.first_xy, first])
         self._slot = {**self._slot, msg.landmark_id: self.counters.landmarks}
         self.counters.landmarks += 1
+
+    def _update_identified(self, j: int, z: np.ndarray, R: np.ndarray, error: int | None) -> None:
+        """The paper's gated update with mapped landmark j; with its range-error state at ``error``,
+        the stretched model (vehicle.added_states.stretched_range) over [x, y, theta, s, l_jx, l_jy]."""
+        linearize_at = (self._prior_xy, self.first_xy[j]) if self._first_estimates else None
+        if error is None:
+            slam.update(self.x, self.P, self.head_dim, j, z, R, self._landmark_gate, linearize_at=linearize_at)
+            return
+        predicted, H_pose, H_landmark = slam.observe(self.x, self.head_dim, j, linearize_at)
+        H = np.hstack([H_pose, np.zeros((2, 1)), H_landmark])
+        H, R, predicted = added_states.stretched_range(H, R, predicted, 3, float(self.x[error]), self._range_sigma,
+                                                       added_states.WHITE_FLOOR)
+        y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
+        k = self.head_dim + 2 * j
+        slam.update_in_place(self.x, self.P, [0, 1, 2, error, k, k + 1], H, y, R, self._landmark_gate)
+
+    def _white(self, R: np.ndarray, range_m: float) -> np.ndarray:
+        """The white part of a sighting's reported noise R (2, 2) (vehicle.added_states.stretched_range)."""
+        white = R.copy()
+        white[0, 0] = max(R[0, 0] - (self._range_sigma * range_m) ** 2, added_states.WHITE_FLOOR * R[0, 0])
+        return white
+
+    def _range_error_state(self, landmark_id: int, t_us: int) -> int:
+        """The index of the landmark's range-error state: its own slot if it has one, else a free slot
+        or the slot of the landmark seen longest ago, reset to 0 with the stationary variance."""
+        self._last_seen_us = {**self._last_seen_us, landmark_id: t_us}
+        slot = self._range_slot_of.get(landmark_id)
+        if slot is not None:
+            return slot
+        taken = set(self._range_slot_of.values())
+        free = [i for i in range(self._first_range_slot, self.head_dim) if i not in taken]
+        owners = dict(self._range_slot_of)
+        if free:
+            slot = free[0]
+        else:
+            oldest = min(owners, key=lambda ident: self._last_seen_us[ident])
+            slot = owners.pop(oldest)
+        self.x[slot] = 0.0
+        added_states.set_spread(self.P, [slot], np.array([self._range_sigma**2]))
+        self._range_slot_of = {**owners, landmark_id: slot}
+        return slot
 
     def _front_end(self, frame: m.CameraFrame) -> tuple[features.Features, np.ndarray, np.ndarray]:
         """Keypoints, [range, bearing] (k, 2) and their covariances (k, 2, 2) of a frame; remembered
@@ -172,7 +250,7 @@ class EkfSlam(UnicycleEkf):
         updated = 0
         for i, row in pairs:
             j = int(visible[row])
-            result = slam.update(self.x, self.P, POSE_DIM, j, z[i], R[i], self._landmark_gate,
+            result = slam.update(self.x, self.P, self.head_dim, j, z[i], R[i], self._landmark_gate,
                                  linearize_at=(self._prior_xy, self.first_xy[j]) if self._first_estimates else None)
             updated += int(result.accepted)
         self.counters.landmarks_updated = updated
@@ -206,7 +284,7 @@ class EkfSlam(UnicycleEkf):
         count = self.counters.landmarks
         if self.x is None or count == 0:
             return None
-        i = POSE_DIM + 2 * np.arange(count)
+        i = self.head_dim + 2 * np.arange(count)
         P = self.P
         cov = np.empty((count, 2, 2))
         cov[:, 0, 0], cov[:, 1, 1] = P[i, i], P[i + 1, i + 1]
@@ -237,10 +315,11 @@ class EkfSlam(UnicycleEkf):
     def _recover(self, t_us: int) -> None:
         super()._recover(t_us)
         if self.x is not None:  # the fallback's map, and the descriptors of the landmarks it had
-            kept = self.counters.landmarks = (len(self.x) - POSE_DIM) // 2
+            kept = self.counters.landmarks = (len(self.x) - self.head_dim) // 2
             self.descriptors = None if self.descriptors is None else self.descriptors[:kept]
             self.first_xy = None if self.first_xy is None else self.first_xy[:kept]
             self._slot = {ident: j for ident, j in self._slot.items() if j < kept}
+            self._range_slot_of = {}  # slots are handed out afresh: the fallback's states are not theirs
             self._prior_xy = self.x[:2].copy()
         else:
             self.descriptors, self.first_xy, self.counters.landmarks, self._slot = None, None, 0, {}
@@ -252,4 +331,6 @@ class EkfSlam(UnicycleEkf):
         state["_prior_xy"] = self._prior_xy      # replaced, never changed in place
         state["_good_until_us"] = self._good_until_us
         state["_slot"] = self._slot              # replaced, never changed in place
+        state["_range_slot_of"] = self._range_slot_of  # likewise
+        state["_last_seen_us"] = self._last_seen_us    # likewise
         return state

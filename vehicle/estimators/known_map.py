@@ -39,9 +39,7 @@ from vehicle.estimators.ekf import UnicycleEkf
 
 LOST_AFTER = 8                              # sightings in a row failing the gate
 RELOCALIZE_SIGMA = np.array([1.0, 1.0, 0.5])  # m, m, rad added to the pose's spread when lost
-SCALE_WALK_PER_RTSEC = 1e-3  # the odometry scale states' random walk (1/sqrt(s)): wheels wear, loads change
 FORGET_AFTER = 5.0           # correlation times unseen before a landmark's range-error state is dropped
-WHITE_FLOOR = 0.1            # of a sighting's range variance, at least this much is taken as white
 
 
 class KnownMapEkf(UnicycleEkf):
@@ -78,18 +76,14 @@ class KnownMapEkf(UnicycleEkf):
             super()._predict(speed, rate, dt, **noise)
             return
         b, coupling = self.base_dim, None
-        if self._scale_sigma:
-            wheel_rate = not noise.get("use_bias")  # a fresh gyro's rate is not the wheels'
-            k_speed, k_rate = float(self.x[b]), float(self.x[b + 1]) if wheel_rate else 0.0
-            noise["steps"] = added_states.scaled_steps(noise.get("steps"), k_speed, k_rate)
-            coupling = np.zeros((b, 2))
-            coupling[:3] = added_states.scale_jacobian(float(self.x[2]), speed, rate, dt, k_speed, k_rate)
-            coupling[:, 1] *= wheel_rate
-            speed, rate = speed * (1.0 + k_speed), rate * (1.0 + k_rate)
+        if self._scale_sigma:  # a fresh gyro's rate is not the wheels'
+            speed, rate, noise, coupling = added_states.scaled_inputs(self.x, b, speed, rate, dt, noise,
+                                                                      wheel_rate=not noise.get("use_bias"))
         head, F, Q = self._motion(speed, rate, dt, **noise)
         decay, decay_var = added_states.gauss_markov(dt, self._range_tau, self._range_sigma)
-        self._apply_motion(*added_states.transition(len(self.x), F, Q, coupling, SCALE_WALK_PER_RTSEC**2 * dt, decay,
-                                                    decay_var, self._first_range_state))
+        walk_var = added_states.SCALE_WALK_PER_RTSEC**2 * dt
+        self._apply_motion(*added_states.transition(len(self.x), F, Q, coupling, walk_var, decay, decay_var,
+                                                    self._first_range_state))
         tail = self.x[b:].copy()
         tail[self._first_range_state - b:] *= decay
         self.x = np.concatenate([head, tail])
@@ -107,11 +101,8 @@ class KnownMapEkf(UnicycleEkf):
         H[:, :3] = H_pose
         R = np.array(msg.covariance, dtype=float)
         if state is not None:  # range read = r (1 + s_l) + white (vehicle.added_states)
-            stretch = 1.0 + self.x[state]
-            H[0, :3] *= stretch
-            H[0, state] = predicted[0]
-            R[0, 0] = max(R[0, 0] - (self._range_sigma * predicted[0]) ** 2, WHITE_FLOOR * R[0, 0])
-            predicted = np.array([predicted[0] * stretch, predicted[1]])
+            H, R, predicted = added_states.stretched_range(H, R, predicted, state, float(self.x[state]),
+                                                           self._range_sigma, added_states.WHITE_FLOOR)
         y = np.array([msg.range_m - predicted[0], wrap_angle(msg.bearing_rad - predicted[1])])
         result = self._fuse(y, H, R, self._landmark_gate)
         if result.accepted:

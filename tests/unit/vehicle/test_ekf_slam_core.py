@@ -7,7 +7,8 @@ import pytest
 from scipy.stats import chi2
 
 from bus.angles import wrap_angle
-from vehicle.ekf_slam_core import add_landmarks, landmark_from, observe, predict_pose, update
+from vehicle.ekf_slam_core import (add_landmark_with_range_error, add_landmarks, landmark_from, observe, predict_pose,
+                                   update)
 
 
 def _numeric_jacobian(f, at: np.ndarray, *, bearing: bool = False, eps: float = 1e-6) -> np.ndarray:
@@ -69,6 +70,26 @@ def test_a_batch_of_new_landmarks_grows_the_covariance_as_y_p_y_transposed():
         x_seq, P_seq = np.concatenate([x_seq, point]), Y @ big @ Y.T
     np.testing.assert_allclose(x_batch, x_seq)
     np.testing.assert_allclose(P_batch, P_seq, atol=1e-12)
+
+
+def test_a_landmark_with_a_range_error_state_grows_the_covariance_as_y_p_y_transposed():
+    """Range read r (1 + s) + white: the landmark is g(pose, z_r / (1 + s), beta), Y over [pose, s]
+    from finite differences, the white noise through d g / d z."""
+    rng = np.random.default_rng(5)
+    x, P = np.array([1.0, -2.0, 0.4, 0.01, 0.03, 5.0, 6.0]), _spd(rng, 7)  # pose, gyro bias, s, 1 landmark
+    z, R_white = np.array([4.0, 0.7]), np.diag([0.01, 0.0004])
+
+    def g(state_and_z: np.ndarray) -> np.ndarray:
+        state, (r, b) = state_and_z[:7], state_and_z[7:]
+        return landmark_from(state, np.array([r / (1.0 + state[4]), b]))[0]
+
+    J = _numeric_jacobian(g, np.concatenate([x, z]))
+    x_new, P_new = add_landmark_with_range_error(x, P, z, R_white, error_state=4)
+    np.testing.assert_allclose(x_new[-2:], g(np.concatenate([x, z])))
+    Y = np.vstack([np.hstack([np.eye(7), np.zeros((7, 2))]), J])
+    big = np.zeros((9, 9))
+    big[:7, :7], big[7:, 7:] = P, R_white
+    np.testing.assert_allclose(P_new, Y @ big @ Y.T, rtol=1e-5, atol=1e-6)  # forward differences
 
 
 def test_the_in_place_update_equals_the_textbook_update():
