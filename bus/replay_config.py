@@ -19,6 +19,8 @@ class ReplayConfig(BaseModel):
                                                "was calibrated on [s]; the replayed window may not overlap it")
     odom_lag_s: float = Field(0.0, ge=0, le=1, description="the robots follow an odometry command this much "
                               "later (calibrated); the replay stamps each command when it takes effect")
+    camera_latency_s: float = Field(0.0, ge=0, le=1, description="a sighting was taken this much before its "
+                                    "stamp (calibrated); the replay stamps each when it was taken")
     sighting_sigmas: tuple[tuple[float, float], ...] = Field((), description="per replayed robot, its camera's "
                                                              "(range sigma per metre of range, bearing sigma rad), "
                                                              "calibrated; empty: the datasheet's range_sigma_m "

@@ -79,7 +79,9 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
                     "landmarks": landmarks if choice.estimator in USES_MAP else []},
         "replay": {"dataset": str(choice.dataset), "robots": list(choice.robots), "start_s": start,
                    "calibration_s": list(choice.calibration_s), "odom_lag_s": cal.odom_lag_s,
-                   "sighting_sigmas": [list(pair) for pair in sighting_sigmas(data, choice.calibration_s, choice.robots)],
+                   "camera_latency_s": cal.camera_latency_s,
+                   "sighting_sigmas": [list(pair) for pair in sighting_sigmas(data, choice.calibration_s, choice.robots,
+                                                                              cal.camera_latency_s)],
                    "withhold_landmarks": list(choice.withhold_landmarks), "relay_sightings": choice.relay_sightings},
     }
     for section, values in (overrides or {}).items():

@@ -150,11 +150,13 @@ def _load_directory(folder: Path) -> MrclamData:
     return MrclamData(robots, landmarks, start_s)
 
 
-def delayed(log: RobotLog, lag_s: float) -> RobotLog:
-    """The robot's log with its odometry stamped ``lag_s`` later (when each command takes effect)."""
-    odometry = log.odometry.copy()
+def delayed(log: RobotLog, lag_s: float, camera_latency_s: float = 0.0) -> RobotLog:
+    """The robot's log with its odometry stamped ``lag_s`` later (when each command takes effect) and
+    its sightings ``camera_latency_s`` earlier (when the image was taken, not when it was read)."""
+    odometry, sightings = log.odometry.copy(), log.sightings.copy()
     odometry[:, 0] += lag_s
-    return dataclasses.replace(log, odometry=odometry)
+    sightings[:, 0] -= camera_latency_s
+    return dataclasses.replace(log, odometry=odometry, sightings=sightings)
 
 
 def pose_at(groundtruth: np.ndarray, t_s: np.ndarray, max_gap_s: float = 0.5) -> np.ndarray:

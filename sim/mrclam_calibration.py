@@ -9,6 +9,12 @@ then never scored (Leung et al., IJRR 2011). Pure: data in, numbers out.
   some 0.1-0.3 s later. The lag (one for the swarm, on a ``LAG_STEP_S`` grid up to ``MAX_LAG_S``) is
   the one that best matches the commands to the speed and yaw rate of the Vicon track; the replay
   stamps each command at the time it takes effect, as a sensor-to-sensor time offset is calibrated.
+- Camera latency: a sighting is stamped when the image was read, some tens of milliseconds after it
+  was taken; while the robot turns, that shows as a bearing error of yaw rate times latency, the
+  same for every sighting of the turn. The latency (one for the swarm, on the ``LAG_STEP_S`` grid up
+  to ``MAX_CAMERA_LATENCY_S``) is the one that minimises the robust RMS of the landmark bearings'
+  residuals; every sighting statistic below is taken on the sightings restamped with it, and so is
+  the replay (``replay.camera_latency_s``).
 - Odometry (commanded speed and yaw rate, lag removed, held between samples): integrated over windows of
   ``WINDOW_S`` from the true pose, against the true pose at the window's end. Its error grows with
   time and with the motion: a window's squared along-track error ~ a T + b d (T its length, d the
@@ -43,6 +49,7 @@ from sim.mrclam import MrclamData, RobotLog, delayed, pose_at
 
 OUTLIER_SIGMAS = 5.0
 LAG_STEP_S, MAX_LAG_S = 0.01, 0.5
+MAX_CAMERA_LATENCY_S = 0.3
 RATE_STEP_S = 0.02  # Vicon differentiated over this
 WINDOW_S = 5.0
 MOVING_MPS = 0.01  # windows where the robot is commanded to stand still say nothing about its wheels
@@ -69,6 +76,7 @@ class Calibration:
     odometry_windows: int
     odom_lag_s: float
     interval_s: tuple[float, float]
+    camera_latency_s: float = 0.0
 
 
 def sighting_residuals(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
@@ -207,7 +215,9 @@ def _robust_rms(residuals: np.ndarray) -> tuple[float, int]:
 def calibrate(data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...]) -> Calibration:
     """The datasheet of ``robots`` measured on ``interval_s`` of ``data`` (see the module docstring)."""
     t0, t1 = interval_s
-    residuals = np.vstack([sighting_residuals(data.robots[r], _landmark_positions(data), t0, t1) for r in robots])
+    latency = camera_latency(data, interval_s, robots)
+    logs = {r: delayed(data.robots[r], 0.0, latency) for r in robots}
+    residuals = np.vstack([sighting_residuals(logs[r], _landmark_positions(data), t0, t1) for r in robots])
     lags = np.arange(0.0, MAX_LAG_S + 1e-9, LAG_STEP_S)
     lag = float(lags[np.argmin(sum(lag_mismatch(data.robots[r], t0, t1, lags) for r in robots))])
     windows = [odometry_errors(delayed(data.robots[r], lag), t0, t1) for r in robots]
@@ -220,21 +230,36 @@ def calibrate(data: MrclamData, interval_s: tuple[float, float], robots: tuple[i
     periods = [np.median(np.diff(data.robots[r].odometry[:, 0])) for r in robots]
     period = float(np.mean(periods))
     along_per_s, along_per_m, heading_per_s, heading_per_rad = growth_rates(odometry, extents)
-    relative_sigma, correlated, tau = range_correlation([range_errors(data.robots[r], _landmark_positions(data), t0, t1)
+    relative_sigma, correlated, tau = range_correlation([range_errors(logs[r], _landmark_positions(data), t0, t1)
                                                          for r in robots])
     return Calibration(float(np.sqrt(along_per_s / period)), float(np.sqrt(heading_per_s / period)),
                        float(np.sqrt(along_per_m)), float(np.sqrt(heading_per_rad)), range_sigma, bearing_sigma,
                        float(np.sqrt(correlated) * relative_sigma), tau,
-                       len(residuals), max(range_out, bearing_out), len(odometry), lag, (float(t0), float(t1)))
+                       len(residuals), max(range_out, bearing_out), len(odometry), lag, (float(t0), float(t1)), latency)
 
 
-def sighting_sigmas(data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...]) -> tuple[tuple[float, float], ...]:
-    """Each robot's own camera: (range sigma per metre of range, bearing sigma rad) of its landmark
-    sightings on ``interval_s`` (robust RMS of error / true range, and of the bearing error; the
-    pooled sigmas where a robot saw fewer than 20 landmarks)."""
+def camera_latency(data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...]) -> float:
+    """The sightings' latency (s) that best explains the landmark bearings on ``interval_s`` (module
+    docstring): the robust RMS of the bearing residuals, pooled over ``robots``, minimised on a grid."""
     landmarks = _landmark_positions(data)
-    errors = {robot: range_errors(data.robots[robot], landmarks, *interval_s) for robot in robots}
-    bearings = {robot: sighting_residuals(data.robots[robot], landmarks, *interval_s)[:, 1] for robot in robots}
+    grid = np.arange(0.0, MAX_CAMERA_LATENCY_S + 1e-9, LAG_STEP_S)
+    spread = []
+    for latency in grid:
+        bearings = [sighting_residuals(delayed(data.robots[r], 0.0, latency), landmarks, *interval_s)[:, 1] for r in robots]
+        pooled = np.concatenate(bearings)
+        spread.append(_robust_rms(pooled)[0] if len(pooled) else np.inf)
+    return float(grid[int(np.argmin(spread))])
+
+
+def sighting_sigmas(data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...],
+                    camera_latency_s: float = 0.0) -> tuple[tuple[float, float], ...]:
+    """Each robot's own camera: (range sigma per metre of range, bearing sigma rad) of its landmark
+    sightings on ``interval_s``, restamped by ``camera_latency_s`` (robust RMS of error / true range,
+    and of the bearing error; the pooled sigmas where a robot saw fewer than 20 landmarks)."""
+    landmarks = _landmark_positions(data)
+    logs = {robot: delayed(data.robots[robot], 0.0, camera_latency_s) for robot in robots}
+    errors = {robot: range_errors(logs[robot], landmarks, *interval_s) for robot in robots}
+    bearings = {robot: sighting_residuals(logs[robot], landmarks, *interval_s)[:, 1] for robot in robots}
     pooled = (_robust_rms(np.concatenate([e[:, 3] / e[:, 2] for e in errors.values()]))[0],
               _robust_rms(np.concatenate(list(bearings.values())))[0])
     out = []

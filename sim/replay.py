@@ -6,7 +6,8 @@ Each vehicle gets its launch prior at 0 (the Vicon pose, perturbed by the datash
 from the world seed), its recorded odometry stamped when it takes effect (``replay.odom_lag_s``
 later; the sample in force at the start, stamped 0, then the rest; a repeated stamp keeps the
 first), its landmark sightings (``landmark`` rows) and its sightings of replayed robots
-(``ranging`` rows), each with its robot's calibrated covariance (``replay.sighting_sigmas``: range
+(``ranging`` rows), stamped when the image was taken (``replay.camera_latency_s`` before the
+recorded stamp), each with its robot's calibrated covariance (``replay.sighting_sigmas``: range
 sigma per metre of the range read, bearing sigma; the datasheet's range and bearing sigma without).
 Every robot sighting that is delivered is also relayed to the robot seen (``seen`` rows: observer,
 range, bearing, covariance), as the observer's radio would pass it on, so both ends can use it
@@ -113,13 +114,13 @@ class ReplayWorld:
         self.skipped_sightings = 0  # of robots not replayed (unknown barcodes: data.robots[r].unknown_barcodes)
         self._streams: dict[int, dict[str, Block]] = {}
         for vid, robot in self.robots.items():
-            log = data.robots[robot]
+            log = delayed(data.robots[robot], replay.odom_lag_s, replay.camera_latency_s)
             landmark, peers, skipped = sighting_rows(log.sightings, self.start_s, end_s, vehicle_of, sigmas[vid - 1], relative)
             if robot in replay.withhold_landmarks:
                 landmark = (landmark[0][:0], landmark[1][:0])
             self.skipped_sightings += skipped
             self._streams[vid] = {"prior": self._prior(vid, log.groundtruth),
-                                  "odom": odometry_rows(delayed(log, replay.odom_lag_s).odometry, self.start_s, end_s),
+                                  "odom": odometry_rows(log.odometry, self.start_s, end_s),
                                   "landmark": landmark, "ranging": peers}
         self._cursor = {(vid, topic): 0 for vid, topics in self._streams.items() for topic in topics}
         self._sent = dict.fromkeys(self._cursor, 0)  # sequence numbers count what was sent

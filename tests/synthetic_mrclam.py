@@ -22,7 +22,7 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
               bearing_sigma: float = 0.02, sighting_rate_hz: float = 3.0, turn_sigma: float = 0.0,
               odom_scale: tuple[float, float] = (0.0, 0.0), range_sigma_per_m: float = 0.0,
               range_correlated_per_m: float = 0.0, range_correlation_s: float = 5.0,
-              robot_sighting_rate_hz: float = 0.0) -> MrclamData:
+              robot_sighting_rate_hz: float = 0.0, camera_latency_s: float = 0.0) -> MrclamData:
     logs, poses = {}, {}
     for robot in range(1, robots + 1):
         fine = np.arange(0.0, duration_s, 0.002)
@@ -60,7 +60,8 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
                     error = phi * error + range_correlated_per_m * np.sqrt(1.0 - phi * phi) * rng.standard_normal()
                     persisting[j] = (fine[k], error)
                     noise += true_range * (error + rng.normal(0.0, range_sigma_per_m))
-                sightings.append([fine[k], LANDMARKS[j, 0], true_range + noise, bearing[j] + rng.normal(0, bearing_sigma)])
+                sightings.append([fine[k] + camera_latency_s, LANDMARKS[j, 0], true_range + noise,
+                                  bearing[j] + rng.normal(0, bearing_sigma)])  # stamped when read
         logs[robot] = RobotLog(robot, truth, np.column_stack([command_t, commands]), np.array(sightings).reshape(-1, 4), 0)
         poses[robot] = pose
     if robot_sighting_rate_hz:  # drawn after everything else: the rest of the data is as without them

@@ -136,6 +136,19 @@ def test_calibration_recovers_the_noise_a_data_set_was_made_with():
     assert cal.range_correlated_sigma_per_m < 0.01  # white noise: nothing persists
 
 
+def test_calibration_finds_the_camera_latency_and_the_replay_stamps_sightings_when_taken():
+    data = synthetic(np.random.default_rng(9), robots=3, duration_s=300.0, bearing_sigma=0.005, camera_latency_s=0.06)
+    cal = calibrate(data, (0.0, 300.0), (1, 2, 3))
+    assert cal.camera_latency_s == pytest.approx(0.06, abs=0.011)
+    assert cal.bearing_sigma_rad == pytest.approx(0.005, rel=0.15)  # measured on the restamped sightings
+    on_time = synthetic(np.random.default_rng(9), robots=3, duration_s=300.0, bearing_sigma=0.005)
+    assert calibrate(on_time, (0.0, 300.0), (1, 2, 3)).camera_latency_s <= 0.01
+    taken = data.robots[1].sightings[:, 0] - 0.06  # the replay stamps each sighting when it was taken
+    taken = taken[(taken > 100.0) & (taken <= 140.0)]
+    stamps_us = ReplayWorld(_config(camera_latency_s=0.06), data).advance(40_000_000).blocks(1)["landmark"][0]
+    np.testing.assert_allclose(stamps_us, (taken - 100.0) * 1e6, atol=1.0)
+
+
 def test_calibration_finds_range_error_that_persists():
     data = synthetic(np.random.default_rng(8), robots=3, duration_s=300.0, range_sigma=0.0, range_sigma_per_m=0.015,
                      range_correlated_per_m=0.04, range_correlation_s=3.0, sighting_rate_hz=6.0)
