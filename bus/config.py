@@ -103,6 +103,10 @@ class SensorSpec(_Strict):
                                                 "error, the part that persists in time, per metre of range "
                                                 "(0.03: 3 %; 0: white). known-map estimates it per landmark")
     range_correlation_s: float = Field(5.0, gt=0, le=1e4, description="correlation time of that part")
+    bearing_correlated_fraction: float = Field(0.0, ge=0, le=0.95, description="of a camera's landmark bearing "
+                                               "error variance, the part that persists in time (0: white); "
+                                               "known-map and slam estimate it per landmark")
+    bearing_correlation_s: float = Field(5.0, gt=0, le=1e4, description="correlation time of that part")
     odom_scale_prior_sigma: float = Field(0.0, ge=0, le=0.5, description="how far the wheel odometry's speed "
                                           "and yaw-rate scales may be off (0.1: 10 %); known-map then "
                                           "estimates both (0: taken as exact)")

@@ -33,6 +33,10 @@ then never scored (Leung et al., IJRR 2011). Pure: data in, numbers out.
   0.3 s, 0.4 at 3 s on data set 6); c and tau are fitted to the correlation of pairs binned by lag
   (``LAG_EDGES_S``), and sqrt(c) times the relative sigma is the part a filter can estimate as a
   Gauss-Markov state per landmark (``range_correlated_sigma_per_m``, ``range_correlation_s``).
+  The bearing error persists too (a barcode read a little off centre stays off while the robot
+  keeps looking): the same fit on each robot's bearing residuals in units of its own sigma gives the
+  fraction c of a camera's bearing variance that persists and its correlation time
+  (``bearing_correlated_fraction``, ``bearing_correlation_s``).
 Pooled over the robots: one datasheet for the swarm, as a vehicle maker would print one; the camera
 sigmas also per robot (``sighting_sigmas``).
 """
@@ -71,6 +75,8 @@ class Calibration:
     bearing_sigma_rad: float
     range_correlated_sigma_per_m: float
     range_correlation_s: float
+    bearing_correlated_fraction: float
+    bearing_correlation_s: float
     sightings: int
     outliers: int
     odometry_windows: int
@@ -131,17 +137,49 @@ def range_correlation(errors: list[np.ndarray]) -> tuple[float, float, float]:
     """(sigma, c, tau s) of the relative range error (error / true range): its RMS, and
     rho(lag) ~ c exp(-lag / tau) fitted to the correlation of pairs of sightings of one landmark by
     one robot, binned by LAG_EDGES_S; ``errors`` holds each robot's :func:`range_errors` rows."""
+    return _persistence([np.column_stack([rows[:, :2], rows[:, 3] / rows[:, 2]]) for rows in errors])
+
+
+def bearing_correlation(residuals: list[np.ndarray]) -> tuple[float, float]:
+    """(c, tau s) of the bearing error: rho(lag) ~ c exp(-lag / tau) as for the range, on each robot's
+    bearing residuals in units of its own robust sigma (cameras differ: c is the fraction of each
+    one's bearing variance that persists); ``residuals`` holds each robot's rows [t s, subject,
+    bearing residual rad] (:func:`bearing_residuals`)."""
+    scaled = []
+    for rows in residuals:
+        if len(rows) >= 20:
+            scaled.append(np.column_stack([rows[:, :2], rows[:, 2] / max(_robust_rms(rows[:, 2])[0], 1e-9)]))
+    if not scaled:
+        return 0.0, 1.0
+    _, c, tau = _persistence(scaled)
+    return c, tau
+
+
+def bearing_residuals(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
+    """[t s, subject, bearing residual rad] (k, 3) of the robot's landmark sightings in [t0, t1)."""
+    s = log.sightings[(log.sightings[:, 0] >= t0) & (log.sightings[:, 0] < t1)]
+    s = s[np.isin(s[:, 1], list(landmarks))]
+    pose = pose_at(log.groundtruth, s[:, 0]).reshape(-1, 3)
+    where = np.array([landmarks[int(subject)] for subject in s[:, 1]]).reshape(-1, 2)
+    d = where - pose[:, :2]
+    out = np.column_stack([s[:, :2], wrap_angles(s[:, 3] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))])
+    return out[np.isfinite(out[:, 2])]
+
+
+def _persistence(errors: list[np.ndarray]) -> tuple[float, float, float]:
+    """(sigma, c, tau s) of an error series: its robust RMS, and rho(lag) ~ c exp(-lag / tau) fitted
+    to the correlation of pairs of one robot's errors on one subject, binned by LAG_EDGES_S;
+    ``errors`` holds each robot's rows [t s, subject, error]."""
     rows = np.vstack(errors)
-    rel_all = rows[:, 3] / rows[:, 2]
-    keep = _inliers(rel_all)
-    mean, var = float(np.mean(rel_all[keep])), float(np.var(rel_all[keep]))
+    keep = _inliers(rows[:, 2])
+    mean, var = float(np.mean(rows[keep, 2])), float(np.var(rows[keep, 2]))
     sums, counts, lags = (np.zeros(len(LAG_EDGES_S) - 1) for _ in range(3))
     for robot_rows in errors:
-        rel = robot_rows[:, 3] / robot_rows[:, 2]
-        ok = _inliers(rel) if len(rel) else np.zeros(0, bool)
+        e = robot_rows[:, 2]
+        ok = _inliers(e) if len(e) else np.zeros(0, bool)
         for subject in np.unique(robot_rows[ok, 1]):
             mine = ok & (robot_rows[:, 1] == subject)
-            _lag_products(robot_rows[mine, 0], rel[mine] - mean, sums, counts, lags)
+            _lag_products(robot_rows[mine, 0], e[mine] - mean, sums, counts, lags)
     rho = sums / np.maximum(counts, 1) / max(var, 1e-12)
     usable = (counts >= 20) & (rho > 3.0 / np.sqrt(np.maximum(counts, 1)))  # 3 standard errors of no correlation
     if usable.sum() < 2:
@@ -232,9 +270,11 @@ def calibrate(data: MrclamData, interval_s: tuple[float, float], robots: tuple[i
     along_per_s, along_per_m, heading_per_s, heading_per_rad = growth_rates(odometry, extents)
     relative_sigma, correlated, tau = range_correlation([range_errors(logs[r], _landmark_positions(data), t0, t1)
                                                          for r in robots])
+    bearing_persisting, bearing_tau = bearing_correlation([bearing_residuals(logs[r], _landmark_positions(data), t0, t1)
+                                                           for r in robots])
     return Calibration(float(np.sqrt(along_per_s / period)), float(np.sqrt(heading_per_s / period)),
                        float(np.sqrt(along_per_m)), float(np.sqrt(heading_per_rad)), range_sigma, bearing_sigma,
-                       float(np.sqrt(correlated) * relative_sigma), tau,
+                       float(np.sqrt(correlated) * relative_sigma), tau, bearing_persisting, bearing_tau,
                        len(residuals), max(range_out, bearing_out), len(odometry), lag, (float(t0), float(t1)), latency)
 
 

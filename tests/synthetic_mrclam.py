@@ -22,7 +22,8 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
               bearing_sigma: float = 0.02, sighting_rate_hz: float = 3.0, turn_sigma: float = 0.0,
               odom_scale: tuple[float, float] = (0.0, 0.0), range_sigma_per_m: float = 0.0,
               range_correlated_per_m: float = 0.0, range_correlation_s: float = 5.0,
-              robot_sighting_rate_hz: float = 0.0, camera_latency_s: float = 0.0) -> MrclamData:
+              robot_sighting_rate_hz: float = 0.0, camera_latency_s: float = 0.0,
+              bearing_correlated_fraction: float = 0.0, bearing_correlation_s: float = 5.0) -> MrclamData:
     logs, poses = {}, {}
     for robot in range(1, robots + 1):
         fine = np.arange(0.0, duration_s, 0.002)
@@ -44,6 +45,7 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
         pose[:, 2] = (pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
         truth = np.column_stack([fine, pose])[::5]
         sightings, persisting = [], {}  # landmark -> (time s, relative range error)
+        bearing_persisting = {}  # landmark -> (time s, bearing error rad)
         for t in np.sort(rng.uniform(1.0, duration_s, int(sighting_rate_hz * duration_s))):
             k = int(t / 0.002)
             x, y, th = pose[k]
@@ -60,8 +62,17 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
                     error = phi * error + range_correlated_per_m * np.sqrt(1.0 - phi * phi) * rng.standard_normal()
                     persisting[j] = (fine[k], error)
                     noise += true_range * (error + rng.normal(0.0, range_sigma_per_m))
+                if bearing_correlated_fraction:  # a Gauss-Markov part and a white part (no draws otherwise)
+                    sigma = bearing_sigma * np.sqrt(bearing_correlated_fraction)
+                    before, error = bearing_persisting.get(j, (fine[k], rng.normal(0.0, sigma)))
+                    phi = np.exp(-(fine[k] - before) / bearing_correlation_s)
+                    error = phi * error + sigma * np.sqrt(1.0 - phi * phi) * rng.standard_normal()
+                    bearing_persisting[j] = (fine[k], error)
+                    bearing_noise = error + rng.normal(0, bearing_sigma * np.sqrt(1.0 - bearing_correlated_fraction))
+                else:
+                    bearing_noise = rng.normal(0, bearing_sigma)
                 sightings.append([fine[k] + camera_latency_s, LANDMARKS[j, 0], true_range + noise,
-                                  bearing[j] + rng.normal(0, bearing_sigma)])  # stamped when read
+                                  bearing[j] + bearing_noise])  # stamped when read
         logs[robot] = RobotLog(robot, truth, np.column_stack([command_t, commands]), np.array(sightings).reshape(-1, 4), 0)
         poses[robot] = pose
     if robot_sighting_rate_hz:  # drawn after everything else: the rest of the data is as without them

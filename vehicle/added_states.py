@@ -85,19 +85,39 @@ def scaled_inputs(x: np.ndarray, scales_at: int, speed: float, rate: float, dt: 
     return speed * (1.0 + k_speed), rate * (1.0 + k_rate), noise, coupling
 
 
-def stretched_range(H: np.ndarray, R: np.ndarray, predicted: np.ndarray, state: int, s: float,
-                    correlated_sigma_per_m: float, white_floor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A range-bearing sighting's model when its range error is the state ``state`` (value ``s``):
-    range read = r (1 + s) + white. H (2, n) and predicted [range m, bearing rad] (2,) of the plain
-    model become the stretched ones (row 0 times 1 + s, d range / d s = r); R (2, 2), the reported
-    noise, keeps only its white part (at least ``white_floor`` of the reported range variance).
+def persisting_sighting(H: np.ndarray, R: np.ndarray, predicted: np.ndarray, x: np.ndarray, *,
+                        range_state: int | None = None, range_column: int | None = None, range_sigma_per_m: float = 0.0,
+                        bearing_state: int | None = None, bearing_column: int | None = None, bearing_var: float = 0.0,
+                        white_floor: float = WHITE_FLOOR) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A range-bearing sighting's model when its errors that persist are states of x: range read =
+    r (1 + s) + white, bearing read = beta + b + white, s = x[range_state], b = x[bearing_state]
+    (either may be None). H (2, q) and predicted [range m, bearing rad] (2,) of the plain model
+    become these (row 0 times 1 + s, d range / d s = r in ``range_column`` of H; d bearing / d b = 1
+    in ``bearing_column``); R (2, 2), the reported noise, keeps only its white part: less
+    (range_sigma_per_m r)^2 and ``bearing_var``, at least ``white_floor`` of each reported variance.
     Returns new arrays."""
-    stretch = 1.0 + s
-    H, R = H.copy(), np.array(R, dtype=float)
-    H[0] *= stretch
-    H[0, state] = predicted[0]
-    R[0, 0] = max(R[0, 0] - (correlated_sigma_per_m * predicted[0]) ** 2, white_floor * R[0, 0])
-    return H, R, np.array([predicted[0] * stretch, predicted[1]])
+    H, R, predicted = H.copy(), np.array(R, dtype=float), np.array(predicted, dtype=float)
+    if range_state is not None:
+        stretch = 1.0 + float(x[range_state])
+        H[0] *= stretch
+        H[0, range_column] = predicted[0]
+        R[0, 0] = max(R[0, 0] - (range_sigma_per_m * predicted[0]) ** 2, white_floor * R[0, 0])
+        predicted[0] *= stretch
+    if bearing_state is not None:
+        H[1, bearing_column] = 1.0
+        R[1, 1] = max(R[1, 1] - bearing_var, white_floor * R[1, 1])
+        predicted[1] += float(x[bearing_state])
+    return H, R, predicted
+
+
+def white_part(R: np.ndarray, range_m: float, range_sigma_per_m: float, bearing_var: float,
+               white_floor: float = WHITE_FLOOR) -> np.ndarray:
+    """The white part (2, 2) of a sighting's reported noise R at range ``range_m`` (as in
+    :func:`persisting_sighting`)."""
+    white = np.array(R, dtype=float)
+    white[0, 0] = max(R[0, 0] - (range_sigma_per_m * range_m) ** 2, white_floor * R[0, 0])
+    white[1, 1] = max(R[1, 1] - bearing_var, white_floor * R[1, 1])
+    return white
 
 
 def gauss_markov(dt: float, tau: float, sigma: float) -> tuple[float, float]:
@@ -106,13 +126,21 @@ def gauss_markov(dt: float, tau: float, sigma: float) -> tuple[float, float]:
     return phi, sigma * sigma * (1.0 - phi * phi)
 
 
+def decays(dt: float, taus: np.ndarray, variances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """phi and the process noise variance (k,) of one step of k Gauss-Markov states with correlation
+    times ``taus`` (k,) s and stationary ``variances`` (k,)."""
+    phi = np.exp(-dt / np.asarray(taus, dtype=float))
+    return phi, np.asarray(variances, dtype=float) * (1.0 - phi * phi)
+
+
 def transition(n: int, F_head: np.ndarray, Q_head: np.ndarray, coupling: np.ndarray | None,
-               scale_walk_var: float, decay: float, decay_var: float, first_decaying: int) -> tuple[np.ndarray, np.ndarray]:
+               scale_walk_var: float, decay: float | np.ndarray, decay_var: float | np.ndarray,
+               first_decaying: int) -> tuple[np.ndarray, np.ndarray]:
     """F and Q (n, n) of one motion step of a state laid out [head (h), scale states (c), decaying
     states (from ``first_decaying`` on)]: the head moves by F_head (h, h) with noise Q_head and
     depends on the scale states through ``coupling`` (h, c) (None: no scale states); the scale
     states random-walk with ``scale_walk_var`` each; the decaying states decay by ``decay`` with
-    ``decay_var`` noise each. Written as full matrices (n stays below ~25)."""
+    ``decay_var`` noise (each, or one per decaying state). Written as full matrices (n stays below ~40)."""
     h = len(F_head)
     F, Q = np.eye(n), np.zeros((n, n))
     F[:h, :h] = F_head

@@ -143,19 +143,26 @@ def apply_correction_in_place(x: np.ndarray, P: np.ndarray, correction: Correcti
         dger(float(value), u, u, a=P.T, overwrite_a=True)
 
 
-def add_landmark_with_range_error(x: np.ndarray, P: np.ndarray, z: np.ndarray, R_white: np.ndarray,
-                                  error_state: int) -> tuple[np.ndarray, np.ndarray]:
-    """Append a landmark seen at z = [range m, bearing rad] when the range reads r (1 + s) + white,
-    s the state at ``error_state`` (vehicle.added_states), R_white (2, 2) the white noise: the
-    paper's g(x, z) at the range r = z_r / (1 + s), with that state among the ones the landmark
-    depends on (G over [x, y, theta, s]), so that later sightings with the same error do not count
-    it twice. The augmented (x, P)."""
-    stretch = 1.0 + float(x[error_state])
-    point, Gx, Gz = landmark_from(x, np.array([z[0] / stretch, z[1]]))
+def add_landmark_with_errors(x: np.ndarray, P: np.ndarray, z: np.ndarray, R_white: np.ndarray,
+                            range_state: int | None, bearing_state: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """Append a landmark seen at z = [range m, bearing rad] when the range reads r (1 + s) + white
+    and the bearing beta + b + white, s and b the states at ``range_state`` and ``bearing_state``
+    (vehicle.added_states; either may be None), R_white (2, 2) the white noise: the paper's g(x, z)
+    at r = z_r / (1 + s), beta = z_b - b, with those states among the ones the landmark depends on
+    (G over [x, y, theta, s, b]), so that later sightings with the same errors do not count them
+    twice. The augmented (x, P)."""
+    stretch = 1.0 + (float(x[range_state]) if range_state is not None else 0.0)
+    offset = float(x[bearing_state]) if bearing_state is not None else 0.0
+    point, Gx, Gz = landmark_from(x, np.array([z[0] / stretch, z[1] - offset]))
+    idx, G = [0, 1, 2], [Gx]
+    if range_state is not None:
+        idx.append(range_state)
+        G.append(-(point - x[:2])[:, None] / stretch)      # d l / d s
+    if bearing_state is not None:
+        idx.append(bearing_state)
+        G.append(-Gz[:, 1:2])                              # d l / d b = -d l / d beta
     Gz[:, 0] /= stretch                                    # d l / d z_r
-    Gs = -(point - x[:2])[:, None] / stretch               # d l / d s (2, 1)
-    idx = [0, 1, 2, error_state]
-    G = np.hstack([Gx, Gs])                                # (2, 4)
+    G = np.hstack(G)
     n = len(x)
     P_new = np.empty((n + 2, n + 2))
     P_new[:n, :n] = P

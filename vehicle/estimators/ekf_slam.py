@@ -19,11 +19,12 @@ in ``ekf``, the prediction moves the pose block and its cross-covariances in pla
 A replayed data set (sim.replay) brings landmark sightings with their identities instead of frames: a
 mapped one is updated, a new one initialised, the same way. Errors that persist, each on when its
 datasheet field is nonzero, as in ``known-map`` (vehicle.added_states): the wheel odometry's speed
-and yaw-rate scale errors (two states after the pose), and the camera's time-correlated range
-error, a Gauss-Markov state per landmark in view held in ``RANGE_SLOTS`` slots after those: a
-landmark seen again gets its slot back, a new one takes a free slot or the one of the landmark seen
-longest ago (its state marginalized: by then it hardly correlates with a new reading). The state is
-then [pose (4), k_v, k_w, s_1..s_RANGE_SLOTS, map]: ``head_dim`` states before the map.
+and yaw-rate scale errors (two states after the pose), and the camera's time-correlated range and
+bearing errors, Gauss-Markov states per landmark in view held in ``RANGE_SLOTS`` slots after those
+(a slot: [s, b], or the one of them that is on): a landmark seen again gets its slot back, a new one
+takes a free slot or the one of the landmark seen longest ago (its states marginalized: by then they
+hardly correlate with a new reading). The state is then [pose (4), k_v, k_w, slots, map]:
+``head_dim`` states before the map.
 
 Pure: no bus, no clock. Fusion-horizon snapshots copy (x, P) only where the horizon asks for one;
 the fallback for divergence recovery is refreshed once per ``GOOD_PERIOD_US``, not every cycle.
@@ -86,9 +87,18 @@ class EkfSlam(UnicycleEkf):
         self._slot: dict[int, int] = {}  # identified landmarks (replayed sightings): id -> map index; replaced, never changed
         self._scale_sigma = spec.odom_scale_prior_sigma
         self._range_sigma, self._range_tau = spec.range_correlated_sigma_per_m, spec.range_correlation_s
+        self._bearing_fraction, self._bearing_tau = spec.bearing_correlated_fraction, spec.bearing_correlation_s
+        self._per_slot = int(bool(self._range_sigma)) + int(bool(self._bearing_fraction))
         self._first_range_slot = POSE_DIM + (2 if self._scale_sigma else 0)
-        self.head_dim = self._first_range_slot + (RANGE_SLOTS if self._range_sigma else 0)
-        self._range_slot_of: dict[int, int] = {}  # landmark id -> its range-error state's index
+        self.head_dim = self._first_range_slot + RANGE_SLOTS * self._per_slot
+        # each slot state's (tau s, stationary variance); the bearing's is the datasheet's until a landmark
+        # takes the slot, then that of the landmark's sightings
+        self._slot_taus = np.tile(([self._range_tau] if self._range_sigma else []) +
+                                  ([self._bearing_tau] if self._bearing_fraction else []), RANGE_SLOTS)
+        self._slot_vars = np.tile(([self._range_sigma**2] if self._range_sigma else []) +
+                                  ([self._bearing_fraction * spec.bearing_sigma_rad**2] if self._bearing_fraction else []),
+                                  RANGE_SLOTS)
+        self._range_slot_of: dict[int, int] = {}  # landmark id -> index of its slot's first state
         self._last_seen_us: dict[int, int] = {}   # landmark id -> its last sighting
 
     @property
@@ -107,8 +117,7 @@ class EkfSlam(UnicycleEkf):
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int) -> None:
         super()._initialise(pose, covariance, stamp_us)
-        variances = [self._scale_sigma**2] * (2 if self._scale_sigma else 0) + \
-            [self._range_sigma**2] * (self.head_dim - self._first_range_slot)
+        variances = [self._scale_sigma**2] * (2 if self._scale_sigma else 0) + self._slot_vars.tolist()
         self.x, self.P = added_states.append_states(self.x, self.P, np.array(variances))
         self._range_slot_of, self._last_seen_us = {}, {}
         self.descriptors, self.first_xy, self._prior_xy = None, None, self.x[:2].copy()
@@ -127,8 +136,7 @@ class EkfSlam(UnicycleEkf):
             F[0, 2], F[1, 2] = -(pose_next[1] - self._prior_xy[1]), pose_next[0] - self._prior_xy[0]
         head = self.head_dim
         if head > POSE_DIM:
-            decay, decay_var = added_states.gauss_markov(dt, self._range_tau, self._range_sigma) \
-                if self._range_sigma else (1.0, 0.0)
+            decay, decay_var = added_states.decays(dt, self._slot_taus, self._slot_vars)
             F, Q = added_states.transition(head, F, Q, coupling, added_states.SCALE_WALK_PER_RTSEC**2 * dt, decay,
                                            decay_var, self._first_range_slot)
             tail = self.x[POSE_DIM:head].copy()
@@ -167,58 +175,77 @@ class EkfSlam(UnicycleEkf):
         j = self._slot.get(msg.landmark_id)
         if j is None and self.counters.landmarks >= MAX_LANDMARKS:
             return
-        error = self._range_error_state(msg.landmark_id, msg.stamp_us) if self._range_sigma else None
+        R = np.asarray(msg.covariance, dtype=float)
+        error = self._range_error_state(msg.landmark_id, msg.stamp_us, R[1, 1]) if self._per_slot else None
         if j is not None:
-            self._update_identified(j, z, np.asarray(msg.covariance, dtype=float), error)
+            self._update_identified(j, z, R, error)
             return
         if error is None:
             self.x, self.P = slam.add_landmarks(self.x, self.P, z[None, :], msg.covariance)
         else:
-            white = self._white(np.asarray(msg.covariance, dtype=float), msg.range_m)
-            self.x, self.P = slam.add_landmark_with_range_error(self.x, self.P, z, white, error)
+            model = self._error_model(error)
+            white = added_states.white_part(R, msg.range_m, model.get("range_sigma_per_m", 0.0),
+                                            model.get("bearing_var", 0.0))
+            self.x, self.P = slam.add_landmark_with_errors(self.x, self.P, z, white, model.get("range_state"),
+                                                           model.get("bearing_state"))
         first = self.x[-2:].reshape(1, 2).copy()
         self.first_xy = first if self.first_xy is None else np.vstack([self.first_xy, first])
         self._slot = {**self._slot, msg.landmark_id: self.counters.landmarks}
         self.counters.landmarks += 1
 
+    def _error_model(self, first: int) -> dict:
+        """``added_states.persisting_sighting``'s state arguments for the slot starting at ``first``
+        (columns are set by the caller)."""
+        model: dict = {}
+        if self._range_sigma:
+            model.update(range_state=first, range_sigma_per_m=self._range_sigma)
+        if self._bearing_fraction:
+            b = first + int(bool(self._range_sigma))
+            model.update(bearing_state=b, bearing_var=float(self._slot_vars[b - self._first_range_slot]))
+        return model
+
     def _update_identified(self, j: int, z: np.ndarray, R: np.ndarray, error: int | None) -> None:
-        """The paper's gated update with mapped landmark j; with its range-error state at ``error``,
-        the stretched model (vehicle.added_states.stretched_range) over [x, y, theta, s, l_jx, l_jy]."""
+        """The paper's gated update with mapped landmark j; with its error states from ``error`` on,
+        the model of vehicle.added_states.persisting_sighting over [x, y, theta, errors, l_jx, l_jy]."""
         linearize_at = (self._prior_xy, self.first_xy[j]) if self._first_estimates else None
         if error is None:
             slam.update(self.x, self.P, self.head_dim, j, z, R, self._landmark_gate, linearize_at=linearize_at)
             return
         predicted, H_pose, H_landmark = slam.observe(self.x, self.head_dim, j, linearize_at)
-        H = np.hstack([H_pose, np.zeros((2, 1)), H_landmark])
-        H, R, predicted = added_states.stretched_range(H, R, predicted, 3, float(self.x[error]), self._range_sigma,
-                                                       added_states.WHITE_FLOOR)
+        errors = list(range(error, error + self._per_slot))
+        H = np.hstack([H_pose, np.zeros((2, len(errors))), H_landmark])
+        model = self._error_model(error)
+        if "range_state" in model:
+            model["range_column"] = 3
+        if "bearing_state" in model:
+            model["bearing_column"] = 3 + errors.index(model["bearing_state"])
+        H, R, predicted = added_states.persisting_sighting(H, R, predicted, self.x, **model)
         y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
         k = self.head_dim + 2 * j
-        slam.update_in_place(self.x, self.P, [0, 1, 2, error, k, k + 1], H, y, R, self._landmark_gate)
+        slam.update_in_place(self.x, self.P, [0, 1, 2, *errors, k, k + 1], H, y, R, self._landmark_gate)
 
-    def _white(self, R: np.ndarray, range_m: float) -> np.ndarray:
-        """The white part of a sighting's reported noise R (2, 2) (vehicle.added_states.stretched_range)."""
-        white = R.copy()
-        white[0, 0] = max(R[0, 0] - (self._range_sigma * range_m) ** 2, added_states.WHITE_FLOOR * R[0, 0])
-        return white
-
-    def _range_error_state(self, landmark_id: int, t_us: int) -> int:
-        """The index of the landmark's range-error state: its own slot if it has one, else a free slot
-        or the slot of the landmark seen longest ago, reset to 0 with the stationary variance."""
+    def _range_error_state(self, landmark_id: int, t_us: int, bearing_var: float) -> int:
+        """The index of the landmark's slot (its first error state): its own slot if it has one, else
+        a free slot or the slot of the landmark seen longest ago, reset to 0 with the stationary
+        variances (the bearing's a fraction of ``bearing_var``, the sighting's reported one)."""
         self._last_seen_us = {**self._last_seen_us, landmark_id: t_us}
         slot = self._range_slot_of.get(landmark_id)
         if slot is not None:
             return slot
         taken = set(self._range_slot_of.values())
-        free = [i for i in range(self._first_range_slot, self.head_dim) if i not in taken]
+        free = [i for i in range(self._first_range_slot, self.head_dim, self._per_slot) if i not in taken]
         owners = dict(self._range_slot_of)
         if free:
             slot = free[0]
         else:
             oldest = min(owners, key=lambda ident: self._last_seen_us[ident])
             slot = owners.pop(oldest)
-        self.x[slot] = 0.0
-        added_states.set_spread(self.P, [slot], np.array([self._range_sigma**2]))
+        states = list(range(slot, slot + self._per_slot))
+        if self._bearing_fraction:
+            self._slot_vars = self._slot_vars.copy()  # replaced, never changed in place (snapshots share it)
+            self._slot_vars[states[-1] - self._first_range_slot] = self._bearing_fraction * bearing_var
+        self.x[states] = 0.0
+        added_states.set_spread(self.P, states, self._slot_vars[[s - self._first_range_slot for s in states]])
         self._range_slot_of = {**owners, landmark_id: slot}
         return slot
 
@@ -332,5 +359,6 @@ class EkfSlam(UnicycleEkf):
         state["_good_until_us"] = self._good_until_us
         state["_slot"] = self._slot              # replaced, never changed in place
         state["_range_slot_of"] = self._range_slot_of  # likewise
+        state["_slot_vars"] = self._slot_vars          # likewise
         state["_last_seen_us"] = self._last_seen_us    # likewise
         return state

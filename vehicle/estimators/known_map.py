@@ -14,8 +14,10 @@ Gauss-Markov state per landmark in view (sigma ``range_correlated_sigma_per_m`` 
 correlation time ``range_correlation_s``): a camera that reads a landmark 3 % long reads it 3 % long
 for seconds, and fusing five such sightings a second as independent would make the filter sure of a
 biased pose. That part is taken out of each sighting's reported range variance (the rest is white).
-A landmark's state is dropped (marginalized) when it has not been seen for ``FORGET_AFTER``
-correlation times: by then it is uncorrelated with what a new sighting would read.
+Likewise the bearing's persisting part, a second Gauss-Markov state per landmark in view (a fraction
+``bearing_correlated_fraction`` of the sighting's reported bearing variance, correlation time
+``bearing_correlation_s``). A landmark's states are dropped (marginalized) when it has not been seen
+for ``FORGET_AFTER`` correlation times: by then they are uncorrelated with what a new sighting would read.
 
 Losing track and finding it again: when ``LOST_AFTER`` sightings in a row of at least two different
 landmarks all fail the gate, the pose is no longer where the filter believes; its covariance is
@@ -57,14 +59,17 @@ class KnownMapEkf(UnicycleEkf):
         spec = self._spec
         self._scale_sigma = spec.odom_scale_prior_sigma
         self._range_sigma, self._range_tau = spec.range_correlated_sigma_per_m, spec.range_correlation_s
+        self._bearing_fraction, self._bearing_tau = spec.bearing_correlated_fraction, spec.bearing_correlation_s
+        self._per_landmark = int(bool(self._range_sigma)) + int(bool(self._bearing_fraction))
         self._first_range_state = self.base_dim + (2 if self._scale_sigma else 0)
         self.state_dim = self._first_range_state
-        self._range_states: dict[int, int] = {}  # landmark id -> index of its range-error state
+        self._range_states: dict[int, int] = {}  # landmark id -> index of its first error state
         self._last_seen_us: dict[int, int] = {}
+        self._decaying: list[tuple[float, float]] = []  # (tau s, stationary variance) of each error state, in order
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int, *, from_fixes: bool = False) -> None:
         super()._initialise(pose, covariance, stamp_us, from_fixes=from_fixes)
-        self._range_states, self._last_seen_us = {}, {}
+        self._range_states, self._last_seen_us, self._decaying = {}, {}, []
         if self._scale_sigma:
             self.x, self.P = added_states.append_states(self.x, self.P, np.full(2, self._scale_sigma**2))
         self.state_dim = len(self.x)
@@ -80,7 +85,8 @@ class KnownMapEkf(UnicycleEkf):
             speed, rate, noise, coupling = added_states.scaled_inputs(self.x, b, speed, rate, dt, noise,
                                                                       wheel_rate=not noise.get("use_bias"))
         head, F, Q = self._motion(speed, rate, dt, **noise)
-        decay, decay_var = added_states.gauss_markov(dt, self._range_tau, self._range_sigma)
+        taus, variances = (np.array([d[i] for d in self._decaying]) for i in (0, 1))
+        decay, decay_var = added_states.decays(dt, taus, variances)
         walk_var = added_states.SCALE_WALK_PER_RTSEC**2 * dt
         self._apply_motion(*added_states.transition(len(self.x), F, Q, coupling, walk_var, decay, decay_var,
                                                     self._first_range_state))
@@ -95,14 +101,13 @@ class KnownMapEkf(UnicycleEkf):
         if where is None:
             self.unknown_landmarks += 1
             return
-        state = self._range_state(msg.landmark_id, msg.stamp_us) if self._range_sigma else None
+        R = np.array(msg.covariance, dtype=float)
+        state = self._range_state(msg.landmark_id, msg.stamp_us, R[1, 1]) if self._per_landmark else None
         predicted, H_pose, _ = slam.observe(np.concatenate([self.x[:3], where]), 3, 0)
         H = np.zeros((2, len(self.x)))
         H[:, :3] = H_pose
-        R = np.array(msg.covariance, dtype=float)
-        if state is not None:  # range read = r (1 + s_l) + white (vehicle.added_states)
-            H, R, predicted = added_states.stretched_range(H, R, predicted, state, float(self.x[state]),
-                                                           self._range_sigma, added_states.WHITE_FLOOR)
+        if state is not None:  # range r (1 + s_l), bearing beta + b_l, each + white (vehicle.added_states)
+            H, R, predicted = added_states.persisting_sighting(H, R, predicted, self.x, **self._error_model(state))
         y = np.array([msg.range_m - predicted[0], wrap_angle(msg.bearing_rad - predicted[1])])
         result = self._fuse(y, H, R, self._landmark_gate)
         if result.accepted:
@@ -114,22 +119,40 @@ class KnownMapEkf(UnicycleEkf):
         if len(self._failed_in_a_row) >= LOST_AFTER and len(set(self._failed_in_a_row)) >= 2:
             self._relocalize(msg.stamp_us)
 
-    def _range_state(self, landmark_id: int, t_us: int) -> int:
-        """The index of the landmark's range-error state, added (at 0, stationary variance) when it
-        has none; states of landmarks unseen for FORGET_AFTER correlation times are dropped first."""
+    def _error_model(self, first: int) -> dict:
+        """``added_states.persisting_sighting``'s arguments for the landmark whose error states start at ``first``."""
+        model: dict = {}
+        if self._range_sigma:
+            model.update(range_state=first, range_column=first, range_sigma_per_m=self._range_sigma)
+        if self._bearing_fraction:
+            b = first + int(bool(self._range_sigma))
+            model.update(bearing_state=b, bearing_column=b, bearing_var=self._decaying[b - self._first_range_state][1])
+        return model
+
+    def _range_state(self, landmark_id: int, t_us: int, bearing_var: float) -> int:
+        """The index of the landmark's first error state (range, then bearing), added (at 0,
+        stationary variance: the bearing's a fraction of ``bearing_var``, the sighting's reported one)
+        when it has none; states of landmarks unseen for FORGET_AFTER correlation times are dropped first."""
         self._last_seen_us[landmark_id] = t_us
         if landmark_id in self._range_states:
             return self._range_states[landmark_id]
-        horizon_us = FORGET_AFTER * self._range_tau * 1e6
+        horizon_us = FORGET_AFTER * max(self._range_tau, self._bearing_tau) * 1e6
         stale = [ident for ident in self._range_states if t_us - self._last_seen_us[ident] > horizon_us]
+        per = self._per_landmark
         if stale:
-            self._drop_states([self._range_states[i] for i in stale])
+            dropped = [self._range_states[i] + k for i in stale for k in range(per)]
+            self._drop_states(dropped)
+            first = self._first_range_state
+            self._decaying = [d for i, d in enumerate(self._decaying) if first + i not in dropped]
             kept = sorted((index, ident) for ident, index in self._range_states.items() if ident not in stale)
-            self._range_states = {ident: self._first_range_state + k for k, (_, ident) in enumerate(kept)}
+            self._range_states = {ident: first + per * k for k, (_, ident) in enumerate(kept)}
             for ident in stale:
                 del self._last_seen_us[ident]
         self._range_states[landmark_id] = len(self.x)
-        self._append_states(np.array([self._range_sigma**2]))
+        new = ([(self._range_tau, self._range_sigma**2)] if self._range_sigma else []) + \
+            ([(self._bearing_tau, self._bearing_fraction * bearing_var)] if self._bearing_fraction else [])
+        self._decaying = self._decaying + new
+        self._append_states(np.array([variance for _, variance in new]))
         return self._range_states[landmark_id]
 
     def _append_states(self, variances: np.ndarray) -> None:
@@ -156,5 +179,6 @@ class KnownMapEkf(UnicycleEkf):
         state.update(sightings_fused=self.sightings_fused, sightings_rejected=self.sightings_rejected,
                      unknown_landmarks=self.unknown_landmarks, _failed_in_a_row=list(self._failed_in_a_row),
                      _range_states=dict(self._range_states), _last_seen_us=dict(self._last_seen_us),
+                     _decaying=list(self._decaying),
                      state_dim=self.state_dim)
         return state

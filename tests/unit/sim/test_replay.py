@@ -158,6 +158,16 @@ def test_calibration_finds_range_error_that_persists():
     assert 3.0 / 2.5 <= cal.range_correlation_s <= 3.0 * 2.5
 
 
+def test_calibration_finds_bearing_error_that_persists():
+    data = synthetic(np.random.default_rng(8), robots=3, duration_s=300.0, bearing_sigma=0.01, sighting_rate_hz=6.0,
+                     bearing_correlated_fraction=0.5, bearing_correlation_s=3.0)
+    cal = calibrate(data, (0.0, 300.0), (1, 2, 3))
+    assert cal.bearing_correlated_fraction == pytest.approx(0.5, rel=0.25)
+    assert 3.0 / 2.5 <= cal.bearing_correlation_s <= 3.0 * 2.5
+    white = synthetic(np.random.default_rng(8), robots=3, duration_s=300.0, bearing_sigma=0.01, sighting_rate_hz=6.0)
+    assert calibrate(white, (0.0, 300.0), (1, 2, 3)).bearing_correlated_fraction < 0.1
+
+
 def test_calibration_finds_heading_error_that_grows_with_the_turns():
     data = synthetic(np.random.default_rng(6), robots=3, duration_s=400.0, lag_s=0.2, speed_sigma=0.02,
                      rate_sigma=0.02, turn_sigma=0.1)

@@ -7,7 +7,7 @@ import pytest
 from scipy.stats import chi2
 
 from bus.angles import wrap_angle
-from vehicle.ekf_slam_core import (add_landmark_with_range_error, add_landmarks, landmark_from, observe, predict_pose,
+from vehicle.ekf_slam_core import (add_landmark_with_errors, add_landmarks, landmark_from, observe, predict_pose,
                                    update)
 
 
@@ -72,23 +72,26 @@ def test_a_batch_of_new_landmarks_grows_the_covariance_as_y_p_y_transposed():
     np.testing.assert_allclose(P_batch, P_seq, atol=1e-12)
 
 
-def test_a_landmark_with_a_range_error_state_grows_the_covariance_as_y_p_y_transposed():
-    """Range read r (1 + s) + white: the landmark is g(pose, z_r / (1 + s), beta), Y over [pose, s]
-    from finite differences, the white noise through d g / d z."""
+@pytest.mark.parametrize("range_state, bearing_state", [(4, 5), (4, None), (None, 5)])
+def test_a_landmark_with_error_states_grows_the_covariance_as_y_p_y_transposed(range_state, bearing_state):
+    """Range read r (1 + s) + white, bearing beta + b + white: the landmark is g(pose, z_r / (1 + s),
+    z_b - b), Y over [pose, s, b] from finite differences, the white noise through d g / d z."""
     rng = np.random.default_rng(5)
-    x, P = np.array([1.0, -2.0, 0.4, 0.01, 0.03, 5.0, 6.0]), _spd(rng, 7)  # pose, gyro bias, s, 1 landmark
+    x, P = np.array([1.0, -2.0, 0.4, 0.01, 0.03, -0.02, 5.0, 6.0]), _spd(rng, 8)  # pose, bias, s, b, 1 landmark
     z, R_white = np.array([4.0, 0.7]), np.diag([0.01, 0.0004])
 
     def g(state_and_z: np.ndarray) -> np.ndarray:
-        state, (r, b) = state_and_z[:7], state_and_z[7:]
-        return landmark_from(state, np.array([r / (1.0 + state[4]), b]))[0]
+        state, (r, b) = state_and_z[:8], state_and_z[8:]
+        s = state[range_state] if range_state is not None else 0.0
+        offset = state[bearing_state] if bearing_state is not None else 0.0
+        return landmark_from(state, np.array([r / (1.0 + s), b - offset]))[0]
 
     J = _numeric_jacobian(g, np.concatenate([x, z]))
-    x_new, P_new = add_landmark_with_range_error(x, P, z, R_white, error_state=4)
+    x_new, P_new = add_landmark_with_errors(x, P, z, R_white, range_state, bearing_state)
     np.testing.assert_allclose(x_new[-2:], g(np.concatenate([x, z])))
-    Y = np.vstack([np.hstack([np.eye(7), np.zeros((7, 2))]), J])
-    big = np.zeros((9, 9))
-    big[:7, :7], big[7:, 7:] = P, R_white
+    Y = np.vstack([np.hstack([np.eye(8), np.zeros((8, 2))]), J])
+    big = np.zeros((10, 10))
+    big[:8, :8], big[8:, 8:] = P, R_white
     np.testing.assert_allclose(P_new, Y @ big @ Y.T, rtol=1e-5, atol=1e-6)  # forward differences
 
 

@@ -37,21 +37,23 @@ def test_slam_maps_identified_landmarks_and_beats_dead_reckoning():
         assert d @ np.linalg.solve(covariances[j], d) < chi2.ppf(0.9973, 2), ident
 
 
-PERSISTING = {"range_correlated_sigma_per_m": 0.04, "range_correlation_s": 3.0, "odom_scale_prior_sigma": 0.1}
+PERSISTING = {"range_correlated_sigma_per_m": 0.04, "range_correlation_s": 3.0, "odom_scale_prior_sigma": 0.1,
+              "bearing_correlated_fraction": 0.5, "bearing_correlation_s": 3.0}
 RUNS, SAMPLES_FROM_S = 20, 20
 
 
 def _persisting_errors_nees(sensors: dict) -> tuple[np.ndarray, float, float]:
     """ANEES of ekf-slam at each 10 s checkpoint from SAMPLES_FROM_S over seeded runs of a data set
-    whose wheels are 6 % and -8 % off and whose range errors persist (4 % of the range, 3 s), for a
-    filter told ``sensors``, and the 99 % band of one checkpoint. Checkpoint by checkpoint, across
+    whose wheels are 6 % and -8 % off and whose range and bearing errors persist (4 % of the range,
+    half the bearing variance, 3 s), for a filter told ``sensors``, and the 99 % band of one checkpoint. Checkpoint by checkpoint, across
     runs: a SLAM filter's error keeps its launch prior's share for the whole run (where the map sits
     is unobservable), so the checkpoints of one run are not independent samples."""
     nees = []
     for seed in range(RUNS):
         data = synthetic(np.random.default_rng(200 + seed), robots=1, duration_s=101.0, range_sigma=0.0,
                          range_sigma_per_m=0.015, range_correlated_per_m=0.04, range_correlation_s=3.0,
-                         odom_scale=(0.06, -0.08), sighting_rate_hz=6.0)
+                         odom_scale=(0.06, -0.08), sighting_rate_hz=6.0, bearing_correlated_fraction=0.5,
+                         bearing_correlation_s=3.0)
         config = _config("ekf-slam", sensors, seed=seed, sighting_sigmas=[[float(np.hypot(0.015, 0.04)), 0.02]])
         rows = replay_in_memory(config, data, every_us=10_000_000)[1]
         nees.append(rows[rows[:, 0] >= SAMPLES_FROM_S * 1e6, 2])
@@ -69,12 +71,13 @@ def test_persisting_errors_taken_as_white_make_slam_overconfident():
     assert np.mean(anees) > 2 * high, anees
 
 
-def test_range_error_slots_go_to_the_landmarks_seen_last(monkeypatch):
-    """With three slots, a fourth landmark takes the slot of the one seen longest ago, reset to 0 with
-    the stationary spread and uncorrelated (that landmark's old error marginalized); a landmark seen
-    again keeps its slot."""
+def test_error_slots_go_to_the_landmarks_seen_last(monkeypatch):
+    """With three slots ([s, b] each), a fourth landmark takes the slot of the one seen longest ago,
+    reset to 0 with the stationary spreads and uncorrelated (that landmark's old errors
+    marginalized); a landmark seen again keeps its slot."""
     monkeypatch.setattr(ekf_slam, "RANGE_SLOTS", 3)
-    slam = get_estimator(_config("ekf-slam", PERSISTING).for_vehicle(), 1)
+    sensors = {**PERSISTING, "bearing_correlated_fraction": 0.5, "bearing_correlation_s": 5.0}
+    slam = get_estimator(_config("ekf-slam", sensors).for_vehicle(), 1)
     slam.handle("prior", m.PosePrior(1, 0, 0, np.zeros(3), np.diag([0.01, 0.01, 0.001])))
     R = np.diag([0.04, 0.0004])
 
@@ -84,13 +87,15 @@ def test_range_error_slots_go_to_the_landmarks_seen_last(monkeypatch):
     for t_s, ident in ((0.1, 6), (0.2, 7), (0.3, 8), (0.4, 6)):  # 6 again: most recent of the three
         sight(t_s, ident)
     slots = dict(slam._range_slot_of)
-    assert sorted(slots.values()) == list(range(slam.head_dim - 3, slam.head_dim))
+    assert sorted(slots.values()) == list(range(slam.head_dim - 6, slam.head_dim, 2))
     sight(0.5, 9)
     assert slam._range_slot_of[9] == slots[7] and 7 not in slam._range_slot_of
     assert slam._range_slot_of[6] == slots[6] and slam._range_slot_of[8] == slots[8]
     assert slam.counters.landmarks == 4
-    slot = slam._range_error_state(7, 600_000)  # back again: the slot of the one seen longest ago (8)
+    slot = slam._range_error_state(7, 600_000, R[1, 1])  # back again: the slot of the one seen longest ago (8)
     assert slot == slots[8] and 8 not in slam._range_slot_of
-    sigma = PERSISTING["range_correlated_sigma_per_m"]
-    assert slam.x[slot] == 0.0 and slam.P[slot, slot] == sigma**2
-    assert not np.any(np.delete(slam.P[slot], slot))
+    states = [slot, slot + 1]
+    assert not np.any(slam.x[states])
+    expected = [PERSISTING["range_correlated_sigma_per_m"] ** 2, 0.5 * R[1, 1]]
+    np.testing.assert_array_equal(np.diagonal(slam.P)[states], expected)
+    assert not np.any(np.delete(slam.P[states], states, axis=1))

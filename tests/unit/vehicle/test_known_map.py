@@ -40,17 +40,20 @@ def test_nees_is_inside_the_chi_square_band_over_seeded_runs():
     assert low <= np.mean(nees) <= high, (np.mean(nees), low, high)
 
 
-PERSISTING = {"range_correlated_sigma_per_m": 0.04, "range_correlation_s": 3.0, "odom_scale_prior_sigma": 0.1}
+PERSISTING = {"range_correlated_sigma_per_m": 0.04, "range_correlation_s": 3.0, "odom_scale_prior_sigma": 0.1,
+              "bearing_correlated_fraction": 0.5, "bearing_correlation_s": 3.0}
 
 
 def _persisting_errors_nees(sensors: dict) -> tuple[float, float, float]:
     """ANEES and its 95 % band over seeded runs of a data set whose wheels are 6 % and -8 % off and
-    whose range errors persist (4 % of the range, 3 s), for a filter told ``sensors``."""
+    whose range and bearing errors persist (4 % of the range, half the bearing variance, 3 s), for a
+    filter told ``sensors``."""
     nees = []
     for seed in range(RUNS):
         data = synthetic(np.random.default_rng(200 + seed), robots=1, duration_s=101.0, range_sigma=0.0,
                          range_sigma_per_m=0.015, range_correlated_per_m=0.04, range_correlation_s=3.0,
-                         odom_scale=(0.06, -0.08), sighting_rate_hz=6.0)
+                         odom_scale=(0.06, -0.08), sighting_rate_hz=6.0, bearing_correlated_fraction=0.5,
+                         bearing_correlation_s=3.0)
         config = _config(seed, sensors, sighting_sigmas=[[float(np.hypot(0.015, 0.04)), 0.02]])
         rows = replay_in_memory(config, data, every_us=10_000_000)[1]
         nees += rows[rows[:, 0] >= SAMPLES_FROM_S * 1e6, 2].tolist()
@@ -66,6 +69,9 @@ def test_persisting_errors_modelled_keep_nees_inside_the_band():
 def test_persisting_errors_taken_as_white_make_the_filter_overconfident():
     anees, _, high = _persisting_errors_nees({})  # the control: the same data, nothing modelled
     assert anees > 2 * high, anees
+    without_bearing = {key: value for key, value in PERSISTING.items() if not key.startswith("bearing")}
+    anees, _, high = _persisting_errors_nees(without_bearing)  # the bearing's persisting part taken as white
+    assert anees > high, anees
 
 
 class _WrongPrior(known_map.KnownMapEkf):
