@@ -217,13 +217,15 @@ class CooperativeRule:
         return float(w[int(np.argmax(a * d - b * b))])
 
     def fuse(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix | SeenFix, gate: float, unscented: bool = False,
-             adapt: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
-             ) -> tuple[Correction | None, UpdateResult]:
+             adapt: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None,
+             errors: dict | None = None) -> tuple[Correction | None, UpdateResult]:
         """Gate the fix on its plain NIS, choose w and fuse it in measurement space; None when gated
         out or when w = 1. ``unscented``: range and bearing through sigma points of the pose marginal
         (paper eqs. 4.1-4.9) instead of the linearization. ``adapt(y, M + S, R)``: the radio noise to
-        use instead of R (IAE, vehicle.adaptive)."""
-        y, M, C, R, S, cov_xz = self.measurement(x, P, fix, unscented)
+        use instead of R (IAE, vehicle.adaptive). ``errors``: the sighting's persisting errors as
+        states of x (``vehicle.added_states.persisting_sighting``'s state arguments; linearized
+        split CI and CI only)."""
+        y, M, C, R, S, cov_xz = self.measurement(x, P, fix, unscented, errors)
         if adapt is not None:
             R = _sym(adapt(np.array(y), _array(_add_sym(M, S)), _array(R)))
         y0, y1 = y
@@ -242,11 +244,13 @@ class CooperativeRule:
         dz = np.array([n00 * g0 + n01 * g1, n01 * g0 + n11 * g1])
         return Correction(dz, _array(M), _array((n00, n01, n11)), C, w, cov_xz), result
 
-    def measurement(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix | SeenFix,
-                    unscented: bool) -> tuple[tuple[float, float], Sym2, np.ndarray, Sym2, Sym2, np.ndarray | None]:
+    def measurement(self, x: np.ndarray, P: np.ndarray, fix: CooperativeFix | SeenFix, unscented: bool,
+                    errors: dict | None = None
+                    ) -> tuple[tuple[float, float], Sym2, np.ndarray, Sym2, Sym2, np.ndarray | None]:
         """Innovation y (2 floats), own covariance of the measured quantity M, the cross-covariance
         C = cov(pose, z) (3, 2), the independent noise R and the neighbour's share S (M, R, S as
-        ``Sym2``), and cov(x, z) (n, 2) when the measurement is linear in the pose (else None)."""
+        ``Sym2``), and cov(x, z) (n, 2) when the measurement is linear in the pose (else None).
+        ``errors``: see :meth:`fuse`."""
         P_pp = P[:POSE, :POSE]
         if unscented and self.fusion != "paper":
             z_hat, M, C = ut.measure(x[:POSE], P_pp, fix.predicted, angle_rows=(1,))
@@ -258,6 +262,10 @@ class CooperativeRule:
             y, R, S = tuple(y.tolist()), _sym(R), _sym(S)
         else:
             y, H, R, S = fix.linearized(x)
+            if errors:
+                y, H, R, idx = with_persisting_errors(x, fix, y, H, R, errors)
+                cov_xz = P[:, idx] @ H.T
+                return y, _sym(H @ cov_xz[idx]), cov_xz[:POSE], R, S, cov_xz
         cov_xz = P[:, :POSE] @ H.T
         C = cov_xz[:POSE]
         return y, _sym(H @ C), C, R, S, cov_xz
@@ -279,6 +287,25 @@ def _linearized(x: np.ndarray, fix: CooperativeFix) -> tuple[tuple[float, float]
          h10 * h10 * p + 2.0 * h10 * h11 * q + h11 * h11 * s)
     H = np.array([[h00, h01, 0.0], [h10, h11, -1.0]])
     return y, H, _sym(fix.covariance), S
+
+
+def with_persisting_errors(x: np.ndarray, fix: CooperativeFix | SeenFix, y: tuple[float, float], H: np.ndarray,
+                           R: Sym2, errors: dict) -> tuple[tuple[float, float], np.ndarray, Sym2, list[int]]:
+    """A sighting's linearized model (innovation y, H (2, 3) over the pose, reported noise R) with its
+    persisting range and bearing errors as the states ``errors`` names (vehicle.added_states): y,
+    H (2, q) over the states ``idx`` (q,) = [x, y, theta, the error states], the white part of R."""
+    from vehicle.added_states import persisting_sighting
+
+    idx = [0, 1, 2] + [errors[key] for key in ("range_state", "bearing_state") if errors.get(key) is not None]
+    columns = {key: 3 + k for k, key in enumerate(key for key in ("range_state", "bearing_state")
+                                                  if errors.get(key) is not None)}
+    model = {**errors, "range_column": columns.get("range_state"), "bearing_column": columns.get("bearing_state")}
+    predicted = np.array([fix.range_m - y[0], fix.bearing_rad - y[1]])
+    H_full = np.zeros((2, len(idx)))
+    H_full[:, :POSE] = H
+    H_full, R_white, stretched = persisting_sighting(H_full, _array(R), predicted, x, **model)
+    return ((fix.range_m - float(stretched[0]), wrap_angle(fix.bearing_rad - float(stretched[1]))), H_full,
+            _sym(R_white), idx)
 
 
 def closed_form_weight(M: np.ndarray, R: np.ndarray) -> float:

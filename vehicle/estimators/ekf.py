@@ -117,10 +117,16 @@ class UnicycleEkf:
         """One neighbour fix by the vehicle's cooperative rule (vehicle.cooperative), its radio noise
         learnt by IAE when that is on."""
         adapt = None if self.iae is None else partial(self.iae.adapt, "ranging")
-        correction, result = self._rule.fuse(self.x, self.P, fix, self._gate, self.unscented_fixes, adapt)
+        errors = self._sighting_errors(fix)  # may grow the state: before the fix reads it
+        correction, result = self._rule.fuse(self.x, self.P, fix, self._gate, self.unscented_fixes, adapt, errors)
         if correction is not None:
             self._apply_correction(correction)
         return result
+
+    def _sighting_errors(self, fix: CooperativeFix | SeenFix) -> dict | None:
+        """The fix's persisting errors as states (vehicle.cooperative.with_persisting_errors); this
+        filter has none."""
+        return None
 
     def _apply_correction(self, correction: Correction) -> None:
         self.x, self.P = apply_correction(self.x, self.P, correction)

@@ -44,7 +44,7 @@ from bus.config import SensorSpec
 from vehicle import added_states
 from vehicle import ekf_slam_core as slam
 from vehicle import unicycle_ekf as ekf
-from vehicle.cooperative import CooperativeRule, Correction
+from vehicle.cooperative import CooperativeFix, CooperativeRule, Correction, SeenFix
 from vehicle.ekf import gate_threshold
 from vehicle.estimators.ekf import DIVERGENCE_FLOOR, DIVERGENCE_INFLATION, UnicycleEkf
 from vehicle.vision import association, features
@@ -98,8 +98,10 @@ class EkfSlam(UnicycleEkf):
         self._slot_vars = np.tile(([self._range_sigma**2] if self._range_sigma else []) +
                                   ([self._bearing_fraction * spec.bearing_sigma_rad**2] if self._bearing_fraction else []),
                                   RANGE_SLOTS)
-        self._range_slot_of: dict[int, int] = {}  # landmark id -> index of its slot's first state
-        self._last_seen_us: dict[int, int] = {}   # landmark id -> its last sighting
+        # ("landmark", id), ("robot", id seen) or ("seen", id of the robot seeing this one) -> index of its
+        # slot's first state
+        self._range_slot_of: dict[tuple[str, int], int] = {}
+        self._last_seen_us: dict[tuple[str, int], int] = {}  # the same keys -> their last sighting
 
     @property
     def landmarks_xy(self) -> np.ndarray:
@@ -176,7 +178,7 @@ class EkfSlam(UnicycleEkf):
         if j is None and self.counters.landmarks >= MAX_LANDMARKS:
             return
         R = np.asarray(msg.covariance, dtype=float)
-        error = self._range_error_state(msg.landmark_id, msg.stamp_us, R[1, 1]) if self._per_slot else None
+        error = self._range_error_state(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_slot else None
         if j is not None:
             self._update_identified(j, z, R, error)
             return
@@ -224,7 +226,15 @@ class EkfSlam(UnicycleEkf):
         k = self.head_dim + 2 * j
         slam.update_in_place(self.x, self.P, [0, 1, 2, *errors, k, k + 1], H, y, R, self._landmark_gate)
 
-    def _range_error_state(self, landmark_id: int, t_us: int, bearing_var: float) -> int:
+    def _sighting_errors(self, fix: CooperativeFix | SeenFix) -> dict | None:
+        """A robot sighting's persisting errors, in slots as a landmark's (one per robot seen, and per
+        robot that sees this one: their cameras' errors)."""
+        if not self._per_slot:
+            return None
+        key = ("robot", fix.target_id) if isinstance(fix, CooperativeFix) else ("seen", fix.observer_id)
+        return self._error_model(self._range_error_state(key, fix.stamp_us, float(fix.covariance[1, 1])))
+
+    def _range_error_state(self, landmark_id: tuple[str, int], t_us: int, bearing_var: float) -> int:
         """The index of the landmark's slot (its first error state): its own slot if it has one, else
         a free slot or the slot of the landmark seen longest ago, reset to 0 with the stationary
         variances (the bearing's a fraction of ``bearing_var``, the sighting's reported one)."""

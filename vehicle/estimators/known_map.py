@@ -35,6 +35,7 @@ from bus import messages as m
 from bus.angles import wrap_angle
 from vehicle import added_states
 from vehicle import ekf_slam_core as slam
+from vehicle.cooperative import CooperativeFix, SeenFix
 from vehicle.ekf import gate_threshold
 from vehicle.estimators.base import SEVERITY_WARNING, Notice
 from vehicle.estimators.ekf import UnicycleEkf
@@ -63,8 +64,10 @@ class KnownMapEkf(UnicycleEkf):
         self._per_landmark = int(bool(self._range_sigma)) + int(bool(self._bearing_fraction))
         self._first_range_state = self.base_dim + (2 if self._scale_sigma else 0)
         self.state_dim = self._first_range_state
-        self._range_states: dict[int, int] = {}  # landmark id -> index of its first error state
-        self._last_seen_us: dict[int, int] = {}
+        # ("landmark", id), ("robot", id seen) or ("seen", id of the robot seeing this one) -> index of its
+        # first error state, and when it was last sighted
+        self._range_states: dict[tuple[str, int], int] = {}
+        self._last_seen_us: dict[tuple[str, int], int] = {}
         self._decaying: list[tuple[float, float]] = []  # (tau s, stationary variance) of each error state, in order
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int, *, from_fixes: bool = False) -> None:
@@ -102,7 +105,7 @@ class KnownMapEkf(UnicycleEkf):
             self.unknown_landmarks += 1
             return
         R = np.array(msg.covariance, dtype=float)
-        state = self._range_state(msg.landmark_id, msg.stamp_us, R[1, 1]) if self._per_landmark else None
+        state = self._range_state(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_landmark else None
         predicted, H_pose, _ = slam.observe(np.concatenate([self.x[:3], where]), 3, 0)
         H = np.zeros((2, len(self.x)))
         H[:, :3] = H_pose
@@ -129,7 +132,15 @@ class KnownMapEkf(UnicycleEkf):
             model.update(bearing_state=b, bearing_column=b, bearing_var=self._decaying[b - self._first_range_state][1])
         return model
 
-    def _range_state(self, landmark_id: int, t_us: int, bearing_var: float) -> int:
+    def _sighting_errors(self, fix: CooperativeFix | SeenFix) -> dict | None:
+        """A robot sighting's persisting errors, states as a landmark's (one set per robot seen, and per
+        robot that sees this one: their cameras' errors)."""
+        if not self._per_landmark:
+            return None
+        key = ("robot", fix.target_id) if isinstance(fix, CooperativeFix) else ("seen", fix.observer_id)
+        return self._error_model(self._range_state(key, fix.stamp_us, float(fix.covariance[1, 1])))
+
+    def _range_state(self, landmark_id: tuple[str, int], t_us: int, bearing_var: float) -> int:
         """The index of the landmark's first error state (range, then bearing), added (at 0,
         stationary variance: the bearing's a fraction of ``bearing_var``, the sighting's reported one)
         when it has none; states of landmarks unseen for FORGET_AFTER correlation times are dropped first."""
