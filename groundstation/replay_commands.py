@@ -35,8 +35,9 @@ def mrclam(
                                "with the observer's broadcast pose"),
     start: Optional[float] = typer.Option(None, help="data set second the replay starts [default: the calibration's end]"),
     duration: Optional[float] = typer.Option(None, help="seconds replayed [default: to the data set's end]"),
-    calibrate: str = typer.Option("0,120", help="data set interval START,END (s) the noise datasheet is calibrated "
-                                  "on; the replayed window may not overlap it"),
+    calibrate: str = typer.Option("0,120", help="data set interval START,END (s) the datasheet is calibrated on "
+                                  "(odometry lag, camera latency, noise and the part of it that persists); the "
+                                  "replayed window may not overlap it"),
     withhold_landmarks: str = typer.Option("", help="robots whose landmark sightings are withheld, comma-separated"),
     mode: str = typer.Option("lockstep", help="lockstep (as fast as possible, reproducible) or realtime"),
     speed: float = typer.Option(1.0, help="realtime only: data set seconds per wall second"),
