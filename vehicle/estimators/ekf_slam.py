@@ -20,10 +20,11 @@ A replayed data set (sim.replay) brings landmark sightings with their identities
 mapped one is updated, a new one initialised, the same way. Errors that persist, each on when its
 datasheet field is nonzero, as in ``known-map`` (vehicle.added_states): the wheel odometry's speed
 and yaw-rate scale errors (two states after the pose), and the camera's time-correlated range and
-bearing errors, Gauss-Markov states per landmark in view held in ``RANGE_SLOTS`` slots after those
+bearing errors, Gauss-Markov states per landmark in view held in ``ERROR_SLOTS`` slots after those
 (a slot: [s, b], or the one of them that is on): a landmark seen again gets its slot back, a new one
 takes a free slot or the one of the landmark seen longest ago (its states marginalized: by then they
-hardly correlate with a new reading). The state is then [pose (4), k_v, k_w, slots, map]:
+hardly correlate with a new reading); robot sightings (cooperative) take slots the same way, one per
+robot seen and one per robot that sees this one. The state is then [pose (4), k_v, k_w, slots, map]:
 ``head_dim`` states before the map.
 
 Pure: no bus, no clock. Fusion-horizon snapshots copy (x, P) only where the horizon asks for one;
@@ -56,7 +57,7 @@ GOOD_PERIOD_US = 1_000_000   # divergence fallback refreshed this often (it is a
 CONSENSUS_M = 0.3           # matches must agree on one rigid motion within this [m]
 FRAMES_REMEMBERED = 32      # front-end results kept for replays (3.2 s at 10 Hz; the horizon is 0.5 s)
 MAX_LANDMARKS = 2000         # the map stops growing here (update cost is O(n^2))
-RANGE_SLOTS = 8              # range-error states: landmarks in view at once, with their recent past
+ERROR_SLOTS = 8              # error-state slots: landmarks (and robots) in view at once, with their recent past
 
 Reject = Callable[[str, str, str], None]
 
@@ -89,18 +90,18 @@ class EkfSlam(UnicycleEkf):
         self._range_sigma, self._range_tau = spec.range_correlated_sigma_per_m, spec.range_correlation_s
         self._bearing_fraction, self._bearing_tau = spec.bearing_correlated_fraction, spec.bearing_correlation_s
         self._per_slot = int(bool(self._range_sigma)) + int(bool(self._bearing_fraction))
-        self._first_range_slot = POSE_DIM + (2 if self._scale_sigma else 0)
-        self.head_dim = self._first_range_slot + RANGE_SLOTS * self._per_slot
+        self._first_slot = POSE_DIM + (2 if self._scale_sigma else 0)
+        self.head_dim = self._first_slot + ERROR_SLOTS * self._per_slot
         # each slot state's (tau s, stationary variance); the bearing's is the datasheet's until a landmark
         # takes the slot, then that of the landmark's sightings
         self._slot_taus = np.tile(([self._range_tau] if self._range_sigma else []) +
-                                  ([self._bearing_tau] if self._bearing_fraction else []), RANGE_SLOTS)
+                                  ([self._bearing_tau] if self._bearing_fraction else []), ERROR_SLOTS)
         self._slot_vars = np.tile(([self._range_sigma**2] if self._range_sigma else []) +
                                   ([self._bearing_fraction * spec.bearing_sigma_rad**2] if self._bearing_fraction else []),
-                                  RANGE_SLOTS)
+                                  ERROR_SLOTS)
         # ("landmark", id), ("robot", id seen) or ("seen", id of the robot seeing this one) -> index of its
         # slot's first state
-        self._range_slot_of: dict[tuple[str, int], int] = {}
+        self._slot_of: dict[tuple[str, int], int] = {}
         self._last_seen_us: dict[tuple[str, int], int] = {}  # the same keys -> their last sighting
 
     @property
@@ -121,7 +122,7 @@ class EkfSlam(UnicycleEkf):
         super()._initialise(pose, covariance, stamp_us)
         variances = [self._scale_sigma**2] * (2 if self._scale_sigma else 0) + self._slot_vars.tolist()
         self.x, self.P = added_states.append_states(self.x, self.P, np.array(variances))
-        self._range_slot_of, self._last_seen_us = {}, {}
+        self._slot_of, self._last_seen_us = {}, {}
         self.descriptors, self.first_xy, self._prior_xy = None, None, self.x[:2].copy()
         self.counters.landmarks, self._slot = 0, {}
 
@@ -140,9 +141,9 @@ class EkfSlam(UnicycleEkf):
         if head > POSE_DIM:
             decay, decay_var = added_states.decays(dt, self._slot_taus, self._slot_vars)
             F, Q = added_states.transition(head, F, Q, coupling, added_states.SCALE_WALK_PER_RTSEC**2 * dt, decay,
-                                           decay_var, self._first_range_slot)
+                                           decay_var, self._first_slot)
             tail = self.x[POSE_DIM:head].copy()
-            tail[self._first_range_slot - POSE_DIM:] *= decay
+            tail[self._first_slot - POSE_DIM:] *= decay
             pose_next = np.concatenate([pose_next, tail])
         slam.predict_pose(self.x, self.P, F, Q, pose_next)
         self._prior_xy = pose_next[:2].copy()
@@ -178,7 +179,7 @@ class EkfSlam(UnicycleEkf):
         if j is None and self.counters.landmarks >= MAX_LANDMARKS:
             return
         R = np.asarray(msg.covariance, dtype=float)
-        error = self._range_error_state(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_slot else None
+        error = self._error_slot(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_slot else None
         if j is not None:
             self._update_identified(j, z, R, error)
             return
@@ -203,7 +204,7 @@ class EkfSlam(UnicycleEkf):
             model.update(range_state=first, range_sigma_per_m=self._range_sigma)
         if self._bearing_fraction:
             b = first + int(bool(self._range_sigma))
-            model.update(bearing_state=b, bearing_var=float(self._slot_vars[b - self._first_range_slot]))
+            model.update(bearing_state=b, bearing_var=float(self._slot_vars[b - self._first_slot]))
         return model
 
     def _update_identified(self, j: int, z: np.ndarray, R: np.ndarray, error: int | None) -> None:
@@ -232,19 +233,20 @@ class EkfSlam(UnicycleEkf):
         if not self._per_slot:
             return None
         key = ("robot", fix.target_id) if isinstance(fix, CooperativeFix) else ("seen", fix.observer_id)
-        return self._error_model(self._range_error_state(key, fix.stamp_us, float(fix.covariance[1, 1])))
+        return self._error_model(self._error_slot(key, fix.stamp_us, float(fix.covariance[1, 1])))
 
-    def _range_error_state(self, landmark_id: tuple[str, int], t_us: int, bearing_var: float) -> int:
-        """The index of the landmark's slot (its first error state): its own slot if it has one, else
-        a free slot or the slot of the landmark seen longest ago, reset to 0 with the stationary
-        variances (the bearing's a fraction of ``bearing_var``, the sighting's reported one)."""
-        self._last_seen_us = {**self._last_seen_us, landmark_id: t_us}
-        slot = self._range_slot_of.get(landmark_id)
+    def _error_slot(self, key: tuple[str, int], t_us: int, bearing_var: float) -> int:
+        """The index of the slot (its first error state) of the sighted subject ``key`` (a landmark, a
+        robot seen, a robot seeing this one): its own slot if it has one, else a free slot or the slot
+        of the subject seen longest ago, reset to 0 with the stationary variances (the bearing's a
+        fraction of ``bearing_var``, the sighting's reported one)."""
+        self._last_seen_us = {**self._last_seen_us, key: t_us}
+        slot = self._slot_of.get(key)
         if slot is not None:
             return slot
-        taken = set(self._range_slot_of.values())
-        free = [i for i in range(self._first_range_slot, self.head_dim, self._per_slot) if i not in taken]
-        owners = dict(self._range_slot_of)
+        taken = set(self._slot_of.values())
+        free = [i for i in range(self._first_slot, self.head_dim, self._per_slot) if i not in taken]
+        owners = dict(self._slot_of)
         if free:
             slot = free[0]
         else:
@@ -253,10 +255,10 @@ class EkfSlam(UnicycleEkf):
         states = list(range(slot, slot + self._per_slot))
         if self._bearing_fraction:
             self._slot_vars = self._slot_vars.copy()  # replaced, never changed in place (snapshots share it)
-            self._slot_vars[states[-1] - self._first_range_slot] = self._bearing_fraction * bearing_var
+            self._slot_vars[states[-1] - self._first_slot] = self._bearing_fraction * bearing_var
         self.x[states] = 0.0
-        added_states.set_spread(self.P, states, self._slot_vars[[s - self._first_range_slot for s in states]])
-        self._range_slot_of = {**owners, landmark_id: slot}
+        added_states.set_spread(self.P, states, self._slot_vars[[s - self._first_slot for s in states]])
+        self._slot_of = {**owners, key: slot}
         return slot
 
     def _front_end(self, frame: m.CameraFrame) -> tuple[features.Features, np.ndarray, np.ndarray]:
@@ -356,7 +358,7 @@ class EkfSlam(UnicycleEkf):
             self.descriptors = None if self.descriptors is None else self.descriptors[:kept]
             self.first_xy = None if self.first_xy is None else self.first_xy[:kept]
             self._slot = {ident: j for ident, j in self._slot.items() if j < kept}
-            self._range_slot_of = {}  # slots are handed out afresh: the fallback's states are not theirs
+            self._slot_of = {}  # slots are handed out afresh: the fallback's states are not theirs
             self._prior_xy = self.x[:2].copy()
         else:
             self.descriptors, self.first_xy, self.counters.landmarks, self._slot = None, None, 0, {}
@@ -368,7 +370,7 @@ class EkfSlam(UnicycleEkf):
         state["_prior_xy"] = self._prior_xy      # replaced, never changed in place
         state["_good_until_us"] = self._good_until_us
         state["_slot"] = self._slot              # replaced, never changed in place
-        state["_range_slot_of"] = self._range_slot_of  # likewise
+        state["_slot_of"] = self._slot_of  # likewise
         state["_slot_vars"] = self._slot_vars          # likewise
         state["_last_seen_us"] = self._last_seen_us    # likewise
         return state

@@ -18,6 +18,8 @@ Likewise the bearing's persisting part, a second Gauss-Markov state per landmark
 ``bearing_correlated_fraction`` of the sighting's reported bearing variance, correlation time
 ``bearing_correlation_s``). A landmark's states are dropped (marginalized) when it has not been seen
 for ``FORGET_AFTER`` correlation times: by then they are uncorrelated with what a new sighting would read.
+A robot sighting (cooperative, ``vehicle.cooperative``) is the same camera's: its errors get the same
+states, one set per robot seen and one per robot that sees this one.
 
 Losing track and finding it again: when ``LOST_AFTER`` sightings in a row of at least two different
 landmarks all fail the gate, the pose is no longer where the filter believes; its covariance is
@@ -62,17 +64,17 @@ class KnownMapEkf(UnicycleEkf):
         self._range_sigma, self._range_tau = spec.range_correlated_sigma_per_m, spec.range_correlation_s
         self._bearing_fraction, self._bearing_tau = spec.bearing_correlated_fraction, spec.bearing_correlation_s
         self._per_landmark = int(bool(self._range_sigma)) + int(bool(self._bearing_fraction))
-        self._first_range_state = self.base_dim + (2 if self._scale_sigma else 0)
-        self.state_dim = self._first_range_state
+        self._first_error_state = self.base_dim + (2 if self._scale_sigma else 0)
+        self.state_dim = self._first_error_state
         # ("landmark", id), ("robot", id seen) or ("seen", id of the robot seeing this one) -> index of its
         # first error state, and when it was last sighted
-        self._range_states: dict[tuple[str, int], int] = {}
+        self._error_states: dict[tuple[str, int], int] = {}
         self._last_seen_us: dict[tuple[str, int], int] = {}
         self._decaying: list[tuple[float, float]] = []  # (tau s, stationary variance) of each error state, in order
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int, *, from_fixes: bool = False) -> None:
         super()._initialise(pose, covariance, stamp_us, from_fixes=from_fixes)
-        self._range_states, self._last_seen_us, self._decaying = {}, {}, []
+        self._error_states, self._last_seen_us, self._decaying = {}, {}, []
         if self._scale_sigma:
             self.x, self.P = added_states.append_states(self.x, self.P, np.full(2, self._scale_sigma**2))
         self.state_dim = len(self.x)
@@ -92,9 +94,9 @@ class KnownMapEkf(UnicycleEkf):
         decay, decay_var = added_states.decays(dt, taus, variances)
         walk_var = added_states.SCALE_WALK_PER_RTSEC**2 * dt
         self._apply_motion(*added_states.transition(len(self.x), F, Q, coupling, walk_var, decay, decay_var,
-                                                    self._first_range_state))
+                                                    self._first_error_state))
         tail = self.x[b:].copy()
-        tail[self._first_range_state - b:] *= decay
+        tail[self._first_error_state - b:] *= decay
         self.x = np.concatenate([head, tail])
 
     def _landmark_sighting(self, msg: m.LandmarkSighting) -> None:
@@ -105,7 +107,7 @@ class KnownMapEkf(UnicycleEkf):
             self.unknown_landmarks += 1
             return
         R = np.array(msg.covariance, dtype=float)
-        state = self._range_state(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_landmark else None
+        state = self._error_state(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_landmark else None
         predicted, H_pose, _ = slam.observe(np.concatenate([self.x[:3], where]), 3, 0)
         H = np.zeros((2, len(self.x)))
         H[:, :3] = H_pose
@@ -129,7 +131,7 @@ class KnownMapEkf(UnicycleEkf):
             model.update(range_state=first, range_column=first, range_sigma_per_m=self._range_sigma)
         if self._bearing_fraction:
             b = first + int(bool(self._range_sigma))
-            model.update(bearing_state=b, bearing_column=b, bearing_var=self._decaying[b - self._first_range_state][1])
+            model.update(bearing_state=b, bearing_column=b, bearing_var=self._decaying[b - self._first_error_state][1])
         return model
 
     def _sighting_errors(self, fix: CooperativeFix | SeenFix) -> dict | None:
@@ -138,33 +140,34 @@ class KnownMapEkf(UnicycleEkf):
         if not self._per_landmark:
             return None
         key = ("robot", fix.target_id) if isinstance(fix, CooperativeFix) else ("seen", fix.observer_id)
-        return self._error_model(self._range_state(key, fix.stamp_us, float(fix.covariance[1, 1])))
+        return self._error_model(self._error_state(key, fix.stamp_us, float(fix.covariance[1, 1])))
 
-    def _range_state(self, landmark_id: tuple[str, int], t_us: int, bearing_var: float) -> int:
-        """The index of the landmark's first error state (range, then bearing), added (at 0,
-        stationary variance: the bearing's a fraction of ``bearing_var``, the sighting's reported one)
-        when it has none; states of landmarks unseen for FORGET_AFTER correlation times are dropped first."""
-        self._last_seen_us[landmark_id] = t_us
-        if landmark_id in self._range_states:
-            return self._range_states[landmark_id]
+    def _error_state(self, key: tuple[str, int], t_us: int, bearing_var: float) -> int:
+        """The index of the first error state (range, then bearing) of the sighted subject ``key`` (a
+        landmark, a robot seen, a robot seeing this one), added (at 0, stationary variance: the
+        bearing's a fraction of ``bearing_var``, the sighting's reported one) when it has none; states
+        of subjects unseen for FORGET_AFTER correlation times are dropped first."""
+        self._last_seen_us[key] = t_us
+        if key in self._error_states:
+            return self._error_states[key]
         horizon_us = FORGET_AFTER * max(self._range_tau, self._bearing_tau) * 1e6
-        stale = [ident for ident in self._range_states if t_us - self._last_seen_us[ident] > horizon_us]
+        stale = [ident for ident in self._error_states if t_us - self._last_seen_us[ident] > horizon_us]
         per = self._per_landmark
         if stale:
-            dropped = [self._range_states[i] + k for i in stale for k in range(per)]
+            dropped = [self._error_states[i] + k for i in stale for k in range(per)]
             self._drop_states(dropped)
-            first = self._first_range_state
+            first = self._first_error_state
             self._decaying = [d for i, d in enumerate(self._decaying) if first + i not in dropped]
-            kept = sorted((index, ident) for ident, index in self._range_states.items() if ident not in stale)
-            self._range_states = {ident: first + per * k for k, (_, ident) in enumerate(kept)}
+            kept = sorted((index, ident) for ident, index in self._error_states.items() if ident not in stale)
+            self._error_states = {ident: first + per * k for k, (_, ident) in enumerate(kept)}
             for ident in stale:
                 del self._last_seen_us[ident]
-        self._range_states[landmark_id] = len(self.x)
+        self._error_states[key] = len(self.x)
         new = ([(self._range_tau, self._range_sigma**2)] if self._range_sigma else []) + \
             ([(self._bearing_tau, self._bearing_fraction * bearing_var)] if self._bearing_fraction else [])
         self._decaying = self._decaying + new
         self._append_states(np.array([variance for _, variance in new]))
-        return self._range_states[landmark_id]
+        return self._error_states[key]
 
     def _append_states(self, variances: np.ndarray) -> None:
         """States at 0 with these variances after the last one (added_states.append_states)."""
@@ -189,7 +192,7 @@ class KnownMapEkf(UnicycleEkf):
         state = super().snapshot()
         state.update(sightings_fused=self.sightings_fused, sightings_rejected=self.sightings_rejected,
                      unknown_landmarks=self.unknown_landmarks, _failed_in_a_row=list(self._failed_in_a_row),
-                     _range_states=dict(self._range_states), _last_seen_us=dict(self._last_seen_us),
+                     _error_states=dict(self._error_states), _last_seen_us=dict(self._last_seen_us),
                      _decaying=list(self._decaying),
                      state_dim=self.state_dim)
         return state

@@ -75,7 +75,7 @@ def test_error_slots_go_to_the_landmarks_seen_last(monkeypatch):
     """With three slots ([s, b] each), a fourth landmark takes the slot of the one seen longest ago,
     reset to 0 with the stationary spreads and uncorrelated (that landmark's old errors
     marginalized); a landmark seen again keeps its slot."""
-    monkeypatch.setattr(ekf_slam, "RANGE_SLOTS", 3)
+    monkeypatch.setattr(ekf_slam, "ERROR_SLOTS", 3)
     sensors = {**PERSISTING, "bearing_correlated_fraction": 0.5, "bearing_correlation_s": 5.0}
     slam = get_estimator(_config("ekf-slam", sensors).for_vehicle(), 1)
     slam.handle("prior", m.PosePrior(1, 0, 0, np.zeros(3), np.diag([0.01, 0.01, 0.001])))
@@ -86,14 +86,14 @@ def test_error_slots_go_to_the_landmarks_seen_last(monkeypatch):
 
     for t_s, ident in ((0.1, 6), (0.2, 7), (0.3, 8), (0.4, 6)):  # 6 again: most recent of the three
         sight(t_s, ident)
-    slots = {ident: slot for (_, ident), slot in slam._range_slot_of.items()}
+    slots = {ident: slot for (_, ident), slot in slam._slot_of.items()}
     assert sorted(slots.values()) == list(range(slam.head_dim - 6, slam.head_dim, 2))
     sight(0.5, 9)
-    now = {ident: slot for (_, ident), slot in slam._range_slot_of.items()}
+    now = {ident: slot for (_, ident), slot in slam._slot_of.items()}
     assert now == {9: slots[7], 6: slots[6], 8: slots[8]}
     assert slam.counters.landmarks == 4
-    slot = slam._range_error_state(("landmark", 7), 600_000, R[1, 1])  # back: the slot of the one seen longest ago (8)
-    assert slot == slots[8] and ("landmark", 8) not in slam._range_slot_of
+    slot = slam._error_slot(("landmark", 7), 600_000, R[1, 1])  # back: the slot of the one seen longest ago (8)
+    assert slot == slots[8] and ("landmark", 8) not in slam._slot_of
     states = [slot, slot + 1]
     assert not np.any(slam.x[states])
     expected = [PERSISTING["range_correlated_sigma_per_m"] ** 2, 0.5 * R[1, 1]]
