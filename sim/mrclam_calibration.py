@@ -85,31 +85,36 @@ class Calibration:
     camera_latency_s: float = 0.0
 
 
-def sighting_residuals(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
-    """[range m, bearing rad] residuals (k, 2) of the robot's sightings in [t0, t1) of the landmarks in
-    ``landmarks`` (subject -> surveyed position (2,) m)."""
-    s = log.sightings[(log.sightings[:, 0] >= t0) & (log.sightings[:, 0] < t1)]
-    s = s[np.isin(s[:, 1], list(landmarks))]
-    if not len(s):
-        return np.zeros((0, 2))
-    pose = pose_at(log.groundtruth, s[:, 0])
-    where = np.array([landmarks[int(subject)] for subject in s[:, 1]]).reshape(-1, 2)
-    d = where - pose[:, :2]
-    res = np.column_stack([s[:, 2] - np.hypot(d[:, 0], d[:, 1]),
-                           wrap_angles(s[:, 3] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))])
-    return res[np.all(np.isfinite(res), axis=1)]
-
-
-def range_errors(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
-    """[t s, subject, true range m, range error m] (k, 4) of the robot's sightings in [t0, t1) of the
-    landmarks in ``landmarks`` at least MIN_RANGE_M away, where Vicon has the robot."""
+def landmark_sightings(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
+    """[t s, subject, true range m, range residual m, bearing residual rad] (k, 5) of the robot's
+    sightings in [t0, t1) of the landmarks in ``landmarks`` (subject -> surveyed position (2,) m),
+    where Vicon has the robot."""
     s = log.sightings[(log.sightings[:, 0] >= t0) & (log.sightings[:, 0] < t1)]
     s = s[np.isin(s[:, 1], list(landmarks))]
     pose = pose_at(log.groundtruth, s[:, 0]).reshape(-1, 3)
     where = np.array([landmarks[int(subject)] for subject in s[:, 1]]).reshape(-1, 2)
-    true_range = np.hypot(*(where - pose[:, :2]).T)
-    out = np.column_stack([s[:, :2], true_range, s[:, 2] - true_range])
-    return out[np.isfinite(out[:, 3]) & (true_range >= MIN_RANGE_M)]
+    d = where - pose[:, :2]
+    true_range = np.hypot(d[:, 0], d[:, 1])
+    out = np.column_stack([s[:, :2], true_range, s[:, 2] - true_range,
+                           wrap_angles(s[:, 3] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))])
+    return out[np.all(np.isfinite(out), axis=1)]
+
+
+def sighting_residuals(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
+    """[range m, bearing rad] residuals (k, 2) of :func:`landmark_sightings`."""
+    return landmark_sightings(log, landmarks, t0, t1)[:, 3:5]
+
+
+def range_errors(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
+    """[t s, subject, true range m, range error m] (k, 4) of :func:`landmark_sightings` at least
+    MIN_RANGE_M away."""
+    rows = landmark_sightings(log, landmarks, t0, t1)
+    return rows[rows[:, 2] >= MIN_RANGE_M, :4]
+
+
+def bearing_residuals(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
+    """[t s, subject, bearing residual rad] (k, 3) of :func:`landmark_sightings`."""
+    return landmark_sightings(log, landmarks, t0, t1)[:, [0, 1, 4]]
 
 
 def _inliers(residuals: np.ndarray) -> np.ndarray:
@@ -153,17 +158,6 @@ def bearing_correlation(residuals: list[np.ndarray]) -> tuple[float, float]:
         return 0.0, 1.0
     _, c, tau = _persistence(scaled)
     return c, tau
-
-
-def bearing_residuals(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
-    """[t s, subject, bearing residual rad] (k, 3) of the robot's landmark sightings in [t0, t1)."""
-    s = log.sightings[(log.sightings[:, 0] >= t0) & (log.sightings[:, 0] < t1)]
-    s = s[np.isin(s[:, 1], list(landmarks))]
-    pose = pose_at(log.groundtruth, s[:, 0]).reshape(-1, 3)
-    where = np.array([landmarks[int(subject)] for subject in s[:, 1]]).reshape(-1, 2)
-    d = where - pose[:, :2]
-    out = np.column_stack([s[:, :2], wrap_angles(s[:, 3] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))])
-    return out[np.isfinite(out[:, 2])]
 
 
 def _persistence(errors: list[np.ndarray]) -> tuple[float, float, float]:

@@ -11,10 +11,38 @@ from __future__ import annotations
 
 import numpy as np
 
+from bus.config import build_config
 from sim.mrclam import MrclamData, RobotLog
 
 LANDMARKS = np.array([[6 + i, x, y, 0.001, 0.001] for i, (x, y) in enumerate(
     [(-4, -3), (-4, 0), (-4, 3), (0, -3.5), (0, 3.5), (4, -3), (4, 0), (4, 3)])], dtype=float)
+
+
+NOMINAL_SENSORS = {"odom_speed_sigma_mps": 0.05, "odom_yaw_rate_sigma_radps": 0.1, "range_sigma_m": 0.1,
+                   "bearing_sigma_rad": 0.02, "prior_sigma_m": 0.05, "prior_heading_sigma_rad": 0.02}
+PERSISTING_SENSORS = {"range_correlated_sigma_per_m": 0.04, "range_correlation_s": 3.0, "odom_scale_prior_sigma": 0.1,
+                      "bearing_correlated_fraction": 0.5, "bearing_correlation_s": 3.0}
+PERSISTING_SIGHTING_SIGMAS = [float(np.hypot(0.015, 0.04)), 0.02]
+
+
+def replay_config(estimator: str, seed: int, sensors: dict | None = None, robots: int = 1, **replay) -> object:
+    """A replay of :func:`synthetic` on robots 1..``robots`` from 20 s, calibrated on [0, 20) s, with
+    the data set's own white noise as the datasheet (the filter's nominal model) plus ``sensors``."""
+    landmarks = [(int(i), float(x), float(y)) for i, x, y in LANDMARKS[:, :3]] if estimator == "known-map" else []
+    return build_config({
+        "world": {"vehicles": robots, "seed": seed}, "clock": {"duration_s": 80.0, "tick_s": 0.02},
+        "sensors": {**NOMINAL_SENSORS, **(sensors or {})},
+        "vehicle": {"estimator": estimator, "cooperative": False, "landmarks": landmarks},
+        "replay": {"dataset": "synthetic", "robots": list(range(1, robots + 1)), "start_s": 20.0,
+                   "calibration_s": [0, 20], "odom_lag_s": 0.2, **replay}})
+
+
+def with_persisting_errors(rng: np.random.Generator, robots: int = 1) -> MrclamData:
+    """101 s of :func:`synthetic` whose wheels are 6 % and -8 % off and whose range and bearing errors
+    persist (4 % of the range, half the bearing variance, 3 s; the white part PERSISTING_SIGHTING_SIGMAS)."""
+    return synthetic(rng, robots=robots, duration_s=101.0, range_sigma=0.0, range_sigma_per_m=0.015,
+                     range_correlated_per_m=0.04, range_correlation_s=3.0, odom_scale=(0.06, -0.08),
+                     sighting_rate_hz=6.0, bearing_correlated_fraction=0.5, bearing_correlation_s=3.0)
 
 
 def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 200.0, lag_s: float = 0.2,

@@ -93,37 +93,40 @@ def persisting_sighting(H: np.ndarray, R: np.ndarray, predicted: np.ndarray, x: 
     r (1 + s) + white, bearing read = beta + b + white, s = x[range_state], b = x[bearing_state]
     (either may be None). H (2, q) and predicted [range m, bearing rad] (2,) of the plain model
     become these (row 0 times 1 + s, d range / d s = r in ``range_column`` of H; d bearing / d b = 1
-    in ``bearing_column``); R (2, 2), the reported noise, keeps only its white part: less
-    (range_sigma_per_m r)^2 and ``bearing_var``, at least ``white_floor`` of each reported variance.
-    Returns new arrays."""
-    H, R, predicted = H.copy(), np.array(R, dtype=float), np.array(predicted, dtype=float)
+    in ``bearing_column``; a column defaults to its state's index, for an H over all of x); R (2, 2),
+    the reported noise, keeps only its white part (:func:`white_part`). Returns new arrays."""
+    H, predicted = H.copy(), np.array(predicted, dtype=float)
+    R = white_part(R, predicted[0], range_sigma_per_m if range_state is not None else 0.0,
+                   bearing_var if bearing_state is not None else 0.0, white_floor)
     if range_state is not None:
         stretch = 1.0 + float(x[range_state])
         H[0] *= stretch
-        H[0, range_column] = predicted[0]
-        R[0, 0] = max(R[0, 0] - (range_sigma_per_m * predicted[0]) ** 2, white_floor * R[0, 0])
+        H[0, range_state if range_column is None else range_column] = predicted[0]
         predicted[0] *= stretch
     if bearing_state is not None:
-        H[1, bearing_column] = 1.0
-        R[1, 1] = max(R[1, 1] - bearing_var, white_floor * R[1, 1])
+        H[1, bearing_state if bearing_column is None else bearing_column] = 1.0
         predicted[1] += float(x[bearing_state])
     return H, R, predicted
 
 
+def in_columns(model: dict, idx: list[int]) -> dict:
+    """:func:`persisting_sighting`'s state arguments ``model`` for an H over the states ``idx`` only:
+    each error state's column is its place in ``idx``."""
+    out = dict(model)
+    for state, column in (("range_state", "range_column"), ("bearing_state", "bearing_column")):
+        if model.get(state) is not None:
+            out[column] = idx.index(model[state])
+    return out
+
+
 def white_part(R: np.ndarray, range_m: float, range_sigma_per_m: float, bearing_var: float,
                white_floor: float = WHITE_FLOOR) -> np.ndarray:
-    """The white part (2, 2) of a sighting's reported noise R at range ``range_m`` (as in
-    :func:`persisting_sighting`)."""
+    """The white part (2, 2) of a sighting's reported noise R at range ``range_m``: less the persisting
+    (range_sigma_per_m range_m)^2 and ``bearing_var``, at least ``white_floor`` of each reported variance."""
     white = np.array(R, dtype=float)
     white[0, 0] = max(R[0, 0] - (range_sigma_per_m * range_m) ** 2, white_floor * R[0, 0])
     white[1, 1] = max(R[1, 1] - bearing_var, white_floor * R[1, 1])
     return white
-
-
-def gauss_markov(dt: float, tau: float, sigma: float) -> tuple[float, float]:
-    """phi and the process noise variance of one step of a first-order Gauss-Markov state."""
-    phi = math.exp(-dt / tau)
-    return phi, sigma * sigma * (1.0 - phi * phi)
 
 
 def decays(dt: float, taus: np.ndarray, variances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -39,6 +39,7 @@ import numpy as np
 
 from bus.angles import wrap_angle
 from vehicle import unscented as ut
+from vehicle.added_states import in_columns, persisting_sighting
 from vehicle.ekf import UpdateResult
 
 POSE = 3
@@ -294,16 +295,11 @@ def with_persisting_errors(x: np.ndarray, fix: CooperativeFix | SeenFix, y: tupl
     """A sighting's linearized model (innovation y, H (2, 3) over the pose, reported noise R) with its
     persisting range and bearing errors as the states ``errors`` names (vehicle.added_states): y,
     H (2, q) over the states ``idx`` (q,) = [x, y, theta, the error states], the white part of R."""
-    from vehicle.added_states import persisting_sighting
-
     idx = [0, 1, 2] + [errors[key] for key in ("range_state", "bearing_state") if errors.get(key) is not None]
-    columns = {key: 3 + k for k, key in enumerate(key for key in ("range_state", "bearing_state")
-                                                  if errors.get(key) is not None)}
-    model = {**errors, "range_column": columns.get("range_state"), "bearing_column": columns.get("bearing_state")}
     predicted = np.array([fix.range_m - y[0], fix.bearing_rad - y[1]])
     H_full = np.zeros((2, len(idx)))
     H_full[:, :POSE] = H
-    H_full, R_white, stretched = persisting_sighting(H_full, _array(R), predicted, x, **model)
+    H_full, R_white, stretched = persisting_sighting(H_full, _array(R), predicted, x, **in_columns(errors, idx))
     return ((fix.range_m - float(stretched[0]), wrap_angle(fix.bearing_rad - float(stretched[1]))), H_full,
             _sym(R_white), idx)
 

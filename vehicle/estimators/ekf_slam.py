@@ -45,9 +45,10 @@ from bus.config import SensorSpec
 from vehicle import added_states
 from vehicle import ekf_slam_core as slam
 from vehicle import unicycle_ekf as ekf
-from vehicle.cooperative import CooperativeFix, CooperativeRule, Correction, SeenFix
+from vehicle.cooperative import CooperativeRule, Correction
 from vehicle.ekf import gate_threshold
 from vehicle.estimators.ekf import DIVERGENCE_FLOOR, DIVERGENCE_INFLATION, UnicycleEkf
+from vehicle.estimators.sighting_errors import SightingErrors, Subject
 from vehicle.vision import association, features
 
 POSE_DIM = 4
@@ -62,7 +63,7 @@ ERROR_SLOTS = 8              # error-state slots: landmarks (and robots) in view
 Reject = Callable[[str, str, str], None]
 
 
-class EkfSlam(UnicycleEkf):
+class EkfSlam(SightingErrors, UnicycleEkf):
     """Vision EKF-SLAM: see the module docstring."""
 
     name = "ekf-slam"
@@ -87,22 +88,15 @@ class EkfSlam(UnicycleEkf):
         self._seen_frames: dict[tuple[int, int], tuple] = {}  # front-end results by (stamp, seq), oldest first
         self._slot: dict[int, int] = {}  # identified landmarks (replayed sightings): id -> map index; replaced, never changed
         self._scale_sigma = spec.odom_scale_prior_sigma
-        self._range_sigma, self._range_tau = spec.range_correlated_sigma_per_m, spec.range_correlation_s
-        self._bearing_fraction, self._bearing_tau = spec.bearing_correlated_fraction, spec.bearing_correlation_s
-        self._per_slot = int(bool(self._range_sigma)) + int(bool(self._bearing_fraction))
+        self._init_sighting_errors(spec)
         self._first_slot = POSE_DIM + (2 if self._scale_sigma else 0)
-        self.head_dim = self._first_slot + ERROR_SLOTS * self._per_slot
-        # each slot state's (tau s, stationary variance); the bearing's is the datasheet's until a landmark
-        # takes the slot, then that of the landmark's sightings
-        self._slot_taus = np.tile(([self._range_tau] if self._range_sigma else []) +
-                                  ([self._bearing_tau] if self._bearing_fraction else []), ERROR_SLOTS)
-        self._slot_vars = np.tile(([self._range_sigma**2] if self._range_sigma else []) +
-                                  ([self._bearing_fraction * spec.bearing_sigma_rad**2] if self._bearing_fraction else []),
-                                  ERROR_SLOTS)
-        # ("landmark", id), ("robot", id seen) or ("seen", id of the robot seeing this one) -> index of its
-        # slot's first state
-        self._slot_of: dict[tuple[str, int], int] = {}
-        self._last_seen_us: dict[tuple[str, int], int] = {}  # the same keys -> their last sighting
+        self.head_dim = self._first_slot + ERROR_SLOTS * self._per_subject
+        # each slot state's tau and stationary variance; the bearing's is the datasheet's until a subject
+        # takes the slot, then that of its sightings
+        self._slot_taus, self._slot_vars = (np.tile([pair[i] for pair in self._subject_states(spec.bearing_sigma_rad**2)],
+                                                    ERROR_SLOTS) for i in (0, 1))
+        self._slot_of: dict[Subject, int] = {}  # sighted subject -> index of its slot's first state
+        self._last_seen_us: dict[Subject, int] = {}
 
     @property
     def landmarks_xy(self) -> np.ndarray:
@@ -179,7 +173,7 @@ class EkfSlam(UnicycleEkf):
         if j is None and self.counters.landmarks >= MAX_LANDMARKS:
             return
         R = np.asarray(msg.covariance, dtype=float)
-        error = self._error_slot(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_slot else None
+        error = self._error_index(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_subject else None
         if j is not None:
             self._update_identified(j, z, R, error)
             return
@@ -196,17 +190,6 @@ class EkfSlam(UnicycleEkf):
         self._slot = {**self._slot, msg.landmark_id: self.counters.landmarks}
         self.counters.landmarks += 1
 
-    def _error_model(self, first: int) -> dict:
-        """``added_states.persisting_sighting``'s state arguments for the slot starting at ``first``
-        (columns are set by the caller)."""
-        model: dict = {}
-        if self._range_sigma:
-            model.update(range_state=first, range_sigma_per_m=self._range_sigma)
-        if self._bearing_fraction:
-            b = first + int(bool(self._range_sigma))
-            model.update(bearing_state=b, bearing_var=float(self._slot_vars[b - self._first_slot]))
-        return model
-
     def _update_identified(self, j: int, z: np.ndarray, R: np.ndarray, error: int | None) -> None:
         """The paper's gated update with mapped landmark j; with its error states from ``error`` on,
         the model of vehicle.added_states.persisting_sighting over [x, y, theta, errors, l_jx, l_jy]."""
@@ -215,27 +198,18 @@ class EkfSlam(UnicycleEkf):
             slam.update(self.x, self.P, self.head_dim, j, z, R, self._landmark_gate, linearize_at=linearize_at)
             return
         predicted, H_pose, H_landmark = slam.observe(self.x, self.head_dim, j, linearize_at)
-        errors = list(range(error, error + self._per_slot))
-        H = np.hstack([H_pose, np.zeros((2, len(errors))), H_landmark])
-        model = self._error_model(error)
-        if "range_state" in model:
-            model["range_column"] = 3
-        if "bearing_state" in model:
-            model["bearing_column"] = 3 + errors.index(model["bearing_state"])
-        H, R, predicted = added_states.persisting_sighting(H, R, predicted, self.x, **model)
-        y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
         k = self.head_dim + 2 * j
-        slam.update_in_place(self.x, self.P, [0, 1, 2, *errors, k, k + 1], H, y, R, self._landmark_gate)
+        idx = [0, 1, 2, *range(error, error + self._per_subject), k, k + 1]
+        H = np.hstack([H_pose, np.zeros((2, self._per_subject)), H_landmark])
+        H, R, predicted = added_states.persisting_sighting(H, R, predicted, self.x,
+                                                           **added_states.in_columns(self._error_model(error), idx))
+        y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
+        slam.update_in_place(self.x, self.P, idx, H, y, R, self._landmark_gate)
 
-    def _sighting_errors(self, fix: CooperativeFix | SeenFix) -> dict | None:
-        """A robot sighting's persisting errors, in slots as a landmark's (one per robot seen, and per
-        robot that sees this one: their cameras' errors)."""
-        if not self._per_slot:
-            return None
-        key = ("robot", fix.target_id) if isinstance(fix, CooperativeFix) else ("seen", fix.observer_id)
-        return self._error_model(self._error_slot(key, fix.stamp_us, float(fix.covariance[1, 1])))
+    def _stationary_variance(self, index: int) -> float:
+        return float(self._slot_vars[index - self._first_slot])
 
-    def _error_slot(self, key: tuple[str, int], t_us: int, bearing_var: float) -> int:
+    def _error_index(self, key: Subject, t_us: int, bearing_var: float) -> int:
         """The index of the slot (its first error state) of the sighted subject ``key`` (a landmark, a
         robot seen, a robot seeing this one): its own slot if it has one, else a free slot or the slot
         of the subject seen longest ago, reset to 0 with the stationary variances (the bearing's a
@@ -245,19 +219,19 @@ class EkfSlam(UnicycleEkf):
         if slot is not None:
             return slot
         taken = set(self._slot_of.values())
-        free = [i for i in range(self._first_slot, self.head_dim, self._per_slot) if i not in taken]
+        free = [i for i in range(self._first_slot, self.head_dim, self._per_subject) if i not in taken]
         owners = dict(self._slot_of)
         if free:
             slot = free[0]
         else:
             oldest = min(owners, key=lambda ident: self._last_seen_us[ident])
             slot = owners.pop(oldest)
-        states = list(range(slot, slot + self._per_slot))
-        if self._bearing_fraction:
-            self._slot_vars = self._slot_vars.copy()  # replaced, never changed in place (snapshots share it)
-            self._slot_vars[states[-1] - self._first_slot] = self._bearing_fraction * bearing_var
+        states = list(range(slot, slot + self._per_subject))
+        within = slice(slot - self._first_slot, slot - self._first_slot + self._per_subject)
+        self._slot_vars = self._slot_vars.copy()  # replaced, never changed in place (snapshots share it)
+        self._slot_vars[within] = [variance for _, variance in self._subject_states(bearing_var)]
         self.x[states] = 0.0
-        added_states.set_spread(self.P, states, self._slot_vars[[s - self._first_slot for s in states]])
+        added_states.set_spread(self.P, states, self._slot_vars[within])
         self._slot_of = {**owners, key: slot}
         return slot
 

@@ -37,17 +37,17 @@ from bus import messages as m
 from bus.angles import wrap_angle
 from vehicle import added_states
 from vehicle import ekf_slam_core as slam
-from vehicle.cooperative import CooperativeFix, SeenFix
 from vehicle.ekf import gate_threshold
 from vehicle.estimators.base import SEVERITY_WARNING, Notice
 from vehicle.estimators.ekf import UnicycleEkf
+from vehicle.estimators.sighting_errors import SightingErrors, Subject
 
 LOST_AFTER = 8                              # sightings in a row failing the gate
 RELOCALIZE_SIGMA = np.array([1.0, 1.0, 0.5])  # m, m, rad added to the pose's spread when lost
 FORGET_AFTER = 5.0           # correlation times unseen before a landmark's range-error state is dropped
 
 
-class KnownMapEkf(UnicycleEkf):
+class KnownMapEkf(SightingErrors, UnicycleEkf):
     """EKF over the unicycle state with landmark fixes from a known map: see the module docstring."""
 
     name = "known-map"
@@ -61,15 +61,11 @@ class KnownMapEkf(UnicycleEkf):
         self._failed_in_a_row: list[int] = []  # landmark ids of the current run of gate failures
         spec = self._spec
         self._scale_sigma = spec.odom_scale_prior_sigma
-        self._range_sigma, self._range_tau = spec.range_correlated_sigma_per_m, spec.range_correlation_s
-        self._bearing_fraction, self._bearing_tau = spec.bearing_correlated_fraction, spec.bearing_correlation_s
-        self._per_landmark = int(bool(self._range_sigma)) + int(bool(self._bearing_fraction))
+        self._init_sighting_errors(spec)
         self._first_error_state = self.base_dim + (2 if self._scale_sigma else 0)
         self.state_dim = self._first_error_state
-        # ("landmark", id), ("robot", id seen) or ("seen", id of the robot seeing this one) -> index of its
-        # first error state, and when it was last sighted
-        self._error_states: dict[tuple[str, int], int] = {}
-        self._last_seen_us: dict[tuple[str, int], int] = {}
+        self._error_states: dict[Subject, int] = {}  # sighted subject -> index of its first error state
+        self._last_seen_us: dict[Subject, int] = {}
         self._decaying: list[tuple[float, float]] = []  # (tau s, stationary variance) of each error state, in order
 
     def _initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int, *, from_fixes: bool = False) -> None:
@@ -107,7 +103,7 @@ class KnownMapEkf(UnicycleEkf):
             self.unknown_landmarks += 1
             return
         R = np.array(msg.covariance, dtype=float)
-        state = self._error_state(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_landmark else None
+        state = self._error_index(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_subject else None
         predicted, H_pose, _ = slam.observe(np.concatenate([self.x[:3], where]), 3, 0)
         H = np.zeros((2, len(self.x)))
         H[:, :3] = H_pose
@@ -124,25 +120,10 @@ class KnownMapEkf(UnicycleEkf):
         if len(self._failed_in_a_row) >= LOST_AFTER and len(set(self._failed_in_a_row)) >= 2:
             self._relocalize(msg.stamp_us)
 
-    def _error_model(self, first: int) -> dict:
-        """``added_states.persisting_sighting``'s arguments for the landmark whose error states start at ``first``."""
-        model: dict = {}
-        if self._range_sigma:
-            model.update(range_state=first, range_column=first, range_sigma_per_m=self._range_sigma)
-        if self._bearing_fraction:
-            b = first + int(bool(self._range_sigma))
-            model.update(bearing_state=b, bearing_column=b, bearing_var=self._decaying[b - self._first_error_state][1])
-        return model
+    def _stationary_variance(self, index: int) -> float:
+        return self._decaying[index - self._first_error_state][1]
 
-    def _sighting_errors(self, fix: CooperativeFix | SeenFix) -> dict | None:
-        """A robot sighting's persisting errors, states as a landmark's (one set per robot seen, and per
-        robot that sees this one: their cameras' errors)."""
-        if not self._per_landmark:
-            return None
-        key = ("robot", fix.target_id) if isinstance(fix, CooperativeFix) else ("seen", fix.observer_id)
-        return self._error_model(self._error_state(key, fix.stamp_us, float(fix.covariance[1, 1])))
-
-    def _error_state(self, key: tuple[str, int], t_us: int, bearing_var: float) -> int:
+    def _error_index(self, key: Subject, t_us: int, bearing_var: float) -> int:
         """The index of the first error state (range, then bearing) of the sighted subject ``key`` (a
         landmark, a robot seen, a robot seeing this one), added (at 0, stationary variance: the
         bearing's a fraction of ``bearing_var``, the sighting's reported one) when it has none; states
@@ -152,7 +133,7 @@ class KnownMapEkf(UnicycleEkf):
             return self._error_states[key]
         horizon_us = FORGET_AFTER * max(self._range_tau, self._bearing_tau) * 1e6
         stale = [ident for ident in self._error_states if t_us - self._last_seen_us[ident] > horizon_us]
-        per = self._per_landmark
+        per = self._per_subject
         if stale:
             dropped = [self._error_states[i] + k for i in stale for k in range(per)]
             self._drop_states(dropped)
@@ -163,8 +144,7 @@ class KnownMapEkf(UnicycleEkf):
             for ident in stale:
                 del self._last_seen_us[ident]
         self._error_states[key] = len(self.x)
-        new = ([(self._range_tau, self._range_sigma**2)] if self._range_sigma else []) + \
-            ([(self._bearing_tau, self._bearing_fraction * bearing_var)] if self._bearing_fraction else [])
+        new = self._subject_states(bearing_var)
         self._decaying = self._decaying + new
         self._append_states(np.array([variance for _, variance in new]))
         return self._error_states[key]

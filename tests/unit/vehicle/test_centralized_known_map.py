@@ -8,8 +8,8 @@ import numpy as np
 from groundstation.centralized_reference import run_centralized
 from sim.replay import ReplayWorld
 from tests.offline import replay_in_memory
-from tests.synthetic_mrclam import synthetic
-from tests.unit.vehicle.test_known_map import PERSISTING, _config, _lost_start, _WrongPrior
+from tests.synthetic_mrclam import PERSISTING_SENSORS, PERSISTING_SIGHTING_SIGMAS, replay_config, synthetic
+from tests.unit.vehicle.test_known_map import _lost_start, _WrongPrior
 
 RUNS = 12
 
@@ -19,7 +19,7 @@ def test_without_robot_sightings_it_is_each_robots_own_known_map_filter():
     lost (it re-localizes): the joint filter's tracks are the separate filters' tracks."""
     data = synthetic(np.random.default_rng(11), robots=2, duration_s=101.0, range_sigma=0.0, range_sigma_per_m=0.015,
                      range_correlated_per_m=0.04, range_correlation_s=3.0, odom_scale=(0.06, -0.08))
-    config = _config(0, PERSISTING, robots=2, sighting_sigmas=[[float(np.hypot(0.015, 0.04)), 0.02]] * 2)
+    config = replay_config("known-map", 0, PERSISTING_SENSORS, robots=2, sighting_sigmas=[PERSISTING_SIGHTING_SIGMAS] * 2)
     alone = {vid: _lost_start(config) for vid in (1, 2)}
     for vid, estimator in alone.items():
         estimator.vehicle_id = vid
@@ -36,7 +36,7 @@ def _with_robot_sightings(seed: int) -> tuple[dict, dict]:
     """Robot 2's landmark sightings withheld; both robots see each other: the centralized tracks
     and the separate known-map filters' rows."""
     data = synthetic(np.random.default_rng(300 + seed), robots=2, duration_s=101.0, robot_sighting_rate_hz=2.0)
-    config = _config(seed, robots=2, withhold_landmarks=[2])
+    config = replay_config("known-map", seed, robots=2, withhold_landmarks=[2])
     return (run_centralized(config, score_every_us=1_000_000, world=ReplayWorld(config, data)),
             replay_in_memory(config, data))
 

@@ -5,29 +5,18 @@ import numpy as np
 from scipy.stats import chi2
 
 from bus import messages as m
-from bus.config import build_config
 from tests.offline import replay_in_memory
-from tests.synthetic_mrclam import LANDMARKS, synthetic
+from tests.synthetic_mrclam import (LANDMARKS, PERSISTING_SENSORS, PERSISTING_SIGHTING_SIGMAS, replay_config, synthetic,
+                                     with_persisting_errors)
 from vehicle.estimators import ekf_slam, get_estimator
-
-
-def _config(estimator: str, sensors: dict | None = None, seed: int = 3, **replay) -> object:
-    """The synthetic data set's own noise as the datasheet (the filter's nominal model), plus ``sensors``."""
-    return build_config({
-        "world": {"vehicles": 1, "seed": seed}, "clock": {"duration_s": 80.0, "tick_s": 0.02},
-        "sensors": {"odom_speed_sigma_mps": 0.05, "odom_yaw_rate_sigma_radps": 0.1, "range_sigma_m": 0.1,
-                    "bearing_sigma_rad": 0.02, "prior_sigma_m": 0.05, "prior_heading_sigma_rad": 0.02, **(sensors or {})},
-        "vehicle": {"estimator": estimator, "cooperative": False},
-        "replay": {"dataset": "synthetic", "robots": [1], "start_s": 20.0, "calibration_s": [0, 20], "odom_lag_s": 0.2,
-                   **replay}})
 
 
 def test_slam_maps_identified_landmarks_and_beats_dead_reckoning():
     data = synthetic(np.random.default_rng(11), robots=1, duration_s=101.0)
-    config = _config("ekf-slam")
+    config = replay_config("ekf-slam", 3)
     slam = get_estimator(config.for_vehicle(), 1)
     slam_rows = replay_in_memory(config, data, estimators={1: slam})[1]
-    dead_rows = replay_in_memory(_config("ekf"), data)[1]
+    dead_rows = replay_in_memory(replay_config("ekf", 3), data)[1]
     assert np.sqrt(np.mean(slam_rows[:, 1] ** 2)) < 0.5 * np.sqrt(np.mean(dead_rows[:, 1] ** 2))
     positions, covariances = slam.landmark_map()
     assert 3 <= len(positions) <= len(LANDMARKS)
@@ -37,24 +26,18 @@ def test_slam_maps_identified_landmarks_and_beats_dead_reckoning():
         assert d @ np.linalg.solve(covariances[j], d) < chi2.ppf(0.9973, 2), ident
 
 
-PERSISTING = {"range_correlated_sigma_per_m": 0.04, "range_correlation_s": 3.0, "odom_scale_prior_sigma": 0.1,
-              "bearing_correlated_fraction": 0.5, "bearing_correlation_s": 3.0}
 RUNS, SAMPLES_FROM_S = 20, 20
 
 
 def _persisting_errors_nees(sensors: dict) -> tuple[np.ndarray, float, float]:
-    """ANEES of ekf-slam at each 10 s checkpoint from SAMPLES_FROM_S over seeded runs of a data set
-    whose wheels are 6 % and -8 % off and whose range and bearing errors persist (4 % of the range,
-    half the bearing variance, 3 s), for a filter told ``sensors``, and the 99 % band of one checkpoint. Checkpoint by checkpoint, across
-    runs: a SLAM filter's error keeps its launch prior's share for the whole run (where the map sits
+    """ANEES of ekf-slam at each 10 s checkpoint from SAMPLES_FROM_S over seeded runs of
+    :func:`with_persisting_errors` for a filter told ``sensors``, and the 99 % band of one
+    checkpoint. Checkpoint by checkpoint, across runs: a SLAM filter's error keeps its launch prior's share for the whole run (where the map sits
     is unobservable), so the checkpoints of one run are not independent samples."""
     nees = []
     for seed in range(RUNS):
-        data = synthetic(np.random.default_rng(200 + seed), robots=1, duration_s=101.0, range_sigma=0.0,
-                         range_sigma_per_m=0.015, range_correlated_per_m=0.04, range_correlation_s=3.0,
-                         odom_scale=(0.06, -0.08), sighting_rate_hz=6.0, bearing_correlated_fraction=0.5,
-                         bearing_correlation_s=3.0)
-        config = _config("ekf-slam", sensors, seed=seed, sighting_sigmas=[[float(np.hypot(0.015, 0.04)), 0.02]])
+        data = with_persisting_errors(np.random.default_rng(200 + seed))
+        config = replay_config("ekf-slam", seed, sensors, sighting_sigmas=[PERSISTING_SIGHTING_SIGMAS])
         rows = replay_in_memory(config, data, every_us=10_000_000)[1]
         nees.append(rows[rows[:, 0] >= SAMPLES_FROM_S * 1e6, 2])
     low, high = chi2.ppf([0.005, 0.995], 3 * RUNS) / RUNS
@@ -62,7 +45,7 @@ def _persisting_errors_nees(sensors: dict) -> tuple[np.ndarray, float, float]:
 
 
 def test_persisting_errors_modelled_keep_slam_nees_inside_the_band():
-    anees, low, high = _persisting_errors_nees(PERSISTING)
+    anees, low, high = _persisting_errors_nees(PERSISTING_SENSORS)
     assert np.all((low <= anees) & (anees <= high)), (anees, low, high)
 
 
@@ -76,8 +59,8 @@ def test_error_slots_go_to_the_landmarks_seen_last(monkeypatch):
     reset to 0 with the stationary spreads and uncorrelated (that landmark's old errors
     marginalized); a landmark seen again keeps its slot."""
     monkeypatch.setattr(ekf_slam, "ERROR_SLOTS", 3)
-    sensors = {**PERSISTING, "bearing_correlated_fraction": 0.5, "bearing_correlation_s": 5.0}
-    slam = get_estimator(_config("ekf-slam", sensors).for_vehicle(), 1)
+    sensors = {**PERSISTING_SENSORS, "bearing_correlated_fraction": 0.5, "bearing_correlation_s": 5.0}
+    slam = get_estimator(replay_config("ekf-slam", 3, sensors).for_vehicle(), 1)
     slam.handle("prior", m.PosePrior(1, 0, 0, np.zeros(3), np.diag([0.01, 0.01, 0.001])))
     R = np.diag([0.04, 0.0004])
 
@@ -92,10 +75,10 @@ def test_error_slots_go_to_the_landmarks_seen_last(monkeypatch):
     now = {ident: slot for (_, ident), slot in slam._slot_of.items()}
     assert now == {9: slots[7], 6: slots[6], 8: slots[8]}
     assert slam.counters.landmarks == 4
-    slot = slam._error_slot(("landmark", 7), 600_000, R[1, 1])  # back: the slot of the one seen longest ago (8)
+    slot = slam._error_index(("landmark", 7), 600_000, R[1, 1])  # back: the slot of the one seen longest ago (8)
     assert slot == slots[8] and ("landmark", 8) not in slam._slot_of
     states = [slot, slot + 1]
     assert not np.any(slam.x[states])
-    expected = [PERSISTING["range_correlated_sigma_per_m"] ** 2, 0.5 * R[1, 1]]
+    expected = [PERSISTING_SENSORS["range_correlated_sigma_per_m"] ** 2, 0.5 * R[1, 1]]
     np.testing.assert_array_equal(np.diagonal(slam.P)[states], expected)
     assert not np.any(np.delete(slam.P[states], states, axis=1))

@@ -9,52 +9,32 @@ import pytest
 from scipy.stats import chi2
 
 from bus import messages as m
-from bus.config import build_config
 from tests.offline import replay_in_memory
-from tests.synthetic_mrclam import LANDMARKS, synthetic
+from tests.synthetic_mrclam import (LANDMARKS, PERSISTING_SENSORS, PERSISTING_SIGHTING_SIGMAS, replay_config, synthetic,
+                                     with_persisting_errors)
 from vehicle.estimators import get_estimator
 from vehicle.estimators import known_map
 
 RUNS, SAMPLES_FROM_S = 12, 20
 
 
-def _config(seed: int, sensors: dict | None = None, robots: int = 1, **replay) -> object:
-    """The synthetic data set's own noise as the datasheet (the filter's nominal model)."""
-    return build_config({
-        "world": {"vehicles": robots, "seed": seed}, "clock": {"duration_s": 80.0, "tick_s": 0.02},
-        "sensors": {"odom_speed_sigma_mps": 0.05, "odom_yaw_rate_sigma_radps": 0.1, "range_sigma_m": 0.1,
-                    "bearing_sigma_rad": 0.02, "prior_sigma_m": 0.05, "prior_heading_sigma_rad": 0.02, **(sensors or {})},
-        "vehicle": {"estimator": "known-map", "cooperative": False,
-                    "landmarks": [(int(i), float(x), float(y)) for i, x, y in LANDMARKS[:, :3]]},
-        "replay": {"dataset": "synthetic", "robots": list(range(1, robots + 1)), "start_s": 20.0, "calibration_s": [0, 20], "odom_lag_s": 0.2,
-                   **replay}})
-
-
 def test_nees_is_inside_the_chi_square_band_over_seeded_runs():
     nees = []
     for seed in range(RUNS):
         data = synthetic(np.random.default_rng(100 + seed), robots=1, duration_s=101.0)
-        rows = replay_in_memory(_config(seed), data, every_us=10_000_000)[1]
+        rows = replay_in_memory(replay_config("known-map", seed), data, every_us=10_000_000)[1]
         nees += rows[rows[:, 0] >= SAMPLES_FROM_S * 1e6, 2].tolist()
     low, high = chi2.ppf([0.025, 0.975], 3 * len(nees)) / len(nees)
     assert low <= np.mean(nees) <= high, (np.mean(nees), low, high)
 
 
-PERSISTING = {"range_correlated_sigma_per_m": 0.04, "range_correlation_s": 3.0, "odom_scale_prior_sigma": 0.1,
-              "bearing_correlated_fraction": 0.5, "bearing_correlation_s": 3.0}
-
-
 def _persisting_errors_nees(sensors: dict) -> tuple[float, float, float]:
-    """ANEES and its 95 % band over seeded runs of a data set whose wheels are 6 % and -8 % off and
-    whose range and bearing errors persist (4 % of the range, half the bearing variance, 3 s), for a
-    filter told ``sensors``."""
+    """ANEES and its 95 % band over seeded runs of :func:`with_persisting_errors` for a filter told
+    ``sensors``."""
     nees = []
     for seed in range(RUNS):
-        data = synthetic(np.random.default_rng(200 + seed), robots=1, duration_s=101.0, range_sigma=0.0,
-                         range_sigma_per_m=0.015, range_correlated_per_m=0.04, range_correlation_s=3.0,
-                         odom_scale=(0.06, -0.08), sighting_rate_hz=6.0, bearing_correlated_fraction=0.5,
-                         bearing_correlation_s=3.0)
-        config = _config(seed, sensors, sighting_sigmas=[[float(np.hypot(0.015, 0.04)), 0.02]])
+        data = with_persisting_errors(np.random.default_rng(200 + seed))
+        config = replay_config("known-map", seed, sensors, sighting_sigmas=[PERSISTING_SIGHTING_SIGMAS])
         rows = replay_in_memory(config, data, every_us=10_000_000)[1]
         nees += rows[rows[:, 0] >= SAMPLES_FROM_S * 1e6, 2].tolist()
     low, high = chi2.ppf([0.025, 0.975], 3 * len(nees)) / len(nees)
@@ -62,14 +42,14 @@ def _persisting_errors_nees(sensors: dict) -> tuple[float, float, float]:
 
 
 def test_persisting_errors_modelled_keep_nees_inside_the_band():
-    anees, low, high = _persisting_errors_nees(PERSISTING)
+    anees, low, high = _persisting_errors_nees(PERSISTING_SENSORS)
     assert low <= anees <= high, (anees, low, high)
 
 
 def test_persisting_errors_taken_as_white_make_the_filter_overconfident():
     anees, _, high = _persisting_errors_nees({})  # the control: the same data, nothing modelled
     assert anees > 2 * high, anees
-    without_bearing = {key: value for key, value in PERSISTING.items() if not key.startswith("bearing")}
+    without_bearing = {key: value for key, value in PERSISTING_SENSORS.items() if not key.startswith("bearing")}
     anees, _, high = _persisting_errors_nees(without_bearing)  # the bearing's persisting part taken as white
     assert anees > high, anees
 
@@ -94,7 +74,7 @@ def test_a_lost_robot_relocalizes_against_the_map(monkeypatch, relocalize):
     if not relocalize:
         monkeypatch.setattr(known_map, "LOST_AFTER", 10**9)
     data = synthetic(np.random.default_rng(7), robots=1, duration_s=101.0)
-    config = _config(0)
+    config = replay_config("known-map", 0)
     estimator = _lost_start(config)
     rows = replay_in_memory(config, data, estimators={1: estimator})[1]
     final_error = rows[-10:, 1].max()
@@ -106,7 +86,7 @@ def test_a_lost_robot_relocalizes_against_the_map(monkeypatch, relocalize):
 
 
 def test_unknown_landmarks_and_misreadings_are_not_fused():
-    config = _config(0)
+    config = replay_config("known-map", 0)
     estimator = get_estimator(config.for_vehicle(), 1)
     estimator.handle("prior", m.PosePrior(1, 0, 0, np.zeros(3), np.diag([0.01, 0.01, 0.001])))
     x0, P0 = estimator.x.copy(), estimator.P.copy()
