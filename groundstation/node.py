@@ -73,6 +73,7 @@ class GroundStation:
         self.final_seen = False
         self.active: set[int] = set()  # vehicles alive on the bus
         self.tick_members: set[int] | None = None  # lockstep: the vehicles the world's last tick waited for
+        self._members_logged: set[int] | None = None  # lockstep: the members whose joining is logged
         self.departed: set[int] = set()
         self.world_alive = False
         self.world_seen = False
@@ -144,7 +145,24 @@ class GroundStation:
         kind = "vehicle_joined" if item.alive else ("vehicle_left" if self._completed(vid) else "vehicle_lost")
         (self.active.add if item.alive else self.active.discard)(vid)
         (self.departed.discard if item.alive else self.departed.add)(vid)
-        self.event(kind, vehicle=vid)
+        if self.config.clock.mode != "lockstep" or (self.final_seen and not item.alive):
+            self.event(kind, vehicle=vid)  # lockstep: the world's ticks say who joined and left when
+
+    def _log_membership(self, tick: m.ClockTick) -> None:
+        """Lockstep: a vehicle joins when the world's tick first waits for it and is lost when a tick
+        no longer does, both at the start of that tick's interval (the previous tick's stamp). The
+        world decides membership at fixed ticks, so these stamps are reproducible; when this process
+        hears a liveliness token is not (it races with the truth of the next tick)."""
+        members = set(tick.members)
+        if self._members_logged is None and self.resumed:
+            self._members_logged = members  # a restarted ground station meets vehicles that joined long ago
+        since_us = self.previous_tick_us if self.previous_tick_us >= 0 else tick.stamp_us
+        for vid in sorted(members - (self._members_logged or set())):
+            self.events["vehicle_joined"] += 1
+            self.run.event("vehicle_joined", since_us, vehicle=vid)
+        for vid in sorted((self._members_logged or set()) - members):
+            self.run.event("vehicle_left" if self._completed(vid) else "vehicle_lost", since_us, vehicle=vid)
+        self._members_logged = members
 
     def _on_request(self, request: Request) -> None:
         """`swarm fault ...`: validate, apply, publish the new plan, answer with it. Id claims too."""
@@ -268,6 +286,8 @@ class GroundStation:
         self.final_seen = self.final_seen or tick.final
         self.sim_time_us = max(self.sim_time_us, tick.stamp_us)
         self.tick_members = set(tick.members) or None  # none listed: liveliness decides
+        if self.config.clock.mode == "lockstep":
+            self._log_membership(tick)
         self.faults.advance(tick.stamp_us)
         for vid, frame in self.intake.release(tick.stamp_us, self._stream_passed):
             self._on_mavlink(vid, frame)
