@@ -50,7 +50,7 @@ def up(
     mode: Optional[str] = typer.Option(None, help="lockstep (reproducible, as fast as possible) or realtime [default: lockstep]"),
     speed: Optional[float] = typer.Option(None, help="realtime only: sim seconds per wall second [default: 1]"),
     seed: Optional[int] = typer.Option(None, help="seed of trajectories and sensor noise [default: 0]"),
-    tick: Optional[float] = typer.Option(None, help="sim seconds the world advances per clock tick [default: 0.1 lockstep, 0.02 realtime]"),
+    tick: Optional[float] = typer.Option(None, help="sim seconds the world advances per clock tick [default: 0.5 lockstep, 0.02 realtime]"),
     out: Path = typer.Option(Path("runs"), help="parent folder of run directories"),
     name: Optional[str] = typer.Option(None, help="run directory name (a suffix is added if it exists) [default: the scenario's name, or run]"),
     quiet: bool = typer.Option(False, help="no progress display, only the final table"),

@@ -14,11 +14,12 @@ hundred times the datasheet).
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import chdtri
+
+from vehicle.chi_square import upper_quantile
 
 FLOOR, CEILING = 0.25, 100.0
 # the chi-square(2) 0.999999 quantile: innovations beyond it (spoofing, outliers) do not teach the estimate
-GATE = chdtri(2, 1e-6)
+GATE = upper_quantile(2, 1e-6)
 
 
 class InnovationWindow:

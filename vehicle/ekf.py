@@ -6,13 +6,14 @@ from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
-from scipy.special import chdtri
+
+from vehicle.chi_square import upper_quantile
 
 
 @cache
 def gate_threshold(dof: int, probability: float) -> float:
     """Chi-square quantile: innovations with NIS above it are rejected (PX4-style test ratio > 1)."""
-    return float(chdtri(dof, 1.0 - probability))  # inverse survival function of chi-square
+    return upper_quantile(dof, 1.0 - probability)  # inverse survival function of chi-square
 
 
 @dataclass(frozen=True)

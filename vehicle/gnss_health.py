@@ -23,8 +23,8 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import chdtri
 
+from vehicle.chi_square import upper_quantile
 from vehicle.ekf import gate_threshold
 
 
@@ -116,7 +116,7 @@ class GnssHealth:
         coef, *_ = np.linalg.lstsq(design, y, rcond=None)
         L = np.linalg.cholesky(np.mean([o[2] for o in self._outage], axis=0))
         residual = np.linalg.solve(L, (y - design @ coef).T)
-        if float(np.sum(residual**2)) > chdtri(2 * (n - 2), 1.0 - self.spec.reset_probability):
+        if float(np.sum(residual**2)) > upper_quantile(2 * (n - 2), 1.0 - self.spec.reset_probability):
             return None
         return coef[0] + coef[1] * (t[-1] - t.mean())
 
