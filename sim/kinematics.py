@@ -10,19 +10,37 @@ def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def chord_factor(half_turn: np.ndarray) -> np.ndarray:
+    """sin(a) / a elementwise (1 at a = 0): the chord of an arc turning 2a over its length."""
+    return np.divide(np.sin(half_turn), half_turn, out=np.ones_like(half_turn), where=half_turn != 0.0)
+
+
 def unicycle_step(pose: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.ndarray, dt_s: float) -> np.ndarray:
     """Exact arc integration of ``[x, y, theta]`` for inputs held constant over ``dt_s``.
 
     pose (N, 3) in m, m, rad; speed_mps and yaw_rate_radps (N,). Returns the new poses (N, 3).
     x is north, y east, theta from north towards east.
     """
-    theta = pose[:, 2]
-    dtheta = yaw_rate_radps * dt_s
-    # sin(dtheta/2)/(dtheta/2) is the chord factor of the arc; np.sinc(u) = sin(pi u)/(pi u).
-    chord = speed_mps * dt_s * np.sinc(dtheta / (2.0 * np.pi))
-    mid = theta + 0.5 * dtheta
+    return unicycle_arcs(pose, np.asarray(speed_mps)[None], np.asarray(yaw_rate_radps)[None], dt_s)
+
+
+def unicycle_arcs(pose: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.ndarray, dt_s: float) -> np.ndarray:
+    """S arcs in a row, each with its inputs held over ``dt_s``: pose (N, 3), speed_mps and
+    yaw_rate_radps (S, N). Each arc moves by its chord, speed dt sin(a) / a with a half its turn,
+    along the heading at its middle; the heading is wrapped once, at the end. Returns (N, 3)."""
+    turn = yaw_rate_radps * dt_s                                         # (S, N)
+    half = 0.5 * turn
+    chord = speed_mps * dt_s * chord_factor(half)
     out = np.empty_like(pose)
-    out[:, 0] = pose[:, 0] + chord * np.cos(mid)
-    out[:, 1] = pose[:, 1] + chord * np.sin(mid)
-    out[:, 2] = wrap_angle(theta + dtheta)
+    if len(turn) == 1:  # one arc (the common case): no running sums
+        mid = pose[:, 2] + half[0]
+        out[:, 0] = pose[:, 0] + chord[0] * np.cos(mid)
+        out[:, 1] = pose[:, 1] + chord[0] * np.sin(mid)
+        out[:, 2] = wrap_angle(pose[:, 2] + turn[0])
+        return out
+    end = pose[:, 2] + turn.cumsum(axis=0)                              # heading at each arc's end
+    mid = end - half
+    out[:, 0] = pose[:, 0] + (chord * np.cos(mid)).sum(axis=0)
+    out[:, 1] = pose[:, 1] + (chord * np.sin(mid)).sum(axis=0)
+    out[:, 2] = wrap_angle(end[-1])
     return out

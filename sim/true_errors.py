@@ -28,8 +28,10 @@ def wobble_tones(truth: SensorTruth, rng: np.random.Generator) -> tuple[np.ndarr
     return freq, phase, rms * np.sqrt(2.0 / WOBBLE_TONES)  # each tone's mean square is amplitude^2 / 2
 
 
-def wobble(t_s: float, freq: np.ndarray, phase: np.ndarray, amplitude: np.ndarray) -> np.ndarray:
-    """Input variation (N, 2) [m/s, rad/s] at ``t_s`` for N vehicles' tones (N, 2, tones), amplitudes (N, 2, 1)."""
+def wobble(t_s: float | np.ndarray, freq: np.ndarray, phase: np.ndarray, amplitude: np.ndarray) -> np.ndarray:
+    """Input variation (N, 2) [m/s, rad/s] at ``t_s`` for N vehicles' tones (N, 2, tones), amplitudes
+    (N, 2, 1); at times ``t_s`` of shape (..., 1, 1), (..., N, 2)."""
+    t_s = np.asarray(t_s)[..., None]  # against the tones' axis
     return np.sum(amplitude * np.sin(2.0 * np.pi * freq * t_s + phase), axis=-1)
 
 

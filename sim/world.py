@@ -18,7 +18,7 @@ from bus.config import SwarmConfig
 from bus.feed import CameraBlock
 from sim import sensors
 from sim.camera import camera_frame
-from sim.kinematics import unicycle_step
+from sim.kinematics import unicycle_arcs
 from sim.physical_faults import PhysicalFaults
 from sim.terrain import Terrain, load_terrain, procedural_terrain
 from sim.trajectories import make_trajectory, start_pads
@@ -121,6 +121,7 @@ class World:
         self.poses = np.array(poses)
         self._wobble = tuple(np.array(part) for part in zip(*tones))  # (N, 2, tones) x 2, (N, 2, 1)
         self._wobbles = bool(wc.sensor_truth.wobble_speed_mps or wc.sensor_truth.wobble_yaw_rate_radps)
+        self._wobble_block = np.zeros((BLOCK_STEPS, wc.sensor_truth.substeps, wc.vehicles, 2))
         self.faults = PhysicalFaults(config.faults)
         self._periods = {topic: _period_us(rate) for topic, rate in (
             ("odom", spec.odom_rate_hz), ("gnss", spec.gnss_rate_hz), ("ranging", spec.ranging_rate_hz),
@@ -170,8 +171,10 @@ class World:
         if k == 0:
             for v in self.vehicles:
                 self._draw_block(v)
+            if self._wobbles:
+                self._wobble_block = self._wobble_over(t_us)
         law = np.array([v.trajectory.inputs(t_us * 1e-6, pose) for v, pose in zip(self.vehicles, self.poses)])
-        inputs = self._true_inputs(law, t_us)
+        inputs = law + self._wobble_block[k, 0] if self._wobbles else law
         if t_us % self._periods["truth"] == 0:
             out.truth_stamps.append(t_us)
             out.truth.append(np.column_stack([self.poses, inputs]))
@@ -180,20 +183,22 @@ class World:
             v.gyro_bias = v.gyro_bias + v.noise["walk"][k]
         if t_us % self._periods["ranging"] == 0 and spec.ranging_max_m > 0 and spec.ranging_max_peers > 0:
             self._ranging(out, t_us, k)
-        self._move(law, t_us, dt)
+        self._move(law, k, dt)
         self.steps_done += 1
 
-    def _true_inputs(self, law: np.ndarray, t_us: int) -> np.ndarray:
-        """[speed m/s, yaw rate rad/s] (N, 2) at ``t_us``: the trajectories' law (N, 2) plus the wobble."""
-        return law + wobble(t_us * 1e-6, *self._wobble) if self._wobbles else law
-
-    def _move(self, law: np.ndarray, t_us: int, dt: float) -> None:
-        """Integrate the poses over one step in ``sensor_truth.substeps`` arcs, the inputs varying
-        from one to the next (finer than any filter, which holds sampled inputs)."""
+    def _wobble_over(self, t_us: int) -> np.ndarray:
+        """The input wobble (BLOCK_STEPS, substeps, N, 2) [m/s, rad/s] at every substep of the block of
+        steps starting at ``t_us`` (substep 0: the step's own stamp)."""
         substeps = self.config.world.sensor_truth.substeps
-        for s in range(substeps):
-            inputs = self._true_inputs(law, round(t_us + s * self.step_us / substeps))
-            self.poses = unicycle_step(self.poses, inputs[:, 0], inputs[:, 1], dt / substeps)
+        times_us = [[round(t_us + k * self.step_us + s * self.step_us / substeps) for s in range(substeps)]
+                    for k in range(BLOCK_STEPS)]
+        return wobble(np.array(times_us)[..., None, None] * 1e-6, *self._wobble)
+
+    def _move(self, law: np.ndarray, k: int, dt: float) -> None:
+        """Integrate the poses over step ``k`` of the block in ``sensor_truth.substeps`` arcs, the
+        inputs varying from one to the next (finer than any filter, which holds sampled inputs)."""
+        inputs = law + self._wobble_block[k] if self._wobbles else law[None]  # (substeps, N, 2)
+        self.poses = unicycle_arcs(self.poses, inputs[..., 0], inputs[..., 1], dt / inputs.shape[0])
 
     def _emit(self, rows: dict, v: _Vehicle, topic: str, t_us: int, row: np.ndarray) -> None:
         rows.setdefault(topic, []).append((t_us, v.next_seq(topic), row))
