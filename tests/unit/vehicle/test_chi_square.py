@@ -7,8 +7,8 @@ from scipy.special import chdtri, chdtrc
 from vehicle.chi_square import survival, upper_quantile
 
 
-@pytest.mark.parametrize("dof", [1, 2, 3, 4, 5, 6, 10, 45, 46, 100, 200])
-@pytest.mark.parametrize("tail", [0.9, 0.5, 0.05, 0.01, 1e-3, 1e-6, 1e-9])
+@pytest.mark.parametrize("dof", [1, 2, 3, 46, 200])
+@pytest.mark.parametrize("tail", [0.9, 0.05, 1e-6, 1e-9])
 def test_quantiles_match_scipy(dof, tail):
     assert upper_quantile(dof, tail) == pytest.approx(float(chdtri(dof, tail)), rel=1e-10)
 
