@@ -28,6 +28,7 @@ from bus.session import Bus, Envelope, LivelinessEvent, Request
 from groundstation.claims import IdRegister
 from groundstation.fault_control import FaultControl
 from groundstation.mavlink_in import MAX_STREAM_BYTES, MavlinkIntake
+from groundstation.membership import MembershipLog
 from groundstation.mavlink_out import MavlinkForwarder
 from groundstation.resume import resume_events, resume_tallies
 from groundstation.rundir import RunDirectory
@@ -73,7 +74,6 @@ class GroundStation:
         self.final_seen = False
         self.active: set[int] = set()  # vehicles alive on the bus
         self.tick_members: set[int] | None = None  # lockstep: the vehicles the world's last tick waited for
-        self._members_logged: set[int] | None = None  # lockstep: the members whose joining is logged
         self.departed: set[int] = set()
         self.world_alive = False
         self.world_seen = False
@@ -83,6 +83,7 @@ class GroundStation:
         self.faults = FaultControl(config.faults, vehicles=config.world.vehicles, log=self._fault_event)
         self.resumed = False
         self._resume(run_dir)
+        self.membership = MembershipLog(resumed=self.resumed)
         self._plan_sent_at = 0.0
         self._ack_due: int | None = None
         self.wall_start: float | None = None
@@ -149,20 +150,15 @@ class GroundStation:
             self.event(kind, vehicle=vid)  # lockstep: the world's ticks say who joined and left when
 
     def _log_membership(self, tick: m.ClockTick) -> None:
-        """Lockstep: a vehicle joins when the world's tick first waits for it and is lost when a tick
-        no longer does, both at the start of that tick's interval (the previous tick's stamp). The
-        world decides membership at fixed ticks, so these stamps are reproducible; when this process
-        hears a liveliness token is not (it races with the truth of the next tick)."""
-        members = set(tick.members)
-        if self._members_logged is None and self.resumed:
-            self._members_logged = members  # a restarted ground station meets vehicles that joined long ago
+        """Lockstep: joins and departures as the world's ticks say (groundstation.membership), stamped
+        at the start of the tick's interval (the previous tick's stamp)."""
+        joined, left = self.membership.change(tick.members)
         since_us = self.previous_tick_us if self.previous_tick_us >= 0 else tick.stamp_us
-        for vid in sorted(members - (self._members_logged or set())):
+        for vid in joined:
             self.events["vehicle_joined"] += 1
             self.run.event("vehicle_joined", since_us, vehicle=vid)
-        for vid in sorted((self._members_logged or set()) - members):
+        for vid in left:
             self.run.event("vehicle_left" if self._completed(vid) else "vehicle_lost", since_us, vehicle=vid)
-        self._members_logged = members
 
     def _on_request(self, request: Request) -> None:
         """`swarm fault ...`: validate, apply, publish the new plan, answer with it. Id claims too."""

@@ -121,7 +121,7 @@ class World:
         self.poses = np.array(poses)
         self._wobble = tuple(np.array(part) for part in zip(*tones))  # (N, 2, tones) x 2, (N, 2, 1)
         self._wobbles = bool(wc.sensor_truth.wobble_speed_mps or wc.sensor_truth.wobble_yaw_rate_radps)
-        self._wobble_block = np.zeros((BLOCK_STEPS, wc.sensor_truth.substeps, wc.vehicles, 2))
+        self._wobble_block: np.ndarray | None = None  # the current block's wobble (_wobble_over), when wobbling
         self.faults = PhysicalFaults(config.faults)
         self._periods = {topic: _period_us(rate) for topic, rate in (
             ("odom", spec.odom_rate_hz), ("gnss", spec.gnss_rate_hz), ("ranging", spec.ranging_rate_hz),
