@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+SCALAR_ARCS = 16  # up to this many arcs (substeps x vehicles) in plain floats: numpy's per-call cost dominates
 
 
 def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
@@ -28,6 +32,8 @@ def unicycle_arcs(pose: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.nd
     """S arcs in a row, each with its inputs held over ``dt_s``: pose (N, 3), speed_mps and
     yaw_rate_radps (S, N). Each arc moves by its chord, speed dt sin(a) / a with a half its turn,
     along the heading at its middle; the heading is wrapped once, at the end. Returns (N, 3)."""
+    if speed_mps.size <= SCALAR_ARCS:
+        return _arcs_in_floats(pose, speed_mps, yaw_rate_radps, dt_s)
     turn = yaw_rate_radps * dt_s                                         # (S, N)
     half = 0.5 * turn
     chord = speed_mps * dt_s * chord_factor(half)
@@ -43,4 +49,20 @@ def unicycle_arcs(pose: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.nd
     out[:, 0] = pose[:, 0] + (chord * np.cos(mid)).sum(axis=0)
     out[:, 1] = pose[:, 1] + (chord * np.sin(mid)).sum(axis=0)
     out[:, 2] = wrap_angle(end[-1])
+    return out
+
+
+def _arcs_in_floats(pose: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.ndarray, dt_s: float) -> np.ndarray:
+    """:func:`unicycle_arcs` for a few arcs, one float at a time (same arithmetic, same shapes)."""
+    out = np.empty_like(pose)
+    speeds, rates = speed_mps.T.tolist(), yaw_rate_radps.T.tolist()  # (N, S)
+    for n, (x, y, heading) in enumerate(pose.tolist()):
+        for speed, rate in zip(speeds[n], rates[n]):
+            half = 0.5 * rate * dt_s
+            chord = speed * dt_s * (math.sin(half) / half if half != 0.0 else 1.0)
+            mid = heading + half
+            x += chord * math.cos(mid)
+            y += chord * math.sin(mid)
+            heading += rate * dt_s
+        out[n] = (x, y, (heading + math.pi) % (2.0 * math.pi) - math.pi)
     return out

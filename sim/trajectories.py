@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-from sim.kinematics import wrap_angle
 
 
 @dataclass(frozen=True)
@@ -44,16 +45,21 @@ class Waypoints:
     reach_m: float = 3.0
 
     def inputs(self, t_s: float, pose: np.ndarray) -> tuple[float, float]:
-        target = self.points[self._index(pose)]
-        bearing = np.arctan2(target[1] - pose[1], target[0] - pose[0])
-        yaw_rate = self.gain_per_s * float(wrap_angle(bearing - pose[2]))
-        return self.speed_mps, float(np.clip(yaw_rate, -self.max_yaw_rate_radps, self.max_yaw_rate_radps))
+        x, y, heading = pose.tolist()
+        target_x, target_y = self._points[self._index(x, y)]
+        error = (math.atan2(target_y - y, target_x - x) - heading + math.pi) % (2.0 * math.pi) - math.pi
+        limit = self.max_yaw_rate_radps
+        return self.speed_mps, min(max(self.gain_per_s * error, -limit), limit)
 
-    def _index(self, pose: np.ndarray) -> int:
+    @cached_property
+    def _points(self) -> list[tuple[float, float]]:
+        return [tuple(point) for point in np.asarray(self.points, dtype=float).tolist()]
+
+    def _index(self, x: float, y: float) -> int:
         # The target is the nearest waypoint's successor, so the law needs no hidden state.
-        distances = np.hypot(self.points[:, 0] - pose[0], self.points[:, 1] - pose[1])
-        nearest = int(np.argmin(distances))
-        return (nearest + 1) % len(self.points) if distances[nearest] < 4 * self.reach_m else nearest
+        distances = [math.hypot(px - x, py - y) for px, py in self._points]
+        nearest = distances.index(min(distances))
+        return (nearest + 1) % len(distances) if distances[nearest] < 4 * self.reach_m else nearest
 
 
 def start_pads(count: int, spacing_m: float) -> np.ndarray:

@@ -26,13 +26,13 @@ def _anees(shared: float, rule: CooperativeRule, seed: int = 1) -> float:
     """Average pose NEES after one update when a share of the neighbour's position error is our own
     error (data incest); the prior and the neighbour each have covariance P[:2, :2]."""
     rng = np.random.default_rng(seed)
+    errors, owns = rng.multivariate_normal(np.zeros(4), P, RUNS), rng.multivariate_normal(np.zeros(2), P[:2, :2], RUNS)
+    noises = rng.multivariate_normal(np.zeros(2), R, RUNS)
+    h, _, _ = relative_model(TRUTH, NEIGHBOUR)
     nees = []
-    for _ in range(RUNS):
-        e = rng.multivariate_normal(np.zeros(4), P)
-        own = rng.multivariate_normal(np.zeros(2), P[:2, :2])
+    for e, own, noise in zip(errors, owns, noises):
         neighbour = NEIGHBOUR + shared * e[:2] + np.sqrt(1 - shared**2) * own
-        h, _, _ = relative_model(TRUTH, NEIGHBOUR)
-        z = h + rng.multivariate_normal(np.zeros(2), R)
+        z = h + noise
         fix = CooperativeFix(1, 0, 0, 2, z[0], z[1], R, neighbour, P[:2, :2])
         x_new, P_new, _ = cooperative_update(TRUTH + e, P, fix, 1e9, rule)
         d = (x_new - TRUTH)[:3]
@@ -107,13 +107,13 @@ OBSERVER = np.array([30.0, 10.0, -2.5])       # the neighbour that sights us: x 
 OBSERVER_P = np.diag([0.2, 0.2, 2e-4])
 
 
-def _seen_fix(x_own: np.ndarray, observer: np.ndarray, rng: np.random.Generator | None = None) -> SeenFix:
-    """The sighting the observer at OBSERVER takes of a vehicle at ``x_own`` (3,), noisy with R when
-    ``rng`` is given, paired with the observer's broadcast pose ``observer`` (3,)."""
+def _seen_fix(x_own: np.ndarray, observer: np.ndarray, noise: np.ndarray | None = None) -> SeenFix:
+    """The sighting the observer at OBSERVER takes of a vehicle at ``x_own`` (3,), with ``noise`` (2,)
+    (a draw of R) added when given, paired with the observer's broadcast pose ``observer`` (3,)."""
     dx, dy = x_own[:2] - OBSERVER[:2]
     z = np.array([np.hypot(dx, dy), np.arctan2(dy, dx) - OBSERVER[2]])
-    if rng is not None:
-        z = z + rng.multivariate_normal(np.zeros(2), R)
+    if noise is not None:
+        z = z + noise
     return SeenFix(1, 0, 0, 2, z[0], z[1], R, observer, OBSERVER_P)
 
 
@@ -174,13 +174,15 @@ def _seen_anees(shared: bool, rule: CooperativeRule, seed: int = 2) -> float:
     """Average pose NEES after one relayed sighting. ``shared``: the observer's whole position error
     is also part of ours (the rest of ours independent), each estimate still true to its covariance."""
     rng = np.random.default_rng(seed)
+    errors = rng.multivariate_normal(np.zeros(4), P, RUNS)
+    observer_errors = rng.multivariate_normal(np.zeros(3), OBSERVER_P, RUNS)
+    if shared:
+        rest = rng.multivariate_normal(np.zeros(2), P[:2, :2] - OBSERVER_P[:2, :2], RUNS)
+        errors[:, :2] = observer_errors[:, :2] + rest
+    noises = rng.multivariate_normal(np.zeros(2), R, RUNS)
     nees = []
-    for _ in range(RUNS):
-        e = rng.multivariate_normal(np.zeros(4), P)
-        observer_error = rng.multivariate_normal(np.zeros(3), OBSERVER_P)
-        if shared:
-            e[:2] = observer_error[:2] + rng.multivariate_normal(np.zeros(2), P[:2, :2] - OBSERVER_P[:2, :2])
-        fix = _seen_fix(TRUTH[:3], OBSERVER + observer_error, rng)
+    for e, observer_error, noise in zip(errors, observer_errors, noises):
+        fix = _seen_fix(TRUTH[:3], OBSERVER + observer_error, noise)
         x_new, P_new, _ = cooperative_update(TRUTH + e, P, fix, 1e9, rule)
         d = (x_new - TRUTH)[:3]
         nees.append(float(d @ np.linalg.solve(P_new[:3, :3], d)))

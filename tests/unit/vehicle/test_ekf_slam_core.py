@@ -128,6 +128,7 @@ def _circle_run(seed: int, *, duration_s: float = 60.0, dt_s: float = 0.1, belie
     rng = np.random.default_rng(seed)
     speed, radius, sub = 2.0, 20.0, 10
     sigma_v, sigma_w, R = 0.05, 0.02, np.diag([0.1**2, 0.01**2])
+    gate = chi2.ppf(0.9999, 2)
     landmarks = rng.uniform(-32, 32, size=(60, 2))
     truth = np.array([radius, 0.0, np.pi / 2])
     x, P = truth + rng.normal(size=3) * [0.1, 0.1, 0.01], np.diag([0.01, 0.01, 1e-4])
@@ -155,7 +156,7 @@ def _circle_run(seed: int, *, duration_s: float = 60.0, dt_s: float = 0.1, belie
             z = np.array([np.hypot(*d[i]), wrap_angle(np.arctan2(d[i, 1], d[i, 0]) - truth[2])])
             z = z + rng.normal(size=2) * np.sqrt(np.diag(R))
             if i in mapped:
-                update(x, P, 3, mapped[i], z, R * believed_noise**2, gate=chi2.ppf(0.9999, 2))
+                update(x, P, 3, mapped[i], z, R * believed_noise**2, gate=gate)
             else:
                 new.append((i, z))
         if new:
