@@ -42,8 +42,10 @@ def _ekf(spec: SensorSpec, gate_probability: float, kind: str = "ekf", adaptive_
                        adaptive_window=adaptive_window)
 
 
-def _run(world: World, estimator: UnicycleEkf, duration_s: float, every_us: int, on_truth) -> None:
-    """Feed the estimator cycle by cycle (50 Hz) and call ``on_truth(stamp, pose)`` every ``every_us``."""
+def _run(world: World, estimators: UnicycleEkf | list[UnicycleEkf], duration_s: float, every_us: int, on_truth) -> None:
+    """Feed the estimators (each the same samples) cycle by cycle (50 Hz) and call
+    ``on_truth(stamp, pose)`` every ``every_us`` while any of them is initialized."""
+    estimators = estimators if isinstance(estimators, list) else [estimators]
     step_us, left = 1_000_000, []
     for start in range(0, round(duration_s * 1e6), step_us):
         end = min(start + step_us - 1, round(duration_s * 1e6))
@@ -52,11 +54,14 @@ def _run(world: World, estimator: UnicycleEkf, duration_s: float, every_us: int,
         truth_at = {int(s): truth.rows[k, 0, :3] for k, s in enumerate(truth.stamps_us)}
         i = 0
         for t in range(start, end + 1, 20_000):
+            first = i
             while i < len(samples) and samples[i][1].stamp_us <= t:
-                estimator.handle(*samples[i])
                 i += 1
-            estimator.cycle(t)
-            if t % every_us == 0 and estimator.initialized:
+            for estimator in estimators:
+                for sample in samples[first:i]:
+                    estimator.handle(*sample)
+                estimator.cycle(t)
+            if t % every_us == 0 and any(e.initialized for e in estimators):
                 on_truth(t, truth_at[t])
         left = samples[i:]
 
@@ -71,22 +76,39 @@ def pose_nees_series(seed: int, *, duration_s: float, trajectory: str, every_us:
     its sensor_truth); ``estimator_spec`` what the filter assumes; ``kind`` picks the filter (ekf or
     ukf), ``adaptive_window`` turns IAE on; ``estimator_out`` receives the filter at the end.
     """
+    filters = [{"estimator_spec": estimator_spec, "kind": kind, "adaptive_window": adaptive_window}]
+    return nees_series_of_filters(seed, filters, duration_s=duration_s, trajectory=trajectory, every_us=every_us,
+                                  world_sensors=world_sensors, world=world, estimators_out=estimator_out)[0]
+
+
+def nees_series_of_filters(seed: int, filters: list[dict], *, duration_s: float, trajectory: str,
+                           every_us: int = 1_000_000, world_sensors: SensorSpec | None = None,
+                           world: dict | None = None, estimators_out: list | None = None
+                           ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`pose_nees_series` of several filters on one world (one simulation, each filter fed the
+    same samples): ``filters`` holds each one's ``estimator_spec``, ``kind`` and ``adaptive_window``
+    (any left out: the defaults); one (NEES, position error) pair per filter, in order."""
     sensors = (world_sensors or SensorSpec()).model_dump()
     config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": [trajectory], **(world or {})},
                            "sensors": sensors})
-    estimator = _ekf(estimator_spec or config.sensors, config.vehicle.gate_probability, kind, adaptive_window)
-    if estimator_out is not None:
-        estimator_out.append(estimator)
-    nees, errors = [], []
+    estimators = [_ekf(f.get("estimator_spec") or config.sensors, config.vehicle.gate_probability,
+                       f.get("kind", "ekf"), f.get("adaptive_window", 0)) for f in filters]
+    if estimators_out is not None:
+        estimators_out.extend(estimators)
+    nees: list[list[float]] = [[] for _ in filters]
+    errors: list[list[float]] = [[] for _ in filters]
 
     def score(t: int, pose: np.ndarray) -> None:
-        d = estimator.x[:3] - pose
-        d[2] = (d[2] + np.pi) % (2 * np.pi) - np.pi
-        nees.append(float(d @ np.linalg.solve(estimator.P[:3, :3], d)))
-        errors.append(float(np.hypot(d[0], d[1])))
+        for estimator, its_nees, its_errors in zip(estimators, nees, errors):
+            if not estimator.initialized:
+                continue
+            d = estimator.x[:3] - pose
+            d[2] = (d[2] + np.pi) % (2 * np.pi) - np.pi
+            its_nees.append(float(d @ np.linalg.solve(estimator.P[:3, :3], d)))
+            its_errors.append(float(np.hypot(d[0], d[1])))
 
-    _run(World(config), estimator, duration_s + 1e-6, every_us, score)
-    return np.array(nees), np.array(errors)
+    _run(World(config), estimators, duration_s + 1e-6, every_us, score)
+    return [(np.array(n), np.array(e)) for n, e in zip(nees, errors)]
 
 
 def gnss_fault_run(seed: int, *, duration_s: float, faults: list[dict], monitor: bool = True,

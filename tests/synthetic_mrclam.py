@@ -64,12 +64,12 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
             noisy[:, 1] += turn_sigma * np.sqrt(np.abs(commands[:, 1]) / 0.015) * rng.standard_normal(len(commands))
         # the robot follows the (noisy) command lag_s later: the odometry reports the command without that noise
         held = noisy[np.clip(np.searchsorted(command_t, fine - lag_s, side="right") - 1, 0, None)] * (1.0 + np.asarray(odom_scale))
-        pose = np.zeros((len(fine), 3))
-        pose[0] = [rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-np.pi, np.pi)]
-        for k in range(1, len(fine)):
-            v, w = held[k - 1]
-            x, y, th = pose[k - 1]
-            pose[k] = [x + v * 0.002 * np.cos(th), y + v * 0.002 * np.sin(th), th + w * 0.002]
+        start = [rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-np.pi, np.pi)]
+        # Euler steps of 2 ms, summed in the loop's order: pose[k] = pose[k - 1] + step(held[k - 1])
+        heading = np.cumsum(np.concatenate([[start[2]], held[:-1, 1] * 0.002]))
+        travel = held[:-1, 0] * 0.002
+        pose = np.column_stack([np.cumsum(np.concatenate([[start[0]], travel * np.cos(heading[:-1])])),
+                                np.cumsum(np.concatenate([[start[1]], travel * np.sin(heading[:-1])])), heading])
         pose[:, 2] = (pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
         truth = np.column_stack([fine, pose])[::5]
         sightings, persisting = [], {}  # landmark -> (time s, relative range error)

@@ -4,7 +4,7 @@ the real noise and its NEES comes back near its expected value."""
 
 import numpy as np
 
-from tests.offline import pose_nees_series
+from tests.offline import nees_series_of_filters
 from vehicle.adaptive import CEILING, FLOOR, InnovationWindow
 
 RUNS, DURATION_S, FROM_S = 40, 60.0, 30   # scored once the early over-confidence has worn off
@@ -29,14 +29,18 @@ def test_the_window_estimates_the_noise_and_stays_within_the_datasheet_bounds():
     assert np.isclose(np.linalg.eigvalsh(small.covariance(nominal)).max(), CEILING)
 
 
-def _monte_carlo(adaptive_window: int) -> tuple[np.ndarray, list]:
-    nees, filters = [], []
+def _monte_carlo() -> tuple[np.ndarray, np.ndarray, list]:
+    """NEES from FROM_S of the filter told the datasheet and of the one with IAE (RUNS, steps) each,
+    both on each run's world, and the IAE filters at the end."""
+    told, adapted, filters = [], [], []
     for seed in range(RUNS):
-        series, _ = pose_nees_series(seed, duration_s=DURATION_S, trajectory=("circle", "figure8", "waypoints")[seed % 3],
-                                     world={"sensor_truth": {"gnss_sigma_factor": TRUE_FACTOR}},
-                                     adaptive_window=adaptive_window, estimator_out=filters)
-        nees.append(series[FROM_S:])
-    return np.array(nees), filters
+        runs = nees_series_of_filters(seed, [{"adaptive_window": 0}, {"adaptive_window": 40}], duration_s=DURATION_S,
+                                      trajectory=("circle", "figure8", "waypoints")[seed % 3],
+                                      world={"sensor_truth": {"gnss_sigma_factor": TRUE_FACTOR}},
+                                      estimators_out=filters)
+        told.append(runs[0][0][FROM_S:])
+        adapted.append(runs[1][0][FROM_S:])
+    return np.array(told), np.array(adapted), filters[1::2]
 
 
 def _anees_interval(nees: np.ndarray) -> tuple[float, float]:
@@ -54,8 +58,7 @@ def test_iae_learns_the_real_gnss_noise_and_brings_the_nees_back_near_its_expect
     model's own over-confidence between fixes that weigh less now (dead reckoning alone: ANEES 3.35
     in test_cooperative_stages). Scored from 30 s: the early part, when it trusted the datasheet,
     takes a while to wear off."""
-    told, _ = _monte_carlo(adaptive_window=0)
-    adapted, filters = _monte_carlo(adaptive_window=40)
+    told, adapted, filters = _monte_carlo()
     assert _anees_interval(told)[0] > 10.0, _anees_interval(told)
     lo, hi = _anees_interval(adapted)
     assert 2.0 < lo and hi < 5.0, (lo, hi)
