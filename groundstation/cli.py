@@ -10,7 +10,7 @@ from typing import Callable, Optional
 import typer
 
 from bus.errors import SwarmlocError
-from groundstation.cli_errors import fail
+from groundstation.cli_errors import REPORT_HELP, fail
 from groundstation.experiment_commands import experiment_app
 from groundstation.fault_commands import fault_app
 from groundstation.replay_commands import replay_app
@@ -62,6 +62,7 @@ def up(
     tls_key: Optional[Path] = typer.Option(None, help="TLS: the router's PEM private key"),
     tls_ca: Optional[Path] = typer.Option(None, help="TLS: the PEM CA that signed the certificate"),
     fault_seed: Optional[int] = typer.Option(None, help="seed of link-fault decisions (independent of --seed) [default: 1]"),
+    report: bool = typer.Option(True, help=REPORT_HELP),
 ) -> None:
     """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table and write the report."""
     from bus.config import build_config
@@ -90,7 +91,7 @@ def up(
                                           secure=not insecure, security=security)
     except SwarmlocError as exc:
         fail(str(exc))
-    _print_result(run_dir, failures, notes)
+    _print_result(run_dir, failures, notes, report=report)
 
 
 @app.command()
@@ -135,7 +136,9 @@ def with_chaos(config, seed: int):
     return build_config(data)
 
 
-def _print_result(run_dir: Path, failures: list[str], notes: list[str]) -> None:
+def _print_result(run_dir: Path, failures: list[str], notes: list[str], *, report: bool = True) -> None:
+    """The run's table, then its report (``report``: written now; else how to write it later); exits
+    1 when a process failed, no summary was written or the report could not be."""
     from rich.console import Console
 
     from groundstation.display import rmse_table
@@ -156,7 +159,11 @@ def _print_result(run_dir: Path, failures: list[str], notes: list[str]) -> None:
     console.print(f"run directory: {run_dir}")
     from groundstation.display import report_and_say
 
-    report_ok = report_and_say(run_dir, console)
+    if report:
+        report_ok = report_and_say(run_dir, console)
+    else:
+        console.print(f"report: not written (--no-report); `swarm report {run_dir}` writes it", highlight=False)
+        report_ok = True
     if failures or not summary_path.exists() or not report_ok:
         raise typer.Exit(1)
 

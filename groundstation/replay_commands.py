@@ -9,7 +9,7 @@ import typer
 
 from bus.config import SwarmConfig
 from bus.errors import SwarmlocError
-from groundstation.cli_errors import fail
+from groundstation.cli_errors import REPORT_HELP, fail
 from groundstation.replay_setup import ESTIMATORS
 
 replay_app = typer.Typer(add_completion=False, no_args_is_help=True,
@@ -46,6 +46,7 @@ def mrclam(
     name: Optional[str] = typer.Option(None, help="run directory name [default: mrclam-<estimator>]"),
     quiet: bool = typer.Option(False, help="no progress display, only the final table"),
     insecure: bool = typer.Option(False, help="no zenoh logins, no access control, no MAVLink signing"),
+    report: bool = typer.Option(True, help=REPORT_HELP),
 ) -> None:
     """Replay the UTIAS MRCLAM data set (Leung et al., IJRR 2011): each robot a vehicle process, the
     world playing its odometry, landmark and robot sightings and Vicon truth on sim time, the ground
@@ -76,7 +77,7 @@ def mrclam(
                                           secure=not insecure)
     except SwarmlocError as exc:
         fail(str(exc))
-    _print_result(run_dir, failures, notes)
+    _print_result(run_dir, failures, notes, report=report)
 
 
 def _reference(config: SwarmConfig, out: Path) -> None:

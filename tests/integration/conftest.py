@@ -16,12 +16,15 @@ from bus.config import VehicleConfig
 ESTIMATES_PER_S = round(VehicleConfig().mavlink_rate_hz)  # ODOMETRY frames a vehicle sends the ground station
 
 
-def swarm_command(out: Path, *args: str) -> list[str]:
-    return [sys.executable, "-m", "groundstation.cli", "up", "--quiet", "--out", str(out), *args]
+def swarm_command(out: Path, *args: str, report: bool = False) -> list[str]:
+    """`swarm up` with ``args``; with ``report`` it writes its report (as by default), else --no-report:
+    only the tests about reports pay for the figures."""
+    return [sys.executable, "-m", "groundstation.cli", "up", "--quiet", "--out", str(out),
+            *(() if report else ("--no-report",)), *args]
 
 
-def run_swarm(out: Path, *args: str, timeout_s: float = 240) -> subprocess.CompletedProcess:
-    return subprocess.run(swarm_command(out, *args), capture_output=True, text=True, timeout=timeout_s,
+def run_swarm(out: Path, *args: str, timeout_s: float = 240, report: bool = False) -> subprocess.CompletedProcess:
+    return subprocess.run(swarm_command(out, *args, report=report), capture_output=True, text=True, timeout=timeout_s,
                           env={**os.environ, "COLUMNS": "200"})
 
 
@@ -53,11 +56,12 @@ def processes_matching(text: str) -> list[int]:
 
 @pytest.fixture(scope="session")
 def three_vehicle_runs(tmp_path_factory) -> list[Path]:
-    """Two lockstep runs of 3 vehicles for 30 s with the same seed (shared by several tests)."""
+    """Two lockstep runs of 3 vehicles for 30 s with the same seed (shared by several tests); the first
+    writes its report, the second does not (--no-report)."""
     dirs = []
-    for _ in range(2):
+    for copy in range(2):
         out = tmp_path_factory.mktemp("runs")
-        result = run_swarm(out, "--vehicles", "3", "--duration", "30", "--seed", "11", "--name", "same")
+        result = run_swarm(out, "--vehicles", "3", "--duration", "30", "--seed", "11", "--name", "same", report=copy == 0)
         assert result.returncode == 0, result.stdout + result.stderr
         dirs.append(out / "same")
     return dirs

@@ -27,7 +27,7 @@ for_s = 15.0
 def test_jammed_vehicle_flags_gnss_and_recovers(tmp_path):
     scenario = tmp_path / "jam.toml"
     scenario.write_text(SCENARIO)
-    result = run_swarm(tmp_path, str(scenario))
+    result = run_swarm(tmp_path, str(scenario), report=True)
     assert result.returncode == 0, result.stdout + result.stderr
     run_dir = tmp_path / "jam"
     events = [json.loads(line) for line in (run_dir / "events.jsonl").read_text().splitlines()]

@@ -22,7 +22,7 @@ EXCERPT = Path(__file__).resolve().parents[1] / "data" / "MRCLAM_Dataset6_first2
 
 def _replay(out: Path, *args: str) -> subprocess.CompletedProcess:
     command = [sys.executable, "-m", "groundstation.cli", "replay", "mrclam", str(EXCERPT), "--quiet",
-               "--out", str(out), "--name", "replay", "--duration", "120", *args]
+               "--out", str(out), "--name", "replay", "--duration", "120", "--no-report", *args]
     return subprocess.run(command, capture_output=True, text=True, timeout=300, env={**os.environ, "COLUMNS": "200"})
 
 

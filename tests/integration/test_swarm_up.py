@@ -40,11 +40,12 @@ def test_the_clock_tick_changes_no_estimate(three_vehicle_runs, tmp_path):
     assert result.returncode == 0, result.stdout + result.stderr
     assert (tmp_path / "same" / "metrics.csv").read_bytes() == (three_vehicle_runs[0] / "metrics.csv").read_bytes()
     assert (tmp_path / "same" / "summary.json").read_text() == (three_vehicle_runs[0] / "summary.json").read_text()
+    assert not (tmp_path / "same" / "report.html").exists() and "swarm report" in result.stdout  # --no-report
 
 
 def test_run_directory_is_complete(three_vehicle_runs):
     run = three_vehicle_runs[0]
-    for name in ("config.json", "metrics.csv", "events.jsonl", "summary.json", "timing.json"):
+    for name in ("config.json", "metrics.csv", "events.jsonl", "summary.json", "timing.json", "report.html"):
         assert (run / name).stat().st_size > 0, name
     for vid in (1, 2, 3):
         est, truth = (run / "tum" / f"est_v{vid}.tum").read_text().splitlines(), \
