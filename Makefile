@@ -3,9 +3,9 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
-# the suite runs in two pytest-xdist workers, a test file per worker at a time (module fixtures run once);
-# PARALLEL= runs it in one process
-PARALLEL ?= -n 2 --dist loadfile
+# the suite runs in two pytest-xdist workers, a test file per worker at a time (module fixtures run once),
+# in collection order: the long files first (tests/conftest.py); PARALLEL= runs it in one process
+PARALLEL ?= -n 2 --dist loadfile --no-loadscope-reorder
 
 .PHONY: demo test unit integration fuzz test-docker bench soak clean
 

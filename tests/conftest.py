@@ -3,7 +3,11 @@
 
 One BLAS thread per test process, as every swarm process has (groundstation/cli.py): with two
 pytest-xdist workers on two cores, OpenBLAS's threads in each spin against the other's (three
-seeded ekf-slam runs took 39 s side by side, 8 s with one thread each)."""
+seeded ekf-slam runs took 39 s side by side, 8 s with one thread each).
+
+The long files (integration, monte_carlo) are collected first: the suite's two workers take a file at
+a time in collection order (`--no-loadscope-reorder`), so the long ones start early and the many
+short ones fill in at the end instead of one worker finishing a long file alone."""
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -12,6 +16,10 @@ settings.register_profile("default", max_examples=300, deadline=None)
 settings.register_profile("fuzz-long", max_examples=10_000, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile("default")
+
+
+def pytest_collection_modifyitems(items: list) -> None:
+    items.sort(key=lambda item: not (item.get_closest_marker("integration") or item.get_closest_marker("monte_carlo")))
 
 
 @pytest.fixture(scope="session", autouse=True)

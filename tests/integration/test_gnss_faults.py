@@ -8,6 +8,8 @@ import pytest
 
 from tests.integration.conftest import read_summary, run_swarm
 
+pytestmark = pytest.mark.integration
+
 SCENARIO = """
 name = "jam"
 [world]

@@ -3,9 +3,13 @@ datasheet; a filter told GNSS is 3x better than it is turns over-confident, and 
 the real noise and its NEES comes back near its expected value."""
 
 import numpy as np
+import pytest
 
 from tests.offline import nees_series_of_filters
 from vehicle.adaptive import CEILING, FLOOR, InnovationWindow
+
+pytestmark = pytest.mark.monte_carlo
+
 
 RUNS, DURATION_S, FROM_S = 40, 60.0, 30   # scored once the early over-confidence has worn off
 TRUE_FACTOR = 3.0

@@ -9,6 +9,8 @@ from bus.config import HONEST_DATASHEET, HONEST_WORLD, build_config
 from groundstation.centralized_reference import run_centralized
 from tests.offline import pose_nees_series
 
+pytestmark = pytest.mark.monte_carlo
+
 
 @pytest.mark.parametrize("datasheet", [{}, HONEST_DATASHEET], ids=["white-gnss", "gnss-error-states"])
 def test_without_ranging_it_is_each_vehicles_own_ekf(datasheet):

@@ -4,12 +4,16 @@ states and re-localization included; with robot sightings its NEES stays inside 
 over seeded runs, and a robot that sees no landmark is kept on the map by being seen."""
 
 import numpy as np
+import pytest
 
 from groundstation.centralized_reference import run_centralized
 from sim.replay import ReplayWorld
 from tests.offline import replay_in_memory
 from tests.synthetic_mrclam import PERSISTING_SENSORS, PERSISTING_SIGHTING_SIGMAS, replay_config, synthetic
 from tests.unit.vehicle.test_known_map import _lost_start, _WrongPrior
+
+pytestmark = pytest.mark.monte_carlo
+
 
 RUNS = 12
 

@@ -14,6 +14,9 @@ from vehicle.cooperative import (WEIGHT_GRID, CooperativeFix, CooperativeRule, S
                                   relative_model, with_persisting_errors)
 from vehicle.ekf_slam_core import apply_correction_in_place
 
+pytestmark = pytest.mark.monte_carlo
+
+
 RUNS = 3000
 P = np.diag([1.0, 1.0, 0.01, 1e-6])
 R = np.diag([0.09, 0.0004])

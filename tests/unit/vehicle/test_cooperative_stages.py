@@ -14,11 +14,15 @@ is 1.92 +- 0.40, conservative while the swarm's absolute position is unobserved.
 """
 
 import numpy as np
+import pytest
 from scipy.stats import chi2
 
 from bus.config import build_config
 from groundstation.centralized_reference import run_centralized
 from tests.offline import swarm_in_memory
+
+pytestmark = pytest.mark.monte_carlo
+
 
 JAM_ALL = {"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 1000.0, "start_s": 5.0}
 V2V_DELAY = {"kind": "delay", "topic": "mavlink", "dst": "v*", "delay_s": 0.15, "jitter_s": 0.1}  # neighbours' broadcasts

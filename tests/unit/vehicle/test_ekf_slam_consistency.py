@@ -12,6 +12,9 @@ from bus.config import build_config
 from sim.world import World
 from vehicle.estimators.ekf_slam import EkfSlam
 
+pytestmark = pytest.mark.monte_carlo
+
+
 RUNS, CONTROL_RUNS, DURATION_S, CYCLE_US = 20, 8, 50, 20_000
 CHECKPOINTS_S = (10, 20, 30, 40, 50)
 

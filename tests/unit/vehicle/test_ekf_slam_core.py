@@ -10,6 +10,8 @@ from bus.angles import wrap_angle
 from vehicle.ekf_slam_core import (add_landmark_with_errors, add_landmarks, landmark_from, observe, predict_pose,
                                    update)
 
+pytestmark = pytest.mark.monte_carlo
+
 
 def _numeric_jacobian(f, at: np.ndarray, *, bearing: bool = False, eps: float = 1e-6) -> np.ndarray:
     """Forward differences of f at ``at``; with ``bearing`` the second output is an angle (wrapped)."""

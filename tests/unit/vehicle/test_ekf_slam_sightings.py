@@ -2,6 +2,7 @@
 they are (within their own 3-sigma) and localizes far better than dead reckoning on the same data."""
 
 import numpy as np
+import pytest
 from scipy.stats import chi2
 
 from bus import messages as m
@@ -9,6 +10,8 @@ from tests.offline import replay_in_memory
 from tests.synthetic_mrclam import (LANDMARKS, PERSISTING_SENSORS, PERSISTING_SIGHTING_SIGMAS, replay_config, synthetic,
                                      with_persisting_errors)
 from vehicle.estimators import ekf_slam, get_estimator
+
+pytestmark = pytest.mark.monte_carlo
 
 
 def test_slam_maps_identified_landmarks_and_beats_dead_reckoning():

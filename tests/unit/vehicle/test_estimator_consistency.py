@@ -8,6 +8,9 @@ from scipy.stats import chi2
 from bus.config import SensorSpec
 from tests.offline import nees_series_of_filters, pose_nees_series
 
+pytestmark = pytest.mark.monte_carlo
+
+
 RUNS = 50
 DOF = 3
 KINDS = ("circle", "figure8", "waypoints")

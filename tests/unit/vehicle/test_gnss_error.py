@@ -10,6 +10,9 @@ from bus.config import SensorSpec
 from tests.offline import nees_series_of_filters, pose_nees_series
 from vehicle.gnss_error import GnssErrorModel, aligned_covariance, augment_motion, observation
 
+pytestmark = pytest.mark.monte_carlo
+
+
 RUNS = 30
 KINDS = ("circle", "figure8", "waypoints")
 GAUSS_MARKOV_WORLD = {"sensor_truth": {"gnss_sigma_factor": 0.8, "gnss_walk_sigma_m": 0.9, "gnss_walk_tau_s": 60.0}}

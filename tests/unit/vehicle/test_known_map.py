@@ -15,6 +15,9 @@ from tests.synthetic_mrclam import (LANDMARKS, PERSISTING_SENSORS, PERSISTING_SI
 from vehicle.estimators import get_estimator
 from vehicle.estimators import known_map
 
+pytestmark = pytest.mark.monte_carlo
+
+
 RUNS, SAMPLES_FROM_S = 12, 20
 
 

@@ -9,6 +9,9 @@ from bus.config import HONEST_WORLD, SensorSpec
 from tests.offline import pose_nees_series
 from vehicle.wheel_slip import SlipGuard
 
+pytestmark = pytest.mark.monte_carlo
+
+
 ODOM_PERIOD_US = 20_000
 
 
