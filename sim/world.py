@@ -211,9 +211,9 @@ class World:
             self._emit(rows, v, "prior", t_us, np.concatenate([prior, cov.ravel()]))
         accel_fwd = (speed - v.last_speed_mps) / (self.step_us * 1e-6) if t_us else 0.0
         v.last_speed_mps = speed
-        gyro, accel = sensors.imu_sample(speed, accel_fwd, yaw_rate, v.gyro_bias, v.noise["gyro"][k], v.noise["accel"][k])
+        imu = sensors.imu_sample(speed, accel_fwd, yaw_rate, v.gyro_bias, v.noise["gyro"][k], v.noise["accel"][k])
         if not silenced(vid, "imu", t_us, pose):
-            self._emit(rows, v, "imu", t_us, np.concatenate([gyro, accel]))
+            self._emit(rows, v, "imu", t_us, imu)
         if t_us % self._periods["odom"] == 0:
             reading = v.errors.odometry(t_us, k, self._periods["odom"] * 1e-6, speed, yaw_rate, v.noise["odom"][k])
             if not silenced(vid, "odom", t_us, pose):
