@@ -190,9 +190,13 @@ class ReplayWorld:
                 first = self._cursor[vid, topic]
                 last = int(np.searchsorted(stamps, until_us, side="right"))
                 self._cursor[vid, topic] = last
-                keep = [i for i in range(first, last) if not self._silenced(vid, topic, int(stamps[i]))
-                        and not (topic == "ranging" and self._comm_lost(vid, int(rows[i, 0]), int(stamps[i])))]
-                if keep:
+                if first == last:
+                    continue
+                keep = np.arange(first, last)
+                if self.faults.faults:
+                    keep = keep[[not self._silenced(vid, topic, int(stamps[i])) and not (
+                        topic == "ranging" and self._comm_lost(vid, int(rows[i, 0]), int(stamps[i]))) for i in keep]]
+                if len(keep):
                     feeds[vid][topic] = (stamps[keep], self._sent[vid, topic], rows[keep])
                     self._sent[vid, topic] += len(keep)
         if self._relay:
