@@ -55,7 +55,7 @@ def live_display(mode: str, duration_s: float, quiet: bool) -> Iterator[Any]:
         def update(gs: Any) -> None:
             if gs.sim_time_us % 500_000 == 0:
                 from groundstation.summary import build_summary
-                summary = build_summary(gs.config, gs.scorer, gs.statuses, {}, "running",
+                summary = build_summary(gs.config, gs.scorer, gs.reports.statuses, {}, "running",
                                         rejected=gs.rejected_by_process())
                 live.update(rmse_table(summary, title=f"t = {gs.sim_time_us * 1e-6:.1f} s"))
         yield update

@@ -18,7 +18,7 @@ from bus import messages as m
 from bus.claims import ClaimReply, ClaimRequest
 from bus.config import SwarmConfig
 from bus.errors import DecodeError
-from bus.landmark_map import MAX_MAP_BYTES, LandmarkMap, decode_map, map_record
+from bus.landmark_map import MAX_MAP_BYTES, map_record
 from bus.link_faults import Arrival
 from bus.mailbox import Mailbox, Oversized
 from bus.mavlink_codec import EstimatorStatus, StateEstimate, StatusText
@@ -33,6 +33,7 @@ from groundstation.mavlink_out import MavlinkForwarder
 from groundstation.resume import resume_events, resume_tallies
 from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
+from groundstation.vehicle_reports import VehicleReports
 from groundstation.summary import build_summary, build_timing
 
 log = logging.getLogger("swarmloc.groundstation")
@@ -65,8 +66,7 @@ class GroundStation:
                                     fault_seed=config.fault_seed, faults=config.faults, rejections=self.rejections)
         self.forwarder = forwarder
         self.latency_us: dict[int, list[int]] = {}
-        self.statuses: dict[int, m.VehicleStatus] = {}
-        self.maps: dict[int, LandmarkMap] = {}  # the latest map of each SLAM vehicle
+        self.reports = VehicleReports(config.world.vehicles, self.rejections)  # loop statistics, SLAM maps
         self.events: Counter[str] = Counter()
         self.sim_time_us = 0
         self.previous_tick_us = -1
@@ -205,7 +205,7 @@ class GroundStation:
                 for vid, frame in self.intake.offer(key, parsed.vehicle_id, item.payload):
                     self._on_mavlink(vid, frame)
             elif parsed.topic == "status":
-                self._on_status_key(parsed.vehicle_id, item.payload)
+                self.reports.offer(parsed.vehicle_id, item.payload)
         except DecodeError as exc:
             self.rejections.reject("malformed", key, str(exc))
 
@@ -215,33 +215,6 @@ class GroundStation:
                 self.scorer.add_truth(vid, stamp, batch.rows[k, n, :3])
         if len(batch.stamps_us):
             self.latest_truth_us = max(self.latest_truth_us, int(batch.stamps_us[-1]))
-
-    def _on_status_key(self, vid: int, payload: bytes) -> None:
-        """The status key carries a vehicle's loop statistics and, from SLAM vehicles, its map."""
-        try:
-            status = m.decode(m.VehicleStatus, payload)
-        except DecodeError as not_status:
-            try:
-                landmark_map = decode_map(payload)
-            except DecodeError:
-                raise not_status from None
-            self._on_map(vid, landmark_map)
-            return
-        self._on_status(vid, status)
-
-    def _on_map(self, vid: int, landmark_map: LandmarkMap) -> None:
-        if landmark_map.vehicle_id != vid or vid > self.config.world.vehicles:
-            self.rejections.reject("impersonation" if landmark_map.vehicle_id != vid else "unknown_vehicle",
-                                   f"v/{vid}/status", f"map of vehicle {landmark_map.vehicle_id}")
-            return
-        self.maps[vid] = landmark_map
-
-    def _on_status(self, vid: int, status: m.VehicleStatus) -> None:
-        if status.vehicle_id != vid or vid > self.config.world.vehicles:
-            self.rejections.reject("impersonation" if status.vehicle_id != vid else "unknown_vehicle",
-                                   f"v/{vid}/status", f"status of vehicle {status.vehicle_id}")
-            return
-        self.statuses[vid] = status
 
     def _on_mavlink(self, vid: int, frame: bytes) -> None:
         decoded = self.intake.decode(vid, frame, self.sim_time_us)
@@ -343,13 +316,14 @@ class GroundStation:
             self.events["vehicle_lost"] = len(lost)
         self.event("run_ended", status=status, vehicles_lost=lost)
         self.rejections.counts["inbox_full"] = self.mailbox.dropped()
-        summary = build_summary(self.config, self.scorer, self.statuses, dict(sorted(self.events.items())), status,
+        statuses = self.reports.statuses
+        summary = build_summary(self.config, self.scorer, statuses, dict(sorted(self.events.items())), status,
                                 self.faults.faults, self.intake, self.rejected_by_process())
         self.run.write_json("summary.json", summary)
-        for vid, landmark_map in sorted(self.maps.items()):
+        for vid, landmark_map in sorted(self.reports.maps.items()):
             self.run.write_json(f"map_v{vid}.json", map_record(landmark_map))
         wall_s = (self.wall_end or time.perf_counter()) - (self.wall_start or time.perf_counter())
-        self.run.write_json("timing.json", build_timing(self.statuses, self.sim_time_us * 1e-6, wall_s, self.latency_us))
+        self.run.write_json("timing.json", build_timing(statuses, self.sim_time_us * 1e-6, wall_s, self.latency_us))
         self.run.close()
         return summary
 
@@ -359,5 +333,5 @@ class GroundStation:
         out = {"groundstation": self.rejections.as_counts()}
         if self.ended is not None and self.ended.rejected:
             out["world"] = self.ended.rejected
-        out.update({f"vehicle-{vid}": st.rejected for vid, st in sorted(self.statuses.items()) if st.rejected})
+        out.update({f"vehicle-{vid}": st.rejected for vid, st in sorted(self.reports.statuses.items()) if st.rejected})
         return out

@@ -94,7 +94,7 @@ def _await_final_data(gs: GroundStation, timeout_s: float) -> None:
     def missing() -> list[int]:
         return [vid for vid in end.completed
                 if gs.intake.stream_stamp_us.get(vid, -1) < last_odometry_us
-                or vid not in gs.statuses or not gs.statuses[vid].final]
+                or vid not in gs.reports.statuses or not gs.reports.statuses[vid].final]
 
     while missing() and time.monotonic() < deadline:
         item = gs.mailbox.get(0.1)

@@ -81,7 +81,7 @@ def test_the_ground_station_keeps_the_last_map_and_refuses_one_in_another_name(t
     gs.handle(Envelope(keys.status(1), PAYLOAD))        # vehicle 2's map on vehicle 1's key
     gs.handle(Envelope(keys.status(1), b"\x81\xa1x\x01"))  # neither a status nor a map
     assert counts_to_dict(gs.rejections.as_counts()) == {"impersonation": 1, "malformed": 1}
-    assert set(gs.maps) == {2} and 2 in gs.statuses
+    assert set(gs.reports.maps) == {2} and 2 in gs.reports.statuses
     gs.finish("complete")
     written = json.loads((tmp_path / "run" / "map_v2.json").read_text())
     assert written["landmarks"] == 3 and written["xy_m"][1] == [-3.5, 40.25] and written["t_s"] == 1.5

@@ -1,0 +1,43 @@
+"""What vehicles report on their status key besides estimates: their loop statistics (VehicleStatus)
+and, from SLAM vehicles, their landmark maps. Keeps the latest of each per vehicle; a report that
+names another vehicle than the key it came on, or a vehicle outside the swarm, is refused."""
+
+from __future__ import annotations
+
+from bus import messages as m
+from bus.errors import DecodeError
+from bus.landmark_map import LandmarkMap, decode_map
+from bus.rejections import Rejections
+
+
+class VehicleReports:
+    """The latest status and map of each of ``vehicles`` vehicles (ids 1..vehicles)."""
+
+    def __init__(self, vehicles: int, rejections: Rejections) -> None:
+        self.vehicles, self.rejections = vehicles, rejections
+        self.statuses: dict[int, m.VehicleStatus] = {}
+        self.maps: dict[int, LandmarkMap] = {}
+
+    def offer(self, vid: int, payload: bytes) -> None:
+        """A payload from ``v/<vid>/status``: a VehicleStatus, else a landmark map; DecodeError (the
+        status's) when it is neither."""
+        try:
+            status = m.decode(m.VehicleStatus, payload)
+        except DecodeError as not_status:
+            try:
+                landmark_map = decode_map(payload)
+            except DecodeError:
+                raise not_status from None
+            if self._belongs(vid, landmark_map.vehicle_id, "map"):
+                self.maps[vid] = landmark_map
+            return
+        if self._belongs(vid, status.vehicle_id, "status"):
+            self.statuses[vid] = status
+
+    def _belongs(self, vid: int, claimed: int, what: str) -> bool:
+        """True when a ``what`` claiming vehicle ``claimed`` may be kept for the key's vehicle ``vid``."""
+        if claimed == vid and vid <= self.vehicles:
+            return True
+        self.rejections.reject("impersonation" if claimed != vid else "unknown_vehicle", f"v/{vid}/status",
+                               f"{what} of vehicle {claimed}")
+        return False
