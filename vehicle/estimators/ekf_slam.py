@@ -71,7 +71,10 @@ class EkfSlam(SightingErrors, UnicycleEkf):
 
     def __init__(self, *, vehicle_id: int, spec: SensorSpec, gate_probability: float, altitude_m: float,
                  detector: str = "sift", reject: Reject | None = None, first_estimates: bool = True,
-                 cooperative: CooperativeRule = CooperativeRule(), adaptive_window: int = 0) -> None:
+                 cooperative: CooperativeRule = CooperativeRule(), adaptive_window: int = 0,
+                 front_end_results: dict | None = None) -> None:
+        """``front_end_results``: where the front end remembers each frame's keypoints by (stamp, seq);
+        estimators fed the same frames (a Monte Carlo comparison) may share one and detect once."""
         super().__init__(vehicle_id=vehicle_id, spec=spec, gate_probability=gate_probability, altitude_m=altitude_m,
                          cooperative=cooperative, adaptive_window=adaptive_window)
         cv2.setNumThreads(1)  # one core per vehicle process: OpenCV's thread pool would fight the others for it
@@ -85,7 +88,8 @@ class EkfSlam(SightingErrors, UnicycleEkf):
         self._prior_xy: np.ndarray | None = None    # position as last propagated, before any update (FEJ)
         self._good_until_us = -1
         self._judged_until_us = -1  # garbage frames are reported once, replays or not
-        self._seen_frames: dict[tuple[int, int], tuple] = {}  # front-end results by (stamp, seq), oldest first
+        self._seen_frames: dict[tuple[int, int], tuple] = {} if front_end_results is None else front_end_results
+        # ^ front-end results by (stamp, seq), oldest first
         self._slot: dict[int, int] = {}  # identified landmarks (replayed sightings): id -> map index; replaced, never changed
         self._scale_sigma = spec.odom_scale_prior_sigma
         self._init_sighting_errors(spec)
