@@ -106,17 +106,26 @@ def update_in_place(x: np.ndarray, P: np.ndarray, idx: list[int], H: np.ndarray,
     through H (2, q), noise R (2, 2), in place on x (n,) and P (n, n, C-contiguous); skipped when the
     NIS is above ``gate``. O(n) for the gain, O(n^2) flops for P, no n x n temporary."""
     PHt = P[:, idx] @ H.T                      # (n, 2) = P H^T
-    S = H @ PHt[idx] + R
-    S_inv = np.linalg.inv(S)
-    nis = float(y @ S_inv @ y)
+    (a, b), (_, d) = (H @ PHt[idx] + R).tolist()  # S, symmetric 2 x 2: in closed form below
+    if not math.isfinite(a + b + d + float(y[0]) + float(y[1])):
+        return UpdateResult(False, math.nan, math.nan)  # gated out, as a NaN NIS always was
+    l11 = math.sqrt(a) if a > 0.0 else math.nan
+    l21 = b / l11
+    l22 = math.sqrt(d - l21 * l21) if d - l21 * l21 > 0.0 else math.nan
+    if not (math.isfinite(l11) and math.isfinite(l22)):
+        raise np.linalg.LinAlgError("innovation covariance is not positive definite")
+    y0, y1 = y.tolist()
+    w0 = y0 / l11                              # w = L^-1 y, S = L L^T
+    w1 = (y1 - l21 * w0) / l22
+    nis = w0 * w0 + w1 * w1
     if not nis <= gate:
         return UpdateResult(False, nis, nis / gate)
-    x += PHt @ (S_inv @ y)
+    # P -= PHt S^-1 PHt^T = A A^T with A = PHt L^-T: two rank-1 updates in place; x += A^T w
+    row0 = PHt[:, 0] / l11
+    row1 = (PHt[:, 1] - l21 * row0) / l22
+    x += w0 * row0 + w1 * row1
     x[2] = wrap_angle(x[2])
-    # P -= PHt S^-1 PHt^T = A A^T with A = PHt L^-T (S^-1 = L^-T L^-1): two rank-1 updates in place
-    L = np.linalg.cholesky(S)
-    A = np.linalg.solve(L, PHt.T)              # (2, n) = L^-1 PHt^T
-    for row in A:
+    for row in (row0, row1):
         dger(-1.0, row, row, a=P.T, overwrite_a=True)
     return UpdateResult(True, nis, nis / gate)
 
