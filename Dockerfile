@@ -2,7 +2,7 @@
 FROM python:3.11-slim
 
 ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1 \
-    HOME=/home/swarm MPLCONFIGDIR=/tmp/matplotlib
+    HOME=/home/swarm MPLCONFIGDIR=/tmp/matplotlib OPENBLAS_NUM_THREADS=1
 # the unprivileged user is uid 1000 (numeric, so the image needs no passwd tools)
 RUN mkdir -p /runs /secrets /home/swarm && chown 1000:1000 /runs /secrets /home/swarm
 WORKDIR /app
