@@ -9,7 +9,6 @@ from functools import cached_property
 import numpy as np
 
 
-
 @dataclass(frozen=True)
 class Circle:
     """Constant speed on a circle of ``radius_m``, clockwise when seen from above (NED: yaw rate > 0)."""

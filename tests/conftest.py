@@ -19,7 +19,10 @@ settings.load_profile("default")
 
 
 def pytest_collection_modifyitems(items: list) -> None:
-    items.sort(key=lambda item: not (item.get_closest_marker("integration") or item.get_closest_marker("monte_carlo")))
+    def short(item) -> bool:
+        return not (item.get_closest_marker("integration") or item.get_closest_marker("monte_carlo"))
+
+    items.sort(key=short)  # stable: the order inside each group is kept
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -42,7 +42,8 @@ def _ekf(spec: SensorSpec, gate_probability: float, kind: str = "ekf", adaptive_
                        adaptive_window=adaptive_window)
 
 
-def _run(world: World, estimators: UnicycleEkf | list[UnicycleEkf], duration_s: float, every_us: int, on_truth) -> None:
+def _run(world: World, estimators: UnicycleEkf | list[UnicycleEkf], duration_s: float, every_us: int,
+         on_truth) -> None:
     """Feed the estimators (each the same samples) cycle by cycle (50 Hz) and call
     ``on_truth(stamp, pose)`` every ``every_us`` while any of them is initialized."""
     estimators = estimators if isinstance(estimators, list) else [estimators]
