@@ -1,7 +1,7 @@
 """`swarm replay mrclam` end to end on real data (the first 240 s of MRCLAM data set 6, Leung et al.,
 IJRR 2011): five robots as five vehicle processes over zenoh in lockstep, the datasheet calibrated on
 the first 120 s, the next 120 s scored. Every robot localizes against the surveyed map to better
-than 0.3 m, and a replay is reproducible to the byte."""
+than 0.3 m, and a cooperative replay is reproducible to the byte."""
 
 from __future__ import annotations
 
@@ -27,26 +27,32 @@ def _replay(out: Path, *args: str) -> subprocess.CompletedProcess:
 
 
 @pytest.fixture(scope="module")
-def known_map_runs(tmp_path_factory) -> tuple[Path, Path]:
-    runs = []
-    for copy in ("a", "b"):
-        out = tmp_path_factory.mktemp(f"replay-{copy}")
-        result = _replay(out, "--estimator", "known-map")
+def runs(tmp_path_factory) -> dict[str, Path]:
+    """The window replayed with known-map; and with landmark sightings withheld from robots 2 and 3,
+    alone and cooperating (twice: a cooperative replay, V2V pairing and relays included, must be
+    reproducible to the byte)."""
+    variants = {"known-map": (), "alone": ("--withhold-landmarks", "2,3"),
+                "together": ("--withhold-landmarks", "2,3", "--cooperative"),
+                "together-again": ("--withhold-landmarks", "2,3", "--cooperative")}
+    out = {}
+    for name, extra in variants.items():
+        folder = tmp_path_factory.mktemp(name)
+        result = _replay(folder, "--estimator", "known-map", *extra)
         assert result.returncode == 0, result.stdout + result.stderr
-        runs.append(out / "replay")
-    return runs[0], runs[1]
+        out[name] = folder / "replay"
+    return out
 
 
-def test_every_robot_localizes_against_the_map(known_map_runs):
-    summary = read_summary(known_map_runs[0])
+def test_every_robot_localizes_against_the_map(runs):
+    summary = read_summary(runs["known-map"])
     assert summary["status"] == "complete" and set(summary["vehicles"]) == {"1", "2", "3", "4", "5"}
     for vid, vehicle in summary["vehicles"].items():
         assert vehicle["samples"] >= (120 - 2) * ESTIMATES_PER_S, vid  # scored all along (Vicon gaps aside)
         assert vehicle["rmse_m"] < 0.3, (vid, vehicle["rmse_m"])
 
 
-def test_two_replays_give_identical_summaries(known_map_runs):
-    a, b = known_map_runs
+def test_two_replays_give_identical_summaries(runs):
+    a, b = runs["together"], runs["together-again"]
     assert (a / "summary.json").read_text() == (b / "summary.json").read_text()
     assert (a / "metrics.csv").read_bytes() == (b / "metrics.csv").read_bytes()
 
@@ -57,7 +63,7 @@ def test_a_window_overlapping_the_calibration_is_refused(tmp_path):
     assert "Traceback" not in result.stderr
 
 
-def test_the_centralized_reference_is_the_yardstick(known_map_runs, tmp_path):
+def test_the_centralized_reference_is_the_yardstick(runs, tmp_path):
     """One filter over all five robots in one process (no bus): it writes reference.json in the
     summary's shape, and with every sighting fused exactly it is more accurate than the robots'
     own known-map filters on the same window."""
@@ -66,21 +72,17 @@ def test_the_centralized_reference_is_the_yardstick(known_map_runs, tmp_path):
     reference = json.loads((tmp_path / "replay" / "reference.json").read_text())
     assert reference["reference"] == "centralized" and set(reference["vehicles"]) == {"1", "2", "3", "4", "5"}
     assert all(v["samples"] >= 500 and v["rmse_m"] < 0.3 for v in reference["vehicles"].values())
-    assert reference["swarm"]["rmse_m"] < read_summary(known_map_runs[0])["swarm"]["rmse_m"]
+    assert reference["swarm"]["rmse_m"] < read_summary(runs["known-map"])["swarm"]["rmse_m"]
     refused = _replay(tmp_path, "--estimator", "centralized", "--mode", "realtime")
     assert refused.returncode == 1 and "--mode realtime does not apply" in refused.stderr
 
 
-def test_cooperation_keeps_robots_without_landmarks_localized(tmp_path):
+def test_cooperation_keeps_robots_without_landmarks_localized(runs):
     """Landmark sightings withheld from robots 2 and 3: with cooperation every robot sighting is
     paired with the seen robot's broadcast (a camera sights robots between the broadcast epochs),
     and relayed to the robot seen, which fuses it with the observer's broadcast; the swarm's error
     is far below the robots' own (measured 0.15 m against 0.44 m; robot 3 0.14 against 0.93 m)."""
-    summaries = {}
-    for name, extra in (("alone", ()), ("together", ("--cooperative",))):
-        result = _replay(tmp_path / name, "--estimator", "known-map", "--withhold-landmarks", "2,3", *extra)
-        assert result.returncode == 0, result.stdout + result.stderr
-        summaries[name] = read_summary(tmp_path / name / "replay")
+    summaries = {name: read_summary(runs[name]) for name in ("alone", "together")}
     together = summaries["together"]
     assert all(v["v2v_missing"] == 0 for v in together["vehicles"].values())
     assert all(together["vehicles"][vid]["v2v_fused"] > 50 for vid in ("2", "3"))
