@@ -19,17 +19,9 @@ def chord_factor(half_turn: np.ndarray) -> np.ndarray:
     return np.divide(np.sin(half_turn), half_turn, out=np.ones_like(half_turn), where=half_turn != 0.0)
 
 
-def unicycle_step(pose: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.ndarray, dt_s: float) -> np.ndarray:
-    """Exact arc integration of ``[x, y, theta]`` for inputs held constant over ``dt_s``.
-
-    pose (N, 3) in m, m, rad; speed_mps and yaw_rate_radps (N,). Returns the new poses (N, 3).
-    x is north, y east, theta from north towards east.
-    """
-    return unicycle_arcs(pose, np.asarray(speed_mps)[None], np.asarray(yaw_rate_radps)[None], dt_s)
-
-
 def unicycle_arcs(pose: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.ndarray, dt_s: float) -> np.ndarray:
-    """S arcs in a row, each with its inputs held over ``dt_s``: pose (N, 3), speed_mps and
+    """Exact arc integration of ``[x, y, theta]`` (x north, y east, theta from north towards east; m,
+    m, rad) over S arcs in a row, each with its inputs held over ``dt_s``: pose (N, 3), speed_mps and
     yaw_rate_radps (S, N). Each arc moves by its chord, speed dt sin(a) / a with a half its turn,
     along the heading at its middle; the heading is wrapped once, at the end. Returns (N, 3)."""
     if speed_mps.size <= SCALAR_ARCS:

@@ -42,11 +42,9 @@ def _ekf(spec: SensorSpec, gate_probability: float, kind: str = "ekf", adaptive_
                        adaptive_window=adaptive_window)
 
 
-def _run(world: World, estimators: UnicycleEkf | list[UnicycleEkf], duration_s: float, every_us: int,
-         on_truth) -> None:
+def _run(world: World, estimators: list[UnicycleEkf], duration_s: float, every_us: int, on_truth) -> None:
     """Feed the estimators (each the same samples) cycle by cycle (50 Hz) and call
     ``on_truth(stamp, pose)`` every ``every_us`` while any of them is initialized."""
-    estimators = estimators if isinstance(estimators, list) else [estimators]
     step_us, left = 1_000_000, []
     for start in range(0, round(duration_s * 1e6), step_us):
         end = min(start + step_us - 1, round(duration_s * 1e6))
@@ -128,7 +126,7 @@ def gnss_fault_run(seed: int, *, duration_s: float, faults: list[dict], monitor:
         errors.append(float(np.hypot(*(estimator.x[:2] - pose[:2]))))
         healthy.append(estimator.gnss_health.healthy)
 
-    _run(World(config), estimator, duration_s, every_us, score)
+    _run(World(config), [estimator], duration_s, every_us, score)
     return {"t_s": np.array(t), "error_m": np.array(errors), "healthy": np.array(healthy)}
 
 

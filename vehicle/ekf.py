@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 
 from vehicle.chi_square import upper_quantile
 
 
-@cache
 def gate_threshold(dof: int, probability: float) -> float:
-    """Chi-square quantile: innovations with NIS above it are rejected (PX4-style test ratio > 1)."""
+    """Chi-square quantile: innovations with NIS above it are rejected (PX4-style test ratio > 1);
+    cached by vehicle.chi_square."""
     return upper_quantile(dof, 1.0 - probability)  # inverse survival function of chi-square
 
 

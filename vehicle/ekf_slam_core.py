@@ -107,14 +107,14 @@ def update_in_place(x: np.ndarray, P: np.ndarray, idx: list[int], H: np.ndarray,
     NIS is above ``gate``. O(n) for the gain, O(n^2) flops for P, no n x n temporary."""
     PHt = P[:, idx] @ H.T                      # (n, 2) = P H^T
     (a, b), (_, d) = (H @ PHt[idx] + R).tolist()  # S, symmetric 2 x 2: in closed form below
-    if not math.isfinite(a + b + d + float(y[0]) + float(y[1])):
+    y0, y1 = y.tolist()
+    if not math.isfinite(a + b + d + y0 + y1):
         return UpdateResult(False, math.nan, math.nan)  # gated out, as a NaN NIS always was
     l11 = math.sqrt(a) if a > 0.0 else math.nan
     l21 = b / l11
     l22 = math.sqrt(d - l21 * l21) if d - l21 * l21 > 0.0 else math.nan
     if not (math.isfinite(l11) and math.isfinite(l22)):
         raise np.linalg.LinAlgError("innovation covariance is not positive definite")
-    y0, y1 = y.tolist()
     w0 = y0 / l11                              # w = L^-1 y, S = L L^T
     w1 = (y1 - l21 * w0) / l22
     nis = w0 * w0 + w1 * w1

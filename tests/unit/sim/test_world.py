@@ -4,19 +4,33 @@ import numpy as np
 
 from bus import feed
 from bus.config import build_config
-from sim.kinematics import unicycle_step
+from sim import kinematics
+from sim.kinematics import unicycle_arcs
 from sim.world import World
 from tests.offline import samples_of
 
 
 def test_exact_arc_matches_fine_euler_integration():
     pose = np.array([[0.0, 0.0, 0.3]])
-    coarse = unicycle_step(pose, np.array([5.0]), np.array([0.4]), 0.5)
+    coarse = unicycle_arcs(pose, np.array([[5.0]]), np.array([[0.4]]), 0.5)
     fine = pose.copy()
     for _ in range(50_000):
         p = fine[0]
         fine = np.array([[p[0] + 5.0 * 1e-5 * np.cos(p[2]), p[1] + 5.0 * 1e-5 * np.sin(p[2]), p[2] + 0.4 * 1e-5]])
     np.testing.assert_allclose(coarse, fine, atol=1e-4)
+
+
+def test_a_few_arcs_in_floats_equal_the_array_path(monkeypatch):
+    """unicycle_arcs takes a few arcs one float at a time and many as arrays: the same arithmetic
+    (straight arcs included), so the same poses to rounding."""
+    rng = np.random.default_rng(3)
+    pose = rng.normal(0.0, 10.0, (3, 3))
+    speed, rate = rng.normal(2.0, 1.0, (5, 3)), rng.normal(0.0, 0.5, (5, 3))
+    rate[2, 1] = 0.0
+    floats = unicycle_arcs(pose, speed, rate, 0.002)
+    monkeypatch.setattr(kinematics, "SCALAR_ARCS", 0)
+    arrays = unicycle_arcs(pose, speed, rate, 0.002)
+    np.testing.assert_allclose(floats, arrays, rtol=0, atol=1e-12)
 
 
 def _encoded(world: World, until_us: int, step_us: int) -> tuple[list[bytes], list[np.ndarray]]:
