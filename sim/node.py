@@ -46,7 +46,7 @@ class Membership:
 
     expected: set[int]
     alive: set[int] = field(default_factory=set)
-    joining: set[int] = field(default_factory=set)  # restarted: in lockstep once their first ack arrives
+    joining: set[int] = field(default_factory=set)  # restarted: in lockstep once their first ack (any tick) arrives
     groundstation: bool = False
     supervisor: bool = False  # `swarm up` executes kill faults; lockstep holds the clock for them
     gs_seen: bool = False
@@ -199,11 +199,14 @@ class WorldNode:
             self.rejections.reject("unknown_vehicle", envelope.key, f"vehicle {ack.vehicle_id}")
             return
         self.members.on_v2v_count(ack.vehicle_id, ack.v2v_sent)
+        if ack.vehicle_id in self.members.joining:
+            # a restarted vehicle is in lockstep from its first ack, whichever tick it is for: one
+            # that starts slower than the swarm acks ticks the world has left behind, and the clock
+            # must wait for it to catch up, or it would never ack the current tick in time to join
+            self.members.joining.discard(ack.vehicle_id)
+            self.members.alive.add(ack.vehicle_id)
         if ack.tick == tick:
             self.members.acked.add(ack.vehicle_id)
-            if ack.vehicle_id in self.members.joining:
-                self.members.joining.discard(ack.vehicle_id)
-                self.members.alive.add(ack.vehicle_id)
 
     def wait_for_members(self, stop: threading.Event) -> None:
         """Until every vehicle and the ground station are alive and listen to what the world sends

@@ -69,3 +69,24 @@ def test_a_vehicle_that_leaves_before_its_final_ack_arrives_still_completed_the_
     node.await_final_acks(7, finishing, threading.Event(), timeout_s=5.0)
     late.join()
     assert node.members.acked == {1, 2, 3}
+
+
+def test_a_restarted_vehicle_that_acks_an_older_tick_is_waited_for_until_it_catches_up():
+    """A restarted process starts slower than the swarm: its first ack is for a tick the world has
+    already left. It joins lockstep all the same, and the next ticks wait for it (a vehicle that
+    joined only with an ack of the current tick could fall behind for good on a fast machine)."""
+    node = _world()
+    keys = node.bus.keys
+    for vid in (1, 2, 3):
+        node._handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
+    node._handle(LivelinessEvent(keys.alive("vehicle", 2), False), None)   # killed
+    node._handle(LivelinessEvent(keys.alive("vehicle", 2), True), None)    # restarted
+    assert node.members.alive == {1, 3} and node.members.joining == {2}
+    node.members.acked = set()
+    node._handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 29))), 31)    # behind: tick 29 while the world is at 31
+    assert node.members.alive == {1, 2, 3} and node.members.acked == set()
+    for vid in (1, 3):
+        node._handle(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 31))), 31)
+    assert not node.members.alive <= node.members.acked                    # the clock waits for vehicle 2
+    node._handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 31))), 31)
+    assert node.members.alive <= node.members.acked
