@@ -18,8 +18,16 @@ class _Ring:
         self._count += 1
 
     def p99(self) -> float:
+        """The 99th percentile, interpolated linearly between ranks (numpy's default method), by one
+        partition: np.percentile's first call costs ~6 ms, which every vehicle paid in the same cycle."""
         filled = self._values[:min(self._count, len(self._values))]
-        return float(np.percentile(filled, 99)) if len(filled) else 0.0
+        if not len(filled):
+            return 0.0
+        position = 0.99 * (len(filled) - 1)
+        low = int(position)
+        high = min(low + 1, len(filled) - 1)
+        ranked = np.partition(filled, (low, high))
+        return float(ranked[low] + (ranked[high] - ranked[low]) * (position - low))
 
 
 class LoopStats:

@@ -1,5 +1,6 @@
 """The vehicle's loop thread, in lockstep (cycles follow the world's ticks) or in realtime (cycles on
-wall-clock deadlines mapped from sim time by the world's first clock tick)."""
+wall-clock deadlines mapped from sim time by the world's first clock tick, at the vehicle's own phase
+of the period)."""
 
 from __future__ import annotations
 
@@ -72,22 +73,36 @@ def _wait_for_neighbours(node: VehicleNode, tick: m.ClockTick, t_us: int, later:
         node.write_off_unheard(unheard)
 
 
+def schedule_phase_s(vehicle_id: int, vehicles: int, period_s: float) -> float:
+    """How long after the world's tick at sim time t vehicle ``vehicle_id`` (1..``vehicles``) runs its
+    realtime cycle at t: i / (N + 1) of a period. Independent autopilots are not phase-locked to each
+    other; spreading them over the period means the host runs one vehicle's cycle at a time instead
+    of all N at the instant the world publishes (which made the last one late by N cycles' work)."""
+    return period_s * ((vehicle_id - 1) % vehicles + 1) / (vehicles + 1)
+
+
 def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
-    """Cycles run on wall-clock deadlines mapped from sim time by the world's first clock tick; a
-    cycle waits up to ``realtime_allowance_s`` past its deadline for the sensor batch covering it."""
+    """Cycles run on wall-clock deadlines mapped from sim time by the world's first clock tick, each
+    vehicle at its own phase of the period (``schedule_phase_s``). Between deadlines the loop thread
+    sleeps: what arrives waits in the mailbox (zenoh's thread only queues it) and is filed at the
+    deadline, then the cycle runs. A cycle waits up to ``realtime_allowance_s`` past its deadline for
+    the sensor batch covering it."""
     pacer: Pacer | None = None
     allowance_s = node.config.vehicle.realtime_allowance_s
+    speed = node.config.clock.speed
+    phase_ns = round(schedule_phase_s(node.vehicle_id, node.config.vehicles, node.period_us * 1e-6) / speed * 1e9)
     while not stop.is_set():
         node.world_watch.check()
-        if pacer is None:
-            timeout = 0.2
-        else:
+        timeout = 0.2
+        if pacer is not None:
             until = pacer.seconds_until(node.next_cycle_us)
+            if until > 0:
+                time.sleep(min(until, 0.2))
+                continue
             covered = node.inbound.received_stamp_us >= node.next_cycle_us
-            timeout = max(0.0, min(0.2, until if covered or until > 0 else until + allowance_s))
-        tick = node.take(node.mailbox.get(timeout))
-        if tick is not None:
-            pacer = pacer or Pacer(sim0_us=tick.stamp_us, wall0_ns=tick.wall_ns, speed=node.config.clock.speed)
+            timeout = 0.0 if covered else max(0.0, until + allowance_s)
+        for tick in _file_waiting(node, timeout):
+            pacer = pacer or Pacer(sim0_us=tick.stamp_us, wall0_ns=tick.wall_ns + phase_ns, speed=speed)
             if tick.final:
                 node.publish_status(tick.stamp_us, final=True)
                 node.outbound.flush()
@@ -95,6 +110,17 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
                 return
         if pacer is not None and _cycle_due(node, pacer, allowance_s):
             _realtime_cycle(node, pacer)
+
+
+def _file_waiting(node: VehicleNode, timeout: float) -> list[m.ClockTick]:
+    """File every item in the mailbox, waiting up to ``timeout`` s for the first; the clock ticks among them."""
+    ticks, item = [], node.mailbox.get(timeout)
+    while item is not None:
+        tick = node.take(item)
+        if tick is not None:
+            ticks.append(tick)
+        item = node.mailbox.get_nowait()
+    return ticks
 
 
 def _cycle_due(node: VehicleNode, pacer: Pacer, allowance_s: float) -> bool:
