@@ -83,49 +83,41 @@ def schedule_phase_s(vehicle_id: int, vehicles: int, period_s: float) -> float:
 
 def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
     """Cycles run on wall-clock deadlines mapped from sim time by the world's first clock tick, each
-    vehicle at its own phase of the period (``schedule_phase_s``). Between deadlines the loop thread
-    sleeps: what arrives waits in the mailbox (zenoh's thread only queues it) and is filed at the
-    deadline, then the cycle runs. A cycle waits up to ``realtime_allowance_s`` past its deadline for
-    the sensor batch covering it."""
+    vehicle at its own phase of the period (``schedule_phase_s``). After a cycle the loop files what
+    has arrived, one item at a time, until the mailbox is empty or the next deadline comes, then
+    sleeps to the deadline (zenoh's thread only queues what arrives meanwhile, it does not wake the
+    loop); at the deadline it files until the sensor batch covering the cycle is in, waiting up to
+    ``realtime_allowance_s`` for it, and runs the cycle. A flood of messages can delay filing, never
+    a cycle."""
     pacer: Pacer | None = None
     allowance_s = node.config.vehicle.realtime_allowance_s
     speed = node.config.clock.speed
     phase_ns = round(schedule_phase_s(node.vehicle_id, node.config.vehicles, node.period_us * 1e-6) / speed * 1e9)
     while not stop.is_set():
         node.world_watch.check()
-        timeout = 0.2
-        if pacer is not None:
+        if pacer is None:
+            tick = node.take(node.mailbox.get(0.2))
+        else:
             until = pacer.seconds_until(node.next_cycle_us)
             if until > 0:
-                time.sleep(min(until, 0.2))
+                item = node.mailbox.get_nowait()
+                if item is None:
+                    time.sleep(min(until, 0.2))
+                    continue
+                tick = node.take(item)
+            elif node.inbound.received_stamp_us >= node.next_cycle_us or until <= -allowance_s:
+                _realtime_cycle(node, pacer)
                 continue
-            covered = node.inbound.received_stamp_us >= node.next_cycle_us
-            timeout = 0.0 if covered else max(0.0, until + allowance_s)
-        for tick in _file_waiting(node, timeout):
-            pacer = pacer or Pacer(sim0_us=tick.stamp_us, wall0_ns=tick.wall_ns + phase_ns, speed=speed)
-            if tick.final:
-                node.publish_status(tick.stamp_us, final=True)
-                node.outbound.flush()
-                node.outbound.ack(tick.tick)
-                return
-        if pacer is not None and _cycle_due(node, pacer, allowance_s):
-            _realtime_cycle(node, pacer)
-
-
-def _file_waiting(node: VehicleNode, timeout: float) -> list[m.ClockTick]:
-    """File every item in the mailbox, waiting up to ``timeout`` s for the first; the clock ticks among them."""
-    ticks, item = [], node.mailbox.get(timeout)
-    while item is not None:
-        tick = node.take(item)
-        if tick is not None:
-            ticks.append(tick)
-        item = node.mailbox.get_nowait()
-    return ticks
-
-
-def _cycle_due(node: VehicleNode, pacer: Pacer, allowance_s: float) -> bool:
-    until = pacer.seconds_until(node.next_cycle_us)
-    return until <= 0 and (node.inbound.received_stamp_us >= node.next_cycle_us or until <= -allowance_s)
+            else:
+                tick = node.take(node.mailbox.get(until + allowance_s))
+        if tick is None:
+            continue
+        pacer = pacer or Pacer(sim0_us=tick.stamp_us, wall0_ns=tick.wall_ns + phase_ns, speed=speed)
+        if tick.final:
+            node.publish_status(tick.stamp_us, final=True)
+            node.outbound.flush()
+            node.outbound.ack(tick.tick)
+            return
 
 
 def _realtime_cycle(node: VehicleNode, pacer: Pacer) -> None:

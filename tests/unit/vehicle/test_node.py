@@ -191,3 +191,31 @@ def test_a_vehicle_whose_world_is_gone_stops_with_a_clear_error(monkeypatch):
     clock[0] += 2.0
     with pytest.raises(node_module.WorldGone, match="gone for 5 s"):
         node.world_watch.check()
+
+
+def test_realtime_a_flood_of_messages_delays_filing_never_a_cycle():
+    """Realtime: a cycle that is due runs before the loop files what is queued (a flood on the
+    neighbours' lane is filed between cycles, one item at a time)."""
+    import threading
+    import time as wall
+
+    from vehicle.loops import run_realtime
+
+    hub = MemoryHub()
+    node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": "realtime"}}).for_vehicle(), 1)
+    keys = node.bus.keys
+    world, neighbours = node.mailbox.lanes
+    world.put(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, wall.time_ns() - 10**9, False))))  # cycle 0 is long due
+    for _ in range(5000):
+        neighbours.put(Envelope(keys.v2v(2), b"junk"))
+    stop, queued_at_first_cycle = threading.Event(), []
+    cycle = node.cycle
+
+    def first_cycle(t_us: int) -> None:
+        queued_at_first_cycle.append(len(neighbours.items))
+        stop.set()
+        cycle(t_us)
+
+    node.cycle = first_cycle
+    run_realtime(node, stop)
+    assert queued_at_first_cycle == [5000]
