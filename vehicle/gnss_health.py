@@ -17,7 +17,6 @@ to 3 sigma (so a spoofer far away cannot capture the filter), and the position j
 
 from __future__ import annotations
 
-import copy
 import math
 from collections import deque
 from dataclasses import dataclass, field
@@ -26,6 +25,7 @@ import numpy as np
 
 from vehicle.chi_square import upper_quantile
 from vehicle.ekf import gate_threshold
+from vehicle.shallow import shallow_copy
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ class GnssHealth:
 
     def copy(self) -> "GnssHealth":
         """An independent copy (the windows are copied; their entries are never changed in place)."""
-        twin = copy.copy(self)
+        twin = shallow_copy(self)
         twin._window, twin._outage, twin.transitions = deque(self._window), deque(self._outage), list(self.transitions)
         return twin
 

@@ -14,9 +14,10 @@ with Student-t(5) noise. Without accelerometer samples since the last reading no
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass
+
+from vehicle.shallow import shallow_copy
 
 THRESHOLD_SIGMAS = 6.0
 LEVEL_GAIN = 0.3       # low-pass of the level over readings
@@ -72,4 +73,4 @@ class SlipGuard:
         return reading_mps - self.offset_mps
 
     def copy(self) -> "SlipGuard":
-        return copy.copy(self)  # every field is an immutable scalar
+        return shallow_copy(self)  # every field is an immutable scalar

@@ -9,7 +9,6 @@ Pure: no bus, no clock.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 from functools import partial
@@ -32,6 +31,7 @@ from vehicle.ekf import UpdateResult, gate_threshold, gated_update
 from vehicle.estimators.base import SEVERITY_INFO, SEVERITY_WARNING, EstimatorCounters, Notice
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 from vehicle.inputs import HeldInput, swept
+from vehicle.shallow import shallow_copy
 from vehicle.wheel_slip import SlipGuard
 
 GYRO_STALE_PERIODS = 5
@@ -348,9 +348,9 @@ class UnicycleEkf:
                 state[key] = state[key].copy()
         for key in ("speed", "gyro", "odom_yaw"):
             state[key] = state[key].copy()
-        state["counters"] = dataclasses.replace(state["counters"])
+        state["counters"] = shallow_copy(state["counters"])
         state["gnss_health"] = state["gnss_health"].copy()
-        state["alignment"] = copy.copy(state["alignment"])
+        state["alignment"] = shallow_copy(state["alignment"])  # its fields are replaced, never changed in place
         state["slip"] = state["slip"].copy()
         if state["iae"] is not None:
             state["iae"] = state["iae"].copy()
