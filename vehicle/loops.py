@@ -88,12 +88,18 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
     sleeps to the deadline (zenoh's thread only queues what arrives meanwhile, it does not wake the
     loop); at the deadline it files until the sensor batch covering the cycle is in, waiting up to
     ``realtime_allowance_s`` for it, and runs the cycle. A flood of messages can delay filing, never
-    a cycle."""
+    a cycle. The final clock tick ends the loop once the cycles up to its stamp have run."""
     pacer: Pacer | None = None
+    final: m.ClockTick | None = None  # the world has ended the run at final.stamp_us
     allowance_s = node.config.vehicle.realtime_allowance_s
     speed = node.config.clock.speed
     phase_ns = round(schedule_phase_s(node.vehicle_id, node.config.vehicles, node.period_us * 1e-6) / speed * 1e9)
     while not stop.is_set():
+        if final is not None and node.next_cycle_us > final.stamp_us:
+            node.publish_status(final.stamp_us, final=True)
+            node.outbound.flush()
+            node.outbound.ack(final.tick)
+            return
         node.world_watch.check()
         if pacer is None:
             tick = node.take(node.mailbox.get(0.2))
@@ -114,10 +120,7 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
             continue
         pacer = pacer or Pacer(sim0_us=tick.stamp_us, wall0_ns=tick.wall_ns + phase_ns, speed=speed)
         if tick.final:
-            node.publish_status(tick.stamp_us, final=True)
-            node.outbound.flush()
-            node.outbound.ack(tick.tick)
-            return
+            final = tick  # the cycles up to its stamp still run (its batch may come after it: keys are not ordered)
 
 
 def _realtime_cycle(node: VehicleNode, pacer: Pacer) -> None:

@@ -219,3 +219,26 @@ def test_realtime_a_flood_of_messages_delays_filing_never_a_cycle():
     node.cycle = first_cycle
     run_realtime(node, stop)
     assert queued_at_first_cycle == [5000]
+
+
+def test_realtime_the_final_tick_ends_the_loop_after_the_cycles_up_to_its_stamp():
+    """Realtime: the final clock tick can overtake the last sensor batch (different keys); the loop
+    still runs its cycles up to the final stamp, with that batch, before its final status and ack."""
+    import threading
+    import time as wall
+
+    from vehicle.loops import run_realtime
+
+    hub = MemoryHub()
+    node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": "realtime"}}).for_vehicle(), 1)
+    keys = node.bus.keys
+    acks = queue.Queue()
+    hub.add_subscription(keys.ack(1), acks)
+    world = node.mailbox.lanes[0]
+    for item in (Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, wall.time_ns(), False))),
+                 Envelope(keys.clock(), m.encode(m.ClockTick(1, 20_000, wall.time_ns(), True))),  # before the batches
+                 Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)), Envelope(keys.feed(1), _batch(1, 1, 20_000, {}))):
+        world.put(item)
+    run_realtime(node, threading.Event())
+    assert node.stats.cycles == 2 and node.estimator.initialized and node.estimator.time_us == 20_000
+    assert m.decode(m.TickAck, acks.get_nowait().payload).tick == 1
