@@ -62,10 +62,14 @@ class Mailbox:
     def _take(self) -> Any:
         for lane in self.lanes:
             if lane.items:
-                item, size = lane.items.popleft()
-                lane.bytes -= size
-                return item
+                return self._pop(lane)
         return None
+
+    @staticmethod
+    def _pop(lane: Lane) -> Any:
+        item, size = lane.items.popleft()
+        lane.bytes -= size
+        return item
 
     def get(self, timeout: float | None = None) -> Any:
         """The next item by lane order, waiting up to ``timeout`` seconds; None when nothing came."""
@@ -83,6 +87,11 @@ class Mailbox:
     def get_nowait(self) -> Any:
         with self.cond:
             return self._take()
+
+    def get_nowait_from(self, lane: Lane) -> Any:
+        """The next item of ``lane`` only (None when it is empty)."""
+        with self.cond:
+            return self._pop(lane) if lane.items else None
 
     def empty(self) -> bool:
         with self.cond:

@@ -87,8 +87,9 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
     has arrived, one item at a time, until the mailbox is empty or the next deadline comes, then
     sleeps to the deadline (zenoh's thread only queues what arrives meanwhile, it does not wake the
     loop); at the deadline it files until the sensor batch covering the cycle is in, waiting up to
-    ``realtime_allowance_s`` for it, and runs the cycle. A flood of messages can delay filing, never
-    a cycle. The final clock tick ends the loop once the cycles up to its stamp have run."""
+    ``realtime_allowance_s`` for it, and runs the cycle (a late loop first files what the world sent:
+    a batch may be queued behind). A flood of the neighbours' messages can delay filing, never a
+    cycle. The final clock tick ends the loop once the cycles up to its stamp have run."""
     pacer: Pacer | None = None
     final: m.ClockTick | None = None  # the world has ended the run at final.stamp_us
     allowance_s = node.config.vehicle.realtime_allowance_s
@@ -111,9 +112,15 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
                     time.sleep(min(until, 0.2))
                     continue
                 tick = node.take(item)
-            elif node.inbound.received_stamp_us >= node.next_cycle_us or until <= -allowance_s:
+            elif node.inbound.received_stamp_us >= node.next_cycle_us:
                 _realtime_cycle(node, pacer)
                 continue
+            elif until <= -allowance_s:  # late: what the world sent is filed first, then the cycle runs
+                item = node.mailbox.get_nowait_from(node.world_lane)
+                if item is None:
+                    _realtime_cycle(node, pacer)
+                    continue
+                tick = node.take(item)
             else:
                 tick = node.take(node.mailbox.get(until + allowance_s))
         if tick is None:

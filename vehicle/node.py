@@ -73,6 +73,7 @@ class VehicleNode:
         self.rejections = Rejections(log, f"vehicle {vehicle_id}")
         self.mailbox = Mailbox()
         world, neighbours = self.mailbox.lane("world", max_items=20_000), self.mailbox.lane("v2v", max_items=20_000)
+        self.world_lane = world  # the feed, the clock, the fault plan and liveliness
         bus.subscribe(keys.clock(), world, MAX_CLOCK_BYTES)
         bus.subscribe(keys.fault_plan(), world, MAX_PLAN_BYTES)
         bus.subscribe(keys.feed(vehicle_id), world, MAX_BATCH_BYTES)

@@ -28,6 +28,16 @@ def test_byte_bound_refuses_big_items():
     assert lane.put(Envelope("k", b"1234567890")) and not lane.put(Envelope("k", b"1"))
 
 
+def test_get_nowait_from_takes_from_that_lane_only_and_frees_its_bytes():
+    box = Mailbox()
+    first, second = box.lane("first"), box.lane("second")
+    second.put(Envelope("k/b", b"12345"))
+    assert box.get_nowait_from(first) is None
+    first.put(Envelope("k/a", b"xyz"))
+    assert box.get_nowait_from(second).key == "k/b" and second.bytes == 0
+    assert box.get_nowait_from(first).key == "k/a" and first.bytes == 0 and box.empty()
+
+
 def test_get_wakes_up_when_another_thread_puts():
     box = Mailbox()
     lane = box.lane("x")

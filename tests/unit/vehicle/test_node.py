@@ -242,3 +242,24 @@ def test_realtime_the_final_tick_ends_the_loop_after_the_cycles_up_to_its_stamp(
     run_realtime(node, threading.Event())
     assert node.stats.cycles == 2 and node.estimator.initialized and node.estimator.time_us == 20_000
     assert m.decode(m.TickAck, acks.get_nowait().payload).tick == 1
+
+
+def test_realtime_a_late_loop_files_the_queued_batches_before_cycling():
+    """Realtime, far behind schedule: the batches already queued are filed before each cycle runs
+    (no cycle runs blind with its data in the mailbox, to be fused late by a replay after)."""
+    import threading
+    import time as wall
+
+    from vehicle.loops import run_realtime
+
+    hub = MemoryHub()
+    node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": "realtime"}}).for_vehicle(), 1)
+    keys = node.bus.keys
+    long_ago = wall.time_ns() - 10**9  # every deadline of this run is past
+    for item in (Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, long_ago, False))),
+                 Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)), Envelope(keys.feed(1), _batch(1, 1, 20_000, {})),
+                 Envelope(keys.clock(), m.encode(m.ClockTick(1, 20_000, long_ago, True)))):
+        node.world_lane.put(item)
+    run_realtime(node, threading.Event())
+    assert node.stats.cycles == 2 and node.estimator.time_us == 20_000
+    assert node.fusion.counters.replays == 0 and node.fusion.counters.dropped_stale == 0
