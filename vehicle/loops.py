@@ -102,32 +102,34 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
             node.outbound.ack(final.tick)
             return
         node.world_watch.check()
-        if pacer is None:
-            tick = node.take(node.mailbox.get(0.2))
-        else:
-            until = pacer.seconds_until(node.next_cycle_us)
-            if until > 0:
-                item = node.mailbox.get_nowait()
-                if item is None:
-                    time.sleep(min(until, 0.2))
-                    continue
-                tick = node.take(item)
-            elif node.inbound.received_stamp_us >= node.next_cycle_us:
-                _realtime_cycle(node, pacer)
-                continue
-            elif until <= -allowance_s:  # late: what the world sent is filed first, then the cycle runs
-                item = node.mailbox.get_nowait_from(node.world_lane)
-                if item is None:
-                    _realtime_cycle(node, pacer)
-                    continue
-                tick = node.take(item)
-            else:
-                tick = node.take(node.mailbox.get(until + allowance_s))
+        tick = node.take(node.mailbox.get(0.2)) if pacer is None else _realtime_step(node, pacer, allowance_s)
         if tick is None:
             continue
         pacer = pacer or Pacer(sim0_us=tick.stamp_us, wall0_ns=tick.wall_ns + phase_ns, speed=speed)
         if tick.final:
             final = tick  # the cycles up to its stamp still run (its batch may come after it: keys are not ordered)
+
+
+def _realtime_step(node: VehicleNode, pacer: Pacer, allowance_s: float) -> m.ClockTick | None:
+    """One step of the realtime loop: before the deadline, file one item or sleep to the deadline;
+    at it, run the cycle once its batch is in, else file (waiting up to the allowance for the batch;
+    past it, only what the world sent, and cycle without the batch when none is queued). Returns the
+    clock tick it filed, if any."""
+    until = pacer.seconds_until(node.next_cycle_us)
+    if until > 0:
+        item = node.mailbox.get_nowait()
+        if item is None:
+            time.sleep(min(until, 0.2))
+        return node.take(item)
+    if node.inbound.received_stamp_us >= node.next_cycle_us:
+        _realtime_cycle(node, pacer)
+        return None
+    if until > -allowance_s:
+        return node.take(node.mailbox.get(until + allowance_s))
+    item = node.mailbox.get_nowait_from(node.world_lane)
+    if item is None:
+        _realtime_cycle(node, pacer)
+    return node.take(item)
 
 
 def _realtime_cycle(node: VehicleNode, pacer: Pacer) -> None:
