@@ -107,6 +107,9 @@ class SensorSpec(_Strict):
                                                "error variance, the part that persists in time (0: white); "
                                                "known-map and slam estimate it per landmark")
     bearing_correlation_s: float = Field(5.0, gt=0, le=1e4, description="correlation time of that part")
+    range_scale_prior_sigma: float = Field(0.0, ge=0, le=0.5, description="how far a camera's range scale may "
+                                           "be off (0.05: 5 %, every landmark read that much long or short); "
+                                           "known-map then estimates it (0: taken as exact)")
     odom_scale_prior_sigma: float = Field(0.0, ge=0, le=0.5, description="how far the wheel odometry's speed "
                                           "and yaw-rate scales may be off (0.1: 10 %); known-map then "
                                           "estimates both (0: taken as exact)")

@@ -25,6 +25,7 @@ RATE_HZ = 50.0  # the vehicles' loop and the truth grid; clock ticks as in `swar
 # The robots' wheel scales are not calibrated (the first minutes turn too little to tell a scale from
 # noise): a nominal 10 % datasheet spread, which known-map estimates online (vehicle.added_states).
 ODOM_SCALE_PRIOR_SIGMA = 0.1
+RANGE_SCALE_PRIOR_SIGMA = 0.05
 
 
 @dataclass(frozen=True)
@@ -76,6 +77,7 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
                     "range_correlation_s": cal.range_correlation_s,
                     "bearing_correlated_fraction": cal.bearing_correlated_fraction,
                     "bearing_correlation_s": cal.bearing_correlation_s, "odom_scale_prior_sigma": ODOM_SCALE_PRIOR_SIGMA,
+                    "range_scale_prior_sigma": RANGE_SCALE_PRIOR_SIGMA,
                     "prior_heading_sigma_rad": PRIOR_HEADING_SIGMA_RAD},
         "vehicle": {"estimator": ESTIMATORS[choice.estimator], "cooperative": choice.cooperative,
                     "landmarks": landmarks if choice.estimator in USES_MAP else []},

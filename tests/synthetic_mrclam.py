@@ -5,7 +5,8 @@ room with surveyed landmarks, Vicon truth at 100 Hz, odometry at ~67 Hz that the
 scales are off (the robot moves at (1 + ``odom_scale``) times the speed and yaw rate the odometry
 reports) and the range error grows with the range (``range_sigma_per_m``, white) and persists (a
 Gauss-Markov error per robot and landmark, ``range_correlated_per_m`` of the range, correlation time
-``range_correlation_s``)."""
+``range_correlation_s``), and the camera's range scale may be off (it reads every range
+(1 + ``range_scale``) times as long)."""
 
 from __future__ import annotations
 
@@ -51,7 +52,8 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
               odom_scale: tuple[float, float] = (0.0, 0.0), range_sigma_per_m: float = 0.0,
               range_correlated_per_m: float = 0.0, range_correlation_s: float = 5.0,
               robot_sighting_rate_hz: float = 0.0, camera_latency_s: float = 0.0,
-              bearing_correlated_fraction: float = 0.0, bearing_correlation_s: float = 5.0) -> MrclamData:
+              bearing_correlated_fraction: float = 0.0, bearing_correlation_s: float = 5.0,
+              range_scale: float = 0.0) -> MrclamData:
     logs, poses = {}, {}
     for robot in range(1, robots + 1):
         fine = np.arange(0.0, duration_s, 0.002)
@@ -99,7 +101,7 @@ def synthetic(rng: np.random.Generator, *, robots: int = 2, duration_s: float = 
                     bearing_noise = error + rng.normal(0, bearing_sigma * np.sqrt(1.0 - bearing_correlated_fraction))
                 else:
                     bearing_noise = rng.normal(0, bearing_sigma)
-                sightings.append([fine[k] + camera_latency_s, LANDMARKS[j, 0], true_range + noise,
+                sightings.append([fine[k] + camera_latency_s, LANDMARKS[j, 0], true_range * (1.0 + range_scale) + noise,
                                   bearing[j] + bearing_noise])  # stamped when read
         logs[robot] = RobotLog(robot, truth, np.column_stack([command_t, commands]), np.array(sightings).reshape(-1, 4), 0)
         poses[robot] = pose

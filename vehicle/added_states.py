@@ -88,20 +88,26 @@ def scaled_inputs(x: np.ndarray, scales_at: int, speed: float, rate: float, dt: 
 def persisting_sighting(H: np.ndarray, R: np.ndarray, predicted: np.ndarray, x: np.ndarray, *,
                         range_state: int | None = None, range_column: int | None = None, range_sigma_per_m: float = 0.0,
                         bearing_state: int | None = None, bearing_column: int | None = None, bearing_var: float = 0.0,
+                        scale_state: int | None = None, scale_column: int | None = None,
                         white_floor: float = WHITE_FLOOR) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A range-bearing sighting's model when its errors that persist are states of x: range read =
-    r (1 + s) + white, bearing read = beta + b + white, s = x[range_state], b = x[bearing_state]
-    (either may be None). H (2, q) and predicted [range m, bearing rad] (2,) of the plain model
-    become these (row 0 times 1 + s, d range / d s = r in ``range_column`` of H; d bearing / d b = 1
-    in ``bearing_column``; a column defaults to its state's index, for an H over all of x); R (2, 2),
-    the reported noise, keeps only its white part (:func:`white_part`). Returns new arrays."""
+    r (1 + k + s) + white, bearing read = beta + b + white, k = x[scale_state] (the camera's range
+    scale, every subject's), s = x[range_state], b = x[bearing_state] (the subject's own; any may be
+    None). H (2, q) and predicted [range m, bearing rad] (2,) of the plain model become these (row 0
+    times 1 + k + s, d range / d s = d range / d k = r in ``range_column`` and ``scale_column`` of H;
+    d bearing / d b = 1 in ``bearing_column``; a column defaults to its state's index, for an H over
+    all of x); R (2, 2), the reported noise, keeps only its white part (:func:`white_part`). Returns
+    new arrays."""
     H, predicted = H.copy(), np.array(predicted, dtype=float)
     R = white_part(R, predicted[0], range_sigma_per_m if range_state is not None else 0.0,
                    bearing_var if bearing_state is not None else 0.0, white_floor)
-    if range_state is not None:
-        stretch = 1.0 + float(x[range_state])
+    stretching = [(state, column) for state, column in ((range_state, range_column), (scale_state, scale_column))
+                  if state is not None]
+    if stretching:
+        stretch = 1.0 + sum(float(x[state]) for state, _ in stretching)
         H[0] *= stretch
-        H[0, range_state if range_column is None else range_column] = predicted[0]
+        for state, column in stretching:
+            H[0, state if column is None else column] = predicted[0]
         predicted[0] *= stretch
     if bearing_state is not None:
         H[1, bearing_state if bearing_column is None else bearing_column] = 1.0
@@ -113,7 +119,8 @@ def in_columns(model: dict, idx: list[int]) -> dict:
     """:func:`persisting_sighting`'s state arguments ``model`` for an H over the states ``idx`` only:
     each error state's column is its place in ``idx``."""
     out = dict(model)
-    for state, column in (("range_state", "range_column"), ("bearing_state", "bearing_column")):
+    for state, column in (("range_state", "range_column"), ("bearing_state", "bearing_column"),
+                          ("scale_state", "scale_column")):
         if model.get(state) is not None:
             out[column] = idx.index(model[state])
     return out

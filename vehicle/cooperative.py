@@ -295,7 +295,7 @@ def with_persisting_errors(x: np.ndarray, fix: CooperativeFix | SeenFix, y: tupl
     """A sighting's linearized model (innovation y, H (2, 3) over the pose, reported noise R) with its
     persisting range and bearing errors as the states ``errors`` names (vehicle.added_states): y,
     H (2, q) over the states ``idx`` (q,) = [x, y, theta, the error states], the white part of R."""
-    idx = [0, 1, 2] + [errors[key] for key in ("range_state", "bearing_state") if errors.get(key) is not None]
+    idx = [0, 1, 2] + [errors[key] for key in ("range_state", "bearing_state", "scale_state") if errors.get(key) is not None]
     predicted = np.array([fix.range_m - y[0], fix.bearing_rad - y[1]])
     H_full = np.zeros((2, len(idx)))
     H_full[:, :POSE] = H

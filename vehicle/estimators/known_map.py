@@ -9,9 +9,11 @@ occluded target fails it and is counted, not fused. Odometry, GNSS and cooperati
 
 Errors that persist (``vehicle.added_states``), each on when its datasheet field is nonzero: the
 wheel odometry's speed and yaw-rate scale errors (two states after the base ones, prior sigma
-``odom_scale_prior_sigma``, a slow random walk), and the camera's time-correlated range error, one
-Gauss-Markov state per landmark in view (sigma ``range_correlated_sigma_per_m`` of the range,
-correlation time ``range_correlation_s``): a camera that reads a landmark 3 % long reads it 3 % long
+``odom_scale_prior_sigma``, a slow random walk), the camera's range scale (one state after them,
+prior sigma ``range_scale_prior_sigma``, the same walk: a camera that reads range from a target's
+size in the image reads every target a few per cent long or short), and the camera's
+time-correlated range error, one Gauss-Markov state per landmark in view (sigma
+``range_correlated_sigma_per_m`` of the range, correlation time ``range_correlation_s``): a camera that reads a landmark 3 % long reads it 3 % long
 for seconds, and fusing five such sightings a second as independent would make the filter sure of a
 biased pose. That part is taken out of each sighting's reported range variance (the rest is white).
 Likewise the bearing's persisting part, a second Gauss-Markov state per landmark in view (a fraction
@@ -40,6 +42,7 @@ from vehicle import ekf_slam_core as slam
 from vehicle.ekf import gate_threshold
 from vehicle.estimators.base import SEVERITY_WARNING, Notice
 from vehicle.estimators.ekf import UnicycleEkf
+from vehicle.cooperative import CooperativeFix, SeenFix
 from vehicle.estimators.sighting_errors import SightingErrors, Subject
 
 LOST_AFTER = 8                              # sightings in a row failing the gate
@@ -62,7 +65,9 @@ class KnownMapEkf(SightingErrors, UnicycleEkf):
         spec = self._spec
         self._scale_sigma = spec.odom_scale_prior_sigma
         self._init_sighting_errors(spec)
-        self._first_error_state = self.base_dim + (2 if self._scale_sigma else 0)
+        self._range_scale_sigma = spec.range_scale_prior_sigma
+        self._range_scale = self.base_dim + (2 if self._scale_sigma else 0) if self._range_scale_sigma else None
+        self._first_error_state = self.base_dim + (2 if self._scale_sigma else 0) + (1 if self._range_scale_sigma else 0)
         self.state_dim = self._first_error_state
         self._error_states: dict[Subject, int] = {}  # sighted subject -> index of its first error state
         self._last_seen_us: dict[Subject, int] = {}
@@ -73,6 +78,8 @@ class KnownMapEkf(SightingErrors, UnicycleEkf):
         self._error_states, self._last_seen_us, self._decaying = {}, {}, []
         if self._scale_sigma:
             self.x, self.P = added_states.append_states(self.x, self.P, np.full(2, self._scale_sigma**2))
+        if self._range_scale_sigma:
+            self.x, self.P = added_states.append_states(self.x, self.P, np.array([self._range_scale_sigma**2]))
         self.state_dim = len(self.x)
 
     def _predict(self, speed: float, rate: float, dt: float, **noise: Any) -> None:
@@ -85,6 +92,8 @@ class KnownMapEkf(SightingErrors, UnicycleEkf):
         if self._scale_sigma:  # a fresh gyro's rate is not the wheels'
             speed, rate, noise, coupling = added_states.scaled_inputs(self.x, b, speed, rate, dt, noise,
                                                                       wheel_rate=not noise.get("use_bias"))
+        if self._range_scale_sigma:  # a random walk like the wheels' scales; the motion does not depend on it
+            coupling = np.zeros((b, 1)) if coupling is None else np.hstack([coupling, np.zeros((b, 1))])
         head, F, Q = self._motion(speed, rate, dt, **noise)
         taus, variances = (np.array([d[i] for d in self._decaying]) for i in (0, 1))
         decay, decay_var = added_states.decays(dt, taus, variances)
@@ -103,12 +112,15 @@ class KnownMapEkf(SightingErrors, UnicycleEkf):
             self.unknown_landmarks += 1
             return
         R = np.array(msg.covariance, dtype=float)
-        state = self._error_index(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1]) if self._per_subject else None
+        model = self._error_model(self._error_index(("landmark", msg.landmark_id), msg.stamp_us, R[1, 1])) \
+            if self._per_subject else {}
+        if self._range_scale is not None:
+            model["scale_state"] = self._range_scale
         predicted, H_pose, _ = slam.observe(np.concatenate([self.x[:3], where]), 3, 0)
         H = np.zeros((2, len(self.x)))
         H[:, :3] = H_pose
-        if state is not None:  # range r (1 + s_l), bearing beta + b_l, each + white (vehicle.added_states)
-            H, R, predicted = added_states.persisting_sighting(H, R, predicted, self.x, **self._error_model(state))
+        if model:  # range r (1 + k + s_l), bearing beta + b_l, each + white (vehicle.added_states)
+            H, R, predicted = added_states.persisting_sighting(H, R, predicted, self.x, **model)
         y = np.array([msg.range_m - predicted[0], wrap_angle(msg.bearing_rad - predicted[1])])
         result = self._fuse(y, H, R, self._landmark_gate)
         if result.accepted:
@@ -119,6 +131,14 @@ class KnownMapEkf(SightingErrors, UnicycleEkf):
         self._failed_in_a_row.append(msg.landmark_id)
         if len(self._failed_in_a_row) >= LOST_AFTER and len(set(self._failed_in_a_row)) >= 2:
             self._relocalize(msg.stamp_us)
+
+    def _sighting_errors(self, fix: CooperativeFix | SeenFix) -> dict | None:
+        """A robot sighting's persisting errors (``SightingErrors``); this robot's own sightings of
+        others are read by its camera, with its range scale."""
+        model = super()._sighting_errors(fix)
+        if isinstance(fix, CooperativeFix) and self._range_scale is not None:
+            model = {**(model or {}), "scale_state": self._range_scale}
+        return model
 
     def _stationary_variance(self, index: int) -> float:
         return self._decaying[index - self._first_error_state][1]

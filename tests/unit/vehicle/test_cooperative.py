@@ -146,28 +146,30 @@ def test_a_relayed_sighting_linearizes_its_own_model():
 
 @pytest.mark.parametrize("relayed", [False, True])
 def test_persisting_errors_enter_a_sighting_as_states(relayed):
-    """With the range error s and bearing error b of the sighting as states (range r (1 + s), bearing
-    beta + b): the innovation is against the stretched prediction, H over [x, y, theta, s, b] is its
-    derivative, R keeps its white part, and cov(x, z) runs through the error states."""
-    x = np.array([2.0, -1.0, 0.7, 0.0, 0.03, -0.01])  # pose, gyro bias, s, b
+    """With the range error s, bearing error b and camera range scale k of the sighting as states
+    (range r (1 + k + s), bearing beta + b): the innovation is against the stretched prediction, H
+    over [x, y, theta, s, b, k] is its derivative, R keeps its white part, and cov(x, z) runs through
+    the error states."""
+    x = np.array([2.0, -1.0, 0.7, 0.0, 0.03, -0.01, 0.02])  # pose, gyro bias, s, b, k
     fix = _seen_fix(x[:3], OBSERVER) if relayed else \
         CooperativeFix(1, 0, 0, 2, 5.0, 0.2, R, NEIGHBOUR, np.diag([0.04, 0.04]))
-    errors = {"range_state": 4, "range_sigma_per_m": 0.03, "bearing_state": 5, "bearing_var": 0.5 * R[1, 1]}
+    errors = {"range_state": 4, "range_sigma_per_m": 0.03, "bearing_state": 5, "bearing_var": 0.5 * R[1, 1],
+              "scale_state": 6}
     y, H, R_white, idx = with_persisting_errors(x, fix, *fix.linearized(x)[:2], fix.linearized(x)[2], errors)
-    assert idx == [0, 1, 2, 4, 5]
+    assert idx == [0, 1, 2, 4, 5, 6]
 
     def stretched(state: np.ndarray) -> np.ndarray:
         plain = fix.predicted(state[:3])
-        return np.array([plain[0] * (1.0 + state[4]), plain[1] + state[5]])
+        return np.array([plain[0] * (1.0 + state[4] + state[6]), plain[1] + state[5]])
 
     expected = stretched(x)
     assert np.allclose(y, [fix.range_m - expected[0], fix.bearing_rad - expected[1]], atol=1e-12)
     step = 1e-6
-    numeric = np.column_stack([(stretched(x + step * e) - stretched(x - step * e)) / (2 * step) for e in np.eye(6)])
+    numeric = np.column_stack([(stretched(x + step * e) - stretched(x - step * e)) / (2 * step) for e in np.eye(7)])
     assert np.allclose(H, numeric[:, idx], atol=1e-6)
     r = fix.range_m - fix.linearized(x)[0][0]
     assert np.allclose(R_white, (max(R[0, 0] - (0.03 * r) ** 2, 0.1 * R[0, 0]), 0.0, 0.5 * R[1, 1]))  # white floor
-    P_full = np.diag([0.5, 0.5, 0.01, 1e-6, 0.03**2, 0.5 * R[1, 1]])
+    P_full = np.diag([0.5, 0.5, 0.01, 1e-6, 0.03**2, 0.5 * R[1, 1], 0.05**2])
     _, M, C, _, _, cov_xz = CooperativeRule().measurement(x, P_full, fix, False, errors)
     assert np.allclose(cov_xz, P_full[:, idx] @ H.T) and np.allclose(M, (lambda A: (A[0, 0], A[0, 1], A[1, 1]))(
         H @ P_full[np.ix_(idx, idx)] @ H.T))
