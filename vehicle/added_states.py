@@ -71,6 +71,14 @@ def scale_jacobian(theta: float, speed: float, rate: float, dt: float, k_speed: 
                      [0.0, rate * dt]])
 
 
+def with_unused_scale(coupling: np.ndarray | None, head: int) -> np.ndarray:
+    """The coupling (head, c) of a motion step to its scale states, grown by a column of zeros for one
+    more scale state the motion does not depend on (the camera's range scale; None: no other scale
+    states, a (head, 1) column)."""
+    column = np.zeros((head, 1))
+    return column if coupling is None else np.hstack([coupling, column])
+
+
 def scaled_inputs(x: np.ndarray, scales_at: int, speed: float, rate: float, dt: float,
                   noise: dict, wheel_rate: bool) -> tuple[float, float, dict, np.ndarray]:
     """The inputs as the robot really moved them, given the scale states [k_v, k_w] at x[scales_at:]:

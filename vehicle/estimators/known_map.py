@@ -42,7 +42,6 @@ from vehicle import ekf_slam_core as slam
 from vehicle.ekf import gate_threshold
 from vehicle.estimators.base import SEVERITY_WARNING, Notice
 from vehicle.estimators.ekf import UnicycleEkf
-from vehicle.cooperative import CooperativeFix, SeenFix
 from vehicle.estimators.sighting_errors import SightingErrors, Subject
 
 LOST_AFTER = 8                              # sightings in a row failing the gate
@@ -93,7 +92,7 @@ class KnownMapEkf(SightingErrors, UnicycleEkf):
             speed, rate, noise, coupling = added_states.scaled_inputs(self.x, b, speed, rate, dt, noise,
                                                                       wheel_rate=not noise.get("use_bias"))
         if self._range_scale_sigma:  # a random walk like the wheels' scales; the motion does not depend on it
-            coupling = np.zeros((b, 1)) if coupling is None else np.hstack([coupling, np.zeros((b, 1))])
+            coupling = added_states.with_unused_scale(coupling, b)
         head, F, Q = self._motion(speed, rate, dt, **noise)
         taus, variances = (np.array([d[i] for d in self._decaying]) for i in (0, 1))
         decay, decay_var = added_states.decays(dt, taus, variances)
@@ -131,14 +130,6 @@ class KnownMapEkf(SightingErrors, UnicycleEkf):
         self._failed_in_a_row.append(msg.landmark_id)
         if len(self._failed_in_a_row) >= LOST_AFTER and len(set(self._failed_in_a_row)) >= 2:
             self._relocalize(msg.stamp_us)
-
-    def _sighting_errors(self, fix: CooperativeFix | SeenFix) -> dict | None:
-        """A robot sighting's persisting errors (``SightingErrors``); this robot's own sightings of
-        others are read by its camera, with its range scale."""
-        model = super()._sighting_errors(fix)
-        if isinstance(fix, CooperativeFix) and self._range_scale is not None:
-            model = {**(model or {}), "scale_state": self._range_scale}
-        return model
 
     def _stationary_variance(self, index: int) -> float:
         return self._decaying[index - self._first_error_state][1]

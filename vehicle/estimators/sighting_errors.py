@@ -22,6 +22,7 @@ class SightingErrors:
         self._range_sigma, self._range_tau = spec.range_correlated_sigma_per_m, spec.range_correlation_s
         self._bearing_fraction, self._bearing_tau = spec.bearing_correlated_fraction, spec.bearing_correlation_s
         self._per_subject = int(bool(self._range_sigma)) + int(bool(self._bearing_fraction))
+        self._range_scale: int | None = None  # the camera's range scale state, where the filter keeps one
 
     def _subject_states(self, bearing_var: float) -> list[tuple[float, float]]:
         """(tau s, stationary variance) of one subject's error states, in order (range, then bearing),
@@ -42,11 +43,15 @@ class SightingErrors:
 
     def _sighting_errors(self, fix: CooperativeFix | SeenFix) -> dict | None:
         """A robot sighting's persisting errors as states (vehicle.cooperative.with_persisting_errors):
-        the same camera's as a landmark's, one set per robot seen and one per robot that sees this one."""
-        if not self._per_subject:
-            return None
-        key = ("robot", fix.target_id) if isinstance(fix, CooperativeFix) else ("seen", fix.observer_id)
-        return self._error_model(self._error_index(key, fix.stamp_us, float(fix.covariance[1, 1])))
+        the same camera's as a landmark's, one set per robot seen and one per robot that sees this one;
+        this robot's own sightings are read with its camera's range scale too."""
+        model = {}
+        if self._per_subject:
+            key = ("robot", fix.target_id) if isinstance(fix, CooperativeFix) else ("seen", fix.observer_id)
+            model = self._error_model(self._error_index(key, fix.stamp_us, float(fix.covariance[1, 1])))
+        if isinstance(fix, CooperativeFix) and self._range_scale is not None:
+            model["scale_state"] = self._range_scale
+        return model or None
 
     def _error_index(self, key: Subject, t_us: int, bearing_var: float) -> int:
         """Index of the subject's first error state, sighted at ``t_us``."""
