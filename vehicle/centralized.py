@@ -6,8 +6,8 @@ process next to the pure world (``swarm experiment cooperative``).
 
 Joint state X = [x_1 ... x_N], each block x_i the state of one vehicle estimator (``ekf``:
 [x, y, theta, gyro_bias], grown by the two GNSS error states when the datasheet has a correlated
-GNSS error (vehicle.gnss_error); ``known-map``: also its odometry and camera range scale states and the range-error
-states of the landmarks in view, so a block grows and shrinks). Each block keeps its vehicle
+GNSS error (vehicle.gnss_error); ``known-map``: also its odometry and camera range scale states and
+the range-error states of the landmarks in view, so a block grows and shrinks). Each block keeps its vehicle
 estimator's own models and book-keeping (the same held inputs, F and Q, sighting model, gate and
 re-localization), and their effect lands on the joint covariance: a motion step P[i, :] <- F_i P[i, :],
 P[:, i] <- P[:, i] F_i^T, P[i, i] += Q_i; an update by H over block i with the joint gain, so the

@@ -13,9 +13,9 @@ wheel odometry's speed and yaw-rate scale errors (two states after the base ones
 prior sigma ``range_scale_prior_sigma``, the same walk: a camera that reads range from a target's
 size in the image reads every target a few per cent long or short), and the camera's
 time-correlated range error, one Gauss-Markov state per landmark in view (sigma
-``range_correlated_sigma_per_m`` of the range, correlation time ``range_correlation_s``): a camera that reads a landmark 3 % long reads it 3 % long
-for seconds, and fusing five such sightings a second as independent would make the filter sure of a
-biased pose. That part is taken out of each sighting's reported range variance (the rest is white).
+``range_correlated_sigma_per_m`` of the range, correlation time ``range_correlation_s``): a camera
+that reads a landmark 3 % long reads it 3 % long for seconds, and fusing five such sightings a
+second as independent would make the filter sure of a biased pose. That part is taken out of each sighting's reported range variance (the rest is white).
 Likewise the bearing's persisting part, a second Gauss-Markov state per landmark in view (a fraction
 ``bearing_correlated_fraction`` of the sighting's reported bearing variance, correlation time
 ``bearing_correlation_s``). A landmark's states are dropped (marginalized) when it has not been seen
