@@ -15,8 +15,8 @@ size in the image reads every target a few per cent long or short), and the came
 time-correlated range error, one Gauss-Markov state per landmark in view (sigma
 ``range_correlated_sigma_per_m`` of the range, correlation time ``range_correlation_s``): a camera
 that reads a landmark 3 % long reads it 3 % long for seconds, and fusing five such sightings a
-second as independent would make the filter sure of a biased pose. That part is taken out of each sighting's reported range variance (the rest is white).
-Likewise the bearing's persisting part, a second Gauss-Markov state per landmark in view (a fraction
+second as independent would make the filter sure of a biased pose. That part is taken out of each
+sighting's reported range variance (the rest is white). Likewise the bearing's persisting part, a second Gauss-Markov state per landmark in view (a fraction
 ``bearing_correlated_fraction`` of the sighting's reported bearing variance, correlation time
 ``bearing_correlation_s``). A landmark's states are dropped (marginalized) when it has not been seen
 for ``FORGET_AFTER`` correlation times: by then they are uncorrelated with what a new sighting would read.
@@ -65,8 +65,9 @@ class KnownMapEkf(SightingErrors, UnicycleEkf):
         self._scale_sigma = spec.odom_scale_prior_sigma
         self._init_sighting_errors(spec)
         self._range_scale_sigma = spec.range_scale_prior_sigma
-        self._range_scale = self.base_dim + (2 if self._scale_sigma else 0) if self._range_scale_sigma else None
-        self._first_error_state = self.base_dim + (2 if self._scale_sigma else 0) + (1 if self._range_scale_sigma else 0)
+        after_wheels = self.base_dim + (2 if self._scale_sigma else 0)
+        self._range_scale = after_wheels if self._range_scale_sigma else None
+        self._first_error_state = after_wheels + (1 if self._range_scale_sigma else 0)
         self.state_dim = self._first_error_state
         self._error_states: dict[Subject, int] = {}  # sighted subject -> index of its first error state
         self._last_seen_us: dict[Subject, int] = {}
