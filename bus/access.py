@@ -37,7 +37,7 @@ def _shared_rules(p: str) -> list[dict]:
         _deny("no-fault-control", [*SEND, "declare_queryable", "reply"],
               [f"{p}/ctl/faults/**", f"{p}/ctl/claim", f"{p}/ctl/ack/gs"]),
         _deny("no-gs-token", ["liveliness_token"], [f"{p}/alive/groundstation/**"]),
-        _deny("no-vehicle-speech", SEND, [f"{p}/v/*/mavlink", f"{p}/v/*/v2v", f"{p}/v/*/status"]),
+        _deny("no-vehicle-speech", SEND, [f"{p}/v/*/mavlink", f"{p}/v/*/v2v", f"{p}/v/*/v2v/*", f"{p}/v/*/status"]),
         _deny("no-vehicle-acks", SEND, [f"{p}/ctl/ack/*"]),
         _deny("no-vehicle-token", ["liveliness_token"], [f"{p}/alive/vehicle/**"]),
         _deny("no-fault-requests", ["query"], [f"{p}/ctl/faults/**"]),

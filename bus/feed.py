@@ -56,13 +56,16 @@ class CameraBlock:
 @dataclass(frozen=True)
 class SensorBatch:
     """One vehicle's samples stamped in (stamp_us - tick length, stamp_us]: per topic, stamps (k,)
-    in us, the first sequence number and rows (k, width) as in ``LAYOUT``."""
+    in us, the first sequence number and rows (k, width) as in ``LAYOUT``. ``listeners``: the
+    vehicles that range with this one in the tick, to which its V2V broadcasts of the tick's epochs
+    go (None: to every vehicle; on the wire ``"listeners": [ids]``, distinct, 1-250, not its own)."""
 
     vehicle_id: int
     tick: int
     stamp_us: int
     blocks: dict[str, tuple[np.ndarray, int, np.ndarray]]
     camera: CameraBlock | None = None
+    listeners: tuple[int, ...] | None = None
 
     def samples(self) -> list[tuple[str, Any]]:
         """(topic, message) for every sample, in stamp order (topics in LAYOUT order, then camera
@@ -124,6 +127,8 @@ def encode_batch(batch: SensorBatch) -> bytes:
                           "size": int(c.pixels.shape[1]) if c.pixels.ndim == 3 else 0,
                           "scale": np.ascontiguousarray(c.metres_per_pixel, "<f8").tobytes(),
                           "pixels": np.ascontiguousarray(c.pixels, np.uint8).tobytes()}
+    if batch.listeners is not None:
+        body["listeners"] = [int(j) for j in batch.listeners]
     return msgpack.packb(body, use_bin_type=True)
 
 
@@ -224,7 +229,7 @@ def _camera_block(raw: Any, stamp_us: int) -> CameraBlock:
 def decode_batch(payload: bytes) -> SensorBatch:
     """Validate a SensorBatch; DecodeError names the first problem."""
     body = unpack_tagged(payload, "SensorBatch")
-    allowed = {"type", "v", "vehicle_id", "tick", "stamp_us", "camera", *TOPICS}
+    allowed = {"type", "v", "vehicle_id", "tick", "stamp_us", "camera", "listeners", *TOPICS}
     if not set(body) <= allowed or not {"vehicle_id", "tick", "stamp_us"} <= set(body):
         raise DecodeError(f"SensorBatch: fields must be {sorted(allowed)}")
     vid = _int(body, "vehicle_id", 1, 250)
@@ -232,7 +237,18 @@ def decode_batch(payload: bytes) -> SensorBatch:
     stamp_us = _int(body, "stamp_us", 0, 2**53)
     blocks = {t: _block(t, body[t], vid, stamp_us) for t in TOPICS if t in body}
     camera = _camera_block(body["camera"], stamp_us) if "camera" in body else None
-    return SensorBatch(vid, tick, stamp_us, blocks, camera)
+    listeners = _listeners(body["listeners"], vid) if "listeners" in body else None
+    return SensorBatch(vid, tick, stamp_us, blocks, camera, listeners)
+
+
+def _listeners(value: Any, vid: int) -> tuple[int, ...]:
+    """The listeners field: a list of distinct vehicle ids 1-250 other than the batch's own."""
+    if not isinstance(value, list) or len(value) > 250 or \
+            not all(isinstance(j, int) and not isinstance(j, bool) and 1 <= j <= 250 for j in value):
+        raise DecodeError("listeners: expected a list of vehicle ids 1-250")
+    if len(set(value)) != len(value) or vid in value:
+        raise DecodeError("listeners: ids must be distinct and not the batch's own vehicle")
+    return tuple(value)
 
 
 TRUTH_WIDTH = 5  # x m, y m, theta rad, speed m/s, yaw rate rad/s

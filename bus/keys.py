@@ -44,13 +44,15 @@ def parse_vehicle_id(text: str) -> int | None:
 @dataclass(frozen=True)
 class ParsedKey:
     """What a concrete key names: ``kind`` (vehicle, truth, clock, ack, end, plan, request, claim,
-    alive), the vehicle id when there is one, the topic of a vehicle key and the role of a token."""
+    alive), the vehicle id when there is one, the topic of a vehicle key, the role of a token, and
+    the vehicle a V2V frame is addressed to (``recipient``; None: broadcast to all)."""
 
     kind: str
     vehicle_id: int | None = None
     topic: str | None = None
     role: str | None = None
     ident: str | None = None
+    recipient: int | None = None
 
 
 _CTL = {"clock": "clock", "end": "end", "faults/plan": "plan", "faults/request": "request", "claim": "claim"}
@@ -73,6 +75,10 @@ class KeySpace:
 
     def v2v(self, vehicle_id: int | str) -> str:
         return f"{self.prefix}/v/{vehicle_id}/v2v"
+
+    def v2v_to(self, vehicle_id: int | str, recipient: int | str) -> str:
+        """Vehicle ``vehicle_id``'s V2V frames addressed to ``recipient`` only."""
+        return f"{self.prefix}/v/{vehicle_id}/v2v/{recipient}"
 
     def status(self, vehicle_id: int | str) -> str:
         return f"{self.prefix}/v/{vehicle_id}/status"
@@ -118,6 +124,9 @@ class KeySpace:
         if head == "v" and len(rest) == 2 and rest[1] in VEHICLE_TOPICS:
             vid = parse_vehicle_id(rest[0])
             return None if vid is None else ParsedKey("vehicle", vid, rest[1])
+        if head == "v" and len(rest) == 3 and rest[1] == "v2v":
+            vid, recipient = parse_vehicle_id(rest[0]), parse_vehicle_id(rest[2])
+            return None if vid is None or recipient is None else ParsedKey("vehicle", vid, "v2v", recipient=recipient)
         if head == "truth" and not rest:
             return ParsedKey("truth")
         if head == "ctl" and len(rest) == 2 and rest[0] == "ack":

@@ -85,6 +85,9 @@ class WorldNode:
         self.tick_us = round(config.clock.tick_s * 1e6)
         self.final_tick = round(config.clock.duration_s * 1e6) // self.tick_us
         self._gs_gone_since: float | None = None
+        # realtime simulation: each batch names who ranges the vehicle, and its V2V frames go to them
+        # alone (bus.feed.SensorBatch.listeners); lockstep and replays broadcast to every vehicle
+        self.addressed_v2v = config.clock.mode == "realtime" and config.replay is None
 
     def publish(self, key: str, payload: bytes) -> None:
         pub = self._publishers.get(key)
@@ -171,8 +174,10 @@ class WorldNode:
         """Advance the world to the tick's stamp and encode what it measured (no publishing)."""
         stamp = min(tick, self.final_tick) * self.tick_us
         out = self.world.advance(stamp)
-        batches = [(self.bus.keys.feed(vid), feed.encode_batch(feed.SensorBatch(vid, tick, stamp, out.blocks(vid),
-                                                                                 out.camera(vid))))
+        listeners = out.listeners() if self.addressed_v2v else None
+        batches = [(self.bus.keys.feed(vid), feed.encode_batch(feed.SensorBatch(
+                        vid, tick, stamp, out.blocks(vid), out.camera(vid),
+                        None if listeners is None else listeners.get(vid, ()))))
                    for vid in self.world.vehicle_ids()]
         ids = self.world.vehicle_ids()
         rows = np.array(out.truth).reshape(len(out.truth_stamps), len(ids), feed.TRUTH_WIDTH)

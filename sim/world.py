@@ -63,6 +63,15 @@ class TickOutput:
                               np.array([s[2] for s in samples], dtype=np.float64))
         return out
 
+    def listeners(self) -> dict[int, tuple[int, ...]]:
+        """vehicle id -> the vehicles that ranged it in this advance (sorted): those that pair its
+        broadcasts of the advance's epochs with a measurement; a vehicle nobody ranged is absent."""
+        out: dict[int, set[int]] = {}
+        for observer, topics in self.rows.items():
+            for _, _, row in topics.get("ranging", ()):
+                out.setdefault(int(row[0]), set()).add(observer)
+        return {target: tuple(sorted(observers)) for target, observers in out.items()}
+
     def camera(self, vehicle_id: int) -> CameraBlock | None:
         """The vehicle's camera frames as a bus.feed block (None: no frame in this advance)."""
         frames = self.rows.get(vehicle_id, {}).get("camera")

@@ -7,6 +7,7 @@ broadcast would have spoilt.
 from __future__ import annotations
 
 import logging
+from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +27,7 @@ ODOMETRY_ID = 331  # MAVLINK_MSG_ID_ODOMETRY: the V2V packet
 MAX_BATCH_BYTES = 1 << 20
 MAX_CLOCK_BYTES = 8 << 10
 MAX_PLAN_BYTES = 1 << 20
+LISTENER_BATCHES = 8  # the batches whose listeners are kept (a realtime cycle runs within a tick or two of its batch)
 
 
 @dataclass(frozen=True)
@@ -49,6 +51,7 @@ class Inbound:
         self.received_stamp_us = -1        # and the end of the time it covers
         self.heard: dict[int, int] = {}    # V2V frames heard per sender
         self.heard_until: dict[int, int] = {}  # the newest stamp heard per sender (before link faults)
+        self._listeners: deque[tuple[int, tuple[int, ...]]] = deque(maxlen=LISTENER_BATCHES)
 
     def take(self, item: Any) -> list[Delivery]:
         """File one mailbox item; returns what passes on (possibly nothing)."""
@@ -72,12 +75,28 @@ class Inbound:
             return []
         if parsed.topic == "feed" and parsed.vehicle_id == self.vehicle_id:
             return self._batch(item)
+        if parsed.topic == "v2v" and parsed.recipient not in (None, self.vehicle_id):
+            self.rejections.reject("unexpected", item.key, "a V2V frame addressed to another vehicle")
+            return []
         if parsed.topic == "v2v" and parsed.vehicle_id != self.vehicle_id:
             return self._v2v(item, parsed.vehicle_id)
         if parsed.topic == "v2v":
             return []  # our own broadcast
         self.rejections.reject("unexpected", item.key, "not a key this vehicle listens to")
         return []
+
+    def listeners_at(self, t_us: int) -> tuple[int, ...] | None:
+        """Who the V2V broadcast of the cycle at ``t_us`` goes to: the listeners of the sensor batch
+        that covers it (bus.feed.SensorBatch), or None (every vehicle) when no batch named them: a
+        lockstep or replayed run, or a realtime cycle whose batch is late (a batch covers the time
+        since the one before it)."""
+        before, covering = -1, None
+        for stamp_us, listeners in sorted(self._listeners):
+            if stamp_us < t_us:
+                before = stamp_us
+            elif covering is None:
+                covering = listeners
+        return covering if covering is not None and before >= 0 else None
 
     def _clock(self, item: Envelope) -> list[Delivery]:
         try:
@@ -109,6 +128,8 @@ class Inbound:
             return []
         self.received_tick = max(self.received_tick, batch.tick)
         self.received_stamp_us = max(self.received_stamp_us, batch.stamp_us)
+        if batch.listeners is not None:
+            self._listeners.append((batch.stamp_us, batch.listeners))
         samples = batch.samples()
         if self.links.untouched(item.key, len(samples)):
             return [self._delivery(sample) for sample in samples]

@@ -77,8 +77,9 @@ class VehicleNode:
         bus.subscribe(keys.clock(), world, MAX_CLOCK_BYTES)
         bus.subscribe(keys.fault_plan(), world, MAX_PLAN_BYTES)
         bus.subscribe(keys.feed(vehicle_id), world, MAX_BATCH_BYTES)
-        if vc.cooperative:
+        if vc.cooperative:  # broadcasts, and (realtime simulation) frames addressed to this vehicle alone
             bus.subscribe(keys.v2v("*"), neighbours, MAX_FRAME_BYTES)
+            bus.subscribe(keys.v2v_to("*", vehicle_id), neighbours, MAX_FRAME_BYTES)
         bus.watch_liveliness(keys.alive("world", "*"), world)
         bus.watch_liveliness(keys.alive("groundstation", "*"), world)
         if vc.cooperative:
@@ -217,7 +218,7 @@ class VehicleNode:
         for fix in self.v2v.mature(t_us):
             self.fusion.push("seen" if isinstance(fix, SeenFix) else "ranging", fix)
         self.fusion.cycle(t_us)
-        self.outbound.cycle(t_us, self.estimator, self.reset_counter)
+        self.outbound.cycle(t_us, self.estimator, self.reset_counter, listeners=self.inbound.listeners_at(t_us))
         if self.outbound.status_due(t_us):
             self.publish_status(t_us)
 

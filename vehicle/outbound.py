@@ -24,6 +24,11 @@ class Outbound:
         self.encoder = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key)
         self.mavlink_publisher = self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
         self.v2v_publisher = self._v2v = bus.publisher(keys.v2v(vehicle_id))
+        self._bus, self._keys = bus, keys
+        # the addressed publishers (realtime: every neighbour's, declared up front: a declaration is a
+        # round trip to the router, which an overloaded swarm must not wait for mid-run)
+        self._v2v_to: dict[int, object] = {j: bus.publisher(keys.v2v_to(vehicle_id, j)) for j in range(1, config.vehicles + 1)
+                                           if j != vehicle_id and config.clock.mode == "realtime"}
         self.ack_publisher = self._ack = bus.publisher(keys.ack(vehicle_id))
         self._status = bus.publisher(keys.status(vehicle_id))
         self._v2v_period_us = round(1e6 / config.sensors.ranging_rate_hz)
@@ -34,16 +39,16 @@ class Outbound:
         self._frames: list[bytes] = []
         self.v2v_sent = 0
 
-    def cycle(self, t_us: int, estimator: Estimator, reset_counter: int) -> None:
-        """Encode this cycle's frames (kept until ``flush``); broadcast V2V at the ranging epochs."""
+    def cycle(self, t_us: int, estimator: Estimator, reset_counter: int, listeners: tuple[int, ...] | None = None) -> None:
+        """Encode this cycle's frames (kept until ``flush``); at the ranging epochs send the V2V frame to
+        ``listeners`` (the vehicles that range with this one now), or to every vehicle (None)."""
         notices = estimator.take_notices()
         for notice in notices:
             self._frames.append(self.encoder.statustext(notice.severity, notice.text[:50]))
         on_v2v, on_mavlink = t_us % self._v2v_period_us == 0, t_us % self._mavlink_period_us == 0
         if not estimator.initialized:
             if on_v2v:  # neighbours in lockstep wait for every epoch's broadcast: say there is none
-                self._v2v.put(self.encoder.no_estimate(t_us, reset_counter))
-                self.v2v_sent += 1
+                self._send_v2v(self.encoder.no_estimate(t_us, reset_counter), listeners)
             return
         if any(n.status_changed for n in notices):
             self._frames.append(self.encoder.estimator_status(estimator.status(t_us)))
@@ -52,11 +57,22 @@ class Outbound:
             if on_mavlink:
                 self._frames.append(odometry)
             if on_v2v:
-                self._v2v.put(odometry)  # the V2V packet {id, x_hat, P, t}
-                self.v2v_sent += 1
+                self._send_v2v(odometry, listeners)  # the V2V packet {id, x_hat, P, t}
         if t_us >= self._next_heartbeat_us:
             self._frames += [self.encoder.heartbeat(), self.encoder.estimator_status(estimator.status(t_us))]
             self._next_heartbeat_us = t_us + self._heartbeat_us
+
+    def _send_v2v(self, frame: bytes, listeners: tuple[int, ...] | None) -> None:
+        """Broadcast (``listeners`` None: counted for lockstep's V2V barrier) or one copy per listener."""
+        if listeners is None:
+            self._v2v.put(frame)
+            self.v2v_sent += 1
+            return
+        for j in listeners:
+            publisher = self._v2v_to.get(j)
+            if publisher is None:
+                publisher = self._v2v_to[j] = self._bus.publisher(self._keys.v2v_to(self.vehicle_id, j))
+            publisher.put(frame)
 
     def flush(self) -> None:
         """Publish the frames encoded since the last flush as one message."""

@@ -116,6 +116,8 @@ def test_realtime_mode_runs_and_reports_loop_timing(tmp_path):
     for vid in ("1", "2"):
         assert summary["vehicles"][vid]["rmse_m"] < GNSS_SIGMA_M
         assert timing["vehicles"][vid]["cycles"] >= 6 * 50
+        # each one's V2V frames go to the other on its own key (30 epochs in 6 s; half, for a busy machine)
+        assert summary["vehicles"][vid]["v2v_fused"] >= 15
     assert 1.0 < timing["real_time_factor"] < 3.0  # paced near the requested speed of 2
 
 

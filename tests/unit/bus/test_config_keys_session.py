@@ -59,11 +59,14 @@ def test_keys_parse_to_what_they_name():
     keys = KeySpace("swarm")
     assert keys.parse(keys.mavlink(7)) == ParsedKey("vehicle", 7, "mavlink")
     assert keys.parse(keys.feed(250)) == ParsedKey("vehicle", 250, "feed")
+    assert keys.parse(keys.v2v(4)) == ParsedKey("vehicle", 4, "v2v")
+    assert keys.parse(keys.v2v_to(4, 9)) == ParsedKey("vehicle", 4, "v2v", recipient=9)
     assert keys.parse(keys.ack(3)) == ParsedKey("ack", 3)
     assert keys.parse(keys.ack("gs")) == ParsedKey("ack", ident="gs")
     assert keys.parse(keys.alive("vehicle", 4)) == ParsedKey("alive", 4, role="vehicle", ident="4")
     assert keys.parse(keys.truth()).kind == "truth" and keys.parse(keys.clock()).kind == "clock"
     for bad in ("swarm/v/x/v2v", "swarm/v/²/mavlink", "swarm/v/3/sensor/imu", "swarm/v/3/mavlink/extra",
+                "swarm/v/3/v2v/0", "swarm/v/3/v2v/x", "swarm/v/3/v2v/4/5", "swarm/v/3/feed/4",
                 "swarm/alive/vehicle/²", "swarm/alive/pilot/1", "other/v/1/mavlink", "swarm", "swarm/ctl/ack/0"):
         assert keys.parse(bad) is None, bad
         assert keys.vehicle_of(bad) is None
@@ -72,10 +75,12 @@ def test_keys_parse_to_what_they_name():
 @given(st.text(max_size=40))
 def test_any_key_parses_or_gives_none(tail):
     keys = KeySpace("swarm")
-    for key in (tail, f"swarm/{tail}", f"swarm/v/{tail}/mavlink", f"swarm/alive/vehicle/{tail}", f"swarm/ctl/ack/{tail}"):
+    for key in (tail, f"swarm/{tail}", f"swarm/v/{tail}/mavlink", f"swarm/alive/vehicle/{tail}", f"swarm/ctl/ack/{tail}",
+                f"swarm/v/3/v2v/{tail}", f"swarm/v/{tail}/v2v/3"):
         parsed = keys.parse(key)
         assert parsed is None or isinstance(parsed, ParsedKey)
         assert parsed is None or parsed.vehicle_id is None or 1 <= parsed.vehicle_id <= 250
+        assert parsed is None or parsed.recipient is None or 1 <= parsed.recipient <= 250
 
 
 def test_memory_bus_refuses_truth_to_vehicles_and_delivers_to_others():

@@ -19,13 +19,15 @@ from sim.world import World
 def _batch(seconds: float = 0.1, vid: int = 2) -> feed.SensorBatch:
     world = World(build_config({"world": {"vehicles": 3, "seed": 4}}))
     end = round(seconds * 1e6)
-    return feed.SensorBatch(vid, 1, end, world.advance(end).blocks(vid))
+    return feed.SensorBatch(vid, 1, end, world.advance(end).blocks(vid), listeners=(1, 3))
 
 
 def test_round_trip_keeps_every_sample():
     batch = _batch()
     decoded = feed.decode_batch(feed.encode_batch(batch))
-    assert (decoded.vehicle_id, decoded.tick, decoded.stamp_us) == (2, 1, 100_000)
+    assert (decoded.vehicle_id, decoded.tick, decoded.stamp_us, decoded.listeners) == (2, 1, 100_000, (1, 3))
+    unaddressed = feed.SensorBatch(2, 1, 100_000, batch.blocks)
+    assert feed.decode_batch(feed.encode_batch(unaddressed)).listeners is None
     samples, again = batch.samples(), decoded.samples()
     assert [t for t, _ in again] == [t for t, _ in samples] and len(samples) == 1 + 11 + 6 + 1 + 2
     for (_, a), (_, b) in zip(samples, again):
@@ -79,6 +81,12 @@ def _mutate_gnss(fn):
     (lambda b: _set(b, "ranging", np.where(np.arange(7) == 0, 2.5, _rows(b, "ranging", 7))), "other vehicles"),
     (lambda b: _set(b, "ranging", np.where(np.arange(7) == 1, -1.0, _rows(b, "ranging", 7))), "range"),
     (lambda b: _set(b, "prior", np.where(np.arange(12) == 3, -1.0, _rows(b, "prior", 12))), "positive definite"),
+    (lambda b: b.update(listeners=[1, 1]), "distinct"),
+    (lambda b: b.update(listeners=[2]), "own vehicle"),
+    (lambda b: b.update(listeners=[0]), "listeners"),
+    (lambda b: b.update(listeners=[True]), "listeners"),
+    (lambda b: b.update(listeners="1"), "listeners"),
+    (lambda b: b.update(listeners=list(range(1, 253))), "listeners"),
 ])
 def test_malformed_batches_are_rejected_with_a_clear_error(mutate, reason):
     body = _body()
@@ -125,7 +133,7 @@ json_like = st.recursive(
 
 
 @given(st.sampled_from(["vehicle_id", "tick", "stamp_us", "imu", "odom", "gnss", "ranging", "seen", "landmark", "prior",
-                        "x"]), json_like)
+                        "listeners", "x"]), json_like)
 def test_well_formed_msgpack_with_wrong_values_raises_decode_error(field, value):
     body = _body()
     body[field] = value

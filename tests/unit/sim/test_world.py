@@ -94,6 +94,18 @@ def test_ranging_reaches_only_the_nearest_peers():
         assert first_epoch == sorted(nearest.tolist())
 
 
+def test_listeners_are_exactly_the_vehicles_that_ranged_each_one():
+    world = World(build_config({"world": {"vehicles": 9, "seed": 2}, "sensors": {"ranging_max_peers": 3}}))
+    out = world.advance(999_999)
+    pairs = {(observer, int(row[2][0])) for observer, topics in out.rows.items() for row in topics["ranging"]}
+    listeners = out.listeners()
+    assert {(observer, target) for target, observers in listeners.items() for observer in observers} == pairs
+    assert all(list(observers) == sorted(observers) and target not in observers for target, observers in listeners.items())
+    quiet = World(build_config({"world": {"vehicles": 9, "seed": 2}}))
+    quiet.advance(100_000)
+    assert quiet.advance(150_000).listeners() == {}  # no ranging epoch in (100, 150] ms
+
+
 def test_vehicles_never_come_close_to_each_other():
     world = World(build_config({"world": {"vehicles": 9, "seed": 3}}))
     out = world.advance(60_000_000)

@@ -58,7 +58,8 @@ def test_garbage_on_every_key_is_counted_by_reason_and_the_node_keeps_working():
 def test_any_bytes_on_any_key_are_counted_never_raised(payload, topic, ident):
     node, _ = _node()
     before = node.rejections.total
-    for key in (f"swarm/v/{ident}/{topic}", "swarm/v/1/feed", "swarm/ctl/clock", "swarm/v/2/v2v"):
+    for key in (f"swarm/v/{ident}/{topic}", "swarm/v/1/feed", "swarm/ctl/clock", "swarm/v/2/v2v", "swarm/v/2/v2v/1",
+                f"swarm/v/2/v2v/{ident}"):
         result = node.take(Envelope(key, payload))
         assert result is None or isinstance(result, m.ClockTick)
     assert node.rejections.total >= before
@@ -191,6 +192,34 @@ def test_a_vehicle_whose_world_is_gone_stops_with_a_clear_error(monkeypatch):
     clock[0] += 2.0
     with pytest.raises(node_module.WorldGone, match="gone for 5 s"):
         node.world_watch.check()
+
+
+def test_v2v_frames_go_to_the_listeners_the_batch_names_else_to_everyone():
+    """A realtime simulation's batch names who ranges the vehicle: its epoch's V2V frame goes to each
+    of them on its own key; with no batch naming them (the first cycle, lockstep, replays) it is
+    broadcast. A frame addressed to another vehicle is refused."""
+    hub = MemoryHub()
+    sent: list[str] = []
+    deliver = hub.deliver
+    hub.deliver = lambda key, payload: (sent.append(key), deliver(key, payload))
+    node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": "realtime"}}).for_vehicle(), 1)
+    keys = node.bus.keys
+    for tick, listeners in enumerate([(), (3, 4), (), ()]):  # batches for stamps 0, 20, 40, 60 ms
+        blocks = PRIOR if tick == 0 else {}
+        node.take(Envelope(keys.feed(1), feed.encode_batch(feed.SensorBatch(1, tick, tick * 20_000, blocks,
+                                                                            listeners=listeners))))
+    assert node.inbound.listeners_at(0) is None and node.inbound.listeners_at(20_000) == (3, 4)
+    assert node.inbound.listeners_at(40_000) == () and node.inbound.listeners_at(80_000) is None
+    node.cycle(0)  # a V2V epoch (every 200 ms) with no batch before the first: broadcast
+    node.outbound.cycle(200_000, node.estimator, 0, listeners=(3, 4))
+    node.outbound.cycle(400_000, node.estimator, 0, listeners=())  # nobody ranges it: nothing sent
+    v2v = [key for key in sent if "/v2v" in key]
+    assert v2v == [keys.v2v(1), keys.v2v_to(1, 3), keys.v2v_to(1, 4)]
+    frame = MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, 0))
+    assert node.take(Envelope(keys.v2v_to(2, 5), frame)) is None
+    assert counts_to_dict(node.rejections.as_counts()) == {"unexpected": 1}
+    node.take(Envelope(keys.v2v_to(2, 1), frame))
+    assert node.inbound.heard == {2: 1}
 
 
 def test_realtime_a_flood_of_messages_delays_filing_never_a_cycle():
