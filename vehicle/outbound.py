@@ -24,11 +24,10 @@ class Outbound:
         self.encoder = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key)
         self.mavlink_publisher = self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
         self.v2v_publisher = self._v2v = bus.publisher(keys.v2v(vehicle_id))
-        self._bus, self._keys = bus, keys
         # the addressed publishers (realtime: every neighbour's, declared up front: a declaration is a
         # round trip to the router, which an overloaded swarm must not wait for mid-run)
-        self._v2v_to: dict[int, object] = {j: bus.publisher(keys.v2v_to(vehicle_id, j)) for j in range(1, config.vehicles + 1)
-                                           if j != vehicle_id and config.clock.mode == "realtime"}
+        neighbours = [j for j in range(1, config.vehicles + 1) if j != vehicle_id] if config.clock.mode == "realtime" else []
+        self._v2v_to = {j: bus.publisher(keys.v2v_to(vehicle_id, j)) for j in neighbours}
         self.ack_publisher = self._ack = bus.publisher(keys.ack(vehicle_id))
         self._status = bus.publisher(keys.status(vehicle_id))
         self._v2v_period_us = round(1e6 / config.sensors.ranging_rate_hz)
@@ -69,10 +68,8 @@ class Outbound:
             self.v2v_sent += 1
             return
         for j in listeners:
-            publisher = self._v2v_to.get(j)
-            if publisher is None:
-                publisher = self._v2v_to[j] = self._bus.publisher(self._keys.v2v_to(self.vehicle_id, j))
-            publisher.put(frame)
+            if j in self._v2v_to:  # the world names only this swarm's vehicles, in realtime
+                self._v2v_to[j].put(frame)
 
     def flush(self) -> None:
         """Publish the frames encoded since the last flush as one message."""
