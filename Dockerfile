@@ -11,6 +11,9 @@ COPY bus ./bus
 COPY sim ./sim
 COPY vehicle ./vehicle
 COPY groundstation ./groundstation
+COPY cli ./cli
+COPY experiments ./experiments
+COPY launch ./launch
 COPY deploy ./deploy
 RUN pip install --no-compile . && rm -rf /root/.cache
 

@@ -41,18 +41,31 @@ def run(quick: bool = False) -> list[Row]:
     payload, truth, samples = _batches(5)
     rows = []
     us = per_call_us(lambda: feed.decode_batch(payload).samples(), calls=calls // 4)
-    rows.append(Row("codec", f"sensor batch, 1 tick ({samples} samples, {len(payload)} B)", "decode + unpack",
-                    round(us, 1), "us", f"<= {BATCH_US:g} us", us <= BATCH_US))
+    rows.append(
+        Row(
+            "codec",
+            f"sensor batch, 1 tick ({samples} samples, {len(payload)} B)",
+            "decode + unpack",
+            round(us, 1),
+            "us",
+            f"<= {BATCH_US:g} us",
+            us <= BATCH_US,
+        )
+    )
     us = per_call_us(lambda: feed.decode_truth(truth), calls=calls // 4)
-    rows.append(Row("codec", f"truth batch, 1 tick, 5 vehicles ({len(truth)} B)", "decode", round(us, 1), "us", "-", None))
+    rows.append(
+        Row("codec", f"truth batch, 1 tick, 5 vehicles ({len(truth)} B)", "decode", round(us, 1), "us", "-", None)
+    )
     key = bytes(range(32))
     for signed in (False, True):
         encoder = MavlinkEncoder(vehicle_id=3, signing_key=key if signed else None)
         frames = [encoder.odometry(_estimate(1000 * i)) for i in range(calls * 5 + 10)]  # signing: fresh timestamps
         decoder, it = MavlinkDecoder(signing_key=key if signed else None), iter(frames)
         label = "signed" if signed else "unsigned"
-        for case, body in ((f"encode ODOMETRY ({label})", lambda e=encoder: e.odometry(_estimate(0))),
-                           (f"decode ODOMETRY ({label})", lambda d=decoder, i=it: d.decode(next(i)))):
+        for case, body in (
+            (f"encode ODOMETRY ({label})", lambda e=encoder: e.odometry(_estimate(0))),
+            (f"decode ODOMETRY ({label})", lambda d=decoder, i=it: d.decode(next(i))),
+        ):
             us = per_call_us(body, calls=calls)
             rows.append(Row("codec", case, "per frame", round(us, 2), "us", f"<= {FRAME_US:g} us", us <= FRAME_US))
     return rows

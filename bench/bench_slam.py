@@ -10,13 +10,13 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from bench.common import Row, per_call_us
-from vehicle.ekf_slam_core import observe, update
+from vehicle.models.landmarks import observe, update
 
 TARGET_US = 5000.0
 R = np.diag([0.1**2, 0.01**2])
@@ -34,7 +34,7 @@ def _dense_update(x: np.ndarray, P: np.ndarray, j: int, z: np.ndarray) -> tuple[
     """The textbook EKF update with a full H (2, n): new x and new n x n P every time."""
     predicted, H_pose, H_landmark = observe(x, 3, j)
     H = np.zeros((2, len(x)))
-    H[:, :3], H[:, 3 + 2 * j:5 + 2 * j] = H_pose, H_landmark
+    H[:, :3], H[:, 3 + 2 * j : 5 + 2 * j] = H_pose, H_landmark
     S = H @ P @ H.T + R
     K = P @ H.T @ np.linalg.inv(S)
     return x + K @ (z - predicted), P - K @ (H @ P)
@@ -59,7 +59,9 @@ def front_end_rows() -> list[Row]:
     rng = np.random.default_rng(2)
     rows = []
     for size in (80, 320):
-        frames = [camera_frame(terrain, np.array([x, 0.5 * x, 0.3 * x]), rng, size_px=size) for x in np.linspace(-20, 20, 8)]
+        frames = [
+            camera_frame(terrain, np.array([x, 0.5 * x, 0.3 * x]), rng, size_px=size) for x in np.linspace(-20, 20, 8)
+        ]
         for kind in ("sift", "orb"):
             detector = features.make_detector(kind)
             found = [len(features.detect(f, detector).responses) for f in frames]
@@ -72,8 +74,18 @@ def front_end_rows() -> list[Row]:
                 features.range_bearing(f.points_px, size, 0.1)
 
             us = per_call_us(one_frame, calls=16 if size == 320 else 64, repeats=3)
-            rows.append(Row("slam", f"front end, {kind.upper()}, {size} x {size} px", "per frame", round(us, 1), "us",
-                            "-", None, {"keypoints_mean": round(float(np.mean(found)), 1)}))
+            rows.append(
+                Row(
+                    "slam",
+                    f"front end, {kind.upper()}, {size} x {size} px",
+                    "per frame",
+                    round(us, 1),
+                    "us",
+                    "-",
+                    None,
+                    {"keypoints_mean": round(float(np.mean(found)), 1)},
+                )
+            )
     return rows
 
 
@@ -87,14 +99,16 @@ def camera_vehicle_rows(quick: bool) -> list[Row]:
         print("  slam: realtime, 5 camera vehicles ...", flush=True)
         r = run_case(5, "realtime", 10 if quick else 20, Path(tmp), scenario)
     case = "realtime 50 Hz, 5 camera vehicles (ekf-slam)"
-    return [Row("slam", case, "loop overruns", round(100 * r["overrun_rate"], 2), "%", "< 1%", r["overrun_rate"] < 0.01, r),
-            Row("slam", case, "cycle p99", round(r["cycle_p99_us"] / 1000, 2), "ms", "-", None)]
+    return [
+        Row("slam", case, "loop overruns", round(100 * r["overrun_rate"], 2), "%", "< 1%", r["overrun_rate"] < 0.01, r),
+        Row("slam", case, "cycle p99", round(r["cycle_p99_us"] / 1000, 2), "ms", "-", None),
+    ]
 
 
 def run(quick: bool = False) -> list[Row]:
     rng = np.random.default_rng(0)
     rows = front_end_rows() + camera_vehicle_rows(quick)
-    for landmarks in ((100, 900) if quick else (100, 300, 900, 2000)):
+    for landmarks in (100, 900) if quick else (100, 300, 900, 2000):
         x, P = _map(landmarks, rng)
         j = landmarks // 2
         z = observe(x, 3, j)[0] + np.array([0.05, 0.005])
@@ -103,9 +117,27 @@ def run(quick: bool = False) -> list[Row]:
         dense = per_call_us(lambda: _dense_update(x, P, j, z), calls=max(2, calls // 4), repeats=3)
         target = f"<= {TARGET_US:g} us" if landmarks == 900 else "-"
         met = in_place <= TARGET_US if landmarks == 900 else None
-        rows.append(Row("slam", f"EKF-SLAM update, {landmarks} landmarks (n = {3 + 2 * landmarks})",
-                        "in place per update", round(in_place, 1), "us", target, met,
-                        {"dense_us": round(dense, 1), "speedup": round(dense / in_place, 1)}))
-        rows.append(Row("slam", f"EKF-SLAM update, {landmarks} landmarks (n = {3 + 2 * landmarks})",
-                        "textbook dense per update", round(dense, 1), "us", "-", None))
+        rows.append(
+            Row(
+                "slam",
+                f"EKF-SLAM update, {landmarks} landmarks (n = {3 + 2 * landmarks})",
+                "in place per update",
+                round(in_place, 1),
+                "us",
+                target,
+                met,
+                {"dense_us": round(dense, 1), "speedup": round(dense / in_place, 1)},
+            )
+        )
+        rows.append(
+            Row(
+                "slam",
+                f"EKF-SLAM update, {landmarks} landmarks (n = {3 + 2 * landmarks})",
+                "textbook dense per update",
+                round(dense, 1),
+                "us",
+                "-",
+                None,
+            )
+        )
     return rows

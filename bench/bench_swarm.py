@@ -42,7 +42,11 @@ def vehicle_rss_mb(marker: str) -> list[float]:
         try:
             cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
             if marker in cmd and " vehicle " in cmd:
-                rss_kb = next(int(l.split()[1]) for l in (entry / "status").read_text().splitlines() if l.startswith("VmRSS"))
+                rss_kb = next(
+                    int(line.split()[1])
+                    for line in (entry / "status").read_text().splitlines()
+                    if line.startswith("VmRSS")
+                )
                 sizes.append(rss_kb / 1024)
         except (OSError, StopIteration):
             continue
@@ -52,9 +56,26 @@ def vehicle_rss_mb(marker: str) -> list[float]:
 def run_case(vehicles: int, mode: str, duration_s: float, out: Path, scenario: Path | None = None) -> dict:
     """`swarm up` (over ``scenario`` when given) with these settings, measured."""
     name = f"{mode}-{vehicles}"
-    cmd = [sys.executable, "-m", "groundstation.cli", "up", *([str(scenario)] if scenario else []), "--quiet",
-           "--out", str(out), "--name", name, "--vehicles", str(vehicles), "--mode", mode,
-           "--duration", str(duration_s), "--seed", "1"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "cli",
+        "up",
+        *([str(scenario)] if scenario else []),
+        "--quiet",
+        "--out",
+        str(out),
+        "--name",
+        name,
+        "--vehicles",
+        str(vehicles),
+        "--mode",
+        mode,
+        "--duration",
+        str(duration_s),
+        "--seed",
+        "1",
+    ]
     peak: list[float] = []
     done = threading.Event()
 
@@ -72,13 +93,17 @@ def run_case(vehicles: int, mode: str, duration_s: float, out: Path, scenario: P
     per_vehicle = timing["vehicles"].values()
     cycles = sum(v["cycles"] for v in per_vehicle)
     return {
-        "vehicles": vehicles, "mode": mode, "sim_s": duration_s, "exit_status": result.returncode,
+        "vehicles": vehicles,
+        "mode": mode,
+        "sim_s": duration_s,
+        "exit_status": result.returncode,
         "real_time_factor": timing["real_time_factor"],
         "overrun_rate": sum(v["overruns"] for v in per_vehicle) / cycles if cycles else None,
         "jitter_p99_us": max((v["jitter_p99_us"] for v in per_vehicle), default=None),
         "cycle_p99_us": max((v["cycle_p99_us"] for v in per_vehicle), default=None),
         "vehicle_rss_mb_max": round(max(peak), 1) if peak else None,
-        "swarm_rmse_m": summary["swarm"]["rmse_m"], "swarm_anees": summary["swarm"].get("anees"),
+        "swarm_rmse_m": summary["swarm"]["rmse_m"],
+        "swarm_anees": summary["swarm"].get("anees"),
         "wall_s": timing["wall_s"],
         "dropped_stale": sum(v.get("dropped_stale", 0) for v in summary["vehicles"].values()),
     }
@@ -91,14 +116,20 @@ def floor_wall_s(vehicles: int, duration_s: float) -> float:
 
 
 def print_table(rows: list[dict]) -> str:
-    lines = ["| case | vehicles | sim s | RTF | floor [s] | overruns | jitter p99 [ms] | cycle p99 [ms] | vehicle RSS [MB] | swarm RMSE [m] | ANEES | target |",
-             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
+    lines = [
+        "| case | vehicles | sim s | RTF | floor [s] | overruns | jitter p99 [ms] | cycle p99 [ms] "
+        "| vehicle RSS [MB] | swarm RMSE [m] | ANEES | target |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |",
+    ]
     for r in rows:
         rt = r["mode"] == "realtime"
-        lines.append(f"| {r['label']} | {r['vehicles']} | {r['sim_s']:g} | {r['real_time_factor']:.2f}x | "
-                     f"{r.get('floor_wall_s', float('nan')):.2f} | "
-                     f"{100 * r['overrun_rate']:.2f}% | {r['jitter_p99_us'] / 1000 if rt else float('nan'):.2f} | "
-                     f"{r['cycle_p99_us'] / 1000:.2f} | {r['vehicle_rss_mb_max']} | {r['swarm_rmse_m']} | {r['swarm_anees']} | {r['target']} |")
+        lines.append(
+            f"| {r['label']} | {r['vehicles']} | {r['sim_s']:g} | {r['real_time_factor']:.2f}x | "
+            f"{r.get('floor_wall_s', float('nan')):.2f} | "
+            f"{100 * r['overrun_rate']:.2f}% | {r['jitter_p99_us'] / 1000 if rt else float('nan'):.2f} | "
+            f"{r['cycle_p99_us'] / 1000:.2f} | {r['vehicle_rss_mb_max']} | {r['swarm_rmse_m']} | {r['swarm_anees']} "
+            f"| {r['target']} |"
+        )
     table = "\n".join(lines).replace("nan", "-")
     print(table)
     return table
@@ -115,20 +146,66 @@ def run(quick: bool = False) -> list[Row]:
             case = f"{label}, {vehicles} vehicles"
             if mode == "lockstep":
                 need = float(target.split(">=")[1].rstrip("x"))
-                rows.append(Row("swarm", case, "real-time factor", round(r["real_time_factor"], 2), "x", target,
-                                r["real_time_factor"] >= need, r))
+                rows.append(
+                    Row(
+                        "swarm",
+                        case,
+                        "real-time factor",
+                        round(r["real_time_factor"], 2),
+                        "x",
+                        target,
+                        r["real_time_factor"] >= need,
+                        r,
+                    )
+                )
                 r["floor_wall_s"] = round(floor_wall_s(vehicles, duration), 3)
                 ratio = r["wall_s"] / r["floor_wall_s"]
-                rows.append(Row("swarm", case, "wall time / floor", round(ratio, 2), "x",
-                                f"<= {MAX_FLOOR_RATIO:g}x (floor {r['floor_wall_s']:.2f} s, swarm {r['wall_s']:.2f} s)",
-                                ratio <= MAX_FLOOR_RATIO))
+                rows.append(
+                    Row(
+                        "swarm",
+                        case,
+                        "wall time / floor",
+                        round(ratio, 2),
+                        "x",
+                        f"<= {MAX_FLOOR_RATIO:g}x (floor {r['floor_wall_s']:.2f} s, swarm {r['wall_s']:.2f} s)",
+                        ratio <= MAX_FLOOR_RATIO,
+                    )
+                )
             else:
-                rows.append(Row("swarm", case, "loop overruns", round(100 * r["overrun_rate"], 2), "%", "< 1%",
-                                r["overrun_rate"] < MAX_OVERRUN, r))
-                rows.append(Row("swarm", case, "jitter p99", round(r["jitter_p99_us"] / 1000, 2), "ms", "< 5 ms",
-                                r["jitter_p99_us"] < MAX_JITTER_US))
-                rows.append(Row("swarm", case, "samples dropped as stale", r["dropped_stale"], "", "0 (no faults)",
-                                r["dropped_stale"] == 0))
+                rows.append(
+                    Row(
+                        "swarm",
+                        case,
+                        "loop overruns",
+                        round(100 * r["overrun_rate"], 2),
+                        "%",
+                        "< 1%",
+                        r["overrun_rate"] < MAX_OVERRUN,
+                        r,
+                    )
+                )
+                rows.append(
+                    Row(
+                        "swarm",
+                        case,
+                        "jitter p99",
+                        round(r["jitter_p99_us"] / 1000, 2),
+                        "ms",
+                        "< 5 ms",
+                        r["jitter_p99_us"] < MAX_JITTER_US,
+                    )
+                )
+                rows.append(
+                    Row(
+                        "swarm",
+                        case,
+                        "samples dropped as stale",
+                        r["dropped_stale"],
+                        "",
+                        "0 (no faults)",
+                        r["dropped_stale"] == 0,
+                    )
+                )
     rss = max((r["vehicle_rss_mb_max"] or 0.0) for r in details)
     rows.append(Row("swarm", "all cases", "vehicle peak RSS", rss, "MB", "<= 120 MB", rss <= 120))
     print_table(details)

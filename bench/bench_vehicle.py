@@ -25,7 +25,9 @@ CASES = (5, 20, 32)
 
 def measure(vehicles: int, duration_s: float, *, seed: int = 1) -> dict:
     """Filing and cycle CPU (ms per vehicle per simulated second) of ``vehicles`` nodes over ``duration_s``."""
-    config = build_config({"world": {"vehicles": vehicles, "seed": seed}, "clock": {"mode": "realtime", "duration_s": duration_s}})
+    config = build_config(
+        {"world": {"vehicles": vehicles, "seed": seed}, "clock": {"mode": "realtime", "duration_s": duration_s}}
+    )
     hub, world = MemoryHub(), World(config)
     nodes = [VehicleNode(hub.connect("vehicle"), config.for_vehicle(), vid) for vid in world.vehicle_ids()]
     keys, tick_us = nodes[0].bus.keys, round(config.clock.tick_s * 1e6)
@@ -34,7 +36,9 @@ def measure(vehicles: int, duration_s: float, *, seed: int = 1) -> dict:
         stamp = tick * tick_us
         out = world.advance(stamp)
         for vid in world.vehicle_ids():
-            hub.deliver(keys.feed(vid), feed.encode_batch(feed.SensorBatch(vid, tick, stamp, out.blocks(vid), out.camera(vid))))
+            hub.deliver(
+                keys.feed(vid), feed.encode_batch(feed.SensorBatch(vid, tick, stamp, out.blocks(vid), out.camera(vid)))
+            )
         hub.deliver(keys.clock(), m.encode(m.ClockTick(tick, stamp, time.time_ns(), False)))
         for node in nodes:
             start = time.thread_time()
@@ -49,8 +53,14 @@ def measure(vehicles: int, duration_s: float, *, seed: int = 1) -> dict:
             filing, cycling = filing + middle - start, cycling + time.thread_time() - middle
     per = 1e3 / (vehicles * duration_s)
     fused = sum(node.estimator.counters.v2v_fused for node in nodes)
-    return {"vehicles": vehicles, "sim_s": duration_s, "filing_ms": filing * per, "cycle_ms": cycling * per,
-            "total_ms": (filing + cycling) * per, "v2v_fused": fused}
+    return {
+        "vehicles": vehicles,
+        "sim_s": duration_s,
+        "filing_ms": filing * per,
+        "cycle_ms": cycling * per,
+        "total_ms": (filing + cycling) * per,
+        "v2v_fused": fused,
+    }
 
 
 def run(quick: bool = False) -> list[Row]:
@@ -60,7 +70,9 @@ def run(quick: bool = False) -> list[Row]:
         r = measure(vehicles, 5.0 if quick else 20.0)
         case = f"one vehicle's work alone, swarm of {vehicles}"
         rows.append(Row("vehicle", case, "CPU per simulated second", round(r["total_ms"], 2), "ms", "-", None, r))
-        rows.append(Row("vehicle", case, "of which filing (batches, ticks, V2V)", round(r["filing_ms"], 2), "ms", "-", None))
+        rows.append(
+            Row("vehicle", case, "of which filing (batches, ticks, V2V)", round(r["filing_ms"], 2), "ms", "-", None)
+        )
     return rows
 
 

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Callable
 
 
 @dataclass(frozen=True)
@@ -14,8 +14,8 @@ class Row:
     metric: str
     value: float | None
     unit: str
-    target: str            # e.g. "<= 20 us", ">= 20x", or "-" when the row is context only
-    met: bool | None       # None: no target
+    target: str  # e.g. "<= 20 us", ">= 20x", or "-" when the row is context only
+    met: bool | None  # None: no target
     details: dict | None = None  # everything else measured for this case
 
     def as_dict(self) -> dict:
@@ -32,15 +32,3 @@ def per_call_us(body: Callable[[], object], *, calls: int, repeats: int = 5) -> 
             body()
         best = min(best, (time.perf_counter() - start) / calls)
     return best * 1e6
-
-
-def vehicle_feed(config, vehicle_id: int = 1) -> list[tuple[str, object]]:
-    """Every sample the world measures for one vehicle over ``config.clock.duration_s``, in stamp
-    order, as (topic, message) pairs: what the vehicle process unpacks from its sensor batches."""
-    from bus.feed import SensorBatch
-    from sim.world import World
-
-    world = World(config)
-    out = world.advance(round(config.clock.duration_s * 1e6))
-    return SensorBatch(vehicle_id, 0, round(config.clock.duration_s * 1e6), out.blocks(vehicle_id),
-                       out.camera(vehicle_id)).samples()

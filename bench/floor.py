@@ -16,18 +16,19 @@ import numpy as np
 
 from bus.config import SwarmConfig
 from bus.feed import SensorBatch
+from bus.topics import Topic
 from sim.world import World
-from vehicle.cooperative import CooperativeFix
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
+from vehicle.models.cooperative import CooperativeFix
 
 
 @dataclass
 class FloorResult:
-    wall_s: float          # the whole run
-    estimator_s: float     # inside the vehicles' fusion horizons and estimators
-    world_s: float         # inside the world
-    cycles: int            # vehicle cycles run (all vehicles)
+    wall_s: float  # the whole run
+    estimator_s: float  # inside the vehicles' fusion horizons and estimators
+    world_s: float  # inside the world
+    cycles: int  # vehicle cycles run (all vehicles)
 
     @property
     def cycle_us(self) -> float:
@@ -39,8 +40,9 @@ def run_floor(config: SwarmConfig) -> FloorResult:
     world, vconfig = World(config), config.for_vehicle()
     ids = world.vehicle_ids()
     estimators = {vid: get_estimator(vconfig, vid) for vid in ids}
-    fusions = {vid: FusionHorizon(estimators[vid], horizon_us=round(vconfig.vehicle.fusion_horizon_s * 1e6))
-               for vid in ids}
+    fusions = {
+        vid: FusionHorizon(estimators[vid], horizon_us=round(vconfig.vehicle.fusion_horizon_s * 1e6)) for vid in ids
+    }
     waiting: dict[int, list] = {vid: [] for vid in ids}
     broadcasts: dict[int, dict[int, tuple[np.ndarray, np.ndarray]]] = {vid: {} for vid in ids}
     tick_us, period_us = round(config.clock.tick_s * 1e6), round(1e6 / vconfig.vehicle.loop_rate_hz)
@@ -56,7 +58,7 @@ def run_floor(config: SwarmConfig) -> FloorResult:
         world_s += t1 - t0
         for vid in ids:
             for topic, msg in SensorBatch(vid, 0, stamp, out.blocks(vid)).samples():
-                if topic == "ranging":
+                if topic is Topic.RANGING:
                     waiting[vid].append(msg)
                     fusions[vid].expect(msg.stamp_us)
                 else:
@@ -68,8 +70,19 @@ def run_floor(config: SwarmConfig) -> FloorResult:
                 for msg in ripe:
                     heard = broadcasts[msg.target_id].get(msg.stamp_us)
                     if heard is not None:
-                        fusions[vid].push("ranging", CooperativeFix(vid, msg.stamp_us, msg.seq, msg.target_id, msg.range_m,
-                                                                    msg.bearing_rad, msg.covariance, *heard))
+                        fusions[vid].push(
+                            Topic.RANGING,
+                            CooperativeFix(
+                                vid,
+                                msg.stamp_us,
+                                msg.seq,
+                                msg.target_id,
+                                msg.range_m,
+                                msg.bearing_rad,
+                                msg.covariance,
+                                *heard,
+                            ),
+                        )
                 fusions[vid].cycle(t)
                 est = estimators[vid]
                 if t % v2v_period_us == 0 and est.initialized:

@@ -18,16 +18,26 @@ ROOT = Path(__file__).resolve().parent
 
 
 def machine() -> str:
-    cpu = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
-                if line.startswith("model name")), platform.processor() or platform.machine())
-    return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, Python {platform.python_version()}"
+    cpu = next(
+        (
+            line.split(":", 1)[1].strip()
+            for line in Path("/proc/cpuinfo").read_text().splitlines()
+            if line.startswith("model name")
+        ),
+        platform.processor() or platform.machine(),
+    )
+    return (
+        f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, Python {platform.python_version()}"
+    )
 
 
 def table(rows: list[dict]) -> str:
     lines = ["| benchmark | case | metric | measured | target | met |", "| --- | --- | --- | ---: | --- | --- |"]
     for r in rows:
         met = {True: "yes", False: "**no**", None: "-"}[r["met"]]
-        lines.append(f"| {r['benchmark']} | {r['case']} | {r['metric']} | {r['value']} {r['unit']} | {r['target']} | {met} |")
+        lines.append(
+            f"| {r['benchmark']} | {r['case']} | {r['metric']} | {r['value']} {r['unit']} | {r['target']} | {met} |"
+        )
     return "\n".join(lines)
 
 

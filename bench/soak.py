@@ -30,10 +30,12 @@ def rss_by_role(run: Path) -> dict[str, float]:
             continue
         try:
             cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
-            rss = next(int(l.split()[1]) for l in (entry / "status").read_text().splitlines() if l.startswith("VmRSS"))
+            rss = next(
+                int(line.split()[1]) for line in (entry / "status").read_text().splitlines() if line.startswith("VmRSS")
+            )
         except (OSError, StopIteration):
             continue
-        if "groundstation.cli" not in cmd:
+        if " -m cli " not in cmd:
             continue
         if f"{run}/vehicle.json" in cmd:
             out[f"vehicle-{cmd.split('--id ')[1].split()[0]}"] = rss / 1024
@@ -58,11 +60,21 @@ def hostile_trickle(run: Path, stop: threading.Event, rate_hz: float = 50.0) -> 
     degenerate = MavlinkEncoder(vehicle_id=5, signing_key=key, link_id=2)
     rng, sent = np.random.default_rng(7), 0
     with ZenohBus(BusConfig(connect=(endpoint,)), role="groundstation", transport=login) as bus:
-        pubs = {k: bus.publisher(f"swarm/{k}") for k in ("v/5/mavlink", "v/5/v2v", "v/x/v2v", "v/5/status", "ctl/ack/5")}
+        pubs = {
+            k: bus.publisher(f"swarm/{k}") for k in ("v/5/mavlink", "v/5/v2v", "v/x/v2v", "v/5/status", "ctl/ack/5")
+        }
         while not stop.wait(1.0 / rate_hz):
             k = sent % 8
-            est = StateEstimate(2 if k == 2 else 5, 1_000_000 + sent, np.array([1.0, 2.0, -30.0]), 0.0, np.zeros(3),
-                                0.0, np.zeros((6, 6)) if k == 3 else np.eye(6), np.eye(6))
+            est = StateEstimate(
+                2 if k == 2 else 5,
+                1_000_000 + sent,
+                np.array([1.0, 2.0, -30.0]),
+                0.0,
+                np.zeros(3),
+                0.0,
+                np.zeros((6, 6)) if k == 3 else np.eye(6),
+                np.eye(6),
+            )
             if k == 0:
                 pubs["v/5/mavlink"].put(rng.bytes(int(rng.integers(1, 400))))
             elif k == 1:
@@ -89,8 +101,25 @@ def main() -> None:
     duration_s = minutes * 60.0
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        cmd = [sys.executable, "-m", "groundstation.cli", "up", "--quiet", "--out", str(out), "--name", "soak",
-               "--vehicles", "5", "--mode", "realtime", "--duration", str(duration_s), "--seed", "3"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "cli",
+            "up",
+            "--quiet",
+            "--out",
+            str(out),
+            "--name",
+            "soak",
+            "--vehicles",
+            "5",
+            "--mode",
+            "realtime",
+            "--duration",
+            str(duration_s),
+            "--seed",
+            "3",
+        ]
         swarm = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         run = out / "soak"
         while not (run / "swarm.json").exists() or not (run / "metrics.csv").exists():
@@ -118,18 +147,39 @@ def report(samples, summary, hostile, exit_status, output, minutes) -> None:
     for role in sorted(warm):
         if role in end:
             growth = 100.0 * (end[role] - warm[role]) / warm[role]
-            rows.append({"process": role, "rss_minute2_mb": round(warm[role], 1), "rss_end_mb": round(end[role], 1),
-                         "growth_percent": round(growth, 2), "met": growth < 10.0})
-    lines = ["| process | RSS at minute 2 [MB] | RSS at the end [MB] | growth | < 10% |", "| --- | ---: | ---: | ---: | --- |"]
-    lines += [f"| {r['process']} | {r['rss_minute2_mb']} | {r['rss_end_mb']} | {r['growth_percent']:+.2f}% | "
-              f"{'yes' if r['met'] else '**no**'} |" for r in rows]
+            rows.append(
+                {
+                    "process": role,
+                    "rss_minute2_mb": round(warm[role], 1),
+                    "rss_end_mb": round(end[role], 1),
+                    "growth_percent": round(growth, 2),
+                    "met": growth < 10.0,
+                }
+            )
+    lines = [
+        "| process | RSS at minute 2 [MB] | RSS at the end [MB] | growth | < 10% |",
+        "| --- | ---: | ---: | ---: | --- |",
+    ]
+    lines += [
+        f"| {r['process']} | {r['rss_minute2_mb']} | {r['rss_end_mb']} | {r['growth_percent']:+.2f}% | "
+        f"{'yes' if r['met'] else '**no**'} |"
+        for r in rows
+    ]
     scored = {vid: v["samples"] for vid, v in summary["vehicles"].items()}
     print("\n".join(lines))
     print(f"hostile messages sent: {hostile}; rejected by reason: {summary['rejected']['by_reason']}")
     print(f"run status: {summary['status']}, exit {exit_status}; estimates scored per vehicle: {scored}")
-    result = {"minutes": minutes, "rows": rows, "hostile_messages": hostile, "rejected": summary["rejected"],
-              "status": summary["status"], "exit_status": exit_status, "scored": scored, "table": "\n".join(lines),
-              "rss_samples": samples}
+    result = {
+        "minutes": minutes,
+        "rows": rows,
+        "hostile_messages": hostile,
+        "rejected": summary["rejected"],
+        "status": summary["status"],
+        "exit_status": exit_status,
+        "scored": scored,
+        "table": "\n".join(lines),
+        "rss_samples": samples,
+    }
     (ROOT / "soak.json").write_text(json.dumps(result, indent=2) + "\n")
     if exit_status != 0:
         print(output[-3000:])

@@ -19,6 +19,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from bus.errors import ConfigError
+from bus.estimators import ESTIMATORS, EstimatorName
 from bus.faults import LINK_KINDS, Fault, check_fault, named
 from bus.replay_config import ReplayConfig
 
@@ -34,7 +35,7 @@ class BusConfig(_Strict):
     listen: tuple[str, ...] = ()
     connect_timeout_s: float = Field(180.0, gt=0, le=86400, description="a client waits this long for its router")
 
-    def with_env(self, env: dict[str, str] | None = None) -> "BusConfig":
+    def with_env(self, env: dict[str, str] | None = None) -> BusConfig:
         """This config with ``SWARMLOC_*`` environment overrides applied."""
         env = os.environ if env is None else env
         updates: dict[str, object] = {}
@@ -54,18 +55,31 @@ class BusConfig(_Strict):
 class ClockConfig(_Strict):
     mode: Literal["lockstep", "realtime"] = "lockstep"
     speed: float = Field(1.0, gt=0, le=1000, description="realtime: sim seconds per wall second")
-    tick_s: float | None = Field(None, gt=0, le=1.0, description="sim time per clock tick (lockstep barrier): "
-                                 "default 0.5 in lockstep, 0.02 in realtime")
+    tick_s: float | None = Field(
+        None,
+        gt=0,
+        le=1.0,
+        description="sim time per clock tick (lockstep barrier): default 0.5 in lockstep, 0.02 in realtime",
+    )
     duration_s: float = Field(60.0, gt=0, le=86400)
     ack_timeout_s: float = Field(10.0, gt=0, description="lockstep: wall time before a silent vehicle is dead")
     start_timeout_s: float = Field(60.0, gt=0, description="wall time to wait for every process to join")
-    gone_timeout_s: float = Field(30.0, gt=0, description="wall time the world and the ground station wait for "
-                                  "each other after one disappears, before ending the run")
-    gs_lag_ticks: int = Field(1, ge=1, le=10_000, description="lockstep: how many ticks the ground station may lag "
-                              "(what a ground-station crash can lose: 0.5 s of scoring at the default tick)")
+    gone_timeout_s: float = Field(
+        30.0,
+        gt=0,
+        description="wall time the world and the ground station wait for "
+        "each other after one disappears, before ending the run",
+    )
+    gs_lag_ticks: int = Field(
+        1,
+        ge=1,
+        le=10_000,
+        description="lockstep: how many ticks the ground station may lag "
+        "(what a ground-station crash can lose: 0.5 s of scoring at the default tick)",
+    )
 
     @model_validator(mode="after")
-    def _default_tick(self) -> "ClockConfig":
+    def _default_tick(self) -> ClockConfig:
         if self.tick_s is None:
             object.__setattr__(self, "tick_s", 0.5 if self.mode == "lockstep" else 0.02)
         return self
@@ -82,16 +96,30 @@ class SensorSpec(_Strict):
     odom_rate_hz: float = Field(50.0, gt=0, le=1000)
     odom_speed_sigma_mps: float = Field(0.05, ge=0)
     odom_yaw_rate_sigma_radps: float = Field(0.02, ge=0)
-    odom_turn_sigma_rad: float = Field(0.0, ge=0, le=1.0, description="odometry heading error per square root of "
-                                       "the angle turned (rad/sqrt(rad)): wheels that slip in turns. Replays only "
-                                       "(calibrated); the simulated world makes no such error")
-    odom_travel_sigma_m: float = Field(0.0, ge=0, le=1.0, description="odometry along-track error per square root of "
-                                       "the distance travelled (m/sqrt(m)). Replays only, as above")
+    odom_turn_sigma_rad: float = Field(
+        0.0,
+        ge=0,
+        le=1.0,
+        description="odometry heading error per square root of "
+        "the angle turned (rad/sqrt(rad)): wheels that slip in turns. Replays only "
+        "(calibrated); the simulated world makes no such error",
+    )
+    odom_travel_sigma_m: float = Field(
+        0.0,
+        ge=0,
+        le=1.0,
+        description="odometry along-track error per square root of "
+        "the distance travelled (m/sqrt(m)). Replays only, as above",
+    )
     gnss_rate_hz: float = Field(5.0, gt=0, le=100)
     gnss_sigma_m: float = Field(1.5, gt=0)
-    gnss_correlated_sigma_m: float = Field(0.0, ge=0, description="of gnss_sigma_m, the part that wanders slowly "
-                                           "(per axis; 0: white). ekf and ukf then estimate it as two "
-                                           "Gauss-Markov states; ekf-slam treats all of it as white")
+    gnss_correlated_sigma_m: float = Field(
+        0.0,
+        ge=0,
+        description="of gnss_sigma_m, the part that wanders slowly "
+        "(per axis; 0: white). ekf and ukf then estimate it as two "
+        "Gauss-Markov states; ekf-slam treats all of it as white",
+    )
     gnss_correlation_s: float = Field(60.0, gt=0, le=1e5, description="correlation time of that part")
     truth_rate_hz: float = Field(50.0, gt=0, le=1000)
     ranging_rate_hz: float = Field(5.0, gt=0, le=100, description="vehicle-to-vehicle radio ranging")
@@ -99,20 +127,40 @@ class SensorSpec(_Strict):
     ranging_max_peers: int = Field(4, ge=0, le=249, description="the radio ranges at most this many peers, the nearest")
     range_sigma_m: float = Field(0.3, gt=0)
     bearing_sigma_rad: float = Field(0.02, gt=0)
-    range_correlated_sigma_per_m: float = Field(0.0, ge=0, le=0.5, description="of a camera's landmark range "
-                                                "error, the part that persists in time, per metre of range "
-                                                "(0.03: 3 %; 0: white). known-map estimates it per landmark")
+    range_correlated_sigma_per_m: float = Field(
+        0.0,
+        ge=0,
+        le=0.5,
+        description="of a camera's landmark range "
+        "error, the part that persists in time, per metre of range "
+        "(0.03: 3 %; 0: white). known-map estimates it per landmark",
+    )
     range_correlation_s: float = Field(5.0, gt=0, le=1e4, description="correlation time of that part")
-    bearing_correlated_fraction: float = Field(0.0, ge=0, le=0.95, description="of a camera's landmark bearing "
-                                               "error variance, the part that persists in time (0: white); "
-                                               "known-map and slam estimate it per landmark")
+    bearing_correlated_fraction: float = Field(
+        0.0,
+        ge=0,
+        le=0.95,
+        description="of a camera's landmark bearing "
+        "error variance, the part that persists in time (0: white); "
+        "known-map and slam estimate it per landmark",
+    )
     bearing_correlation_s: float = Field(5.0, gt=0, le=1e4, description="correlation time of that part")
-    range_scale_prior_sigma: float = Field(0.0, ge=0, le=0.5, description="how far a camera's range scale may "
-                                           "be off (0.05: 5 %, every landmark read that much long or short); "
-                                           "known-map then estimates it (0: taken as exact)")
-    odom_scale_prior_sigma: float = Field(0.0, ge=0, le=0.5, description="how far the wheel odometry's speed "
-                                          "and yaw-rate scales may be off (0.1: 10 %); known-map then "
-                                          "estimates both (0: taken as exact)")
+    range_scale_prior_sigma: float = Field(
+        0.0,
+        ge=0,
+        le=0.5,
+        description="how far a camera's range scale may "
+        "be off (0.05: 5 %, every landmark read that much long or short); "
+        "known-map then estimates it (0: taken as exact)",
+    )
+    odom_scale_prior_sigma: float = Field(
+        0.0,
+        ge=0,
+        le=0.5,
+        description="how far the wheel odometry's speed "
+        "and yaw-rate scales may be off (0.1: 10 %); known-map then "
+        "estimates both (0: taken as exact)",
+    )
     prior_sigma_m: float = Field(0.5, gt=0, description="launch-pad survey of the start position")
     prior_heading_sigma_rad: float = Field(0.05, gt=0)
     camera_rate_hz: float = Field(0.0, ge=0, le=100, description="down-looking camera frames (0: no camera)")
@@ -121,10 +169,12 @@ class SensorSpec(_Strict):
     keypoint_sigma_px: float = Field(0.7, gt=0, le=20, description="keypoint position noise the filter assumes")
 
     @model_validator(mode="after")
-    def _correlated_part_is_a_part(self) -> "SensorSpec":
+    def _correlated_part_is_a_part(self) -> SensorSpec:
         if self.gnss_correlated_sigma_m >= self.gnss_sigma_m:
-            raise ValueError(f"gnss_correlated_sigma_m ({self.gnss_correlated_sigma_m} m) must be below "
-                             f"gnss_sigma_m ({self.gnss_sigma_m} m): it is a part of the total")
+            raise ValueError(
+                f"gnss_correlated_sigma_m ({self.gnss_correlated_sigma_m} m) must be below "
+                f"gnss_sigma_m ({self.gnss_sigma_m} m): it is a part of the total"
+            )
         return self
 
 
@@ -137,24 +187,39 @@ class SensorTruth(_Strict):
     gnss_sigma_factor: float = Field(1.0, gt=0, le=100, description="true GNSS white noise / datasheet")
     range_sigma_factor: float = Field(1.0, gt=0, le=100, description="true ranging noise / datasheet")
     substeps: int = Field(1, ge=1, le=100, description="truth integrated at the IMU period / substeps")
-    wobble_speed_mps: float = Field(0.0, ge=0, le=10, description="RMS of a smooth speed variation (0.05-1.5 Hz) "
-                                    "on top of the trajectory's law, varying inside a step")
+    wobble_speed_mps: float = Field(
+        0.0,
+        ge=0,
+        le=10,
+        description="RMS of a smooth speed variation (0.05-1.5 Hz) "
+        "on top of the trajectory's law, varying inside a step",
+    )
     wobble_yaw_rate_radps: float = Field(0.0, ge=0, le=2, description="RMS of the same for the yaw rate")
-    odom_scale_sigma: float = Field(0.0, ge=0, le=0.5, description="spread of each vehicle's constant wheel "
-                                    "scale error (0.01: 1 %)")
+    odom_scale_sigma: float = Field(
+        0.0, ge=0, le=0.5, description="spread of each vehicle's constant wheel scale error (0.01: 1 %)"
+    )
     odom_slip_rate_hz: float = Field(0.0, ge=0, le=10, description="wheel slip episodes per second")
     odom_slip_s: float = Field(0.5, gt=0, le=60, description="length of a slip episode")
     odom_slip_fraction: float = Field(0.2, ge=-1, le=5, description="odometry reads speed x (1 + this) while slipping")
-    gnss_walk_sigma_m: float = Field(0.0, ge=0, le=100, description="time-correlated GNSS error per axis: "
-                                     "stationary sigma of a first-order Gauss-Markov process")
+    gnss_walk_sigma_m: float = Field(
+        0.0,
+        ge=0,
+        le=100,
+        description="time-correlated GNSS error per axis: stationary sigma of a first-order Gauss-Markov process",
+    )
     gnss_walk_tau_s: float = Field(60.0, gt=0, le=1e5, description="its correlation time")
     gnss_outlier_probability: float = Field(0.0, ge=0, le=1, description="share of fixes that are outliers")
     gnss_outlier_m: float = Field(20.0, ge=0, le=1e4, description="typical outlier size (0.5-1.5 x this)")
-    heavy_tail_dof: float = Field(0.0, ge=0, le=1000, description="0: Gaussian white noise; > 2: Student-t "
-                                  "with this many degrees of freedom and the same sigma (odometry, GNSS, ranging)")
+    heavy_tail_dof: float = Field(
+        0.0,
+        ge=0,
+        le=1000,
+        description="0: Gaussian white noise; > 2: Student-t "
+        "with this many degrees of freedom and the same sigma (odometry, GNSS, ranging)",
+    )
 
     @model_validator(mode="after")
-    def _tail_has_a_variance(self) -> "SensorTruth":
+    def _tail_has_a_variance(self) -> SensorTruth:
         if 0 < self.heavy_tail_dof <= 2:
             raise ValueError("heavy_tail_dof must be 0 (Gaussian) or above 2 (a Student-t with a variance)")
         return self
@@ -163,9 +228,18 @@ class SensorTruth(_Strict):
 # A world richer than the filters (issue 13; `swarm experiment cooperative`, the staged tests): the
 # datasheet's GNSS sigma (1.5 m) is split into 1.2 m white and 0.9 m Gauss-Markov (60 s), so the total
 # matches the datasheet but half of it no longer averages out.
-HONEST_WORLD = {"gnss_sigma_factor": 0.8, "substeps": 5, "wobble_speed_mps": 0.2, "wobble_yaw_rate_radps": 0.03,
-                "odom_scale_sigma": 0.005, "odom_slip_rate_hz": 0.02, "gnss_walk_sigma_m": 0.9,
-                "gnss_walk_tau_s": 60.0, "gnss_outlier_probability": 0.002, "heavy_tail_dof": 5.0}
+HONEST_WORLD = {
+    "gnss_sigma_factor": 0.8,
+    "substeps": 5,
+    "wobble_speed_mps": 0.2,
+    "wobble_yaw_rate_radps": 0.03,
+    "odom_scale_sigma": 0.005,
+    "odom_slip_rate_hz": 0.02,
+    "gnss_walk_sigma_m": 0.9,
+    "gnss_walk_tau_s": 60.0,
+    "gnss_outlier_probability": 0.002,
+    "heavy_tail_dof": 5.0,
+}
 # What the filters are told in that world (the datasheet, rounded: the world's Gauss-Markov part is
 # 0.9 m over 60 s, the datasheet says 1 m and a minute).
 HONEST_DATASHEET = {"gnss_correlated_sigma_m": 1.0, "gnss_correlation_s": 60.0}
@@ -181,40 +255,64 @@ class WorldConfig(_Strict):
     spacing_m: float = Field(60.0, gt=0, description="distance between neighbouring start pads")
     terrain: str = Field("", description="orthophoto (PNG/JPEG) the cameras see; empty: a procedural terrain")
     terrain_metres_per_pixel: float = Field(0.1, gt=0, le=100)
-    terrain_size_px: int | None = Field(None, ge=256, le=8192, description="side of the procedural terrain "
-                                        "(default: large enough for every start pad and trajectory, at least 2048)")
+    terrain_size_px: int | None = Field(
+        None,
+        ge=256,
+        le=8192,
+        description="side of the procedural terrain "
+        "(default: large enough for every start pad and trajectory, at least 2048)",
+    )
     sensor_truth: SensorTruth = SensorTruth()
 
 
 class VehicleConfig(_Strict):
-    estimator: Literal["ekf", "ukf", "ekf-slam", "known-map"] = Field(
-        "ekf", description="the estimator every vehicle runs (vehicle.estimators): ekf, ukf, ekf-slam (a camera, or "
-        "a replay's landmark sightings) or known-map (landmark sightings against vehicle.landmarks)")
-    landmarks: tuple[tuple[int, float, float], ...] = Field((), max_length=10_000, description="known-map: the "
-                                                            "surveyed landmarks, (id, x m, y m)")
+    estimator: EstimatorName = Field(
+        "ekf",
+        description="the estimator every vehicle runs: "
+        + "; ".join(f"{name}: {entry.summary}" for name, entry in ESTIMATORS.items()),
+    )
+    landmarks: tuple[tuple[int, float, float], ...] = Field(
+        (), max_length=10_000, description="known-map: the surveyed landmarks, (id, x m, y m)"
+    )
     features: Literal["sift", "orb"] = Field("sift", description="ekf-slam: keypoint detector")
     loop_rate_hz: float = Field(50.0, gt=0, le=1000)
     gate_probability: float = Field(0.9995, gt=0.5, lt=1.0, description="chi-square gate for GNSS")
     heartbeat_period_s: float = Field(1.0, gt=0)
     status_period_s: float = Field(1.0, gt=0)
-    fusion_horizon_s: float = Field(0.5, ge=0, le=10, description="late measurements up to this old are still fused in order")
+    fusion_horizon_s: float = Field(
+        0.5, ge=0, le=10, description="late measurements up to this old are still fused in order"
+    )
     cooperative: bool = Field(True, description="fuse ranging to neighbours with their broadcast estimates (CI)")
     cooperative_fusion: Literal["split-ci", "ci", "paper", "naive"] = Field(
-        "split-ci", description="split-ci: Covariance Intersection scaling only the neighbour's share, the radio's "
+        "split-ci",
+        description="split-ci: Covariance Intersection scaling only the neighbour's share, the radio's "
         "own noise kept whole (consistent whatever the correlation); ci: plain CI; paper: CI of the position "
         "the fix implies (paper eq. 4.10); naive: a plain Kalman update that treats the neighbour's estimate as "
-        "independent (double counts)")
-    ci_weight: Literal["optimal", "closed-form"] = Field("optimal", description="CI weight: optimal (maximum "
-                                                         "pose information, w = 1 skips the fix) or closed-form "
-                                                         "(plain CI's best weight in closed form)")
-    adaptive_noise: bool = Field(False, description="IAE: estimate the GNSS and ranging noise covariances from the "
-                                 "innovations of the last adaptive_window fixes instead of trusting the datasheet")
+        "independent (double counts)",
+    )
+    ci_weight: Literal["optimal", "closed-form"] = Field(
+        "optimal",
+        description="CI weight: optimal (maximum "
+        "pose information, w = 1 skips the fix) or closed-form "
+        "(plain CI's best weight in closed form)",
+    )
+    adaptive_noise: bool = Field(
+        False,
+        description="IAE: estimate the GNSS and ranging noise covariances from the "
+        "innovations of the last adaptive_window fixes instead of trusting the datasheet",
+    )
     adaptive_window: int = Field(40, ge=5, le=10_000, description="IAE window, fixes per sensor")
     v2v_latency_s: float = Field(0.1, ge=0, le=5, description="ranging waits this long for the neighbour's estimate")
-    mavlink_rate_hz: float = Field(10.0, gt=0, le=1000, description="ODOMETRY to the ground station (<= loop rate; "
-                                   "a telemetry rate: the ground station scores every estimate it receives)")
-    realtime_allowance_s: float = Field(0.005, ge=0, le=1, description="realtime: a cycle waits this long past its "
-                                        "deadline for the tick's sensor batch")
+    mavlink_rate_hz: float = Field(
+        10.0,
+        gt=0,
+        le=1000,
+        description="ODOMETRY to the ground station (<= loop rate; "
+        "a telemetry rate: the ground station scores every estimate it receives)",
+    )
+    realtime_allowance_s: float = Field(
+        0.005, ge=0, le=1, description="realtime: a cycle waits this long past its deadline for the tick's sensor batch"
+    )
     world_timeout_s: float = Field(60.0, gt=0, description="a vehicle whose world is gone this long gives up")
 
 
@@ -226,13 +324,20 @@ class SwarmConfig(_Strict):
     sensors: SensorSpec = SensorSpec()
     vehicle: VehicleConfig = VehicleConfig()
     faults: tuple[Fault, ...] = Field((), description="fault timeline (physical, link and kill faults)")
-    replay: ReplayConfig | None = Field(None, description="replay a recorded data set instead of simulating "
-                                        "(world.vehicles is then the number of robots replayed)")
-    fault_seed: int = Field(1, ge=0, le=2**63 - 1, description="seed of link-fault decisions; independent of "
-                            "world.seed, which vehicles never see")
+    replay: ReplayConfig | None = Field(
+        None,
+        description="replay a recorded data set instead of simulating "
+        "(world.vehicles is then the number of robots replayed)",
+    )
+    fault_seed: int = Field(
+        1,
+        ge=0,
+        le=2**63 - 1,
+        description="seed of link-fault decisions; independent of world.seed, which vehicles never see",
+    )
 
     @model_validator(mode="after")
-    def _faults_are_named_and_valid(self) -> "SwarmConfig":
+    def _faults_are_named_and_valid(self) -> SwarmConfig:
         faults = named(list(self.faults))
         names = [f.name for f in faults]
         if len(set(names)) != len(names):
@@ -243,25 +348,29 @@ class SwarmConfig(_Strict):
         return self
 
     @model_validator(mode="after")
-    def _rates_fit_the_world_step(self) -> "SwarmConfig":
+    def _rates_fit_the_world_step(self) -> SwarmConfig:
         step_us = round(1e6 / self.sensors.imu_rate_hz)
-        for label, rate in [("odom", self.sensors.odom_rate_hz), ("gnss", self.sensors.gnss_rate_hz),
-                            ("ranging", self.sensors.ranging_rate_hz),
-                            *([("camera", self.sensors.camera_rate_hz)] if self.sensors.camera_rate_hz else []),
-                            ("truth", self.sensors.truth_rate_hz), ("tick", 1.0 / self.clock.tick_s)]:
+        for label, rate in [
+            ("odom", self.sensors.odom_rate_hz),
+            ("gnss", self.sensors.gnss_rate_hz),
+            ("ranging", self.sensors.ranging_rate_hz),
+            *([("camera", self.sensors.camera_rate_hz)] if self.sensors.camera_rate_hz else []),
+            ("truth", self.sensors.truth_rate_hz),
+            ("tick", 1.0 / self.clock.tick_s),
+        ]:
             if round(1e6 / rate) % step_us:
                 raise ValueError(f"{label} period must be a multiple of the IMU period ({step_us} us)")
         return self
 
     @model_validator(mode="after")
-    def _cycles_fit_the_tick(self) -> "SwarmConfig":
+    def _cycles_fit_the_tick(self) -> SwarmConfig:
         period_us = round(1e6 / self.vehicle.loop_rate_hz)
         if round(self.clock.tick_s * 1e6) % period_us or round(1e6 / self.vehicle.mavlink_rate_hz) % period_us:
             raise ValueError(f"the tick and the MAVLink period must be multiples of the loop period ({period_us} us)")
         return self
 
     @model_validator(mode="after")
-    def _slam_has_a_camera(self) -> "SwarmConfig":
+    def _slam_has_a_camera(self) -> SwarmConfig:
         if self.vehicle.estimator == "ekf-slam" and not self.sensors.camera_rate_hz and self.replay is None:
             raise ValueError("vehicle.estimator = 'ekf-slam' needs a camera: set sensors.camera_rate_hz (e.g. 10)")
         if self.vehicle.estimator == "known-map" and not self.vehicle.landmarks:
@@ -269,33 +378,43 @@ class SwarmConfig(_Strict):
         return self
 
     @model_validator(mode="after")
-    def _replay_fits(self) -> "SwarmConfig":
+    def _replay_fits(self) -> SwarmConfig:
         replay = self.replay
         if replay is None and (self.sensors.odom_turn_sigma_rad or self.sensors.odom_travel_sigma_m):
-            raise ValueError("sensors.odom_turn_sigma_rad and odom_travel_sigma_m describe a replayed robot's "
-                             "odometry; the simulated world makes no such error, so a filter told of it would be "
-                             "told wrong (leave them 0)")
+            raise ValueError(
+                "sensors.odom_turn_sigma_rad and odom_travel_sigma_m describe a replayed robot's "
+                "odometry; the simulated world makes no such error, so a filter told of it would be "
+                "told wrong (leave them 0)"
+            )
         if replay is None:
             return self
         if self.world.vehicles != len(replay.robots):
             raise ValueError(f"a replay of robots {list(replay.robots)} needs world.vehicles = {len(replay.robots)}")
         low, high = replay.calibration_s
         if replay.start_s < high and replay.start_s + self.clock.duration_s > low:
-            raise ValueError(f"the replayed window [{replay.start_s:g}, {replay.start_s + self.clock.duration_s:g}] s "
-                             f"overlaps the calibration interval [{low:g}, {high:g}] s: nothing calibrated is scored")
+            raise ValueError(
+                f"the replayed window [{replay.start_s:g}, {replay.start_s + self.clock.duration_s:g}] s "
+                f"overlaps the calibration interval [{low:g}, {high:g}] s: nothing calibrated is scored"
+            )
         return self
 
     def dump(self, path: Path) -> None:
         path.write_text(json.dumps(self.model_dump(mode="json"), indent=2) + "\n")
 
-    def for_vehicle(self) -> "VehicleProcessConfig":
+    def for_vehicle(self) -> VehicleProcessConfig:
         """All a vehicle process is given: nothing here determines truth (no world seed, no
         trajectories, no start pads); the same for every world seed."""
         return VehicleProcessConfig(
-            name=self.name, vehicles=self.world.vehicles, bus=self.bus,
-            clock=VehicleClock(mode=self.clock.mode, speed=self.clock.speed), sensors=self.sensors,
-            vehicle=self.vehicle, altitude_m=self.world.altitude_m, fault_seed=self.fault_seed,
-            faults=tuple(f for f in self.faults if f.kind in LINK_KINDS))
+            name=self.name,
+            vehicles=self.world.vehicles,
+            bus=self.bus,
+            clock=VehicleClock(mode=self.clock.mode, speed=self.clock.speed),
+            sensors=self.sensors,
+            vehicle=self.vehicle,
+            altitude_m=self.world.altitude_m,
+            fault_seed=self.fault_seed,
+            faults=tuple(f for f in self.faults if f.kind in LINK_KINDS),
+        )
 
 
 class VehicleClock(_Strict):

@@ -16,14 +16,16 @@ from __future__ import annotations
 
 import fnmatch
 import re
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from bus.topics import Topic
+
 GLOB = r"^[A-Za-z0-9_*?\[\]\-]{1,32}$"
 NAME = r"^[A-Za-z0-9_.\-]{0,64}$"
-LINK_TOPICS = ("imu", "odom", "gnss", "prior", "ranging", "seen", "landmark", "camera", "mavlink")
+LINK_TOPICS = tuple(Topic)
 
 
 class _Fault(BaseModel):
@@ -100,8 +102,11 @@ class _LinkFault(_Fault):
     topic: str = Field("*", pattern=GLOB, description="topic glob: imu, odom, gnss, ranging, mavlink, ...")
 
     def selects(self, src: str, dst: str, topic: str) -> bool:
-        return (fnmatch.fnmatchcase(src, self.src) and fnmatch.fnmatchcase(dst, self.dst)
-                and fnmatch.fnmatchcase(topic, self.topic))
+        return (
+            fnmatch.fnmatchcase(src, self.src)
+            and fnmatch.fnmatchcase(dst, self.dst)
+            and fnmatch.fnmatchcase(topic, self.topic)
+        )
 
 
 class Delay(_LinkFault):
@@ -140,8 +145,9 @@ class Reorder(_LinkFault):
 
 PHYSICAL_KINDS = ("jam-gnss", "spoof-gnss", "jam-comms", "blackout")
 LINK_KINDS = ("delay", "loss", "duplicate", "reorder")
-Fault = Annotated[Union[JamGnss, SpoofGnss, JamComms, Blackout, Kill, Delay, Loss, Duplicate, Reorder],
-                  Field(discriminator="kind")]
+Fault = Annotated[
+    JamGnss | SpoofGnss | JamComms | Blackout | Kill | Delay | Loss | Duplicate | Reorder, Field(discriminator="kind")
+]
 
 
 def endpoints(vehicles: int) -> list[str]:
@@ -158,11 +164,14 @@ def check_fault(fault: _Fault, vehicles: int) -> None:
         names = endpoints(vehicles)
         for label, glob in (("--from", fault.src), ("--to", fault.dst)):
             if not any(fnmatch.fnmatchcase(n, glob) for n in names):
-                hint = f"vehicles are v1..v{vehicles}" if re.fullmatch(r"v\d+", glob) else "endpoints are v<id>, gs, world"
+                hint = (
+                    f"vehicles are v1..v{vehicles}" if re.fullmatch(r"v\d+", glob) else "endpoints are v<id>, gs, world"
+                )
                 raise ValueError(f"fault {fault.name or fault.kind}: {label} {glob!r} matches nothing ({hint})")
         if not any(fnmatch.fnmatchcase(t, fault.topic) for t in LINK_TOPICS):
-            raise ValueError(f"fault {fault.name or fault.kind}: --topic {fault.topic!r} matches no topic "
-                             f"({', '.join(LINK_TOPICS)})")
+            raise ValueError(
+                f"fault {fault.name or fault.kind}: --topic {fault.topic!r} matches no topic ({', '.join(LINK_TOPICS)})"
+            )
 
 
 def named(faults: list, taken: set[str] | None = None) -> list:

@@ -20,24 +20,25 @@ import numpy as np
 from bus import messages as m
 from bus.errors import DecodeError
 from bus.schema import WIRE_VERSION, unpack_tagged
+from bus.topics import Topic
 
 MAX_TICK_US = 1_000_000
 MAX_SEQ = 2**62
 # topic: (row width, max rows per batch, max |value|)
 LAYOUT = {
-    "prior": (12, 1, m.MAX_POSITION_M),    # pose (3), covariance (3, 3)
-    "imu": (6, 1000, 1000.0),              # gyro (3) rad/s, accel (3) m/s^2
-    "odom": (2, 1000, 1000.0),             # speed m/s, yaw rate rad/s
-    "gnss": (6, 100, m.MAX_POSITION_M),    # position (2), covariance (2, 2)
-    "ranging": (7, 2500, 1e6),             # target id, range m, bearing rad, covariance (2, 2)
-    "seen": (7, 2500, 1e6),                # observer id, range m, bearing rad, covariance (2, 2)
-    "landmark": (7, 2500, 1e6),            # landmark id, range m, bearing rad, covariance (2, 2)
+    Topic.PRIOR: (12, 1, m.MAX_POSITION_M),  # pose (3), covariance (3, 3)
+    Topic.IMU: (6, 1000, 1000.0),  # gyro (3) rad/s, accel (3) m/s^2
+    Topic.ODOM: (2, 1000, 1000.0),  # speed m/s, yaw rate rad/s
+    Topic.GNSS: (6, 100, m.MAX_POSITION_M),  # position (2), covariance (2, 2)
+    Topic.RANGING: (7, 2500, 1e6),  # target id, range m, bearing rad, covariance (2, 2)
+    Topic.SEEN: (7, 2500, 1e6),  # observer id, range m, bearing rad, covariance (2, 2)
+    Topic.LANDMARK: (7, 2500, 1e6),  # landmark id, range m, bearing rad, covariance (2, 2)
 }
-SIGHTINGS = ("ranging", "seen", "landmark")     # several per stamp (one camera frame sees many)
+SIGHTINGS = (Topic.RANGING, Topic.SEEN, Topic.LANDMARK)  # several per stamp (one camera frame sees many)
 MAX_LANDMARK_ID = 999_999
 TOPICS = tuple(LAYOUT)
-CAMERA_SIZES_PX = (8, 1024)     # frame side, inclusive bounds
-MAX_CAMERA_FRAMES = 100         # per batch
+CAMERA_SIZES_PX = (8, 1024)  # frame side, inclusive bounds
+MAX_CAMERA_FRAMES = 100  # per batch
 MAX_METRES_PER_PIXEL = 100.0
 
 
@@ -67,18 +68,20 @@ class SensorBatch:
     camera: CameraBlock | None = None
     listeners: tuple[int, ...] | None = None
 
-    def samples(self) -> list[tuple[str, Any]]:
+    def samples(self) -> list[tuple[Topic, Any]]:
         """(topic, message) for every sample, in stamp order (topics in LAYOUT order, then camera
         frames, at equal stamps)."""
         out = []
         vid = self.vehicle_id
-        for topic, (stamps, seq0, rows) in self.blocks.items():
-            make = _MAKERS[topic]
+        for name, (stamps, seq0, rows) in self.blocks.items():
+            topic, make = Topic(name), _MAKERS[name]
             out += [(topic, make(vid, int(s), seq0 + i, r)) for i, (s, r) in enumerate(zip(stamps.tolist(), rows))]
         if self.camera is not None:
             c = self.camera
-            out += [("camera", m.CameraFrame(vid, int(s), c.seq0 + i, c.pixels[i], float(c.metres_per_pixel[i])))
-                    for i, s in enumerate(c.stamps.tolist())]
+            out += [
+                (Topic.CAMERA, m.CameraFrame(vid, int(s), c.seq0 + i, c.pixels[i], float(c.metres_per_pixel[i])))
+                for i, s in enumerate(c.stamps.tolist())
+            ]
         out.sort(key=lambda item: item[1].stamp_us)  # stable: LAYOUT order among equal stamps
         return out
 
@@ -111,22 +114,40 @@ def _landmark(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.LandmarkSighti
     return m.LandmarkSighting(vid, stamp, seq, int(r[0]), float(r[1]), float(r[2]), r[3:].reshape(2, 2))
 
 
-_MAKERS = {"prior": _prior, "imu": _imu, "odom": _odom, "gnss": _gnss, "ranging": _ranging, "seen": _seen,
-           "landmark": _landmark}
+_MAKERS = {
+    Topic.PRIOR: _prior,
+    Topic.IMU: _imu,
+    Topic.ODOM: _odom,
+    Topic.GNSS: _gnss,
+    Topic.RANGING: _ranging,
+    Topic.SEEN: _seen,
+    Topic.LANDMARK: _landmark,
+}
 
 
 def encode_batch(batch: SensorBatch) -> bytes:
-    body: dict[str, Any] = {"type": "SensorBatch", "v": WIRE_VERSION, "vehicle_id": batch.vehicle_id,
-                            "tick": batch.tick, "stamp_us": batch.stamp_us}
+    body: dict[str, Any] = {
+        "type": "SensorBatch",
+        "v": WIRE_VERSION,
+        "vehicle_id": batch.vehicle_id,
+        "tick": batch.tick,
+        "stamp_us": batch.stamp_us,
+    }
     for topic, (stamps, seq0, rows) in batch.blocks.items():
-        body[topic] = {"stamp": np.ascontiguousarray(stamps, "<i8").tobytes(), "seq0": int(seq0),
-                       "data": np.ascontiguousarray(rows, "<f8").tobytes()}
+        body[topic] = {
+            "stamp": np.ascontiguousarray(stamps, "<i8").tobytes(),
+            "seq0": int(seq0),
+            "data": np.ascontiguousarray(rows, "<f8").tobytes(),
+        }
     if batch.camera is not None:
         c = batch.camera
-        body["camera"] = {"stamp": np.ascontiguousarray(c.stamps, "<i8").tobytes(), "seq0": int(c.seq0),
-                          "size": int(c.pixels.shape[1]) if c.pixels.ndim == 3 else 0,
-                          "scale": np.ascontiguousarray(c.metres_per_pixel, "<f8").tobytes(),
-                          "pixels": np.ascontiguousarray(c.pixels, np.uint8).tobytes()}
+        body[Topic.CAMERA] = {
+            "stamp": np.ascontiguousarray(c.stamps, "<i8").tobytes(),
+            "seq0": int(c.seq0),
+            "size": int(c.pixels.shape[1]) if c.pixels.ndim == 3 else 0,
+            "scale": np.ascontiguousarray(c.metres_per_pixel, "<f8").tobytes(),
+            "pixels": np.ascontiguousarray(c.pixels, np.uint8).tobytes(),
+        }
     if batch.listeners is not None:
         body["listeners"] = [int(j) for j in batch.listeners]
     return msgpack.packb(body, use_bin_type=True)
@@ -148,8 +169,9 @@ def _column(raw: Any, dtype: str, name: str) -> np.ndarray:
 def _spd2(c: np.ndarray) -> bool:
     """All rows (k, 4) are symmetric positive-definite 2x2 matrices (row-major)."""
     a, b, cc, d = c[:, 0], c[:, 1], c[:, 2], c[:, 3]
-    return bool((np.abs(b - cc) <= 1e-9 * np.maximum(np.abs(b), 1e-300)).all() and (a > 0).all()
-                and (a * d - b * cc > 0).all())
+    return bool(
+        (np.abs(b - cc) <= 1e-9 * np.maximum(np.abs(b), 1e-300)).all() and (a > 0).all() and (a * d - b * cc > 0).all()
+    )
 
 
 def _spd3(c: np.ndarray) -> bool:
@@ -187,16 +209,16 @@ def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.nda
         raise DecodeError(f"{topic}: values must be finite and within +-{max_abs:g}")
     if topic not in SIGHTINGS and (stamps[1:] == stamps[:-1]).any():
         raise DecodeError(f"{topic}: two samples with one stamp")
-    if topic in ("gnss", *SIGHTINGS) and k and not _spd2(rows[:, -4:]):
+    if topic in (Topic.GNSS, *SIGHTINGS) and k and not _spd2(rows[:, -4:]):
         raise DecodeError(f"{topic}: covariance is not symmetric positive definite")
-    if topic == "prior" and k and not _spd3(rows[:, 3:]):
+    if topic is Topic.PRIOR and k and not _spd3(rows[:, 3:]):
         raise DecodeError("prior: covariance is not symmetric positive definite")
-    if topic in ("ranging", "seen") and k:
+    if topic in (Topic.RANGING, Topic.SEEN) and k:
         peer = rows[:, 0]
         if ((peer != np.round(peer)) | (peer < 1) | (peer > 250) | (peer == vehicle_id)).any():
-            who = "target" if topic == "ranging" else "observer"
+            who = "target" if topic is Topic.RANGING else "observer"
             raise DecodeError(f"{topic}: {who} ids must be other vehicles, 1-250")
-    if topic == "landmark" and k:
+    if topic is Topic.LANDMARK and k:
         ident = rows[:, 0]
         if ((ident != np.round(ident)) | (ident < 0) | (ident > MAX_LANDMARK_ID)).any():
             raise DecodeError(f"landmark: ids must be integers 0-{MAX_LANDMARK_ID}")
@@ -217,8 +239,10 @@ def _camera_block(raw: Any, stamp_us: int) -> CameraBlock:
     pixels = raw["pixels"]
     k = len(stamps)
     if not isinstance(pixels, bytes) or k > MAX_CAMERA_FRAMES or len(scale) != k or len(pixels) != k * size * size:
-        raise DecodeError(f"camera: {k} frames of {size} x {size} px need {k} scales and {k * size * size} "
-                          f"pixel bytes (at most {MAX_CAMERA_FRAMES} frames)")
+        raise DecodeError(
+            f"camera: {k} frames of {size} x {size} px need {k} scales and {k * size * size} "
+            f"pixel bytes (at most {MAX_CAMERA_FRAMES} frames)"
+        )
     if _outside_tick(stamps, stamp_us, strictly=True):
         raise DecodeError(f"camera: stamps must be increasing and inside the tick ending at {stamp_us} us")
     if not np.all((scale > 0) & (scale <= MAX_METRES_PER_PIXEL)):
@@ -229,22 +253,25 @@ def _camera_block(raw: Any, stamp_us: int) -> CameraBlock:
 def decode_batch(payload: bytes) -> SensorBatch:
     """Validate a SensorBatch; DecodeError names the first problem."""
     body = unpack_tagged(payload, "SensorBatch")
-    allowed = {"type", "v", "vehicle_id", "tick", "stamp_us", "camera", "listeners", *TOPICS}
+    allowed = {"type", "v", "vehicle_id", "tick", "stamp_us", Topic.CAMERA, "listeners", *TOPICS}
     if not set(body) <= allowed or not {"vehicle_id", "tick", "stamp_us"} <= set(body):
         raise DecodeError(f"SensorBatch: fields must be {sorted(allowed)}")
     vid = _int(body, "vehicle_id", 1, 250)
     tick = _int(body, "tick", 0, 2**53)
     stamp_us = _int(body, "stamp_us", 0, 2**53)
     blocks = {t: _block(t, body[t], vid, stamp_us) for t in TOPICS if t in body}
-    camera = _camera_block(body["camera"], stamp_us) if "camera" in body else None
+    camera = _camera_block(body[Topic.CAMERA], stamp_us) if Topic.CAMERA in body else None
     listeners = _listeners(body["listeners"], vid) if "listeners" in body else None
     return SensorBatch(vid, tick, stamp_us, blocks, camera, listeners)
 
 
 def _listeners(value: Any, vid: int) -> tuple[int, ...]:
     """The listeners field: a list of distinct vehicle ids 1-250 other than the batch's own."""
-    if not isinstance(value, list) or len(value) > 250 or \
-            not all(isinstance(j, int) and not isinstance(j, bool) and 1 <= j <= 250 for j in value):
+    if (
+        not isinstance(value, list)
+        or len(value) > 250
+        or not all(isinstance(j, int) and not isinstance(j, bool) and 1 <= j <= 250 for j in value)
+    ):
         raise DecodeError("listeners: expected a list of vehicle ids 1-250")
     if len(set(value)) != len(value) or vid in value:
         raise DecodeError("listeners: ids must be distinct and not the batch's own vehicle")
@@ -268,10 +295,18 @@ class TruthBatch:
 
 
 def encode_truth(batch: TruthBatch) -> bytes:
-    return msgpack.packb({"type": "TruthBatch", "v": WIRE_VERSION, "tick": batch.tick, "stamp_us": batch.stamp_us,
-                          "stamps": np.ascontiguousarray(batch.stamps_us, "<i8").tobytes(),
-                          "ids": np.ascontiguousarray(batch.vehicle_ids, "<i8").tobytes(),
-                          "data": np.ascontiguousarray(batch.rows, "<f8").tobytes()}, use_bin_type=True)
+    return msgpack.packb(
+        {
+            "type": "TruthBatch",
+            "v": WIRE_VERSION,
+            "tick": batch.tick,
+            "stamp_us": batch.stamp_us,
+            "stamps": np.ascontiguousarray(batch.stamps_us, "<i8").tobytes(),
+            "ids": np.ascontiguousarray(batch.vehicle_ids, "<i8").tobytes(),
+            "data": np.ascontiguousarray(batch.rows, "<f8").tobytes(),
+        },
+        use_bin_type=True,
+    )
 
 
 def decode_truth(payload: bytes) -> TruthBatch:

@@ -25,7 +25,6 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-SENSOR_TOPICS = ("imu", "odom", "gnss", "prior", "camera", "ranging", "landmarks")
 VEHICLE_TOPICS = ("feed", "mavlink", "v2v", "status")
 ROLES = ("world", "vehicle", "groundstation", "router", "cli", "supervisor")
 MAX_VEHICLE_ID = 250
@@ -102,9 +101,22 @@ class KeySpace:
         return f"{self.prefix}/ctl/claim"
 
     def alive(self, role: str, ident: int | str) -> str:
+        """A liveliness token; ``ident`` "*" matches every one of the role, "**" too (ACL rules)."""
         if role not in ROLES:
             raise ValueError(f"unknown role {role!r}; known: {', '.join(ROLES)}")
         return f"{self.prefix}/alive/{role}/{ident}"
+
+    def every_token(self) -> str:
+        """Every liveliness token of the swarm, of any role."""
+        return f"{self.prefix}/alive/**"
+
+    def under_vehicle(self, vehicle_id: int | str) -> str:
+        """Every key of one vehicle (``v/<id>/**``: its MAVLink, V2V, status and feed)."""
+        return f"{self.prefix}/v/{vehicle_id}/**"
+
+    def every_fault_key(self) -> str:
+        """The fault plan and the fault requests (``ctl/faults/**``)."""
+        return f"{self.prefix}/ctl/faults/**"
 
     def is_truth(self, key_expr: str) -> bool:
         """True when ``key_expr`` may match the truth key (wildcards included)."""
@@ -119,7 +131,7 @@ class KeySpace:
         """What a concrete key names, or None when it is none of ours (total: never raises)."""
         if not isinstance(key, str) or not key.startswith(self.prefix + "/"):
             return None
-        parts = key[len(self.prefix) + 1:].split("/")
+        parts = key[len(self.prefix) + 1 :].split("/")
         head, rest = parts[0], parts[1:]
         if head == "v" and len(rest) == 2 and rest[1] in VEHICLE_TOPICS:
             vid = parse_vehicle_id(rest[0])

@@ -27,7 +27,12 @@ class KillSchedule:
                 self.killed.add(f.name)
                 actions.append(("kill", f.vehicle, f.name))
             restart_us = f.restart_us()
-            if f.name in self.killed and f.name not in self.restarted and restart_us is not None and now_us >= restart_us:
+            if (
+                f.name in self.killed
+                and f.name not in self.restarted
+                and restart_us is not None
+                and now_us >= restart_us
+            ):
                 self.restarted.add(f.name)
                 actions.append(("restart", f.vehicle, f.name))
         return actions

@@ -27,7 +27,7 @@ MAX_MAP_BYTES = 256 << 10
 class LandmarkMap:
     vehicle_id: int
     stamp_us: int
-    xy_m: np.ndarray        # (m, 2)
+    xy_m: np.ndarray  # (m, 2)
     covariance_m2: np.ndarray  # (m, 2, 2)
 
 
@@ -38,9 +38,17 @@ def _packed(cov: np.ndarray) -> np.ndarray:
 
 def encode_map(lmap: LandmarkMap) -> bytes:
     packed = _packed(lmap.covariance_m2)
-    return msgpack.packb({"type": "LandmarkMap", "v": WIRE_VERSION, "vehicle_id": int(lmap.vehicle_id),
-                          "stamp_us": int(lmap.stamp_us), "xy": np.ascontiguousarray(lmap.xy_m, "<f8").tobytes(),
-                          "cov": np.ascontiguousarray(packed, "<f8").tobytes()}, use_bin_type=True)
+    return msgpack.packb(
+        {
+            "type": "LandmarkMap",
+            "v": WIRE_VERSION,
+            "vehicle_id": int(lmap.vehicle_id),
+            "stamp_us": int(lmap.stamp_us),
+            "xy": np.ascontiguousarray(lmap.xy_m, "<f8").tobytes(),
+            "cov": np.ascontiguousarray(packed, "<f8").tobytes(),
+        },
+        use_bin_type=True,
+    )
 
 
 def _floats(body: dict, name: str, width: int) -> np.ndarray:
@@ -71,5 +79,10 @@ def decode_map(payload: bytes) -> LandmarkMap:
 
 def map_record(lmap: LandmarkMap) -> dict:
     """The map as JSON for the run directory (``map_v<id>.json``): stamp, positions, covariances."""
-    return {"vehicle": lmap.vehicle_id, "t_s": round(lmap.stamp_us * 1e-6, 6), "landmarks": len(lmap.xy_m),
-            "xy_m": np.round(lmap.xy_m, 4).tolist(), "cov_m2": np.round(_packed(lmap.covariance_m2), 8).tolist()}
+    return {
+        "vehicle": lmap.vehicle_id,
+        "t_s": round(lmap.stamp_us * 1e-6, 6),
+        "landmarks": len(lmap.xy_m),
+        "xy_m": np.round(lmap.xy_m, 4).tolist(),
+        "cov_m2": np.round(_packed(lmap.covariance_m2), 8).tolist(),
+    }

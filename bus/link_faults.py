@@ -18,10 +18,12 @@ import heapq
 import itertools
 import math
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from bus.faults import Delay, Duplicate, Loss, Reorder, _LinkFault
+from bus.topics import Topic
 
 PARETO_SHAPE = 3.0
 MAX_HELD = 200_000
@@ -52,7 +54,7 @@ def delay_sample_s(fault: Delay, u1: float, u2: float) -> float:
 class Arrival:
     key: str
     src: str
-    topic: str
+    topic: Topic
     stamp_us: int
     item: Any
 
@@ -75,7 +77,9 @@ class LinkFaultStage:
 
     def set_plan(self, faults: tuple) -> None:
         """Keep the plan's link faults that can select traffic to this receiver."""
-        self.faults = tuple(f for f in faults if isinstance(f, _LinkFault) and fnmatch.fnmatchcase(self.receiver, f.dst))
+        self.faults = tuple(
+            f for f in faults if isinstance(f, _LinkFault) and fnmatch.fnmatchcase(self.receiver, f.dst)
+        )
 
     def untouched(self, key: str, count: int = 1) -> bool:
         """True when no fault of the plan can select traffic to this receiver: ``count`` arrivals on
@@ -106,9 +110,16 @@ class LinkFaultStage:
                 self.duplicated[fault.name] += 1
                 extra_us = extra_us + extra_us
             elif isinstance(fault, Delay):
-                extra_us = [e + round(1e6 * delay_sample_s(fault, uniform(self.seed, *tag, "d", k, 1),
-                                                           uniform(self.seed, *tag, "d", k, 2)))
-                            for k, e in enumerate(extra_us)]
+                extra_us = [
+                    e
+                    + round(
+                        1e6
+                        * delay_sample_s(
+                            fault, uniform(self.seed, *tag, "d", k, 1), uniform(self.seed, *tag, "d", k, 2)
+                        )
+                    )
+                    for k, e in enumerate(extra_us)
+                ]
                 self.delayed[fault.name] += len(extra_us)
             elif isinstance(fault, Reorder) and uniform(self.seed, *tag, "reorder") < fault.percent / 100.0:
                 extra_us = [e + round(1e6 * fault.gap_s) for e in extra_us]

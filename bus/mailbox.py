@@ -30,7 +30,7 @@ def _size(item: Any) -> int:
 class Lane:
     """One bounded FIFO of a Mailbox; ``put`` is safe from any thread."""
 
-    def __init__(self, box: "Mailbox", name: str, max_items: int, max_bytes: int) -> None:
+    def __init__(self, box: Mailbox, name: str, max_items: int, max_bytes: int) -> None:
         self.box, self.name, self.max_items, self.max_bytes = box, name, max_items, max_bytes
         self.items: deque = deque()
         self.bytes = 0

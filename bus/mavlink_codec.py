@@ -1,6 +1,12 @@
 """MAVLink 2 codec for vehicle state: ODOMETRY (#331), HEARTBEAT (#0), ESTIMATOR_STATUS (#230) and
 STATUSTEXT (#253), with message signing.
 
+This is the one module that knows MAVLink's layout of a planar estimate: an estimator's
+``bus.estimate.PoseEstimate`` [x, y, yaw] with its 3 x 3 covariance sits at rows and columns
+[0, 1, 5] of ODOMETRY's 6 x 6 pose covariance (local NED, z = -altitude, roll and pitch level and
+not estimated), its speed and yaw rate at [0] and [5] of the velocity covariance
+(``odometry_of`` / ``pose_of``); ``Health`` becomes ESTIMATOR_STATUS (``status_of``).
+
 Signing (MAVLink 2, 32-byte key, one per vehicle): outgoing frames carry a 48-bit timestamp in units
 of 10 us since 2015-01-01 and a truncated SHA-256 signature. Incoming frames are verified here rather
 than by pymavlink, because pymavlink 2.4.50 stores a stream's timestamp *before* checking the
@@ -19,22 +25,24 @@ import hmac
 import math
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
 from bus.errors import DecodeError
+from bus.estimate import Health, PoseEstimate
 
 COMPONENT_ID = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
 NEW_STREAM_TOLERANCE = 6_000_000  # 60 s in 10-us units, as in the MAVLink signing spec
-FUTURE_TOLERANCE = 6_000_000      # 60 s in 10-us units
+FUTURE_TOLERANCE = 6_000_000  # 60 s in 10-us units
 MAX_POSITION_M = 1e7
-MAX_VARIANCE = 1e8                # m^2, rad^2: beyond this an estimate carries no information
-MAX_FRAME_BYTES = 280             # MAVLink 2: 10 header + 255 payload + 2 CRC + 13 signature
+MAX_VARIANCE = 1e8  # m^2, rad^2: beyond this an estimate carries no information
+MAX_FRAME_BYTES = 280  # MAVLink 2: 10 header + 255 payload + 2 CRC + 13 signature
 _POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw in ODOMETRY's pose covariance
+NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch (constant altitude, level flight) and the lateral velocities
 _UPPER = np.triu_indices(6)
 _DIAGONAL = (0, 6, 11, 15, 18, 20)  # positions of the variances in the 21-float upper triangle
 
@@ -97,6 +105,58 @@ class Heartbeat:
     system_status: int
 
 
+def odometry_of(estimate: PoseEstimate, *, altitude_m: float, reset_counter: int) -> StateEstimate:
+    """ODOMETRY's contents for a planar estimate flown at ``altitude_m``: NED position (x, y, -altitude),
+    body-frame velocity (speed, 0, 0), the pose covariance at [0, 1, 5] of the 6 x 6 with the
+    not-estimated axes at ``NOT_ESTIMATED_VAR``."""
+    pose_cov = np.diag([0.0, 0.0, NOT_ESTIMATED_VAR, NOT_ESTIMATED_VAR, NOT_ESTIMATED_VAR, 0.0])
+    pose_cov[_POSE_BLOCK] = estimate.pose_cov
+    vel_cov = np.diag(
+        [
+            estimate.speed_var,
+            NOT_ESTIMATED_VAR,
+            NOT_ESTIMATED_VAR,
+            NOT_ESTIMATED_VAR,
+            NOT_ESTIMATED_VAR,
+            estimate.yaw_rate_var,
+        ]
+    )
+    x, y, yaw = estimate.pose
+    return StateEstimate(
+        vehicle_id=estimate.vehicle_id,
+        time_usec=estimate.stamp_us,
+        position_m=np.array([x, y, -altitude_m]),
+        yaw_rad=float(yaw),
+        velocity_mps=np.array([estimate.speed_mps, 0.0, 0.0]),
+        yaw_rate_radps=estimate.yaw_rate_radps,
+        pose_covariance=pose_cov,
+        velocity_covariance=vel_cov,
+        reset_counter=reset_counter,
+    )
+
+
+def pose_of(est: StateEstimate) -> PoseEstimate:
+    """The planar estimate an ODOMETRY carries (the inverse of :func:`odometry_of` on x, y, yaw)."""
+    return PoseEstimate(
+        vehicle_id=est.vehicle_id,
+        stamp_us=est.time_usec,
+        pose=np.array([est.position_m[0], est.position_m[1], est.yaw_rad]),
+        pose_cov=est.pose_covariance[_POSE_BLOCK],
+        speed_mps=float(est.velocity_mps[0]),
+        speed_var=float(est.velocity_covariance[0, 0]),
+        yaw_rate_radps=est.yaw_rate_radps,
+        yaw_rate_var=float(est.velocity_covariance[5, 5]),
+    )
+
+
+def status_of(health: Health) -> EstimatorStatus:
+    """ESTIMATOR_STATUS for an estimator's health: attitude, horizontal velocity and relative position
+    always; absolute horizontal position while GNSS is trusted, the GPS glitch flag while it is not."""
+    flags = mavlink2.ESTIMATOR_ATTITUDE | mavlink2.ESTIMATOR_VELOCITY_HORIZ | mavlink2.ESTIMATOR_POS_HORIZ_REL
+    flags |= mavlink2.ESTIMATOR_POS_HORIZ_ABS if health.gnss_healthy else mavlink2.ESTIMATOR_GPS_GLITCH
+    return EstimatorStatus(health.vehicle_id, health.stamp_us, flags, health.gnss_test_ratio, health.horizontal_sigma_m)
+
+
 def signing_now() -> int:
     """The current MAVLink signing timestamp (10 us units since 2015-01-01)."""
     return int((time.time() - SIGNING_EPOCH_S) * 100_000)
@@ -155,11 +215,20 @@ class MavlinkEncoder:
         half = 0.5 * est.yaw_rad
         quaternion = [float(np.cos(half)), 0.0, 0.0, float(np.sin(half))]  # w, x, y, z
         msg = self._mav.odometry_encode(
-            est.time_usec, mavlink2.MAV_FRAME_LOCAL_NED, mavlink2.MAV_FRAME_BODY_FRD,
-            *map(float, est.position_m), quaternion, *map(float, est.velocity_mps),
-            0.0, 0.0, float(est.yaw_rate_radps),
-            est.pose_covariance[_UPPER].tolist(), est.velocity_covariance[_UPPER].tolist(),
-            est.reset_counter % 256, est.estimator_type, 100,
+            est.time_usec,
+            mavlink2.MAV_FRAME_LOCAL_NED,
+            mavlink2.MAV_FRAME_BODY_FRD,
+            *map(float, est.position_m),
+            quaternion,
+            *map(float, est.velocity_mps),
+            0.0,
+            0.0,
+            float(est.yaw_rate_radps),
+            est.pose_covariance[_UPPER].tolist(),
+            est.velocity_covariance[_UPPER].tolist(),
+            est.reset_counter % 256,
+            est.estimator_type,
+            100,
         )
         return self._pack(msg)
 
@@ -167,14 +236,40 @@ class MavlinkEncoder:
         """ODOMETRY saying "no estimate at ``time_usec``": NaN first pose covariance element, the rest zero."""
         unknown = [math.nan] + [0.0] * 20
         msg = self._mav.odometry_encode(
-            time_usec, mavlink2.MAV_FRAME_LOCAL_NED, mavlink2.MAV_FRAME_BODY_FRD, 0.0, 0.0, 0.0,
-            [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, unknown, unknown, reset_counter % 256,
-            mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS, 0)
+            time_usec,
+            mavlink2.MAV_FRAME_LOCAL_NED,
+            mavlink2.MAV_FRAME_BODY_FRD,
+            0.0,
+            0.0,
+            0.0,
+            [1.0, 0.0, 0.0, 0.0],
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            unknown,
+            unknown,
+            reset_counter % 256,
+            mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS,
+            0,
+        )
         return self._pack(msg)
 
     def estimator_status(self, status: EstimatorStatus) -> bytes:
-        msg = self._mav.estimator_status_encode(status.time_usec, status.flags, 0.0, float(status.pos_horiz_ratio),
-                                                0.0, 0.0, 0.0, 0.0, float(status.pos_horiz_accuracy_m), 0.0)
+        msg = self._mav.estimator_status_encode(
+            status.time_usec,
+            status.flags,
+            0.0,
+            float(status.pos_horiz_ratio),
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            float(status.pos_horiz_accuracy_m),
+            0.0,
+        )
         return self._pack(msg)
 
     def statustext(self, severity: int, text: str) -> bytes:
@@ -195,7 +290,7 @@ def split_frames(buffer: bytes) -> tuple[list[bytes], int]:
         length = 12 + buffer[i + 1] + (13 if buffer[i + 2] & mavlink2.MAVLINK_IFLAG_SIGNED else 0)
         if i + length > n:
             break
-        frames.append(bytes(buffer[i:i + length]))
+        frames.append(bytes(buffer[i : i + length]))
         i += length
     return frames, n - i
 
@@ -207,9 +302,16 @@ class MavlinkDecoder:
     unknown_sysid); ``signing_key`` is the same key for every sender. Without either, frames are
     not authenticated (insecure runs, or neighbours that cannot hold each other's keys)."""
 
-    def __init__(self, *, signing_key: bytes | None = None, require_signing: bool | None = None,
-                 key_for: Callable[[int], bytes | None] | None = None) -> None:
-        self._key_for = key_for if key_for is not None else (None if signing_key is None else (lambda sysid: signing_key))
+    def __init__(
+        self,
+        *,
+        signing_key: bytes | None = None,
+        require_signing: bool | None = None,
+        key_for: Callable[[int], bytes | None] | None = None,
+    ) -> None:
+        self._key_for = (
+            key_for if key_for is not None else (None if signing_key is None else (lambda sysid: signing_key))
+        )
         self._require = self._key_for is not None if require_signing is None else require_signing
         self._mav = mavlink2.MAVLink(None)
         self._stream_timestamps: dict[tuple[int, int, int], int] = {}
@@ -239,8 +341,9 @@ class MavlinkDecoder:
         if isinstance(msg, mavlink2.MAVLink_estimator_status_message):
             if not (math.isfinite(msg.pos_horiz_ratio) and math.isfinite(msg.pos_horiz_accuracy)):
                 raise DecodeError(f"ESTIMATOR_STATUS from sysid {msg.get_srcSystem()} has non-finite fields")
-            return EstimatorStatus(msg.get_srcSystem(), msg.time_usec, msg.flags, msg.pos_horiz_ratio,
-                                   msg.pos_horiz_accuracy)
+            return EstimatorStatus(
+                msg.get_srcSystem(), msg.time_usec, msg.flags, msg.pos_horiz_ratio, msg.pos_horiz_accuracy
+            )
         if isinstance(msg, mavlink2.MAVLink_statustext_message):
             text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode("utf-8", "replace")
             return StatusText(msg.get_srcSystem(), msg.severity, text.rstrip("\x00"))
@@ -279,8 +382,18 @@ def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate | NoEs
     sysid = msg.get_srcSystem()
     if math.isnan(msg.pose_covariance[0]):
         return NoEstimate(sysid, msg.time_usec)
-    values = [msg.x, msg.y, msg.z, *msg.q, msg.vx, msg.vy, msg.vz, msg.yawspeed,
-              *msg.pose_covariance, *msg.velocity_covariance]
+    values = [
+        msg.x,
+        msg.y,
+        msg.z,
+        *msg.q,
+        msg.vx,
+        msg.vy,
+        msg.vz,
+        msg.yawspeed,
+        *msg.pose_covariance,
+        *msg.velocity_covariance,
+    ]
     if not all(map(math.isfinite, values)):
         raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has non-finite fields")
     if any(msg.pose_covariance[i] < 0 for i in _DIAGONAL) or any(msg.velocity_covariance[i] < 0 for i in _DIAGONAL):
@@ -289,15 +402,21 @@ def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate | NoEs
         raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has an absurd position or attitude")
     pose_cov = _full_covariance(msg.pose_covariance)
     if not _usable_covariance(pose_cov[_POSE_BLOCK]):
-        raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid}: [x, y, yaw] covariance is zero, "
-                                            "singular, indefinite or huge")
+        raise MavlinkRejected(
+            "degenerate", f"ODOMETRY from sysid {sysid}: [x, y, yaw] covariance is zero, singular, indefinite or huge"
+        )
     w, _, _, z = msg.q
     return StateEstimate(
-        vehicle_id=sysid, time_usec=msg.time_usec,
-        position_m=np.array([msg.x, msg.y, msg.z]), yaw_rad=2.0 * math.atan2(z, w),
-        velocity_mps=np.array([msg.vx, msg.vy, msg.vz]), yaw_rate_radps=float(msg.yawspeed),
-        pose_covariance=pose_cov, velocity_covariance=_full_covariance(msg.velocity_covariance),
-        reset_counter=msg.reset_counter, estimator_type=msg.estimator_type,
+        vehicle_id=sysid,
+        time_usec=msg.time_usec,
+        position_m=np.array([msg.x, msg.y, msg.z]),
+        yaw_rad=2.0 * math.atan2(z, w),
+        velocity_mps=np.array([msg.vx, msg.vy, msg.vz]),
+        yaw_rate_radps=float(msg.yawspeed),
+        pose_covariance=pose_cov,
+        velocity_covariance=_full_covariance(msg.velocity_covariance),
+        reset_counter=msg.reset_counter,
+        estimator_type=msg.estimator_type,
     )
 
 
@@ -335,6 +454,6 @@ def frame_header(frame: bytes) -> tuple[int, int, int, int | None] | None:
     msgid = int.from_bytes(frame[7:10], "little")
     stamp = None
     if msgid in (mavlink2.MAVLINK_MSG_ID_ODOMETRY, mavlink2.MAVLINK_MSG_ID_ESTIMATOR_STATUS):
-        payload = bytes(frame[10:10 + min(frame[1], 8)])
+        payload = bytes(frame[10 : 10 + min(frame[1], 8)])
         stamp = int.from_bytes(payload.ljust(8, b"\0"), "little")  # MAVLink 2 trims trailing zeros
     return frame[5], frame[4], msgid, stamp

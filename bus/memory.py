@@ -29,7 +29,7 @@ class MemoryHub:
         self._tokens: dict[str, int] = {}
         self._queryables: list[tuple[str, Inbox]] = []
 
-    def connect(self, role: str) -> "MemoryBus":
+    def connect(self, role: str) -> MemoryBus:
         return MemoryBus(self, role=role)
 
     def deliver(self, key: str, payload: bytes) -> None:
@@ -123,7 +123,7 @@ class MemoryBus:
             self._hub.set_token(key, False)
         self._tokens.clear()
 
-    def __enter__(self) -> "MemoryBus":
+    def __enter__(self) -> MemoryBus:
         return self
 
     def __exit__(self, *exc: object) -> None:

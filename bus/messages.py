@@ -21,8 +21,21 @@ Seq = Annotated[int, Int(0, 2**63 - 1)]
 MAX_POSITION_M = 1e7
 
 __all__ = [
-    "ImuSample", "WheelOdometry", "GnssFix", "PosePrior", "RangeBearing", "SeenBy", "LandmarkSighting", "Truth", "ClockTick", "TickAck",
-    "GroundStationAck", "VehicleStatus", "RunEnd", "encode", "decode",
+    "ImuSample",
+    "WheelOdometry",
+    "GnssFix",
+    "PosePrior",
+    "RangeBearing",
+    "SeenBy",
+    "LandmarkSighting",
+    "Truth",
+    "ClockTick",
+    "TickAck",
+    "GroundStationAck",
+    "VehicleStatus",
+    "RunEnd",
+    "encode",
+    "decode",
 ]
 Rejected = Annotated[tuple[int, ...], Counts(len(REASONS))]
 
@@ -101,7 +114,7 @@ class RangeBearing:
 class SeenBy:
     """A neighbour's sighting of this vehicle, relayed to it: range (m) and bearing (rad, from the
     observer's heading) of ``vehicle_id`` seen from ``observer_id``, covariance (2, 2) over [range,
-    bearing]. The seen vehicle fuses it with the observer's broadcast pose (vehicle.cooperative)."""
+    bearing]. The seen vehicle fuses it with the observer's broadcast pose (vehicle.models.cooperative)."""
 
     vehicle_id: VehicleId
     stamp_us: StampUs
@@ -203,9 +216,9 @@ class VehicleStatus:
     rejected: Rejected = ()
     replays: Annotated[int, Int(0, 2**53)] = 0
     final: Annotated[bool, Bool()] = False  # the last status, sent with the final tick's acknowledgement
-    landmarks: Annotated[int, Int(0, 2**31)] = 0          # SLAM: landmarks in the map
+    landmarks: Annotated[int, Int(0, 2**31)] = 0  # SLAM: landmarks in the map
     landmarks_updated: Annotated[int, Int(0, 2**31)] = 0  # SLAM: landmarks the last usable frame updated
-    frames_used: Annotated[int, Int(0, 2**53)] = 0        # SLAM: camera frames through the front end
+    frames_used: Annotated[int, Int(0, 2**53)] = 0  # SLAM: camera frames through the front end
 
 
 @dataclass(frozen=True)

@@ -11,24 +11,24 @@ import threading
 from collections import Counter
 
 REASONS = (
-    "bad_key",            # a key that names nothing of ours (non-decimal id, unknown topic, ...)
-    "unknown_vehicle",    # a well-formed vehicle id that is not in the swarm
-    "oversized",          # payload over the size cap of its topic (checked before decoding)
-    "malformed",          # not decodable: garbage, truncated, wrong types, shapes or ranges
-    "unsigned",           # MAVLink: unsigned frame where signing is required
-    "bad_signature",      # MAVLink: signature does not match the sender's key
-    "replay",             # MAVLink: signing timestamp not after the stream's last one
-    "stale_stream",       # MAVLink: a new stream more than 60 s old
-    "future_timestamp",   # MAVLink: signing timestamp more than 60 s ahead of the clock
-    "impersonation",      # the payload names another sender than its key (sysid or vehicle_id)
-    "unknown_sysid",      # MAVLink from a system id that is not a vehicle of the swarm
-    "degenerate",         # zero, singular, non-positive-definite or huge covariance; absurd values
-    "stamp_out_of_range", # far in the past or the future of the receiver's sim time
-    "unexpected",         # a valid message of a kind this key does not carry
-    "inbox_full",         # dropped at the bound of an inbox
-    "held_full",          # dropped at the bound of the link-fault stage's held packets
-    "pending_full",       # dropped at the bound of the ground station's pending scores
-    "garbage_frame",      # a camera frame the front end cannot use: wrong shape or type, empty, black, uniform
+    "bad_key",  # a key that names nothing of ours (non-decimal id, unknown topic, ...)
+    "unknown_vehicle",  # a well-formed vehicle id that is not in the swarm
+    "oversized",  # payload over the size cap of its topic (checked before decoding)
+    "malformed",  # not decodable: garbage, truncated, wrong types, shapes or ranges
+    "unsigned",  # MAVLink: unsigned frame where signing is required
+    "bad_signature",  # MAVLink: signature does not match the sender's key
+    "replay",  # MAVLink: signing timestamp not after the stream's last one
+    "stale_stream",  # MAVLink: a new stream more than 60 s old
+    "future_timestamp",  # MAVLink: signing timestamp more than 60 s ahead of the clock
+    "impersonation",  # the payload names another sender than its key (sysid or vehicle_id)
+    "unknown_sysid",  # MAVLink from a system id that is not a vehicle of the swarm
+    "degenerate",  # zero, singular, non-positive-definite or huge covariance; absurd values
+    "stamp_out_of_range",  # far in the past or the future of the receiver's sim time
+    "unexpected",  # a valid message of a kind this key does not carry
+    "inbox_full",  # dropped at the bound of an inbox
+    "held_full",  # dropped at the bound of the link-fault stage's held packets
+    "pending_full",  # dropped at the bound of the ground station's pending scores
+    "garbage_frame",  # a camera frame the front end cannot use: wrong shape or type, empty, black, uniform
 )
 _INDEX = {reason: i for i, reason in enumerate(REASONS)}
 MAX_LOGGED = 1000  # distinct (reason, where) pairs logged; past that, rejections are only counted
@@ -53,8 +53,13 @@ class Rejections:
             if first:
                 self._logged.add((reason, where))
         if first:
-            self._log.warning("%s rejected input (%s) on %s: %s; further ones are only counted",
-                              self._owner, reason, where[:120], detail[:300] or "-")
+            self._log.warning(
+                "%s rejected input (%s) on %s: %s; further ones are only counted",
+                self._owner,
+                reason,
+                where[:120],
+                detail[:300] or "-",
+            )
 
     def as_counts(self) -> tuple[int, ...]:
         with self._lock:

@@ -12,33 +12,56 @@ class ReplayConfig(BaseModel):
 
     kind: str = Field("mrclam", pattern=r"^mrclam$", description="data set format (UTIAS MRCLAM, data sets 1-9)")
     dataset: str = Field(min_length=1, description="the data set's directory or its .tar.xz")
-    robots: tuple[int, ...] = Field((1, 2, 3, 4, 5), min_length=1, max_length=5,
-                                    description="robots replayed, in order: vehicle 1 is the first")
+    robots: tuple[int, ...] = Field(
+        (1, 2, 3, 4, 5), min_length=1, max_length=5, description="robots replayed, in order: vehicle 1 is the first"
+    )
     start_s: float = Field(120.0, ge=0, le=1e6, description="replay from this data set time (s after its start)")
-    calibration_s: tuple[float, float] = Field((0.0, 120.0), description="data set interval the noise datasheet "
-                                               "was calibrated on [s]; the replayed window may not overlap it")
-    odom_lag_s: float = Field(0.0, ge=0, le=1, description="the robots follow an odometry command this much "
-                              "later (calibrated); the replay stamps each command when it takes effect")
-    camera_latency_s: float = Field(0.0, ge=0, le=1, description="a sighting was taken this much before its "
-                                    "stamp (calibrated); the replay stamps each when it was taken")
-    sighting_sigmas: tuple[tuple[float, float], ...] = Field((), description="per replayed robot, its camera's "
-                                                             "(range sigma per metre of range, bearing sigma rad), "
-                                                             "calibrated; empty: the datasheet's range_sigma_m "
-                                                             "(m) and bearing_sigma_rad")
-    withhold_landmarks: tuple[int, ...] = Field((), description="robots whose landmark sightings are withheld "
-                                                "(they localize from odometry and the others)")
-    relay_sightings: bool = Field(True, description="each robot sighting is also sent to the robot seen (``seen`` "
-                                  "rows), as the observer's radio would pass it on; cooperative vehicles fuse it")
+    calibration_s: tuple[float, float] = Field(
+        (0.0, 120.0),
+        description="data set interval the noise datasheet "
+        "was calibrated on [s]; the replayed window may not overlap it",
+    )
+    odom_lag_s: float = Field(
+        0.0,
+        ge=0,
+        le=1,
+        description="the robots follow an odometry command this much "
+        "later (calibrated); the replay stamps each command when it takes effect",
+    )
+    camera_latency_s: float = Field(
+        0.0,
+        ge=0,
+        le=1,
+        description="a sighting was taken this much before its "
+        "stamp (calibrated); the replay stamps each when it was taken",
+    )
+    sighting_sigmas: tuple[tuple[float, float], ...] = Field(
+        (),
+        description="per replayed robot, its camera's "
+        "(range sigma per metre of range, bearing sigma rad), "
+        "calibrated; empty: the datasheet's range_sigma_m "
+        "(m) and bearing_sigma_rad",
+    )
+    withhold_landmarks: tuple[int, ...] = Field(
+        (), description="robots whose landmark sightings are withheld (they localize from odometry and the others)"
+    )
+    relay_sightings: bool = Field(
+        True,
+        description="each robot sighting is also sent to the robot seen (``seen`` "
+        "rows), as the observer's radio would pass it on; cooperative vehicles fuse it",
+    )
 
     @model_validator(mode="after")
-    def _sane(self) -> "ReplayConfig":
+    def _sane(self) -> ReplayConfig:
         if any(r not in (1, 2, 3, 4, 5) for r in self.robots) or len(set(self.robots)) != len(self.robots):
             raise ValueError(f"robots must be distinct robots 1-5, got {list(self.robots)}")
         if any(r not in self.robots for r in self.withhold_landmarks):
-            raise ValueError(f"withhold_landmarks {list(self.withhold_landmarks)} names robots not replayed "
-                             f"({list(self.robots)})")
-        if self.sighting_sigmas and (len(self.sighting_sigmas) != len(self.robots)
-                                     or any(not (r > 0 and b > 0) for r, b in self.sighting_sigmas)):
+            raise ValueError(
+                f"withhold_landmarks {list(self.withhold_landmarks)} names robots not replayed ({list(self.robots)})"
+            )
+        if self.sighting_sigmas and (
+            len(self.sighting_sigmas) != len(self.robots) or any(not (r > 0 and b > 0) for r, b in self.sighting_sigmas)
+        ):
             raise ValueError("sighting_sigmas needs one positive (range, bearing) pair per replayed robot")
         low, high = self.calibration_s
         if not 0 <= low < high:

@@ -60,7 +60,8 @@ def signing_key_from_env(env: dict[str, str] | None = None) -> bytes | None:
     """The MAVLink signing key (32 bytes) named by the environment, or None (signing off)."""
     env = os.environ if env is None else env
     raw = env.get("SWARMLOC_MAVLINK_KEY") or (
-        _read(env["SWARMLOC_MAVLINK_KEY_FILE"], "MAVLink key file") if env.get("SWARMLOC_MAVLINK_KEY_FILE") else None)
+        _read(env["SWARMLOC_MAVLINK_KEY_FILE"], "MAVLink key file") if env.get("SWARMLOC_MAVLINK_KEY_FILE") else None
+    )
     if raw is None:
         return None
     try:
@@ -76,7 +77,10 @@ def zenoh_login_from_env(env: dict[str, str] | None = None) -> tuple[str, str] |
     if not user:
         return None
     password = env.get("SWARMLOC_ZENOH_PASSWORD") or (
-        _read(env["SWARMLOC_ZENOH_PASSWORD_FILE"], "zenoh password file") if env.get("SWARMLOC_ZENOH_PASSWORD_FILE") else None)
+        _read(env["SWARMLOC_ZENOH_PASSWORD_FILE"], "zenoh password file")
+        if env.get("SWARMLOC_ZENOH_PASSWORD_FILE")
+        else None
+    )
     if not password:
         raise ConfigError(f"SWARMLOC_ZENOH_USER={user} needs SWARMLOC_ZENOH_PASSWORD or SWARMLOC_ZENOH_PASSWORD_FILE")
     return user, password

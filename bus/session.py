@@ -14,8 +14,9 @@ import logging
 import os
 import socket
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 from bus.config import BusConfig
 from bus.errors import AccessDenied, BusUnavailable
@@ -106,7 +107,7 @@ class Transport:
     acl: dict | None = None
 
     @classmethod
-    def from_env(cls, env: dict[str, str] | None = None) -> "Transport":
+    def from_env(cls, env: dict[str, str] | None = None) -> Transport:
         """User, password and TLS root CA from ``SWARMLOC_ZENOH_*`` (see bus.secrets)."""
         from bus.secrets import zenoh_login_from_env
 
@@ -123,15 +124,24 @@ def zenoh_config(conf: BusConfig, transport: Transport = Transport()):
     import zenoh
 
     zconf = zenoh.Config()
-    settings: dict[str, object] = {"mode": conf.mode, "connect/endpoints": list(conf.connect),
-                                   "listen/endpoints": list(conf.listen), "scouting/multicast/enabled": False,
-                                   "transport/shared_memory/enabled": False}
+    settings: dict[str, object] = {
+        "mode": conf.mode,
+        "connect/endpoints": list(conf.connect),
+        "listen/endpoints": list(conf.listen),
+        "scouting/multicast/enabled": False,
+        "transport/shared_memory/enabled": False,
+    }
     if transport.user:
-        settings["transport/auth/usrpwd"] = {"user": transport.user, "password": transport.password,
-                                             **({"dictionary_file": transport.credentials_file}
-                                                if transport.credentials_file else {})}
-    for key, value in (("root_ca_certificate", transport.tls_root_ca), ("listen_certificate", transport.tls_certificate),
-                       ("listen_private_key", transport.tls_private_key)):
+        settings["transport/auth/usrpwd"] = {
+            "user": transport.user,
+            "password": transport.password,
+            **({"dictionary_file": transport.credentials_file} if transport.credentials_file else {}),
+        }
+    for key, value in (
+        ("root_ca_certificate", transport.tls_root_ca),
+        ("listen_certificate", transport.tls_certificate),
+        ("listen_private_key", transport.tls_private_key),
+    ):
         if value:
             settings[f"transport/link/tls/{key}"] = value
     if transport.acl is not None:
@@ -172,14 +182,17 @@ def open_session(conf: BusConfig, transport: Transport, zenoh_module: Any) -> An
             if any(_reachable(e) for e in conf.connect):
                 refusals += 1
                 if refusals >= 2:
-                    raise BusUnavailable(f"cannot join the swarm at {who}: the router refused the login or "
-                                         f"the TLS handshake ({detail})") from None
+                    raise BusUnavailable(
+                        f"cannot join the swarm at {who}: the router refused the login or the TLS handshake ({detail})"
+                    ) from None
             if time.monotonic() + delay > deadline:
-                raise BusUnavailable(f"cannot join the swarm at {who}: no zenoh router answered within "
-                                     f"{conf.connect_timeout_s:g} s") from None
+                raise BusUnavailable(
+                    f"cannot join the swarm at {who}: no zenoh router answered within {conf.connect_timeout_s:g} s"
+                ) from None
             if not announced:
-                log.warning("waiting for the zenoh router at %s (up to %g s)", ", ".join(conf.connect),
-                            conf.connect_timeout_s)
+                log.warning(
+                    "waiting for the zenoh router at %s (up to %g s)", ", ".join(conf.connect), conf.connect_timeout_s
+                )
                 announced = True
             time.sleep(delay)
             delay = min(2.0, delay * 1.5)
@@ -198,9 +211,7 @@ class ZenohBus:
         self._keep: list[object] = []
 
     def publisher(self, key: str) -> Publisher:
-        pub = self._session.declare_publisher(
-            key, congestion_control=self._zenoh.CongestionControl.BLOCK
-        )
+        pub = self._session.declare_publisher(key, congestion_control=self._zenoh.CongestionControl.BLOCK)
         self._keep.append(pub)
         return pub
 
@@ -248,15 +259,18 @@ class ZenohBus:
 
     def get(self, key: str, payload: bytes, timeout_s: float) -> list[bytes]:
         """Ask the queryables on ``key``; their replies (empty when nobody answers within the timeout)."""
-        return [r.ok.payload.to_bytes() for r in self._session.get(key, payload=payload, timeout=timeout_s)
-                if r.ok and len(r.ok.payload) <= MAX_QUERY_BYTES]
+        return [
+            r.ok.payload.to_bytes()
+            for r in self._session.get(key, payload=payload, timeout=timeout_s)
+            if r.ok and len(r.ok.payload) <= MAX_QUERY_BYTES
+        ]
 
     def close(self) -> None:
         if not self._session.is_closed():
             self._keep.clear()
             self._session.close()
 
-    def __enter__(self) -> "ZenohBus":
+    def __enter__(self) -> ZenohBus:
         return self
 
     def __exit__(self, *exc: object) -> None:

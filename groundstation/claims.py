@@ -39,6 +39,12 @@ class IdRegister:
         tmp.write_text(json.dumps({"ids": self.ids, "claims": self.claims}, sort_keys=True))
         tmp.replace(self.path)
         vid = self.ids[host]
-        secrets = {} if self.master_key is None else {"zenoh_password": vehicle_password(self.master_key, vid),
-                                                      "signing_key": vehicle_signing_key(self.master_key, vid).hex()}
+        secrets = (
+            {}
+            if self.master_key is None
+            else {
+                "zenoh_password": vehicle_password(self.master_key, vid),
+                "signing_key": vehicle_signing_key(self.master_key, vid).hex(),
+            }
+        )
         return ClaimReply(ok=True, vehicle_id=vid, restarts=self.claims[host] - 1, **secrets)

@@ -4,9 +4,10 @@ and the final RMSE/NEES table."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from rich.console import Console
 from rich.live import Live
@@ -17,14 +18,29 @@ from rich.table import Table
 def rmse_table(summary: dict[str, Any], timing: dict[str, Any] | None = None, title: str = "swarm RMSE") -> Table:
     """Per-vehicle and swarm position RMSE, ANEES and loop counters from a summary (and timing)."""
     table = Table(title=title)
-    for column in ("vehicle", "RMSE [m]", "max err [m]", "ANEES (3 dof)", "NEES in 95%", "GNSS rejected",
-                   "overruns", "jitter p99 [us]"):
+    for column in (
+        "vehicle",
+        "RMSE [m]",
+        "max err [m]",
+        "ANEES (3 dof)",
+        "NEES in 95%",
+        "GNSS rejected",
+        "overruns",
+        "jitter p99 [us]",
+    ):
         table.add_column(column, justify="right")
     for vid, v in summary["vehicles"].items():
         t = (timing or {}).get("vehicles", {}).get(vid, {})
-        table.add_row(vid, _num(v.get("rmse_m")), _num(v.get("max_error_m")), _num(v.get("anees")),
-                      _pct(v.get("nees_inside_95")), str(v.get("gnss_rejected", "-")),
-                      str(t.get("overruns", v.get("overruns", "-"))), _num(t.get("jitter_p99_us"), 0))
+        table.add_row(
+            vid,
+            _num(v.get("rmse_m")),
+            _num(v.get("max_error_m")),
+            _num(v.get("anees")),
+            _pct(v.get("nees_inside_95")),
+            str(v.get("gnss_rejected", "-")),
+            str(t.get("overruns", v.get("overruns", "-"))),
+            _num(t.get("jitter_p99_us"), 0),
+        )
     s = summary["swarm"]
     table.add_row("swarm", _num(s.get("rmse_m")), "", _num(s.get("anees")), "", "", "", "", style="bold")
     return table
@@ -46,18 +62,28 @@ def live_display(mode: str, duration_s: float, quiet: bool) -> Iterator[Any]:
         return
     console = Console()
     if mode == "lockstep":
-        with Progress(TextColumn("sim time"), BarColumn(), TextColumn("{task.completed:.1f}/{task.total:.0f} s"),
-                      TimeElapsedColumn(), console=console, transient=True) as progress:
+        with Progress(
+            TextColumn("sim time"),
+            BarColumn(),
+            TextColumn("{task.completed:.1f}/{task.total:.0f} s"),
+            TimeElapsedColumn(),
+            console=console,
+            transient=True,
+        ) as progress:
             task = progress.add_task("run", total=duration_s)
             yield lambda gs: progress.update(task, completed=gs.sim_time_us * 1e-6)
         return
     with Live(console=console, refresh_per_second=4, transient=True) as live:
+
         def update(gs: Any) -> None:
             if gs.sim_time_us % 500_000 == 0:
                 from groundstation.summary import build_summary
-                summary = build_summary(gs.config, gs.scorer, gs.reports.statuses, {}, "running",
-                                        rejected=gs.rejected_by_process())
+
+                summary = build_summary(
+                    gs.config, gs.scorer, gs.reports.statuses, {}, "running", rejected=gs.rejected_by_process()
+                )
                 live.update(rmse_table(summary, title=f"t = {gs.sim_time_us * 1e-6:.1f} s"))
+
         yield update
 
 

@@ -6,7 +6,8 @@ Pure: no bus. The node feeds it requests and clock times and publishes the plan 
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from bus.faults import check_fault, named
 from bus.plan import FaultPlan, FaultReply, FaultRequest, FaultState
@@ -113,8 +114,9 @@ class FaultControl:
 
     def _reply(self, ok: bool, error: str = "") -> FaultReply:
         t_s = self.now_us * 1e-6
-        states = tuple(FaultState(name=f.name, kind=f.kind, state=_state(f, t_s), description=describe(f))
-                       for f in self.faults)
+        states = tuple(
+            FaultState(name=f.name, kind=f.kind, state=_state(f, t_s), description=describe(f)) for f in self.faults
+        )
         return FaultReply(ok=ok, error=error, sim_time_s=t_s, plan=self.plan(), states=states)
 
 

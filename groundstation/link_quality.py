@@ -36,5 +36,10 @@ class StreamQuality:
         return self.lost / total if total else 0.0
 
     def as_dict(self) -> dict:
-        return {"received": self.received, "lost": self.lost, "duplicates": self.duplicates,
-                "reordered": self.reordered, "loss_rate": round(self.loss_rate, 6)}
+        return {
+            "received": self.received,
+            "lost": self.lost,
+            "duplicates": self.duplicates,
+            "reordered": self.reordered,
+            "loss_rate": round(self.loss_rate, 6),
+        }

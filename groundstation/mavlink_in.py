@@ -7,23 +7,26 @@ Anything else is counted by reason and dropped; nothing here raises.
 from __future__ import annotations
 
 from collections import Counter
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from bus.errors import DecodeError
 from bus.link_faults import Arrival, LinkFaultStage
 from bus.mavlink_codec import MavlinkDecoder, MavlinkRejected, StateEstimate, frame_header, split_frames
 from bus.rejections import Rejections
 from bus.secrets import vehicle_signing_key
+from bus.topics import Topic
 from groundstation.link_quality import StreamQuality
 
-MAX_STREAM_BYTES = 64 << 10   # one tick of one vehicle's frames
-FUTURE_US = 10_000_000        # estimates may be this far ahead of the ground station's clock
-PAST_US = 120_000_000         # and this far behind it
+MAX_STREAM_BYTES = 64 << 10  # one tick of one vehicle's frames
+FUTURE_US = 10_000_000  # estimates may be this far ahead of the ground station's clock
+PAST_US = 120_000_000  # and this far behind it
 
 
 class MavlinkIntake:
-    def __init__(self, *, vehicles: int, master_key: bytes | None, fault_seed: int, faults: tuple,
-                 rejections: Rejections) -> None:
+    def __init__(
+        self, *, vehicles: int, master_key: bytes | None, fault_seed: int, faults: tuple, rejections: Rejections
+    ) -> None:
         self.vehicles, self.rejections = vehicles, rejections
         keys = {vid: vehicle_signing_key(master_key, vid) for vid in range(1, vehicles + 1)} if master_key else None
         self.decoder = MavlinkDecoder(key_for=keys.get) if keys is not None else MavlinkDecoder()
@@ -52,14 +55,14 @@ class MavlinkIntake:
             if header[3] is not None:
                 self.stream_stamp_us[vehicle_id] = max(header[3], self.stream_stamp_us.get(vehicle_id, -1))
             stamp = self.stream_stamp_us.get(vehicle_id, 0)
-            out += self.links.offer(Arrival(key, f"v{vehicle_id}", "mavlink", stamp, (vehicle_id, frame)))
+            out += self.links.offer(Arrival(key, f"v{vehicle_id}", Topic.MAVLINK, stamp, (vehicle_id, frame)))
         return out
 
     def decode(self, vehicle_id: int, frame: bytes, now_us: int) -> Any:
         """Authenticate and check one frame; the decoded message, or None (counted) when rejected."""
         header = frame_header(frame)
         self.quality.setdefault(vehicle_id, StreamQuality()).see(header[1])  # as a GCS counts its link
-        where = f"v/{vehicle_id}/mavlink"
+        where = f"MAVLink of vehicle {vehicle_id}"
         try:
             decoded = self.decoder.decode(frame)
         except MavlinkRejected as exc:

@@ -28,13 +28,13 @@ from bus.session import Bus, Envelope, LivelinessEvent, Request
 from groundstation.claims import IdRegister
 from groundstation.fault_control import FaultControl
 from groundstation.mavlink_in import MAX_STREAM_BYTES, MavlinkIntake
-from groundstation.membership import MembershipLog
 from groundstation.mavlink_out import MavlinkForwarder
+from groundstation.membership import MembershipLog
 from groundstation.resume import resume_events, resume_tallies
 from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
-from groundstation.vehicle_reports import VehicleReports
 from groundstation.summary import build_summary, build_timing
+from groundstation.vehicle_reports import VehicleReports
 
 log = logging.getLogger("swarmloc.groundstation")
 REALTIME_LAG_US = 1_000_000
@@ -44,17 +44,28 @@ MAX_TRUTH_BYTES = 1 << 20
 
 
 class GroundStation:
-    def __init__(self, bus: Bus, config: SwarmConfig, run_dir: Path, *, master_key: bytes | None = None,
-                 forwarder: MavlinkForwarder | None = None) -> None:
+    def __init__(
+        self,
+        bus: Bus,
+        config: SwarmConfig,
+        run_dir: Path,
+        *,
+        master_key: bytes | None = None,
+        forwarder: MavlinkForwarder | None = None,
+    ) -> None:
         self.bus, self.config = bus, config
-        keys, prefix = bus.keys, bus.keys.prefix
+        keys = bus.keys
         self.rejections = Rejections(log, "ground station")
         self.mailbox = Mailbox()
         control, truth = self.mailbox.lane("control", max_items=10_000), self.mailbox.lane("truth", max_items=10_000)
         mavlink, status = self.mailbox.lane("mavlink", max_items=200_000), self.mailbox.lane("status", max_items=20_000)
-        for expr, lane, cap in ((keys.clock(), control, MAX_CONTROL_BYTES), (keys.end(), control, MAX_CONTROL_BYTES),
-                                (keys.truth(), truth, MAX_TRUTH_BYTES), (f"{prefix}/v/*/mavlink", mavlink, MAX_STREAM_BYTES),
-                                (f"{prefix}/v/*/status", status, MAX_MAP_BYTES)):
+        for expr, lane, cap in (
+            (keys.clock(), control, MAX_CONTROL_BYTES),
+            (keys.end(), control, MAX_CONTROL_BYTES),
+            (keys.truth(), truth, MAX_TRUTH_BYTES),
+            (keys.mavlink("*"), mavlink, MAX_STREAM_BYTES),
+            (keys.status("*"), status, MAX_MAP_BYTES),
+        ):
             bus.subscribe(expr, lane, cap)
         bus.queryable(keys.fault_request(), control)
         bus.queryable(keys.claim(), control)
@@ -62,8 +73,13 @@ class GroundStation:
         self.run = RunDirectory(run_dir)
         self.ids = IdRegister(vehicles=config.world.vehicles, path=run_dir / "claims.json", master_key=master_key)
         self.scorer = Scorer()
-        self.intake = MavlinkIntake(vehicles=config.world.vehicles, master_key=master_key,
-                                    fault_seed=config.fault_seed, faults=config.faults, rejections=self.rejections)
+        self.intake = MavlinkIntake(
+            vehicles=config.world.vehicles,
+            master_key=master_key,
+            fault_seed=config.fault_seed,
+            faults=config.faults,
+            rejections=self.rejections,
+        )
         self.forwarder = forwarder
         self.latency_us: dict[int, list[int]] = {}
         self.reports = VehicleReports(config.world.vehicles, self.rejections)  # loop statistics, SLAM maps
@@ -89,8 +105,8 @@ class GroundStation:
         self.wall_start: float | None = None
         self.wall_end: float | None = None
         self.on_progress = lambda gs: None
-        bus.watch_liveliness(f"{prefix}/alive/vehicle/*", control)
-        bus.watch_liveliness(f"{prefix}/alive/world/*", control)
+        bus.watch_liveliness(keys.alive("vehicle", "*"), control)
+        bus.watch_liveliness(keys.alive("world", "*"), control)
         bus.declare_token(keys.alive("groundstation", 0))
 
     def _resume(self, run_dir: Path) -> None:
@@ -227,13 +243,18 @@ class GroundStation:
             delay = self.sim_time_us - decoded.time_usec
             lat[0], lat[1], lat[2] = lat[0] + 1, lat[1] + delay, max(lat[2], delay)
             if not self.scorer.add_estimate(decoded):
-                self.rejections.reject("pending_full", f"v/{vid}/mavlink", "scoring backlog full")
+                self.rejections.reject("pending_full", f"MAVLink of vehicle {vid}", "scoring backlog full")
             self.latest_estimate_us[vid] = max(decoded.time_usec, self.latest_estimate_us.get(vid, -1))
         elif isinstance(decoded, EstimatorStatus):
             self._on_estimator_status(decoded)
         elif isinstance(decoded, StatusText):
-            self.run.event("vehicle_message", self.sim_time_us, vehicle=decoded.vehicle_id,
-                           severity=decoded.severity, text=decoded.text)
+            self.run.event(
+                "vehicle_message",
+                self.sim_time_us,
+                vehicle=decoded.vehicle_id,
+                severity=decoded.severity,
+                text=decoded.text,
+            )
             if decoded.text.startswith("estimator reset"):
                 self.event("estimator_reset", vehicle=decoded.vehicle_id, text=decoded.text)
 
@@ -244,8 +265,9 @@ class GroundStation:
         if status.gps_glitch != was:
             kind = "gnss_unhealthy" if status.gps_glitch else "gnss_healthy"
             self.events[kind] += 1
-            self.run.event(kind, status.time_usec, vehicle=status.vehicle_id,
-                           test_ratio=round(status.pos_horiz_ratio, 3))
+            self.run.event(
+                kind, status.time_usec, vehicle=status.vehicle_id, test_ratio=round(status.pos_horiz_ratio, 3)
+            )
 
     def _on_tick(self, tick: m.ClockTick) -> None:
         """Lockstep: tick k means every estimate up to tick k-1 has been published."""
@@ -317,8 +339,16 @@ class GroundStation:
         self.event("run_ended", status=status, vehicles_lost=lost)
         self.rejections.counts["inbox_full"] = self.mailbox.dropped()
         statuses = self.reports.statuses
-        summary = build_summary(self.config, self.scorer, statuses, dict(sorted(self.events.items())), status,
-                                self.faults.faults, self.intake, self.rejected_by_process())
+        summary = build_summary(
+            self.config,
+            self.scorer,
+            statuses,
+            dict(sorted(self.events.items())),
+            status,
+            self.faults.faults,
+            self.intake,
+            self.rejected_by_process(),
+        )
         self.run.write_json("summary.json", summary)
         for vid, landmark_map in sorted(self.reports.maps.items()):
             self.run.write_json(f"map_v{vid}.json", map_record(landmark_map))

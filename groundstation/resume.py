@@ -22,7 +22,12 @@ def resume_tallies(path: Path, bounds: tuple[float, float]) -> tuple[dict[int, T
     with path.open(newline="") as handle:
         for row in csv.DictReader(line for line in handle if line.endswith("\n")):
             try:
-                vid, err, nees, t_us = int(row["vehicle"]), float(row["err_pos_m"]), float(row["nees"]), round(float(row["t_s"]) * 1e6)
+                vid, err, nees, t_us = (
+                    int(row["vehicle"]),
+                    float(row["err_pos_m"]),
+                    float(row["nees"]),
+                    round(float(row["t_s"]) * 1e6),
+                )
             except (KeyError, TypeError, ValueError):
                 continue
             tally = tallies.setdefault(vid, Tally())

@@ -16,7 +16,9 @@ import numpy as np
 
 from groundstation.scoring import Score
 
-METRICS_HEADER = "t_s,vehicle,err_x_m,err_y_m,err_pos_m,err_yaw_rad,sigma_x_m,sigma_y_m,sigma_yaw_rad,nees,reset_counter,cov_xy_m2\n"
+METRICS_HEADER = (
+    "t_s,vehicle,err_x_m,err_y_m,err_pos_m,err_yaw_rad,sigma_x_m,sigma_y_m,sigma_yaw_rad,nees,reset_counter,cov_xy_m2\n"
+)
 
 
 def tum_line(stamp_us: int, x: float, y: float, z: float, yaw: float) -> str:
@@ -63,9 +65,11 @@ class RunDirectory:
     def write_scores(self, scores: list[Score]) -> None:
         for s in scores:
             e, sg = s.error_m, s.sigma
-            self._metrics.write(f"{s.stamp_us * 1e-6:.6f},{s.vehicle_id},{e[0]:.6f},{e[1]:.6f},"
-                                f"{s.position_error_m:.6f},{e[2]:.6f},{sg[0]:.6f},{sg[1]:.6f},"
-                                f"{sg[2]:.6f},{s.nees:.6f},{s.reset_counter},{s.pose_covariance[0, 1]:.9f}\n")
+            self._metrics.write(
+                f"{s.stamp_us * 1e-6:.6f},{s.vehicle_id},{e[0]:.6f},{e[1]:.6f},"
+                f"{s.position_error_m:.6f},{e[2]:.6f},{sg[0]:.6f},{sg[1]:.6f},"
+                f"{sg[2]:.6f},{s.nees:.6f},{s.reset_counter},{s.pose_covariance[0, 1]:.9f}\n"
+            )
             est, tp = s.estimate, s.truth_pose
             self._tum_file("est", s.vehicle_id).write(tum_line(s.stamp_us, *est.position_m, est.yaw_rad))
             self._tum_file("truth", s.vehicle_id).write(tum_line(s.stamp_us, tp[0], tp[1], est.position_m[2], tp[2]))

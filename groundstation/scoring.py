@@ -13,15 +13,12 @@ import logging
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import chdtri
 
+from bus import statistics
 from bus.angles import wrap_angle as wrap
-from bus.mavlink_codec import StateEstimate
+from bus.mavlink_codec import StateEstimate, pose_of
 
 log = logging.getLogger("swarmloc.groundstation")
-POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw inside ODOMETRY's 6x6 pose covariance
-_POSE_BLOCK = np.ix_(POSE_INDEX, POSE_INDEX)
-NEES_DOF = 3
 MAX_PENDING = 500_000  # estimates waiting for the watermark; beyond, they are counted and dropped
 
 
@@ -29,12 +26,12 @@ MAX_PENDING = 500_000  # estimates waiting for the watermark; beyond, they are c
 class Score:
     vehicle_id: int
     stamp_us: int
-    error_m: np.ndarray        # (3,) x, y (m) and yaw (rad) error: estimate - truth
+    error_m: np.ndarray  # (3,) x, y (m) and yaw (rad) error: estimate - truth
     pose_covariance: np.ndarray  # (3, 3) the estimate's covariance of [x, y, yaw] (m^2, m rad, rad^2)
     nees: float
     reset_counter: int
     estimate: StateEstimate
-    truth_pose: np.ndarray     # (3,)
+    truth_pose: np.ndarray  # (3,)
 
     @property
     def sigma(self) -> np.ndarray:
@@ -103,18 +100,13 @@ class TruthTrack:
         del self.stamps[:keep], self.poses[:keep]
 
 
-def pose_error(pose: np.ndarray, cov: np.ndarray, truth_pose: np.ndarray) -> tuple[np.ndarray, float]:
-    """Error (3,) of a pose estimate (3,) [m, m, rad] against truth (3,), yaw wrapped, and its NEES
-    under the estimate's covariance (3, 3)."""
-    error = np.array([pose[0] - truth_pose[0], pose[1] - truth_pose[1], wrap(pose[2] - truth_pose[2])])
-    return error, float(error @ np.linalg.solve(cov, error))
-
-
 def score(est: StateEstimate, truth_pose: np.ndarray) -> Score:
-    cov = est.pose_covariance[_POSE_BLOCK]
-    error, nees = pose_error((est.position_m[0], est.position_m[1], est.yaw_rad), cov, truth_pose)
-    return Score(est.vehicle_id, est.time_usec, error, cov, nees, est.reset_counter,
-                 est, truth_pose)
+    planar = pose_of(est)
+    cov = planar.pose_cov
+    error = statistics.pose_error(planar.pose, truth_pose)
+    return Score(
+        est.vehicle_id, est.time_usec, error, cov, statistics.nees(error, cov), est.reset_counter, est, truth_pose
+    )
 
 
 @dataclass
@@ -132,8 +124,8 @@ class Scorer:
     last_scored_us: dict[int, int] = field(default_factory=dict)
     _seen: set[tuple[int, int]] = field(default_factory=set)
     _order: itertools.count = field(default_factory=itertools.count)
-    # two-sided 95% chi-square bounds for one NEES sample: inverse survival at 0.975 and 0.025
-    bounds: tuple[float, float] = (float(chdtri(NEES_DOF, 0.975)), float(chdtri(NEES_DOF, 0.025)))
+    # two-sided 95% chi-square bounds for one NEES sample
+    bounds: tuple[float, float] = field(default_factory=lambda: statistics.chi2_band(statistics.POSE_NEES_DOF))
 
     def add_truth(self, vehicle_id: int, stamp_us: int, pose: np.ndarray) -> None:
         self.truth.setdefault(vehicle_id, TruthTrack()).add(stamp_us, pose)
@@ -163,9 +155,12 @@ class Scorer:
             track = self.truth.get(est.vehicle_id)
             if track is None or not track.covers(est.time_usec):
                 self.unscored += 1
-                log.warning("no truth for vehicle %d at %d us (truth covers %s); estimate not scored",
-                            est.vehicle_id, est.time_usec,
-                            f"{track.stamps[0]}..{track.stamps[-1]}" if track and track.stamps else "nothing")
+                log.warning(
+                    "no truth for vehicle %d at %d us (truth covers %s); estimate not scored",
+                    est.vehicle_id,
+                    est.time_usec,
+                    f"{track.stamps[0]}..{track.stamps[-1]}" if track and track.stamps else "nothing",
+                )
                 continue
             if track.in_gap(est.time_usec):
                 self.in_truth_gaps += 1

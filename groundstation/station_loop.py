@@ -8,9 +8,9 @@ as ``world-lost``. Both are errors (the command exits non-zero).
 
 from __future__ import annotations
 
-import time
-import threading
 import logging
+import threading
+import time
 from pathlib import Path
 
 from bus.config import SwarmConfig
@@ -27,9 +27,16 @@ class WorldGone(SwarmlocError):
     """The world never joined, or left without ending the run; the summary says so."""
 
 
-def run_groundstation(bus: Bus, config: SwarmConfig, run_dir: Path, stop: threading.Event,
-                      on_progress=None, *, master_key: bytes | None = None,
-                      forwarder: MavlinkForwarder | None = None) -> dict:
+def run_groundstation(
+    bus: Bus,
+    config: SwarmConfig,
+    run_dir: Path,
+    stop: threading.Event,
+    on_progress=None,
+    *,
+    master_key: bytes | None = None,
+    forwarder: MavlinkForwarder | None = None,
+) -> dict:
     """Score until the world ends the run (or ``stop`` is set); returns the summary. Raises WorldGone
     (after writing the summary) when the world never came or vanished."""
     gs = GroundStation(bus, config, run_dir, master_key=master_key, forwarder=forwarder)
@@ -92,9 +99,13 @@ def _await_final_data(gs: GroundStation, timeout_s: float) -> None:
     last_odometry_us = end.stamp_us - end.stamp_us % period_us
 
     def missing() -> list[int]:
-        return [vid for vid in end.completed
-                if gs.intake.stream_stamp_us.get(vid, -1) < last_odometry_us
-                or vid not in gs.reports.statuses or not gs.reports.statuses[vid].final]
+        return [
+            vid
+            for vid in end.completed
+            if gs.intake.stream_stamp_us.get(vid, -1) < last_odometry_us
+            or vid not in gs.reports.statuses
+            or not gs.reports.statuses[vid].final
+        ]
 
     while missing() and time.monotonic() < deadline:
         item = gs.mailbox.get(0.1)

@@ -4,22 +4,30 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from bus.config import SwarmConfig
 from bus.messages import VehicleStatus
 from bus.rejections import REASONS, counts_to_dict
-from groundstation.link_quality import StreamQuality
-from groundstation.scoring import NEES_DOF, Scorer
+from bus.statistics import POSE_NEES_DOF
+from groundstation.scoring import Scorer
 
 
 def _round(value: float) -> float:
     return round(value, 6)
 
 
-def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, VehicleStatus],
-                  events: dict[str, int], status: str, faults: Sequence = (), intake: Any = None,
-                  rejected: Mapping[str, tuple[int, ...]] | None = None) -> dict[str, Any]:
+def build_summary(
+    config: SwarmConfig,
+    scorer: Scorer,
+    statuses: dict[int, VehicleStatus],
+    events: dict[str, int],
+    status: str,
+    faults: Sequence = (),
+    intake: Any = None,
+    rejected: Mapping[str, tuple[int, ...]] | None = None,
+) -> dict[str, Any]:
     """Per-vehicle and swarm RMSE and NEES, counters, MAVLink link quality, the faults of the plan,
     rejected input by process and reason, and how the run ended."""
     quality = intake.quality if intake is not None else {}
@@ -31,51 +39,95 @@ def build_summary(config: SwarmConfig, scorer: Scorer, statuses: dict[int, Vehic
         st = statuses.get(vid)
         entry: dict[str, Any] = {"samples": tally.samples if tally else 0}
         if tally and tally.samples:
-            entry.update(rmse_m=_round(math.sqrt(tally.sum_sq_position_m2 / tally.samples)),
-                         max_error_m=_round(tally.max_position_error_m),
-                         anees=_round(tally.sum_nees / tally.samples),
-                         nees_inside_95=_round(tally.nees_inside / tally.samples))
-            total_sq, total_n, total_nees = total_sq + tally.sum_sq_position_m2, total_n + tally.samples, total_nees + tally.sum_nees
+            entry.update(
+                rmse_m=_round(math.sqrt(tally.sum_sq_position_m2 / tally.samples)),
+                max_error_m=_round(tally.max_position_error_m),
+                anees=_round(tally.sum_nees / tally.samples),
+                nees_inside_95=_round(tally.nees_inside / tally.samples),
+            )
+            total_sq, total_n, total_nees = (
+                total_sq + tally.sum_sq_position_m2,
+                total_n + tally.samples,
+                total_nees + tally.sum_nees,
+            )
         if st is not None:
-            entry.update(cycles=st.cycles, overruns=st.overruns, gnss_rejected=st.rejected_gnss,
-                         dropped_stale=st.dropped_stale, decode_errors=st.decode_errors, reset_counter=st.reset_counter,
-                         sensor_duplicates=st.duplicates, sensor_samples_lost=st.samples_lost, late_fused=st.late_fused,
-                         v2v_fused=st.v2v_fused, v2v_missing=st.v2v_missing)
+            entry.update(
+                cycles=st.cycles,
+                overruns=st.overruns,
+                gnss_rejected=st.rejected_gnss,
+                dropped_stale=st.dropped_stale,
+                decode_errors=st.decode_errors,
+                reset_counter=st.reset_counter,
+                sensor_duplicates=st.duplicates,
+                sensor_samples_lost=st.samples_lost,
+                late_fused=st.late_fused,
+                v2v_fused=st.v2v_fused,
+                v2v_missing=st.v2v_missing,
+            )
             if st.frames_used:  # a camera vehicle running SLAM
                 entry.update(landmarks=st.landmarks, camera_frames_used=st.frames_used)
         entry["mavlink_rejected"] = per_vehicle_rejected.get(vid, 0)
         if vid in quality:
             entry["mavlink_link"] = quality[vid].as_dict()
         vehicles[str(vid)] = entry
-    swarm = {"samples": total_n, "rmse_m": _round(math.sqrt(total_sq / total_n)) if total_n else None,
-             "anees": _round(total_nees / total_n) if total_n else None, "nees_dof": NEES_DOF,
-             "nees_bounds_95": [_round(b) for b in scorer.bounds], "unscored": scorer.unscored,
-             "in_truth_gaps": scorer.in_truth_gaps, "duplicate_estimates": scorer.duplicates, "late_estimates": scorer.late}
+    swarm = {
+        "samples": total_n,
+        "rmse_m": _round(math.sqrt(total_sq / total_n)) if total_n else None,
+        "anees": _round(total_nees / total_n) if total_n else None,
+        "nees_dof": POSE_NEES_DOF,
+        "nees_bounds_95": [_round(b) for b in scorer.bounds],
+        "unscored": scorer.unscored,
+        "in_truth_gaps": scorer.in_truth_gaps,
+        "duplicate_estimates": scorer.duplicates,
+        "late_estimates": scorer.late,
+    }
     fault_counts = dict(sorted(Counter(f.kind for f in faults).items()))
     by_process = {name: counts_to_dict(counts) for name, counts in sorted((rejected or {}).items())}
     totals = Counter()
     for counts in by_process.values():
         totals.update(counts)
-    return {"name": config.name, "status": status, "mode": config.clock.mode, "seed": config.world.seed,
-            "duration_s": config.clock.duration_s, "vehicles": vehicles, "swarm": swarm, "events": events,
-            "faults": {"total": len(faults), "by_kind": fault_counts, "names": [f.name for f in faults]},
-            "rejected": {"by_process": {k: v for k, v in by_process.items() if v},
-                         "by_reason": {r: totals[r] for r in REASONS if totals[r]}}}
+    return {
+        "name": config.name,
+        "status": status,
+        "mode": config.clock.mode,
+        "seed": config.world.seed,
+        "duration_s": config.clock.duration_s,
+        "vehicles": vehicles,
+        "swarm": swarm,
+        "events": events,
+        "faults": {"total": len(faults), "by_kind": fault_counts, "names": [f.name for f in faults]},
+        "rejected": {
+            "by_process": {k: v for k, v in by_process.items() if v},
+            "by_reason": {r: totals[r] for r in REASONS if totals[r]},
+        },
+    }
 
 
-def build_timing(statuses: dict[int, VehicleStatus], sim_s: float, wall_s: float,
-                 latency_us: Mapping[int, list[int]] | None = None) -> dict[str, Any]:
+def build_timing(
+    statuses: dict[int, VehicleStatus], sim_s: float, wall_s: float, latency_us: Mapping[int, list[int]] | None = None
+) -> dict[str, Any]:
     """Wall-clock loop statistics per vehicle, the MAVLink latency in sim time (arrival tick minus
     time_usec, so quantised to the clock tick) and the run's real-time factor (sim s per wall s):
     never reproducible, so kept out of summary.json."""
     latency_us = latency_us or {}
-    vehicles = {str(vid): {"cycles": st.cycles, "overruns": st.overruns,
-                       "overrun_rate": _round(st.overruns / st.cycles) if st.cycles else 0.0,
-                       "jitter_p99_us": _round(st.jitter_p99_us), "cycle_p99_us": _round(st.cycle_p99_us)}
-                for vid, st in sorted(statuses.items())}
+    vehicles = {
+        str(vid): {
+            "cycles": st.cycles,
+            "overruns": st.overruns,
+            "overrun_rate": _round(st.overruns / st.cycles) if st.cycles else 0.0,
+            "jitter_p99_us": _round(st.jitter_p99_us),
+            "cycle_p99_us": _round(st.cycle_p99_us),
+        }
+        for vid, st in sorted(statuses.items())
+    }
     for vid, (count, total, worst) in latency_us.items():
         if count:
-            vehicles.setdefault(str(vid), {}).update(mavlink_latency_mean_s=_round(total / count * 1e-6),
-                                                     mavlink_latency_max_s=_round(worst * 1e-6))
-    return {"sim_s": _round(sim_s), "wall_s": _round(wall_s),
-            "real_time_factor": _round(sim_s / wall_s) if wall_s > 0 else None, "vehicles": vehicles}
+            vehicles.setdefault(str(vid), {}).update(
+                mavlink_latency_mean_s=_round(total / count * 1e-6), mavlink_latency_max_s=_round(worst * 1e-6)
+            )
+    return {
+        "sim_s": _round(sim_s),
+        "wall_s": _round(wall_s),
+        "real_time_factor": _round(sim_s / wall_s) if wall_s > 0 else None,
+        "vehicles": vehicles,
+    }

@@ -31,13 +31,23 @@ class VehicleReports:
             if self._belongs(vid, landmark_map.vehicle_id, "map"):
                 self.maps[vid] = landmark_map
             return
-        if self._belongs(vid, status.vehicle_id, "status"):
+        if self._belongs(vid, status.vehicle_id, "status") and not _older(status, self.statuses.get(vid)):
             self.statuses[vid] = status
 
     def _belongs(self, vid: int, claimed: int, what: str) -> bool:
         """True when a ``what`` claiming vehicle ``claimed`` may be kept for the key's vehicle ``vid``."""
         if claimed == vid and vid <= self.vehicles:
             return True
-        self.rejections.reject("impersonation" if claimed != vid else "unknown_vehicle", f"v/{vid}/status",
-                               f"{what} of vehicle {claimed}")
+        self.rejections.reject(
+            "impersonation" if claimed != vid else "unknown_vehicle",
+            f"status of vehicle {vid}",
+            f"{what} of vehicle {claimed}",
+        )
         return False
+
+
+def _older(status: m.VehicleStatus, kept: m.VehicleStatus | None) -> bool:
+    """True when ``status`` says less than the one kept: a final status is never replaced by a
+    periodic one, nor a later one by an earlier one, whatever order they arrive in (statuses are
+    cumulative; a restarted vehicle counts from zero again but its stamps go on)."""
+    return kept is not None and (status.final, status.stamp_us) < (kept.final, kept.stamp_us)

@@ -30,12 +30,19 @@ def frame_to_terrain(pose: np.ndarray, terrain: Terrain, size_px: int) -> np.nda
     return np.hstack([A, offset[:, None]])
 
 
-def camera_frame(terrain: Terrain, pose: np.ndarray, rng: np.random.Generator, *, size_px: int = 80,
-                 noise_sigma: float = 2.0) -> np.ndarray:
+def camera_frame(
+    terrain: Terrain, pose: np.ndarray, rng: np.random.Generator, *, size_px: int = 80, noise_sigma: float = 2.0
+) -> np.ndarray:
     """The (size_px, size_px) uint8 frame under ``pose`` with Gaussian pixel noise of ``noise_sigma``
     grey levels; outside the terrain the ground is black."""
     M = frame_to_terrain(pose, terrain, size_px)
-    frame = cv2.warpAffine(terrain.image, M, (size_px, size_px), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    frame = cv2.warpAffine(
+        terrain.image,
+        M,
+        (size_px, size_px),
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0,
+    )
     noisy = frame.astype(np.float32) + rng.normal(scale=noise_sigma, size=frame.shape).astype(np.float32)
     return np.clip(np.rint(noisy), 0, 255).astype(np.uint8)

@@ -26,7 +26,7 @@ def unicycle_arcs(pose: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.nd
     along the heading at its middle; the heading is wrapped once, at the end. Returns (N, 3)."""
     if speed_mps.size <= SCALAR_ARCS:
         return _arcs_in_floats(pose, speed_mps, yaw_rate_radps, dt_s)
-    turn = yaw_rate_radps * dt_s                                         # (S, N)
+    turn = yaw_rate_radps * dt_s  # (S, N)
     half = 0.5 * turn
     chord = speed_mps * dt_s * chord_factor(half)
     out = np.empty_like(pose)
@@ -36,7 +36,7 @@ def unicycle_arcs(pose: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.nd
         out[:, 1] = pose[:, 1] + chord[0] * np.sin(mid)
         out[:, 2] = wrap_angle(pose[:, 2] + turn[0])
         return out
-    end = pose[:, 2] + turn.cumsum(axis=0)                              # heading at each arc's end
+    end = pose[:, 2] + turn.cumsum(axis=0)  # heading at each arc's end
     mid = end - half
     out[:, 0] = pose[:, 0] + (chord * np.cos(mid)).sum(axis=0)
     out[:, 1] = pose[:, 1] + (chord * np.sin(mid)).sum(axis=0)

@@ -95,8 +95,9 @@ def landmark_sightings(log: RobotLog, landmarks: dict[int, np.ndarray], t0: floa
     where = np.array([landmarks[int(subject)] for subject in s[:, 1]]).reshape(-1, 2)
     d = where - pose[:, :2]
     true_range = np.hypot(d[:, 0], d[:, 1])
-    out = np.column_stack([s[:, :2], true_range, s[:, 2] - true_range,
-                           wrap_angles(s[:, 3] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))])
+    out = np.column_stack(
+        [s[:, :2], true_range, s[:, 2] - true_range, wrap_angles(s[:, 3] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))]
+    )
     return out[np.all(np.isfinite(out), axis=1)]
 
 
@@ -233,8 +234,10 @@ def lag_mismatch(log: RobotLog, t0: float, t1: float, lags_s: np.ndarray) -> np.
     out = []
     for lag in lags_s:
         held = od[np.clip(np.searchsorted(od[:, 0], t - lag, side="right") - 1, 0, len(od) - 1)]
-        out.append(np.mean((held[ok, 1] - speed[ok]) ** 2) / max(np.var(speed[ok]), 1e-9)
-                   + np.mean((held[ok, 2] - rate[ok]) ** 2) / max(np.var(rate[ok]), 1e-9))
+        out.append(
+            np.mean((held[ok, 1] - speed[ok]) ** 2) / max(np.var(speed[ok]), 1e-9)
+            + np.mean((held[ok, 2] - rate[ok]) ** 2) / max(np.var(rate[ok]), 1e-9)
+        )
     return np.array(out)
 
 
@@ -255,21 +258,39 @@ def calibrate(data: MrclamData, interval_s: tuple[float, float], robots: tuple[i
     windows = [odometry_errors(delayed(data.robots[r], lag), t0, t1) for r in robots]
     odometry, extents = np.vstack([w[0] for w in windows]), np.vstack([w[1] for w in windows])
     if len(residuals) < 20 or len(odometry) < 10:
-        raise ValueError(f"too little to calibrate on in [{t0:g}, {t1:g}] s: {len(residuals)} landmark sightings, "
-                         f"{len(odometry)} moving odometry windows (need 20 and 10)")
+        raise ValueError(
+            f"too little to calibrate on in [{t0:g}, {t1:g}] s: {len(residuals)} landmark sightings, "
+            f"{len(odometry)} moving odometry windows (need 20 and 10)"
+        )
     range_sigma, range_out = _robust_rms(residuals[:, 0])
     bearing_sigma, bearing_out = _robust_rms(residuals[:, 1])
     periods = [np.median(np.diff(data.robots[r].odometry[:, 0])) for r in robots]
     period = float(np.mean(periods))
     along_per_s, along_per_m, heading_per_s, heading_per_rad = growth_rates(odometry, extents)
-    relative_sigma, correlated, tau = range_correlation([range_errors(logs[r], _landmark_positions(data), t0, t1)
-                                                         for r in robots])
-    bearing_persisting, bearing_tau = bearing_correlation([bearing_residuals(logs[r], _landmark_positions(data), t0, t1)
-                                                           for r in robots])
-    return Calibration(float(np.sqrt(along_per_s / period)), float(np.sqrt(heading_per_s / period)),
-                       float(np.sqrt(along_per_m)), float(np.sqrt(heading_per_rad)), range_sigma, bearing_sigma,
-                       float(np.sqrt(correlated) * relative_sigma), tau, bearing_persisting, bearing_tau,
-                       len(residuals), max(range_out, bearing_out), len(odometry), lag, (float(t0), float(t1)), latency)
+    relative_sigma, correlated, tau = range_correlation(
+        [range_errors(logs[r], _landmark_positions(data), t0, t1) for r in robots]
+    )
+    bearing_persisting, bearing_tau = bearing_correlation(
+        [bearing_residuals(logs[r], _landmark_positions(data), t0, t1) for r in robots]
+    )
+    return Calibration(
+        float(np.sqrt(along_per_s / period)),
+        float(np.sqrt(heading_per_s / period)),
+        float(np.sqrt(along_per_m)),
+        float(np.sqrt(heading_per_rad)),
+        range_sigma,
+        bearing_sigma,
+        float(np.sqrt(correlated) * relative_sigma),
+        tau,
+        bearing_persisting,
+        bearing_tau,
+        len(residuals),
+        max(range_out, bearing_out),
+        len(odometry),
+        lag,
+        (float(t0), float(t1)),
+        latency,
+    )
 
 
 def camera_latency(data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...]) -> float:
@@ -279,14 +300,17 @@ def camera_latency(data: MrclamData, interval_s: tuple[float, float], robots: tu
     grid = np.arange(0.0, MAX_CAMERA_LATENCY_S + 1e-9, LAG_STEP_S)
     spread = []
     for latency in grid:
-        bearings = [sighting_residuals(delayed(data.robots[r], 0.0, latency), landmarks, *interval_s)[:, 1] for r in robots]
+        bearings = [
+            sighting_residuals(delayed(data.robots[r], 0.0, latency), landmarks, *interval_s)[:, 1] for r in robots
+        ]
         pooled = np.concatenate(bearings)
         spread.append(_robust_rms(pooled)[0] if len(pooled) else np.inf)
     return float(grid[int(np.argmin(spread))])
 
 
-def sighting_sigmas(data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...],
-                    camera_latency_s: float = 0.0) -> tuple[tuple[float, float], ...]:
+def sighting_sigmas(
+    data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...], camera_latency_s: float = 0.0
+) -> tuple[tuple[float, float], ...]:
     """Each robot's own camera: (range sigma per metre of range, bearing sigma rad) of its landmark
     sightings on ``interval_s``, restamped by ``camera_latency_s`` (robust RMS of error / true range,
     and of the bearing error; the pooled sigmas where a robot saw fewer than 20 landmarks)."""
@@ -294,8 +318,10 @@ def sighting_sigmas(data: MrclamData, interval_s: tuple[float, float], robots: t
     logs = {robot: delayed(data.robots[robot], 0.0, camera_latency_s) for robot in robots}
     errors = {robot: range_errors(logs[robot], landmarks, *interval_s) for robot in robots}
     bearings = {robot: sighting_residuals(logs[robot], landmarks, *interval_s)[:, 1] for robot in robots}
-    pooled = (_robust_rms(np.concatenate([e[:, 3] / e[:, 2] for e in errors.values()]))[0],
-              _robust_rms(np.concatenate(list(bearings.values())))[0])
+    pooled = (
+        _robust_rms(np.concatenate([e[:, 3] / e[:, 2] for e in errors.values()]))[0],
+        _robust_rms(np.concatenate(list(bearings.values())))[0],
+    )
     out = []
     for robot in robots:
         if len(errors[robot]) < 20 or len(bearings[robot]) < 20:

@@ -59,9 +59,13 @@ def make_world(config: SwarmConfig) -> World:
 
     data = load_mrclam(Path(config.replay.dataset))
     world = ReplayWorld(config, data)
-    log.info("replaying robots %s of %s: %d sightings of unknown barcodes and %d of robots not replayed skipped",
-             list(config.replay.robots), config.replay.dataset,
-             sum(data.robots[r].unknown_barcodes for r in config.replay.robots), world.skipped_sightings)
+    log.info(
+        "replaying robots %s of %s: %d sightings of unknown barcodes and %d of robots not replayed skipped",
+        list(config.replay.robots),
+        config.replay.dataset,
+        sum(data.robots[r].unknown_barcodes for r in config.replay.robots),
+        world.skipped_sightings,
+    )
     return world
 
 
@@ -72,16 +76,17 @@ class WorldNode:
         self.rejections = Rejections(log, "world")
         self.mailbox = Mailbox()
         control, acks = self.mailbox.lane("control", max_items=10_000), self.mailbox.lane("acks", max_items=100_000)
-        bus.watch_liveliness(f"{keys.prefix}/alive/**", control)
+        bus.watch_liveliness(keys.every_token(), control)
         bus.subscribe(keys.fault_plan(), control, MAX_PLAN_BYTES)
-        bus.subscribe(f"{keys.prefix}/ctl/ack/*", acks, MAX_ACK_BYTES)
+        bus.subscribe(keys.ack("*"), acks, MAX_ACK_BYTES)
         self.plan_version = -1
         self.kills = KillSchedule()
         self.status = "complete"
         bus.declare_token(keys.alive("world", 0))
         self.members = Membership(expected=set(self.world.vehicle_ids()))
-        self._publishers: dict[str, object] = {key: bus.publisher(key) for key in
-                                               [keys.clock(), keys.truth(), *map(keys.feed, self.members.expected)]}
+        self._publishers: dict[str, object] = {
+            key: bus.publisher(key) for key in [keys.clock(), keys.truth(), *map(keys.feed, self.members.expected)]
+        }
         self.tick_us = round(config.clock.tick_s * 1e6)
         self.final_tick = round(config.clock.duration_s * 1e6) // self.tick_us
         self._gs_gone_since: float | None = None
@@ -166,7 +171,9 @@ class WorldNode:
                 return
             if time.monotonic() > deadline:
                 missing = sorted(self.members.expected - self.members.alive)
-                who = ([f"vehicles {missing}"] if missing else []) + ([] if self.members.groundstation else ["the ground station"])
+                who = ([f"vehicles {missing}"] if missing else []) + (
+                    [] if self.members.groundstation else ["the ground station"]
+                )
                 raise StartTimeout(f"{' and '.join(who)} did not join within {self.config.clock.start_timeout_s:g} s")
             self.drain(0.1)
 
@@ -175,10 +182,22 @@ class WorldNode:
         stamp = min(tick, self.final_tick) * self.tick_us
         out = self.world.advance(stamp)
         listeners = out.listeners() if self.addressed_v2v else None
-        batches = [(self.bus.keys.feed(vid), feed.encode_batch(feed.SensorBatch(
-                        vid, tick, stamp, out.blocks(vid), out.camera(vid),
-                        None if listeners is None else listeners.get(vid, ()))))
-                   for vid in self.world.vehicle_ids()]
+        batches = [
+            (
+                self.bus.keys.feed(vid),
+                feed.encode_batch(
+                    feed.SensorBatch(
+                        vid,
+                        tick,
+                        stamp,
+                        out.blocks(vid),
+                        out.camera(vid),
+                        None if listeners is None else listeners.get(vid, ()),
+                    )
+                ),
+            )
+            for vid in self.world.vehicle_ids()
+        ]
         ids = self.world.vehicle_ids()
         rows = np.array(out.truth).reshape(len(out.truth_stamps), len(ids), feed.TRUTH_WIDTH)
         truth = feed.TruthBatch(tick, stamp, np.array(out.truth_stamps, dtype=np.int64), np.array(ids), rows)
@@ -189,9 +208,15 @@ class WorldNode:
             self.publish(key, payload)
         self.publish(self.bus.keys.truth(), prepared.truth)
         self.members.acked = set()
-        tick = m.ClockTick(prepared.tick, prepared.stamp_us, time.time_ns(), final,
-                           self.members.v2v_published(self.config.world.vehicles),
-                           tuple(sorted(self.members.alive | self.members.joining)), tuple(sorted(self.members.alive)))
+        tick = m.ClockTick(
+            prepared.tick,
+            prepared.stamp_us,
+            time.time_ns(),
+            final,
+            self.members.v2v_published(self.config.world.vehicles),
+            tuple(sorted(self.members.alive | self.members.joining)),
+            tuple(sorted(self.members.alive)),
+        )
         self.publish(self.bus.keys.clock(), m.encode(tick))
 
     def await_acks(self, tick: int, stop: threading.Event, timeout_s: float) -> None:
@@ -226,12 +251,20 @@ class WorldNode:
             else:
                 feed_publisher = {"feed": self._publishers[self.bus.keys.feed(vid)]}
                 timeout_s = self.config.clock.start_timeout_s
-                done = lambda: self._present(vid) and not await_subscribers(feed_publisher, timeout_s=0.0)
+
+                def done() -> bool:
+                    return self._present(vid) and not await_subscribers(feed_publisher, timeout_s=0.0)
+
             deadline = time.monotonic() + timeout_s
             while not done() and not stop.is_set():
                 if time.monotonic() > deadline:
-                    log.warning("fault %s: vehicle %d not %s after %g s; the run goes on", name, vid,
-                                "gone" if action == "kill" else "back", timeout_s)
+                    log.warning(
+                        "fault %s: vehicle %d not %s after %g s; the run goes on",
+                        name,
+                        vid,
+                        "gone" if action == "kill" else "back",
+                        timeout_s,
+                    )
                     break
                 self.drain(0.02)
 
@@ -248,8 +281,12 @@ class WorldNode:
         reports the run as world-lost."""
         payload = m.encode(end)
         deadline, next_put = time.monotonic() + timeout_s, 0.0
-        while self.members.groundstation and self.members.gs_acked <= end.tick and \
-                time.monotonic() < deadline and not stop.is_set():
+        while (
+            self.members.groundstation
+            and self.members.gs_acked <= end.tick
+            and time.monotonic() < deadline
+            and not stop.is_set()
+        ):
             if time.monotonic() >= next_put:
                 self.publish(self.bus.keys.end(), payload)
                 next_put = time.monotonic() + 1.0
@@ -315,7 +352,13 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
         log.error("world ends the run early: %s", node.status)
         node.send(prepared, final=True)  # vehicles finish instead of waiting for ticks that never come
     completed = tuple(sorted(node.members.acked)) if node.status == "complete" else ()
-    end = m.RunEnd(prepared.tick, min(prepared.tick, node.final_tick) * node.tick_us, len(node.members.alive),
-                   node.status, node.rejections.as_counts(), completed)
+    end = m.RunEnd(
+        prepared.tick,
+        min(prepared.tick, node.final_tick) * node.tick_us,
+        len(node.members.alive),
+        node.status,
+        node.rejections.as_counts(),
+        completed,
+    )
     node.hand_over_end(end, stop)
     return node

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from bus.faults import PHYSICAL_KINDS, Blackout, JamComms, JamGnss, SpoofGnss
+from bus.topics import Topic
 
 
 class PhysicalFaults:
@@ -27,7 +28,7 @@ class PhysicalFaults:
                 continue
             if isinstance(f, Blackout) and f.vehicle == vehicle_id and f.sensor == sensor:
                 return True
-            if isinstance(f, JamGnss) and sensor == "gnss" and f.inside(pose[:2]):
+            if isinstance(f, JamGnss) and sensor == Topic.GNSS and f.inside(pose[:2]):
                 return True
         return False
 

@@ -24,9 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bus.angles import wrap_angles
 from bus.config import SwarmConfig
 from bus.feed import CameraBlock
-from bus.angles import wrap_angles
+from bus.topics import Topic
 from sim.mrclam import DataError, MrclamData, delayed, pose_at
 from sim.physical_faults import PhysicalFaults
 
@@ -64,8 +65,14 @@ def odometry_rows(odometry: np.ndarray, start_s: float, end_s: float) -> Block:
     return stamps[keep], rows[keep, 1:3]
 
 
-def sighting_rows(sightings: np.ndarray, start_s: float, end_s: float, vehicle_of: dict[int, int],
-                  sigmas: tuple[float, float], relative: bool) -> tuple[Block, Block, int]:
+def sighting_rows(
+    sightings: np.ndarray,
+    start_s: float,
+    end_s: float,
+    vehicle_of: dict[int, int],
+    sigmas: tuple[float, float],
+    relative: bool,
+) -> tuple[Block, Block, int]:
     """Landmark rows [id, range, bearing, cov (4)] and ranging rows [vehicle, range, bearing, cov (4)]
     of the sightings in (start_s, end_s], the covariance diagonal from ``sigmas`` (range, bearing),
     the range sigma per metre of the range read when ``relative``; robots (subjects 1-5) map through
@@ -78,19 +85,26 @@ def sighting_rows(sightings: np.ndarray, start_s: float, end_s: float, vehicle_o
     target = np.array([vehicle_of.get(int(r), 0) for r in s[robot, 1]], dtype=float)
     replayed = target > 0
     landmark = (stamps[~robot], np.column_stack([s[~robot, 1:4], cov[~robot]]))
-    peers = (stamps[robot][replayed], np.column_stack([target[replayed], s[robot, 2:4][replayed], cov[robot][replayed]]))
+    peers = (
+        stamps[robot][replayed],
+        np.column_stack([target[replayed], s[robot, 2:4][replayed], cov[robot][replayed]]),
+    )
     return landmark, peers, int((~replayed).sum())
 
 
 def relayed_sightings(feeds: dict[int, dict[str, tuple[np.ndarray, int, np.ndarray]]]) -> dict[int, Block]:
     """The robot sightings of one advance (``ranging`` blocks per observer) as each seen robot's
     ``seen`` rows [observer, range, bearing, cov (4)], in stamp order (observers in id order at one stamp)."""
-    blocks = [(observer, *topics["ranging"]) for observer, topics in sorted(feeds.items()) if "ranging" in topics]
+    blocks = [
+        (observer, *topics[Topic.RANGING]) for observer, topics in sorted(feeds.items()) if Topic.RANGING in topics
+    ]
     if not blocks:
         return {}
     stamps = np.concatenate([block[1] for block in blocks])
     seen = np.concatenate([block[3][:, 0] for block in blocks]).astype(int)
-    rows = np.concatenate([np.column_stack([np.full(len(block[1]), float(block[0])), block[3][:, 1:]]) for block in blocks])
+    rows = np.concatenate(
+        [np.column_stack([np.full(len(block[1]), float(block[0])), block[3][:, 1:]]) for block in blocks]
+    )
     out = {}
     for vid in np.unique(seen).tolist():
         mine = np.flatnonzero(seen == vid)
@@ -115,13 +129,18 @@ class ReplayWorld:
         self._streams: dict[int, dict[str, Block]] = {}
         for vid, robot in self.robots.items():
             log = delayed(data.robots[robot], replay.odom_lag_s, replay.camera_latency_s)
-            landmark, peers, skipped = sighting_rows(log.sightings, self.start_s, end_s, vehicle_of, sigmas[vid - 1], relative)
+            landmark, peers, skipped = sighting_rows(
+                log.sightings, self.start_s, end_s, vehicle_of, sigmas[vid - 1], relative
+            )
             if robot in replay.withhold_landmarks:
                 landmark = (landmark[0][:0], landmark[1][:0])
             self.skipped_sightings += skipped
-            self._streams[vid] = {"prior": self._prior(vid, log.groundtruth),
-                                  "odom": odometry_rows(log.odometry, self.start_s, end_s),
-                                  "landmark": landmark, "ranging": peers}
+            self._streams[vid] = {
+                Topic.PRIOR: self._prior(vid, log.groundtruth),
+                Topic.ODOM: odometry_rows(log.odometry, self.start_s, end_s),
+                Topic.LANDMARK: landmark,
+                Topic.RANGING: peers,
+            }
         self._cursor = {(vid, topic): 0 for vid, topics in self._streams.items() for topic in topics}
         self._sent = dict.fromkeys(self._cursor, 0)  # sequence numbers count what was sent
         step_us = round(1e6 / spec.truth_rate_hz)
@@ -177,9 +196,9 @@ class ReplayWorld:
     def _add_relayed(self, feeds: dict[int, dict[str, tuple[np.ndarray, int, np.ndarray]]]) -> None:
         """The seen robots' ``seen`` blocks, numbered on from what each was sent before."""
         for vid, (stamps, rows) in relayed_sightings(feeds).items():
-            sent = self._sent.get((vid, "seen"), 0)
-            feeds.setdefault(vid, {})["seen"] = (stamps, sent, rows)
-            self._sent[vid, "seen"] = sent + len(stamps)
+            sent = self._sent.get((vid, Topic.SEEN), 0)
+            feeds.setdefault(vid, {})[Topic.SEEN] = (stamps, sent, rows)
+            self._sent[vid, Topic.SEEN] = sent + len(stamps)
 
     def advance(self, until_us: int) -> ReplayOutput:
         """Everything recorded in (last advance, until_us]."""
@@ -194,8 +213,13 @@ class ReplayWorld:
                     continue
                 keep = np.arange(first, last)
                 if self.faults.faults:
-                    keep = keep[[not self._silenced(vid, topic, int(stamps[i])) and not (
-                        topic == "ranging" and self._comm_lost(vid, int(rows[i, 0]), int(stamps[i]))) for i in keep]]
+                    keep = keep[
+                        [
+                            not self._silenced(vid, topic, int(stamps[i]))
+                            and not (topic == Topic.RANGING and self._comm_lost(vid, int(rows[i, 0]), int(stamps[i])))
+                            for i in keep
+                        ]
+                    ]
                 if len(keep):
                     feeds[vid][topic] = (stamps[keep], self._sent[vid, topic], rows[keep])
                     self._sent[vid, topic] += len(keep)

@@ -34,7 +34,9 @@ class Terrain:
         """World points (..., 2) [m] -> image (col, row) [px] (continuous, pixel centres at .5)."""
         h, w = self.image.shape
         xy = np.asarray(xy_m, dtype=float)
-        return np.stack([w / 2 + xy[..., 0] / self.metres_per_pixel, h / 2 - xy[..., 1] / self.metres_per_pixel], axis=-1)
+        return np.stack(
+            [w / 2 + xy[..., 0] / self.metres_per_pixel, h / 2 - xy[..., 1] / self.metres_per_pixel], axis=-1
+        )
 
 
 def load_terrain(path: Path, metres_per_pixel: float) -> Terrain:

@@ -68,8 +68,9 @@ def start_pads(count: int, spacing_m: float) -> np.ndarray:
     return np.stack([(index // side) * spacing_m, (index % side) * spacing_m], axis=1).astype(float)
 
 
-def make_trajectory(kind: str, *, centre_m: np.ndarray, speed_mps: float, radius_m: float,
-                    rng: np.random.Generator) -> tuple[object, np.ndarray]:
+def make_trajectory(
+    kind: str, *, centre_m: np.ndarray, speed_mps: float, radius_m: float, rng: np.random.Generator
+) -> tuple[object, np.ndarray]:
     """A trajectory of ``kind`` that stays within ``radius_m`` of ``centre_m``, and its start pose (3,)."""
     if kind == "circle":
         return Circle(speed_mps, radius_m), np.array([centre_m[0], centre_m[1] - radius_m, 0.0])

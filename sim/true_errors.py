@@ -50,26 +50,33 @@ class TrueErrors:
     truth: SensorTruth
     rng: np.random.Generator
     odom_scale: float
-    gnss_walk_m: np.ndarray                 # (2,) current Gauss-Markov GNSS error
+    gnss_walk_m: np.ndarray  # (2,) current Gauss-Markov GNSS error
     slip_until_us: int = -1
     block: dict[str, np.ndarray] = field(default_factory=dict)
 
     @classmethod
-    def draw(cls, truth: SensorTruth, rng: np.random.Generator) -> "TrueErrors":
-        return cls(truth, rng, float(rng.normal(0.0, truth.odom_scale_sigma)),
-                   rng.normal(0.0, truth.gnss_walk_sigma_m, 2))
+    def draw(cls, truth: SensorTruth, rng: np.random.Generator) -> TrueErrors:
+        return cls(
+            truth, rng, float(rng.normal(0.0, truth.odom_scale_sigma)), rng.normal(0.0, truth.gnss_walk_sigma_m, 2)
+        )
 
     def draw_block(self, steps: int, vehicles: int) -> None:
         """The next ``steps`` steps' draws (the same number whatever is used or silenced)."""
         rng, dof = self.rng, self.truth.heavy_tail_dof
-        self.block = {"walk": rng.normal(0.0, 1.0, (steps, 2)), "outlier": rng.random(steps),
-                      "outlier_dir": rng.uniform(0.0, 2.0 * np.pi, steps), "outlier_size": rng.uniform(0.5, 1.5, steps),
-                      "slip": rng.random(steps), "tail_odom": student_scale(dof, rng, (steps,)),
-                      "tail_gnss": student_scale(dof, rng, (steps,)),
-                      "tail_ranging": student_scale(dof, rng, (steps, vehicles))}
+        self.block = {
+            "walk": rng.normal(0.0, 1.0, (steps, 2)),
+            "outlier": rng.random(steps),
+            "outlier_dir": rng.uniform(0.0, 2.0 * np.pi, steps),
+            "outlier_size": rng.uniform(0.5, 1.5, steps),
+            "slip": rng.random(steps),
+            "tail_odom": student_scale(dof, rng, (steps,)),
+            "tail_gnss": student_scale(dof, rng, (steps,)),
+            "tail_ranging": student_scale(dof, rng, (steps, vehicles)),
+        }
 
-    def odometry(self, t_us: int, k: int, period_s: float, speed_mps: float, yaw_rate_radps: float,
-                 noise: np.ndarray) -> np.ndarray:
+    def odometry(
+        self, t_us: int, k: int, period_s: float, speed_mps: float, yaw_rate_radps: float, noise: np.ndarray
+    ) -> np.ndarray:
         """The wheel odometry row [speed m/s, yaw rate rad/s] at step ``k`` of the block for the true
         inputs and the datasheet's white noise (2,): scaled, slipping, heavy-tailed."""
         truth = self.truth
@@ -88,5 +95,7 @@ class TrueErrors:
         error = noise * self.block["tail_gnss"][k] + self.gnss_walk_m
         if self.block["outlier"][k] < truth.gnss_outlier_probability:
             angle = self.block["outlier_dir"][k]
-            error = error + truth.gnss_outlier_m * self.block["outlier_size"][k] * np.array([np.cos(angle), np.sin(angle)])
+            error = error + truth.gnss_outlier_m * self.block["outlier_size"][k] * np.array(
+                [np.cos(angle), np.sin(angle)]
+            )
         return error

@@ -16,6 +16,7 @@ import numpy as np
 
 from bus.config import SwarmConfig
 from bus.feed import CameraBlock
+from bus.topics import Topic
 from sim import sensors
 from sim.camera import camera_frame
 from sim.kinematics import unicycle_arcs
@@ -58,9 +59,12 @@ class TickOutput:
         """The bus.feed blocks of one vehicle: topic -> (stamps (k,), first seq, rows (k, w))."""
         out = {}
         for topic, samples in self.rows.get(vehicle_id, {}).items():
-            if samples and topic != "camera":
-                out[topic] = (np.array([s[0] for s in samples], dtype=np.int64), samples[0][1],
-                              np.array([s[2] for s in samples], dtype=np.float64))
+            if samples and topic != Topic.CAMERA:
+                out[topic] = (
+                    np.array([s[0] for s in samples], dtype=np.int64),
+                    samples[0][1],
+                    np.array([s[2] for s in samples], dtype=np.float64),
+                )
         return out
 
     def listeners(self) -> dict[int, tuple[int, ...]]:
@@ -68,17 +72,21 @@ class TickOutput:
         broadcasts of the advance's epochs with a measurement; a vehicle nobody ranged is absent."""
         out: dict[int, set[int]] = {}
         for observer, topics in self.rows.items():
-            for _, _, row in topics.get("ranging", ()):
+            for _, _, row in topics.get(Topic.RANGING, ()):
                 out.setdefault(int(row[0]), set()).add(observer)
         return {target: tuple(sorted(observers)) for target, observers in out.items()}
 
     def camera(self, vehicle_id: int) -> CameraBlock | None:
         """The vehicle's camera frames as a bus.feed block (None: no frame in this advance)."""
-        frames = self.rows.get(vehicle_id, {}).get("camera")
+        frames = self.rows.get(vehicle_id, {}).get(Topic.CAMERA)
         if not frames:
             return None
-        return CameraBlock(np.array([f[0] for f in frames], dtype=np.int64), frames[0][1],
-                           np.array([f[2][0] for f in frames]), np.stack([f[2][1] for f in frames]))
+        return CameraBlock(
+            np.array([f[0] for f in frames], dtype=np.int64),
+            frames[0][1],
+            np.array([f[2][0] for f in frames]),
+            np.stack([f[2][1] for f in frames]),
+        )
 
 
 def _period_us(rate_hz: float) -> int:
@@ -92,8 +100,9 @@ def make_terrain(config: SwarmConfig) -> Terrain:
     if wc.terrain:
         return load_terrain(wc.terrain, wc.terrain_metres_per_pixel)
     size_px = wc.terrain_size_px or terrain_size_for(config)
-    return procedural_terrain(np.random.default_rng([wc.seed, 0, 7]), size_px=size_px,
-                              metres_per_pixel=wc.terrain_metres_per_pixel)
+    return procedural_terrain(
+        np.random.default_rng([wc.seed, 0, 7]), size_px=size_px, metres_per_pixel=wc.terrain_metres_per_pixel
+    )
 
 
 def terrain_size_for(config: SwarmConfig, margin_m: float = 20.0) -> int:
@@ -119,27 +128,42 @@ class World:
             vid = index + 1
             layout_rng = np.random.default_rng([wc.seed, vid, 1])
             kind = wc.trajectories[index % len(wc.trajectories)]
-            trajectory, start = make_trajectory(kind, centre_m=pads[index], speed_mps=wc.speed_mps,
-                                                radius_m=wc.radius_m, rng=layout_rng)
+            trajectory, start = make_trajectory(
+                kind, centre_m=pads[index], speed_mps=wc.speed_mps, radius_m=wc.radius_m, rng=layout_rng
+            )
             rng, errors_rng = np.random.default_rng([wc.seed, vid]), np.random.default_rng([wc.seed, vid, 4])
             tones.append(wobble_tones(wc.sensor_truth, errors_rng))
-            self.vehicles.append(_Vehicle(vid, trajectory, rng, sensors.initial_gyro_bias(spec, rng),
-                                          np.random.default_rng([wc.seed, vid, 2]), np.random.default_rng([wc.seed, vid, 3]),
-                                          TrueErrors.draw(wc.sensor_truth, errors_rng)))
+            self.vehicles.append(
+                _Vehicle(
+                    vid,
+                    trajectory,
+                    rng,
+                    sensors.initial_gyro_bias(spec, rng),
+                    np.random.default_rng([wc.seed, vid, 2]),
+                    np.random.default_rng([wc.seed, vid, 3]),
+                    TrueErrors.draw(wc.sensor_truth, errors_rng),
+                )
+            )
             poses.append(start)
         self.poses = np.array(poses)
         self._wobble = tuple(np.array(part) for part in zip(*tones))  # (N, 2, tones) x 2, (N, 2, 1)
         self._wobbles = bool(wc.sensor_truth.wobble_speed_mps or wc.sensor_truth.wobble_yaw_rate_radps)
         self._wobble_block: np.ndarray | None = None  # the current block's wobble (_wobble_over), when wobbling
         self.faults = PhysicalFaults(config.faults)
-        self._periods = {topic: _period_us(rate) for topic, rate in (
-            ("odom", spec.odom_rate_hz), ("gnss", spec.gnss_rate_hz), ("ranging", spec.ranging_rate_hz),
-            ("truth", spec.truth_rate_hz))}
+        self._periods = {
+            topic: _period_us(rate)
+            for topic, rate in (
+                (Topic.ODOM, spec.odom_rate_hz),
+                (Topic.GNSS, spec.gnss_rate_hz),
+                (Topic.RANGING, spec.ranging_rate_hz),
+                ("truth", spec.truth_rate_hz),
+            )
+        }
         self.terrain = make_terrain(config) if spec.camera_rate_hz else None
         if self.terrain is not None:
             cv2.setNumThreads(1)  # frames are small: OpenCV's thread pool costs more than it brings
         if self.terrain is not None:
-            self._periods["camera"] = _period_us(spec.camera_rate_hz)
+            self._periods[Topic.CAMERA] = _period_us(spec.camera_rate_hz)
 
     @property
     def now_us(self) -> int:
@@ -151,8 +175,7 @@ class World:
 
     def comm_jammed(self, t_us: int) -> tuple[int, ...]:
         """Vehicles inside an active comm-jamming zone at ``t_us`` (their V2V traffic is lost)."""
-        return tuple(v.vehicle_id for v, pose in zip(self.vehicles, self.poses)
-                     if self.faults.comm_jammed(t_us, pose))
+        return tuple(v.vehicle_id for v, pose in zip(self.vehicles, self.poses) if self.faults.comm_jammed(t_us, pose))
 
     def advance(self, until_us: int) -> TickOutput:
         """Run every step stamped in (now, until_us]."""
@@ -164,13 +187,17 @@ class World:
     def _draw_block(self, v: _Vehicle) -> None:
         """The next BLOCK_STEPS steps of every noise source of one vehicle, from its generator."""
         spec, n, truth = self.config.sensors, BLOCK_STEPS, self.config.world.sensor_truth
-        v.noise = {"gyro": v.rng.normal(0.0, spec.gyro_sigma_radps, (n, 3)),
-                   "accel": v.rng.normal(0.0, spec.accel_sigma_mps2, (n, 3)),
-                   "walk": v.rng.normal(0.0, spec.gyro_bias_walk_radps_rtsec * np.sqrt(self.step_us * 1e-6), (n, 3)),
-                   "odom": v.rng.normal(0.0, [spec.odom_speed_sigma_mps, spec.odom_yaw_rate_sigma_radps], (n, 2)),
-                   "gnss": v.rng.normal(0.0, spec.gnss_sigma_m, (n, 2)) * truth.gnss_sigma_factor,
-                   "ranging": v.ranging_rng.normal(0.0, [spec.range_sigma_m, spec.bearing_sigma_rad],
-                                                   (n, len(self.vehicles), 2)) * truth.range_sigma_factor}
+        v.noise = {
+            "gyro": v.rng.normal(0.0, spec.gyro_sigma_radps, (n, 3)),
+            "accel": v.rng.normal(0.0, spec.accel_sigma_mps2, (n, 3)),
+            "walk": v.rng.normal(0.0, spec.gyro_bias_walk_radps_rtsec * np.sqrt(self.step_us * 1e-6), (n, 3)),
+            Topic.ODOM: v.rng.normal(0.0, [spec.odom_speed_sigma_mps, spec.odom_yaw_rate_sigma_radps], (n, 2)),
+            Topic.GNSS: v.rng.normal(0.0, spec.gnss_sigma_m, (n, 2)) * truth.gnss_sigma_factor,
+            Topic.RANGING: v.ranging_rng.normal(
+                0.0, [spec.range_sigma_m, spec.bearing_sigma_rad], (n, len(self.vehicles), 2)
+            )
+            * truth.range_sigma_factor,
+        }
         v.errors.draw_block(n, len(self.vehicles))
 
     def _step(self, out: TickOutput) -> None:
@@ -190,7 +217,7 @@ class World:
         for v, pose, (speed, yaw_rate) in zip(self.vehicles, self.poses, inputs):
             self._samples(out.rows[v.vehicle_id], v, t_us, k, pose, float(speed), float(yaw_rate))
             v.gyro_bias = v.gyro_bias + v.noise["walk"][k]
-        if t_us % self._periods["ranging"] == 0 and spec.ranging_max_m > 0 and spec.ranging_max_peers > 0:
+        if t_us % self._periods[Topic.RANGING] == 0 and spec.ranging_max_m > 0 and spec.ranging_max_peers > 0:
             self._ranging(out, t_us, k)
         self._move(law, k, dt)
         self.steps_done += 1
@@ -199,8 +226,10 @@ class World:
         """The input wobble (BLOCK_STEPS, substeps, N, 2) [m/s, rad/s] at every substep of the block of
         steps starting at ``t_us`` (substep 0: the step's own stamp)."""
         substeps = self.config.world.sensor_truth.substeps
-        times_us = [[round(t_us + k * self.step_us + s * self.step_us / substeps) for s in range(substeps)]
-                    for k in range(BLOCK_STEPS)]
+        times_us = [
+            [round(t_us + k * self.step_us + s * self.step_us / substeps) for s in range(substeps)]
+            for k in range(BLOCK_STEPS)
+        ]
         return wobble(np.array(times_us)[..., None, None] * 1e-6, *self._wobble)
 
     def _move(self, law: np.ndarray, k: int, dt: float) -> None:
@@ -212,30 +241,38 @@ class World:
     def _emit(self, rows: dict, v: _Vehicle, topic: str, t_us: int, row: np.ndarray) -> None:
         rows.setdefault(topic, []).append((t_us, v.next_seq(topic), row))
 
-    def _samples(self, rows: dict, v: _Vehicle, t_us: int, k: int, pose: np.ndarray, speed: float,
-                 yaw_rate: float) -> None:
+    def _samples(
+        self, rows: dict, v: _Vehicle, t_us: int, k: int, pose: np.ndarray, speed: float, yaw_rate: float
+    ) -> None:
         spec, vid, silenced = self.config.sensors, v.vehicle_id, self.faults.silenced
         if t_us == 0:
             prior, cov = sensors.pose_prior(pose, spec, v.rng)
-            self._emit(rows, v, "prior", t_us, np.concatenate([prior, cov.ravel()]))
+            self._emit(rows, v, Topic.PRIOR, t_us, np.concatenate([prior, cov.ravel()]))
         accel_fwd = (speed - v.last_speed_mps) / (self.step_us * 1e-6) if t_us else 0.0
         v.last_speed_mps = speed
         imu = sensors.imu_sample(speed, accel_fwd, yaw_rate, v.gyro_bias, v.noise["gyro"][k], v.noise["accel"][k])
-        if not silenced(vid, "imu", t_us, pose):
-            self._emit(rows, v, "imu", t_us, imu)
-        if t_us % self._periods["odom"] == 0:
-            reading = v.errors.odometry(t_us, k, self._periods["odom"] * 1e-6, speed, yaw_rate, v.noise["odom"][k])
-            if not silenced(vid, "odom", t_us, pose):
-                self._emit(rows, v, "odom", t_us, reading)
-        if t_us % self._periods["gnss"] == 0:
-            error = v.errors.gnss_error(k, self._periods["gnss"] * 1e-6, v.noise["gnss"][k])
-            if not silenced(vid, "gnss", t_us, pose):
+        if not silenced(vid, Topic.IMU, t_us, pose):
+            self._emit(rows, v, Topic.IMU, t_us, imu)
+        if t_us % self._periods[Topic.ODOM] == 0:
+            reading = v.errors.odometry(
+                t_us, k, self._periods[Topic.ODOM] * 1e-6, speed, yaw_rate, v.noise[Topic.ODOM][k]
+            )
+            if not silenced(vid, Topic.ODOM, t_us, pose):
+                self._emit(rows, v, Topic.ODOM, t_us, reading)
+        if t_us % self._periods[Topic.GNSS] == 0:
+            error = v.errors.gnss_error(k, self._periods[Topic.GNSS] * 1e-6, v.noise[Topic.GNSS][k])
+            if not silenced(vid, Topic.GNSS, t_us, pose):
                 fix = pose[:2] + error + self.faults.spoof_offset_m(vid, t_us, pose)
-                self._emit(rows, v, "gnss", t_us, np.concatenate([fix, (np.eye(2) * spec.gnss_sigma_m**2).ravel()]))
-        if self.terrain is not None and t_us % self._periods["camera"] == 0 and not silenced(vid, "camera", t_us, pose):
-            frame = camera_frame(self.terrain, pose, v.camera_rng, size_px=spec.camera_size_px,
-                                 noise_sigma=spec.camera_noise_grey)
-            self._emit(rows, v, "camera", t_us, (self.terrain.metres_per_pixel, frame))
+                self._emit(rows, v, Topic.GNSS, t_us, np.concatenate([fix, (np.eye(2) * spec.gnss_sigma_m**2).ravel()]))
+        if (
+            self.terrain is not None
+            and t_us % self._periods[Topic.CAMERA] == 0
+            and not silenced(vid, Topic.CAMERA, t_us, pose)
+        ):
+            frame = camera_frame(
+                self.terrain, pose, v.camera_rng, size_px=spec.camera_size_px, noise_sigma=spec.camera_noise_grey
+            )
+            self._emit(rows, v, Topic.CAMERA, t_us, (self.terrain.metres_per_pixel, frame))
 
     def _ranging(self, out: TickOutput, t_us: int, k: int) -> None:
         """Radio ranging from every vehicle to its ``ranging_max_peers`` nearest peers in reach;
@@ -247,13 +284,16 @@ class World:
         dist = np.hypot(*(xy[None, :, :] - xy[:, None, :]).transpose(2, 0, 1))
         cov = np.array([spec.range_sigma_m**2, 0.0, 0.0, spec.bearing_sigma_rad**2])
         for i, v in enumerate(self.vehicles):
-            if v.vehicle_id in jammed or self.faults.silenced(v.vehicle_id, "ranging", t_us, self.poses[i]):
+            if v.vehicle_id in jammed or self.faults.silenced(v.vehicle_id, Topic.RANGING, t_us, self.poses[i]):
                 continue
-            candidates = [j for j in np.argsort(dist[i], kind="stable") if j != i
-                          and dist[i, j] <= spec.ranging_max_m and self.vehicles[j].vehicle_id not in jammed]
-            for j in sorted(candidates[:spec.ranging_max_peers]):
-                noise = v.noise["ranging"][k, j] * v.errors.block["tail_ranging"][k, j]
+            candidates = [
+                j
+                for j in np.argsort(dist[i], kind="stable")
+                if j != i and dist[i, j] <= spec.ranging_max_m and self.vehicles[j].vehicle_id not in jammed
+            ]
+            for j in sorted(candidates[: spec.ranging_max_peers]):
+                noise = v.noise[Topic.RANGING][k, j] * v.errors.block["tail_ranging"][k, j]
                 rng_m, bearing = sensors.range_bearing(self.poses[i], xy[j], noise)
                 if rng_m <= spec.ranging_max_m:
                     row = np.array([self.vehicles[j].vehicle_id, rng_m, bearing, *cov])
-                    self._emit(out.rows[v.vehicle_id], v, "ranging", t_us, row)
+                    self._emit(out.rows[v.vehicle_id], v, Topic.RANGING, t_us, row)

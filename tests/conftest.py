@@ -1,7 +1,7 @@
 """Hypothesis profiles: `default` (a few hundred examples per fuzz test, in `make test`) and
 `fuzz-long` (10,000 examples, `make fuzz`). Pick one with --hypothesis-profile.
 
-One BLAS thread per test process, as every swarm process has (groundstation/cli.py): with two
+One BLAS thread per test process, as every swarm process has (launch/launcher.py): with two
 pytest-xdist workers on two cores, OpenBLAS's threads in each spin against the other's (three
 seeded ekf-slam runs took 39 s side by side, 8 s with one thread each).
 
@@ -13,8 +13,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 settings.register_profile("default", max_examples=300, deadline=None)
-settings.register_profile("fuzz-long", max_examples=10_000, deadline=None,
-                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("fuzz-long", max_examples=10_000, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile("default")
 
 

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from vehicle.chi_square import upper_quantile
+from bus.statistics import upper_quantile
+from bus.topics import Topic
 
 FLOOR, CEILING = 0.25, 100.0
 # the chi-square(2) 0.999999 quantile: innovations beyond it (spoofing, outliers) do not teach the estimate
@@ -27,10 +28,10 @@ class InnovationWindow:
 
     def __init__(self, window: int, dim: int = 2) -> None:
         self.window = window
-        self._outer = np.zeros((window, dim, dim))   # v v^T - H P H^T per innovation
+        self._outer = np.zeros((window, dim, dim))  # v v^T - H P H^T per innovation
         self._count = 0
 
-    def copy(self) -> "InnovationWindow":
+    def copy(self) -> InnovationWindow:
         twin = InnovationWindow.__new__(InnovationWindow)
         twin.window, twin._outer, twin._count = self.window, self._outer.copy(), self._count
         return twin
@@ -50,7 +51,7 @@ class InnovationWindow:
 
     def estimate(self) -> np.ndarray:
         """The raw R_hat (m, m) over what the window holds (not clipped; may be indefinite)."""
-        return self._outer[:min(self._count, self.window)].mean(axis=0)
+        return self._outer[: min(self._count, self.window)].mean(axis=0)
 
     def covariance(self, nominal: np.ndarray) -> np.ndarray:
         """R_hat (m, m), clipped against ``nominal`` (m, m); ``nominal`` itself until a quarter window is in."""
@@ -58,7 +59,7 @@ class InnovationWindow:
             return nominal
         estimate = self.estimate()
         L = np.linalg.cholesky(nominal)
-        whitened = np.linalg.solve(L, np.linalg.solve(L, estimate).T)   # L^-1 R_hat L^-T
+        whitened = np.linalg.solve(L, np.linalg.solve(L, estimate).T)  # L^-1 R_hat L^-T
         values, vectors = np.linalg.eigh(0.5 * (whitened + whitened.T))
         clipped = (vectors * np.clip(values, FLOOR, CEILING)) @ vectors.T
         return L @ clipped @ L.T
@@ -68,12 +69,12 @@ class NoiseAdaptation:
     """IAE of one vehicle's GNSS and ranging noise: a window per sensor. ``adapt`` learns from one
     innovation (unless it is beyond ``GATE``: spoofing, outliers) and returns the noise to fuse it with."""
 
-    SENSORS = ("gnss", "ranging")
+    SENSORS = (Topic.GNSS, Topic.RANGING)
 
     def __init__(self, window: int) -> None:
         self.windows = {sensor: InnovationWindow(window) for sensor in self.SENSORS}
 
-    def copy(self) -> "NoiseAdaptation":
+    def copy(self) -> NoiseAdaptation:
         twin = NoiseAdaptation.__new__(NoiseAdaptation)
         twin.windows = {sensor: window.copy() for sensor, window in self.windows.items()}
         return twin

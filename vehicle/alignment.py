@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from bus.angles import wrap_angle
+from vehicle.shallow import shallow_copy
 
 
 class GnssAlignment:
@@ -23,13 +24,19 @@ class GnssAlignment:
         self._turned_rad = 0.0
         self._rate_stamp: tuple[int, float] | None = None
 
+    def copy(self) -> GnssAlignment:
+        """An independent copy: its fields are numbers and tuples, replaced, never changed in place."""
+        return shallow_copy(self)
+
     def yaw_rate(self, stamp_us: int, rate_radps: float) -> None:
         """Integrate the measured yaw rate (rad/s) up to ``stamp_us``."""
         if self._rate_stamp is not None and stamp_us > self._rate_stamp[0]:
             self._turned_rad += self._rate_stamp[1] * (stamp_us - self._rate_stamp[0]) * 1e-6
         self._rate_stamp = (stamp_us, rate_radps)
 
-    def fix(self, stamp_us: int, position_m: np.ndarray, covariance_m2: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    def fix(
+        self, stamp_us: int, position_m: np.ndarray, covariance_m2: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """A fix (2,) with covariance (2, 2); returns pose [x, y, theta] (3,) and covariance (3, 3) once aligned."""
         if self._first is None:
             self._first = (stamp_us, position_m.copy(), self._turned_rad)

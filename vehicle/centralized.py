@@ -4,9 +4,10 @@ decentralized filters cannot keep (so no Covariance Intersection is needed: noth
 twice). It is the accuracy yardstick of the decentralized variants, not a vehicle: it runs in one
 process next to the pure world (``swarm experiment cooperative``).
 
-Joint state X = [x_1 ... x_N], each block x_i the state of one vehicle estimator (``ekf``:
+Joint state X = [x_1 ... x_N], each block x_i the state of one vehicle's filter (vehicle.estimators,
+built with a ``JointBlock`` store: its own models, its x and P a block of the joint state) (``ekf``:
 [x, y, theta, gyro_bias], grown by the two GNSS error states when the datasheet has a correlated
-GNSS error (vehicle.gnss_error); ``known-map``: also its odometry and camera range scale states and
+GNSS error (vehicle.models.gnss_error); ``known-map``: also its odometry and camera range scale states and
 the range-error states of the landmarks in view, so a block grows and shrinks). Each block keeps its vehicle
 estimator's own models and book-keeping (the same held inputs, F and Q, sighting model, gate and
 re-localization), and their effect lands on the joint covariance: a motion step P[i, :] <- F_i P[i, :],
@@ -23,6 +24,7 @@ Pure: no bus, no clock.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -30,57 +32,77 @@ import numpy as np
 from bus import messages as m
 from bus.angles import wrap_angle
 from bus.config import SensorSpec
-from vehicle import added_states
-from vehicle.cooperative import relative_model
-from vehicle.ekf import UpdateResult, gate_threshold, gated_update
-from vehicle.estimators.ekf import UnicycleEkf
+from bus.statistics import gate_threshold
+from vehicle.estimators import ekf
+from vehicle.estimators.filter import Filter
+from vehicle.estimators.state import FilterState
+from vehicle.kalman import UpdateResult, gated_update
+from vehicle.models import added_states
+from vehicle.models.cooperative import Correction, relative_model
 
 
-class _JointBlock:
-    """Mixin of a vehicle estimator whose (x, P) is one block of a :class:`CentralizedEkf`: it keeps
-    its own models (motion, sightings, added states) and book-keeping, while its motion steps,
-    updates, added or dropped states and spread resets act on the joint state, cross-covariances
-    included. Its ``x`` and ``P`` are the block's, refreshed after each of those."""
+class JointBlock:
+    """The store of one vehicle's filter inside a :class:`CentralizedEkf` (vehicle.estimators.stores):
+    its motion steps, updates, added or dropped states and spread resets act on the joint state,
+    cross-covariances included; the filter's own x and P are the block's, refreshed after each."""
 
-    fast_predict = False
-    joint: "CentralizedEkf"
+    dense = False  # the filter's x and P are copies of the block: the closed-form prediction cannot replace them
 
-    def _apply_motion(self, F: np.ndarray, Q: np.ndarray) -> None:
-        self.joint._move_block(self.vehicle_id, F, Q)
+    def __init__(self, joint: CentralizedEkf, vehicle_id: int) -> None:
+        self.joint, self.vehicle_id = joint, vehicle_id
 
-    def _fuse(self, y: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> UpdateResult:
-        return self.joint._update_block(self.vehicle_id, y, H, R, gate)
+    def move(self, s: FilterState, F: np.ndarray, Q: np.ndarray, x_next: np.ndarray) -> None:
+        s.P = self.joint.move_block(self.vehicle_id, F, Q)
+        s.x = x_next
 
-    def _append_states(self, variances: np.ndarray) -> None:
-        self.joint._grow_block(self.vehicle_id, variances)
-        self.state_dim = len(self.x)
+    def update(
+        self, s: FilterState, y: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float, idx: list[int] | None = None
+    ) -> UpdateResult:
+        if idx is not None:
+            full = np.zeros((len(y), len(s.x)))
+            full[:, idx] = H
+            H = full
+        return self.joint.update_block(self.vehicle_id, y, H, R, gate)
 
-    def _drop_states(self, indices: list[int]) -> None:
-        self.joint._shrink_block(self.vehicle_id, indices)
-        self.state_dim = len(self.x)
+    def correct(self, s: FilterState, correction: Correction) -> None:
+        raise NotImplementedError("the centralized reference fuses ranging on the joint state itself")
 
-    def _set_spread(self, indices: list[int], variances: np.ndarray) -> None:
-        self.joint._spread_block(self.vehicle_id, indices, variances)
+    def append(self, s: FilterState, variances: np.ndarray) -> None:
+        self.joint.grow_block(self.vehicle_id, variances)
 
+    def drop(self, s: FilterState, indices: list[int]) -> None:
+        self.joint.shrink_block(self.vehicle_id, indices)
 
-def _joint_block_class(estimator: type[UnicycleEkf]) -> type:
-    return type(f"Joint{estimator.__name__}", (_JointBlock, estimator), {})
+    def set_spread(self, s: FilterState, indices: list[int], variances: np.ndarray) -> None:
+        self.joint.spread_block(self.vehicle_id, indices, variances)
 
 
 class CentralizedEkf:
     """EKF over every vehicle of ``vehicle_ids`` (module docstring). Feed it every vehicle's samples
-    in stamp order (``handle``) and call ``cycle(t_us)`` once per loop period. ``estimator`` is the
-    vehicle estimator whose models each block uses (``ekf``, or ``known-map`` with its
-    ``landmarks``)."""
+    in stamp order (``handle``) and call ``cycle(t_us)`` once per loop period. ``estimator`` builds
+    each vehicle's filter (an estimator module's ``build``: ``ekf``'s, or ``known_map``'s with its
+    ``landmarks`` among ``estimator_arguments``)."""
 
-    def __init__(self, vehicle_ids: list[int], *, spec: SensorSpec, gate_probability: float,
-                 estimator: type[UnicycleEkf] = UnicycleEkf, **estimator_arguments: Any) -> None:
+    def __init__(
+        self,
+        vehicle_ids: list[int],
+        *,
+        spec: SensorSpec,
+        gate_probability: float,
+        estimator: Callable[..., Filter] = ekf.build,
+        **estimator_arguments: Any,
+    ) -> None:
         self.vehicle_ids = list(vehicle_ids)
-        block_class = _joint_block_class(estimator)
-        self._vehicles = {vid: block_class(vehicle_id=vid, spec=spec, gate_probability=gate_probability,
-                                           altitude_m=0.0, **estimator_arguments) for vid in self.vehicle_ids}
-        for vehicle in self._vehicles.values():
-            vehicle.joint = self
+        self._vehicles = {
+            vid: estimator(
+                vehicle_id=vid,
+                spec=spec,
+                gate_probability=gate_probability,
+                store=JointBlock(self, vid),
+                **estimator_arguments,
+            )
+            for vid in self.vehicle_ids
+        }
         self._dims = {vid: 0 for vid in self.vehicle_ids}  # each block's size; 0 before its prior
         self.x = np.zeros(0)
         self.P = np.zeros((0, 0))
@@ -104,14 +126,14 @@ class CentralizedEkf:
         s = self.block(vehicle_id)
         return self.x[s][:3].copy(), self.P[s, s][:3, :3].copy()
 
-    def handle(self, topic: str, msg: Any) -> None:
+    def handle(self, msg: Any) -> None:
         """One sample of any vehicle; unknown vehicles, and a vehicle's samples before its prior, are ignored."""
         vehicle = self._vehicles.get(msg.vehicle_id)
         if vehicle is None:
             return
         if isinstance(msg, m.PosePrior):
-            vehicle.handle(topic, msg)
-            self._replace_block(msg.vehicle_id, vehicle.x, vehicle.P)
+            vehicle.handle(msg)
+            self._replace_block(msg.vehicle_id, vehicle.state.x, vehicle.state.P)
         elif not vehicle.initialized or isinstance(msg, m.SeenBy):  # a relay: the observer's own sighting counts
             return
         elif isinstance(msg, m.GnssFix):
@@ -123,8 +145,8 @@ class CentralizedEkf:
                 self._propagate(msg.vehicle_id, msg.stamp_us)
                 self._propagate(msg.target_id, msg.stamp_us)
                 self._ranging_update(msg)
-        else:  # inputs, and what the vehicle's own estimator models (landmark sightings)
-            vehicle.handle(topic, msg)
+        else:  # inputs, and what the vehicle's own filter models (landmark sightings)
+            vehicle.handle(msg)
             self._pull(msg.vehicle_id)
 
     def cycle(self, t_us: int) -> None:
@@ -134,17 +156,17 @@ class CentralizedEkf:
                 self._propagate(vid, t_us)
 
     def _propagate(self, vehicle_id: int, t_us: int) -> None:
-        self._vehicles[vehicle_id]._propagate_to(t_us)
+        self._vehicles[vehicle_id].propagate_to(t_us)
         self._pull(vehicle_id)
 
     def _pull(self, vehicle_id: int) -> None:
-        """The block's mean from its vehicle estimator (which moves it between joint operations)."""
-        self.x[self.block(vehicle_id)] = self._vehicles[vehicle_id].x
+        """The block's mean from its vehicle's filter (which moves it between joint operations)."""
+        self.x[self.block(vehicle_id)] = self._vehicles[vehicle_id].state.x
 
     def _push(self, vehicle_id: int) -> None:
-        """The block's mean and covariance back to its vehicle estimator."""
-        s, vehicle = self.block(vehicle_id), self._vehicles[vehicle_id]
-        vehicle.x, vehicle.P = self.x[s].copy(), self.P[s, s].copy()
+        """The block's mean and covariance back to its vehicle's filter."""
+        s, state = self.block(vehicle_id), self._vehicles[vehicle_id].state
+        state.x, state.P = self.x[s].copy(), self.P[s, s].copy()
 
     def _replace_block(self, vehicle_id: int, x: np.ndarray, P: np.ndarray) -> None:
         """A fresh block (a prior): uncorrelated with every other."""
@@ -154,16 +176,17 @@ class CentralizedEkf:
         self._dims[vehicle_id] = len(x)
         self._push(vehicle_id)
 
-    def _move_block(self, vehicle_id: int, F: np.ndarray, Q: np.ndarray) -> None:
-        """One motion step of a block: P[i, :] <- F P[i, :], P[:, i] <- P[:, i] F^T, P[i, i] += Q."""
+    def move_block(self, vehicle_id: int, F: np.ndarray, Q: np.ndarray) -> np.ndarray:
+        """One motion step of a block: P[i, :] <- F P[i, :], P[:, i] <- P[:, i] F^T, P[i, i] += Q;
+        returns the block's new covariance (a copy)."""
         s = self.block(vehicle_id)
         self.P[s, :] = F @ self.P[s, :]
         self.P[:, s] = self.P[:, s] @ F.T
         self.P[s, s] += Q
         self.P[s, s] = 0.5 * (self.P[s, s] + self.P[s, s].T)
-        self._vehicles[vehicle_id].P = self.P[s, s].copy()
+        return self.P[s, s].copy()
 
-    def _grow_block(self, vehicle_id: int, variances: np.ndarray) -> None:
+    def grow_block(self, vehicle_id: int, variances: np.ndarray) -> None:
         """States at 0 with these variances after the block's last, uncorrelated."""
         self._pull(vehicle_id)
         at = self.block(vehicle_id).stop
@@ -171,7 +194,7 @@ class CentralizedEkf:
         self._dims[vehicle_id] += len(variances)
         self._push(vehicle_id)
 
-    def _shrink_block(self, vehicle_id: int, indices: list[int]) -> None:
+    def shrink_block(self, vehicle_id: int, indices: list[int]) -> None:
         """The block's states at ``indices`` (within the block) marginalized out."""
         self._pull(vehicle_id)
         s = self.block(vehicle_id)
@@ -179,14 +202,15 @@ class CentralizedEkf:
         self._dims[vehicle_id] -= len(indices)
         self._push(vehicle_id)
 
-    def _spread_block(self, vehicle_id: int, indices: list[int], variances: np.ndarray) -> None:
+    def spread_block(self, vehicle_id: int, indices: list[int], variances: np.ndarray) -> None:
         """The block's states at ``indices`` uncorrelated with every joint state, with these variances."""
         added_states.set_spread(self.P, [self.block(vehicle_id).start + i for i in indices], variances)
         self._push(vehicle_id)
 
-    def _update_block(self, vehicle_id: int, y: np.ndarray, H_block: np.ndarray, R: np.ndarray, gate: float
-                      ) -> UpdateResult:
-        """A vehicle estimator's own update (H over its block) on the joint state."""
+    def update_block(
+        self, vehicle_id: int, y: np.ndarray, H_block: np.ndarray, R: np.ndarray, gate: float
+    ) -> UpdateResult:
+        """A vehicle filter's own update (H over its block) on the joint state."""
         self._pull(vehicle_id)
         s = self.block(vehicle_id)
         H = np.zeros((len(y), len(self.x)))
@@ -195,8 +219,10 @@ class CentralizedEkf:
 
     def _gnss_update(self, fix: m.GnssFix) -> None:
         """A fix on one block, modelled as the vehicle models it."""
-        predicted, H, R = self._vehicles[fix.vehicle_id].gnss_model(fix.covariance_m2)
-        self._update_block(fix.vehicle_id, fix.position_m - predicted, H, R, self._gate)
+        vehicle = self._vehicles[fix.vehicle_id]
+        observed = vehicle.gnss.observe(vehicle.state.x, fix.covariance_m2)
+        H = observed.full_H(len(vehicle.state.x))
+        self.update_block(fix.vehicle_id, fix.position_m - observed.predicted, H, observed.R, self._gate)
 
     def _ranging_update(self, msg: m.RangeBearing) -> None:
         """Range and bearing of ``target_id`` seen from ``vehicle_id`` (paper eq. 4.1) on both blocks."""
@@ -204,7 +230,7 @@ class CentralizedEkf:
         predicted, H_i, H_j = relative_model(self.x[si], self.x[sj][:2])
         H = np.zeros((2, len(self.x)))
         H[:, si] = H_i
-        H[:, sj.start:sj.start + 2] = H_j
+        H[:, sj.start : sj.start + 2] = H_j
         y = np.array([msg.range_m - predicted[0], wrap_angle(msg.bearing_rad - predicted[1])])
         self._update(y, H, msg.covariance, self._gate)
 

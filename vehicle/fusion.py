@@ -24,13 +24,15 @@ from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from bus.topics import Topic
+
 log = logging.getLogger("swarmloc.vehicle")
 MAX_PENDING = 200_000
 MAX_SEEN = 4_096  # (topic, seq) pairs remembered; pruned to the horizon beyond (a 10-minute soak grew 18 MB at 100k)
 
 
 class Estimator(Protocol):
-    def handle(self, topic: str, msg: Any) -> None: ...
+    def handle(self, msg: Any) -> None: ...
     def cycle(self, t_us: int) -> None: ...
     def snapshot(self) -> Any: ...
     def restore(self, snapshot: Any) -> None: ...
@@ -43,11 +45,11 @@ class FusionCounters:
     duplicates: int = 0
     replays: int = 0
     checkpoints: int = 0
-    failed: int = 0          # measurements the estimator could not apply (counted, skipped)
-    dropped_full: int = 0    # refused at the bound of the pending buffer
+    failed: int = 0  # measurements the estimator could not apply (counted, skipped)
+    dropped_full: int = 0  # refused at the bound of the pending buffer
 
 
-Entry = tuple[int, int, str, Any]  # (stamp, arrival order, topic, message)
+Entry = tuple[int, int, Topic, Any]  # (stamp, arrival order, topic, message)
 
 
 class FusionHorizon:
@@ -58,19 +60,19 @@ class FusionHorizon:
         self.counters = FusionCounters()
         self._pending: list[Entry] = []
         self._late: list[Entry] = []
-        self._applied: list[Entry] = []                    # in order, stamped >= the oldest checkpoint's bound
+        self._applied: list[Entry] = []  # in order, stamped >= the oldest checkpoint's bound
         self._checkpoints: deque[tuple[int, Any]] = deque()  # (bound, snapshot), bounds increasing
-        self._cycles: deque[int] = deque()                 # cycles run since the oldest checkpoint's bound
-        self._expected: list[int] = []                     # heap of stamps that want a checkpoint before them
-        self._outstanding: Counter[int] = Counter()        # announced late measurements not arrived yet, by stamp
-        self._periodic: set[int] = set()                   # bounds of the every_cycles checkpoints
-        self._seen: dict[tuple[str, int], int] = {}        # (topic, seq) -> stamp
+        self._cycles: deque[int] = deque()  # cycles run since the oldest checkpoint's bound
+        self._expected: list[int] = []  # heap of stamps that want a checkpoint before them
+        self._outstanding: Counter[int] = Counter()  # announced late measurements not arrived yet, by stamp
+        self._periodic: set[int] = set()  # bounds of the every_cycles checkpoints
+        self._seen: dict[tuple[Topic, int], int] = {}  # (topic, seq) -> stamp
         self._arrival = itertools.count()
-        self.cycle_us: int | None = None                   # time of the last cycle
+        self.cycle_us: int | None = None  # time of the last cycle
         if horizon_us > 0:
             self._checkpoint(0)
 
-    def push(self, topic: str, msg: Any) -> None:
+    def push(self, topic: Topic, msg: Any) -> None:
         """Buffer one decoded measurement (it has ``stamp_us`` and ``seq``)."""
         ident = (topic, msg.seq)
         if ident in self._seen:
@@ -83,7 +85,9 @@ class FusionHorizon:
         entry = (msg.stamp_us, next(self._arrival), topic, msg)
         if self.cycle_us is None or msg.stamp_us > self.cycle_us:
             heapq.heappush(self._pending, entry)
-        elif msg.stamp_us >= self.cycle_us - self.horizon_us and self._checkpoint_at_or_before(msg.stamp_us) is not None:
+        elif (
+            msg.stamp_us >= self.cycle_us - self.horizon_us and self._checkpoint_at_or_before(msg.stamp_us) is not None
+        ):
             self._late.append(entry)
             if self._outstanding[msg.stamp_us] > 0:
                 self._outstanding[msg.stamp_us] -= 1
@@ -124,7 +128,7 @@ class FusionHorizon:
 
     def _apply(self, entry: Entry) -> None:
         try:
-            self.estimator.handle(entry[2], entry[3])
+            self.estimator.handle(entry[3])
         except (ArithmeticError, ValueError, IndexError) as exc:  # numpy's LinAlgError is a ValueError
             self.counters.failed += 1
             log.warning("estimator could not apply %s at %d us: %s: %s", entry[2], entry[0], type(exc).__name__, exc)
@@ -179,8 +183,11 @@ class FusionHorizon:
         self.counters.replays += 1
         self.counters.late_fused += len(late)
         bound, snapshot = self._checkpoints[i]
-        rebuild = [b for b, _ in itertools.islice(self._checkpoints, i + 1, None)
-                   if b in self._periodic or self._outstanding[b] > 0]
+        rebuild = [
+            b
+            for b, _ in itertools.islice(self._checkpoints, i + 1, None)
+            if b in self._periodic or self._outstanding[b] > 0
+        ]
         cycles = [t for t in self._cycles if t >= bound]
         redo = sorted([e for e in self._applied if e[0] >= bound] + late)
         self._applied = [e for e in self._applied if e[0] < bound]

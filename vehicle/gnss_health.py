@@ -23,8 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vehicle.chi_square import upper_quantile
-from vehicle.ekf import gate_threshold
+from bus.statistics import gate_threshold, upper_quantile
 from vehicle.shallow import shallow_copy
 
 
@@ -33,10 +32,10 @@ class GnssHealthSpec:
     unhealthy_after_s: float = 1.0
     fix_timeout_s: float = 1.5
     recover_after_s: float = 5.0
-    mean_window: int = 25                 # fixes (5 s at 5 Hz)
+    mean_window: int = 25  # fixes (5 s at 5 Hz)
     gate_probability: float = 0.9995
     mean_gate_probability: float = 0.9999
-    reset_window: int = 25                # fixes (5 s at 5 Hz)
+    reset_window: int = 25  # fixes (5 s at 5 Hz)
     reset_probability: float = 0.999
     reset_sigma_inflation: float = 3.0
 
@@ -44,10 +43,10 @@ class GnssHealthSpec:
 @dataclass(frozen=True)
 class FixVerdict:
     fuse: bool
-    test_ratio: float       # |w|^2 / gate
+    test_ratio: float  # |w|^2 / gate
     mean_test_ratio: float  # N |mean w|^2 / gate over the window (0 until the window is full)
     reset_offset_m: np.ndarray | None = None  # (2,) position jump when GNSS is trusted again by reset
-    reset_variance_m2: float = 0.0            # per-axis variance of that offset
+    reset_variance_m2: float = 0.0  # per-axis variance of that offset
 
 
 @dataclass
@@ -64,7 +63,7 @@ class GnssHealth:
     last_test_ratio: float = 0.0
     last_mean_test_ratio: float = 0.0
 
-    def copy(self) -> "GnssHealth":
+    def copy(self) -> GnssHealth:
         """An independent copy (the windows are copied; their entries are never changed in place)."""
         twin = shallow_copy(self)
         twin._window, twin._outage, twin.transitions = deque(self._window), deque(self._outage), list(self.transitions)
@@ -79,15 +78,18 @@ class GnssHealth:
         consistent = ratio <= 1.0 and mean_ratio <= 1.0
         self.last_test_ratio, self.last_mean_test_ratio = ratio, mean_ratio
         if self.healthy:
-            self._judge_healthy(stamp_us, consistent, "spoofing suspected"
-                                if mean_ratio > 1.0 else "fixes fail the gate")
+            self._judge_healthy(
+                stamp_us, consistent, "spoofing suspected" if mean_ratio > 1.0 else "fixes fail the gate"
+            )
         else:
             self._judge_unhealthy(stamp_us, ratio <= 1.0)
             if not self.healthy:
                 offset = self._self_consistent_offset(stamp_us, innovation, R)
                 if offset is not None and self._plausible_jump(offset, S - R, R):
                     self._set(stamp_us, True, "reset to consistent fixes")
-                    return FixVerdict(False, ratio, mean_ratio, offset, 4.0 * float(np.mean(np.diag(R))) / self.spec.reset_window)
+                    return FixVerdict(
+                        False, ratio, mean_ratio, offset, 4.0 * float(np.mean(np.diag(R))) / self.spec.reset_window
+                    )
         return FixVerdict(self.healthy and consistent, ratio, mean_ratio)
 
     def _plausible_jump(self, offset: np.ndarray, P_pos: np.ndarray, R: np.ndarray) -> bool:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 from collections import deque
 from dataclasses import dataclass
+from enum import Enum
 from typing import Any
 
 from bus import feed
@@ -21,6 +22,7 @@ from bus.mavlink_codec import MAX_FRAME_BYTES, frame_header
 from bus.plan import FaultPlan, decode_json
 from bus.rejections import Rejections
 from bus.session import Envelope
+from bus.topics import Topic
 
 log = logging.getLogger("swarmloc.vehicle")
 ODOMETRY_ID = 331  # MAVLINK_MSG_ID_ODOMETRY: the V2V packet
@@ -30,26 +32,38 @@ MAX_PLAN_BYTES = 1 << 20
 LISTENER_BATCHES = 8  # the batches whose listeners are kept (a realtime cycle runs within a tick or two of its batch)
 
 
+class Kind(Enum):
+    """What a delivery carries."""
+
+    SAMPLE = "sample"  # a sensor sample: ``topic`` and the message as ``payload``
+    V2V = "v2v"  # a neighbour's ODOMETRY frame: ``payload`` = (sender, stamp us, frame bytes)
+    TICK = "tick"  # a ClockTick
+    HELD = "held"  # a sample of ``topic`` stamped ``stamp_us`` is held back by a link fault
+
+
 @dataclass(frozen=True)
 class Delivery:
-    """What the bus layer hands on: ``kind`` sample (topic, message), v2v (sender, stamp, frame),
-    tick (a ClockTick) or held (a sample stamped ``stamp_us`` is held back by a link fault)."""
+    """What the bus layer hands on (see ``Kind``)."""
 
-    kind: str
-    topic: str = ""
+    kind: Kind
+    topic: Topic | None = None
     payload: Any = None
     stamp_us: int = 0
 
 
+_V2V_FRAME = "v2v frame"  # marks a neighbour's frame among the samples inside the link-fault stage
+
+
 class Inbound:
-    def __init__(self, *, keys: KeySpace, vehicle_id: int, vehicles: int, fault_seed: int, faults: tuple,
-                 rejections: Rejections) -> None:
+    def __init__(
+        self, *, keys: KeySpace, vehicle_id: int, vehicles: int, fault_seed: int, faults: tuple, rejections: Rejections
+    ) -> None:
         self.keys, self.vehicle_id, self.vehicles, self.rejections = keys, vehicle_id, vehicles, rejections
         self.links = LinkFaultStage(f"v{vehicle_id}", seed=fault_seed, faults=faults)
         self.plan_version = -1
-        self.received_tick = -1            # the newest sensor batch that arrived
-        self.received_stamp_us = -1        # and the end of the time it covers
-        self.heard: dict[int, int] = {}    # V2V frames heard per sender
+        self.received_tick = -1  # the newest sensor batch that arrived
+        self.received_stamp_us = -1  # and the end of the time it covers
+        self.heard: dict[int, int] = {}  # V2V frames heard per sender
         self.heard_until: dict[int, int] = {}  # the newest stamp heard per sender (before link faults)
         self._listeners: deque[tuple[int, tuple[int, ...]]] = deque(maxlen=LISTENER_BATCHES)
 
@@ -104,7 +118,7 @@ class Inbound:
         except DecodeError as exc:
             self.rejections.reject("malformed", item.key, str(exc))
             return []
-        return [Delivery("tick", payload=tick)]
+        return [Delivery(Kind.TICK, payload=tick)]
 
     def _plan(self, item: Envelope) -> list[Delivery]:
         try:
@@ -147,14 +161,14 @@ class Inbound:
             self.rejections.reject("held_full", arrival.key, "link-fault stage full")
         out = [self._delivery(p) for p in passed]
         if self.links.held > held:
-            out.append(Delivery("held", arrival.topic, stamp_us=arrival.stamp_us))
+            out.append(Delivery(Kind.HELD, arrival.topic, stamp_us=arrival.stamp_us))
         return out
 
     def _delivery(self, item: tuple[str, Any]) -> Delivery:
         topic, payload = item
-        if topic == "v2v":
-            return Delivery("v2v", payload=payload, stamp_us=payload[1])
-        return Delivery("sample", topic, payload, payload.stamp_us)
+        if topic == _V2V_FRAME:
+            return Delivery(Kind.V2V, payload=payload, stamp_us=payload[1])
+        return Delivery(Kind.SAMPLE, topic, payload, payload.stamp_us)
 
     def _v2v(self, item: Envelope, sender: int) -> list[Delivery]:
         """A neighbour's ODOMETRY frame: counted as heard, then through link faults."""
@@ -169,10 +183,10 @@ class Inbound:
         self.heard[sender] = self.heard.get(sender, 0) + 1
         stamp = header[3]
         self.heard_until[sender] = max(stamp, self.heard_until.get(sender, -1))
-        heard = ("v2v", (sender, stamp, frame))
+        heard = (_V2V_FRAME, (sender, stamp, frame))
         if self.links.untouched(item.key):
             return [self._delivery(heard)]
-        return self._offer(Arrival(item.key, f"v{sender}", "mavlink", stamp, heard))
+        return self._offer(Arrival(item.key, f"v{sender}", Topic.MAVLINK, stamp, heard))
 
     def release(self, now_us: int) -> list[Delivery]:
         """Held packets due by ``now_us``."""

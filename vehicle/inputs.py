@@ -22,13 +22,13 @@ class HeldInput:
     """One input's hold since the last propagation at ``start_us``."""
 
     value: float | None = None
-    stamp_us: int | None = None      # time of the latest sample
-    start_us: int = 0                # time of the last close (propagation)
-    _segment_us: int = 0             # start of the current hold inside the interval
-    _integral: float = 0.0           # value x us
-    _sq_us2: float = 0.0             # sum of o_i h_i of closed segments (us^2): see the module docstring
-    _last_hold_us: int = 0           # the previous sample's whole hold
-    segments: list = None            # (duration us, value) of the closed holds of the last interval
+    stamp_us: int | None = None  # time of the latest sample
+    start_us: int = 0  # time of the last close (propagation)
+    _segment_us: int = 0  # start of the current hold inside the interval
+    _integral: float = 0.0  # value x us
+    _sq_us2: float = 0.0  # sum of o_i h_i of closed segments (us^2): see the module docstring
+    _last_hold_us: int = 0  # the previous sample's whole hold
+    segments: list = None  # (duration us, value) of the closed holds of the last interval
 
     def __post_init__(self) -> None:
         self.segments, self._open = [], []
@@ -61,10 +61,11 @@ class HeldInput:
         self.restart(t_us)
         return integral / dt, sq / (float(dt) * dt)
 
-    def copy(self) -> "HeldInput":
+    def copy(self) -> HeldInput:
         """An independent copy (for the fusion horizon's checkpoints)."""
-        twin = HeldInput(self.value, self.stamp_us, self.start_us, self._segment_us, self._integral, self._sq_us2,
-                         self._last_hold_us)
+        twin = HeldInput(
+            self.value, self.stamp_us, self.start_us, self._segment_us, self._integral, self._sq_us2, self._last_hold_us
+        )
         twin.segments, twin._open = list(self.segments), list(self._open)
         return twin
 

@@ -20,7 +20,7 @@ class _Ring:
     def p99(self) -> float:
         """The 99th percentile, interpolated linearly between ranks (numpy's default method), by one
         partition: np.percentile's first call costs ~6 ms, which every vehicle paid in the same cycle."""
-        filled = self._values[:min(self._count, len(self._values))]
+        filled = self._values[: min(self._count, len(self._values))]
         if not len(filled):
             return 0.0
         position = 0.99 * (len(filled) - 1)

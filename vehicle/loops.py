@@ -55,8 +55,13 @@ def _wait_until_ready(node: VehicleNode, tick: m.ClockTick, later: deque, stop: 
     """Keep filing mailbox items until the tick's inputs are complete (or time runs out)."""
     _file_until(node, lambda: node.ready(tick), later, stop)
     if not node.ready(tick):
-        log.warning("vehicle %d: inputs up to %d us incomplete after %g s (missing %s); cycling without them",
-                    node.vehicle_id, tick.stamp_us, READY_TIMEOUT_S, node.missing_inputs(tick))
+        log.warning(
+            "vehicle %d: inputs up to %d us incomplete after %g s (missing %s); cycling without them",
+            node.vehicle_id,
+            tick.stamp_us,
+            READY_TIMEOUT_S,
+            node.missing_inputs(tick),
+        )
         node.write_off_missing(tick)
 
 
@@ -68,8 +73,12 @@ def _wait_for_neighbours(node: VehicleNode, tick: m.ClockTick, t_us: int, later:
     _file_until(node, lambda: not node.unheard_neighbours(tick, t_us), later, stop)
     unheard = node.unheard_neighbours(tick, t_us)
     if unheard:
-        log.warning("vehicle %d: broadcasts %s (neighbour, stamp us) not heard after %g s; fusing without them",
-                    node.vehicle_id, unheard, READY_TIMEOUT_S)
+        log.warning(
+            "vehicle %d: broadcasts %s (neighbour, stamp us) not heard after %g s; fusing without them",
+            node.vehicle_id,
+            unheard,
+            READY_TIMEOUT_S,
+        )
         node.write_off_unheard(unheard)
 
 
@@ -143,8 +152,15 @@ def _realtime_cycle(node: VehicleNode, pacer: Pacer) -> None:
     node.stats.record(jitter_us=jitter_us, cycle_us=cycle_us, overran=pacer.seconds_until(node.next_cycle_us) < 0)
 
 
-def run_vehicle(bus: Bus, config: VehicleProcessConfig, vehicle_id: int, stop: threading.Event, *, restarts: int = 0,
-                signing_key: bytes | None = None) -> VehicleNode:
+def run_vehicle(
+    bus: Bus,
+    config: VehicleProcessConfig,
+    vehicle_id: int,
+    stop: threading.Event,
+    *,
+    restarts: int = 0,
+    signing_key: bytes | None = None,
+) -> VehicleNode:
     node = VehicleNode(bus, config, vehicle_id, restarts=restarts, signing_key=signing_key)
     node.join(stop)
     (run_lockstep if config.clock.mode == "lockstep" else run_realtime)(node, stop)

@@ -14,17 +14,18 @@ import logging
 import time
 
 from bus import messages as m
-from bus.errors import SwarmlocError
 from bus.config import VehicleProcessConfig
+from bus.errors import SwarmlocError
+from bus.landmark_map import LandmarkMap
 from bus.mailbox import Mailbox
 from bus.rejections import Rejections
 from bus.session import Bus, LivelinessEvent, await_subscribers
-from bus.landmark_map import LandmarkMap
-from vehicle.cooperative import SeenFix
+from bus.topics import Topic
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
-from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_FRAME_BYTES, MAX_PLAN_BYTES, Delivery, Inbound
+from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_FRAME_BYTES, MAX_PLAN_BYTES, Delivery, Inbound, Kind
 from vehicle.loop_stats import LoopStats
+from vehicle.models.cooperative import SeenFix
 from vehicle.outbound import Outbound
 from vehicle.sequence import SequenceTracker
 from vehicle.v2v import V2V
@@ -65,8 +66,15 @@ class WorldWatch:
 
 
 class VehicleNode:
-    def __init__(self, bus: Bus, config: VehicleProcessConfig, vehicle_id: int, *, restarts: int = 0,
-                 signing_key: bytes | None = None) -> None:
+    def __init__(
+        self,
+        bus: Bus,
+        config: VehicleProcessConfig,
+        vehicle_id: int,
+        *,
+        restarts: int = 0,
+        signing_key: bytes | None = None,
+    ) -> None:
         self.bus, self.config, self.vehicle_id = bus, config, vehicle_id
         self.restarts = restarts  # a restarted vehicle re-initialises and counts up reset_counter
         keys, vc = bus.keys, config.vehicle
@@ -84,17 +92,28 @@ class VehicleNode:
         bus.watch_liveliness(keys.alive("groundstation", "*"), world)
         if vc.cooperative:
             bus.watch_liveliness(keys.alive("vehicle", "*"), world)
-        self.inbound = Inbound(keys=keys, vehicle_id=vehicle_id, vehicles=config.vehicles, fault_seed=config.fault_seed,
-                               faults=config.faults, rejections=self.rejections)
+        self.inbound = Inbound(
+            keys=keys,
+            vehicle_id=vehicle_id,
+            vehicles=config.vehicles,
+            fault_seed=config.fault_seed,
+            faults=config.faults,
+            rejections=self.rejections,
+        )
         self.outbound = Outbound(bus, config, vehicle_id, signing_key=signing_key)
         self.estimator = get_estimator(config, vehicle_id, reject=self.rejections.reject)
         realtime = config.clock.mode == "realtime"
         # realtime: a checkpoint every 5 cycles for samples late beyond the allowance (every cycle
         # cost a fifth of a realtime cycle; a late sample replays at most 5 cycles more)
-        self.fusion = FusionHorizon(self.estimator, horizon_us=round(vc.fusion_horizon_s * 1e6),
-                                    every_cycles=5 if realtime else 0)
-        self.v2v = V2V(vehicle_id, latency_us=round(vc.v2v_latency_s * 1e6), rejections=self.rejections,
-                       period_us=round(1e6 / config.sensors.ranging_rate_hz))
+        self.fusion = FusionHorizon(
+            self.estimator, horizon_us=round(vc.fusion_horizon_s * 1e6), every_cycles=5 if realtime else 0
+        )
+        self.v2v = V2V(
+            vehicle_id,
+            latency_us=round(vc.v2v_latency_s * 1e6),
+            rejections=self.rejections,
+            period_us=round(1e6 / config.sensors.ranging_rate_hz),
+        )
         self.sequences = SequenceTracker()
         self.stats = LoopStats()
         self.period_us = round(1e6 / vc.loop_rate_hz)
@@ -117,7 +136,9 @@ class VehicleNode:
                 announced = True
         if self.config.vehicle.cooperative and self.config.vehicles > 1:
             if await_subscribers({"v2v": out.v2v_publisher}, timeout_s=v2v_wait_s, stop=stop):
-                log.warning("vehicle %d: no neighbour listens after %g s; it goes on alone", self.vehicle_id, v2v_wait_s)
+                log.warning(
+                    "vehicle %d: no neighbour listens after %g s; it goes on alone", self.vehicle_id, v2v_wait_s
+                )
         self.bus.declare_token(self.bus.keys.alive("vehicle", self.vehicle_id))
 
     def take(self, item: object) -> m.ClockTick | None:
@@ -129,18 +150,18 @@ class VehicleNode:
             self.world_watch.on_token(self.bus.keys.parse(item.key), item.alive)
             return None
         for delivery in self.inbound.take(item):
-            if delivery.kind == "tick":
+            if delivery.kind is Kind.TICK:
                 tick = self._on_tick(delivery.payload)
             else:
                 self._deliver(delivery)
         return tick
 
     def _deliver(self, d: Delivery) -> None:
-        if d.kind == "held":
+        if d.kind is Kind.HELD:
             self.fusion.expect(d.stamp_us)
-        elif d.kind == "v2v":
+        elif d.kind is Kind.V2V:
             self.v2v.hear(*d.payload)
-        elif d.topic in ("ranging", "seen"):
+        elif d.topic in (Topic.RANGING, Topic.SEEN):
             self.sequences.see(d.topic, d.payload.seq)
             if self.config.vehicle.cooperative and self.v2v.hold(d.payload):
                 self.fusion.expect(d.stamp_us)
@@ -167,8 +188,11 @@ class VehicleNode:
         if not self.config.vehicle.cooperative:
             return True
         heard = self.inbound.heard
-        return all(heard.get(j, 0) + self._heard_floor.get(j, 0) >= n
-                   for j, n in enumerate(tick.v2v_published, start=1) if j != self.vehicle_id)
+        return all(
+            heard.get(j, 0) + self._heard_floor.get(j, 0) >= n
+            for j, n in enumerate(tick.v2v_published, start=1)
+            if j != self.vehicle_id
+        )
 
     def unheard_neighbours(self, tick: m.ClockTick, t_us: int) -> list[tuple[int, int]]:
         """Lockstep, before the cycle at ``t_us``: (neighbour, stamp) of the broadcasts its maturing
@@ -180,10 +204,15 @@ class VehicleNode:
         that died meanwhile (its liveliness token is gone) is not waited for."""
         if not self.config.vehicle.cooperative:
             return []
-        tick_start_us = tick.stamp_us if self.finished_us is None else self.finished_us  # a restart: from its first tick
+        tick_start_us = (
+            tick.stamp_us if self.finished_us is None else self.finished_us
+        )  # a restart: from its first tick
         until, departed = self.inbound.heard_until, self.world_watch.departed
-        return [(j, s) for j, s in self.v2v.awaited(t_us)
-                if s > tick_start_us and j in tick.running and until.get(j, -1) < s and j not in departed]
+        return [
+            (j, s)
+            for j, s in self.v2v.awaited(t_us)
+            if s > tick_start_us and j in tick.running and until.get(j, -1) < s and j not in departed
+        ]
 
     def write_off_unheard(self, unheard: list[tuple[int, int]]) -> None:
         """After the wait for them timed out: count those broadcasts as heard (they are missing)."""
@@ -197,9 +226,11 @@ class VehicleNode:
         if self.inbound.received_tick < tick.tick:
             parts.append(f"sensor batch {tick.tick} (latest {self.inbound.received_tick})")
         heard = self.inbound.heard
-        parts += [f"V2V of vehicle {j}: {heard.get(j, 0) + self._heard_floor.get(j, 0)} of {n}"
-                  for j, n in enumerate(tick.v2v_published, start=1)
-                  if j != self.vehicle_id and heard.get(j, 0) + self._heard_floor.get(j, 0) < n]
+        parts += [
+            f"V2V of vehicle {j}: {heard.get(j, 0) + self._heard_floor.get(j, 0)} of {n}"
+            for j, n in enumerate(tick.v2v_published, start=1)
+            if j != self.vehicle_id and heard.get(j, 0) + self._heard_floor.get(j, 0) < n
+        ]
         return "; ".join(parts)
 
     def write_off_missing(self, tick: m.ClockTick) -> None:
@@ -216,7 +247,7 @@ class VehicleNode:
         for delivery in self.inbound.release(t_us):
             self._deliver(delivery)
         for fix in self.v2v.mature(t_us):
-            self.fusion.push("seen" if isinstance(fix, SeenFix) else "ranging", fix)
+            self.fusion.push(Topic.SEEN if isinstance(fix, SeenFix) else Topic.RANGING, fix)
         self.fusion.cycle(t_us)
         self.outbound.cycle(t_us, self.estimator, self.reset_counter, listeners=self.inbound.listeners_at(t_us))
         if self.outbound.status_due(t_us):
@@ -229,12 +260,32 @@ class VehicleNode:
     def publish_status(self, t_us: int, *, final: bool = False) -> None:
         c, f = self.estimator.counters, self.fusion.counters
         self.rejections.counts["inbox_full"] = self.mailbox.dropped()
-        self.outbound.status(m.VehicleStatus(
-            self.vehicle_id, t_us, self.stats.cycles, self.stats.overruns, self.stats.jitter_p99_us(),
-            self.stats.cycle_p99_us(), c.stale + f.dropped_stale, c.gnss_rejected, self.rejections.total,
-            self.reset_counter % 256, f.duplicates, self.sequences.lost, f.late_fused, c.v2v_fused, self.v2v.missing,
-            self.rejections.as_counts(), f.replays, final, c.landmarks, c.landmarks_updated, c.frames_used),
-            self._landmark_map(t_us))
+        self.outbound.status(
+            m.VehicleStatus(
+                vehicle_id=self.vehicle_id,
+                stamp_us=t_us,
+                cycles=self.stats.cycles,
+                overruns=self.stats.overruns,
+                jitter_p99_us=self.stats.jitter_p99_us(),
+                cycle_p99_us=self.stats.cycle_p99_us(),
+                dropped_stale=c.stale + f.dropped_stale,
+                rejected_gnss=c.gnss_rejected,
+                decode_errors=self.rejections.total,
+                reset_counter=self.reset_counter % 256,
+                duplicates=f.duplicates,
+                samples_lost=self.sequences.lost,
+                late_fused=f.late_fused,
+                v2v_fused=c.v2v_fused,
+                v2v_missing=self.v2v.missing,
+                rejected=self.rejections.as_counts(),
+                replays=f.replays,
+                final=final,
+                landmarks=c.landmarks,
+                landmarks_updated=c.landmarks_updated,
+                frames_used=c.frames_used,
+            ),
+            self._landmark_map(t_us),
+        )
 
     def _landmark_map(self, t_us: int) -> LandmarkMap | None:
         found = self.estimator.landmark_map()

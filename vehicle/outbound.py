@@ -12,21 +12,23 @@ from __future__ import annotations
 from bus import messages as m
 from bus.config import VehicleProcessConfig
 from bus.landmark_map import LandmarkMap, encode_map
-from bus.mavlink_codec import MavlinkEncoder
+from bus.mavlink_codec import MavlinkEncoder, odometry_of, status_of
 from bus.session import Bus
-from vehicle.estimators.base import Estimator
+from vehicle.estimators.filter import Filter
 
 
 class Outbound:
     def __init__(self, bus: Bus, config: VehicleProcessConfig, vehicle_id: int, *, signing_key: bytes | None) -> None:
         keys, vc = bus.keys, config.vehicle
-        self.vehicle_id = vehicle_id
+        self.vehicle_id, self.altitude_m = vehicle_id, config.altitude_m
         self.encoder = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key)
         self.mavlink_publisher = self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
         self.v2v_publisher = self._v2v = bus.publisher(keys.v2v(vehicle_id))
         # the addressed publishers (realtime: every neighbour's, declared up front: a declaration is a
         # round trip to the router, which an overloaded swarm must not wait for mid-run)
-        neighbours = [j for j in range(1, config.vehicles + 1) if j != vehicle_id] if config.clock.mode == "realtime" else []
+        neighbours = (
+            [j for j in range(1, config.vehicles + 1) if j != vehicle_id] if config.clock.mode == "realtime" else []
+        )
         self._v2v_to = {j: bus.publisher(keys.v2v_to(vehicle_id, j)) for j in neighbours}
         self.ack_publisher = self._ack = bus.publisher(keys.ack(vehicle_id))
         self._status = bus.publisher(keys.status(vehicle_id))
@@ -38,7 +40,7 @@ class Outbound:
         self._frames: list[bytes] = []
         self.v2v_sent = 0
 
-    def cycle(self, t_us: int, estimator: Estimator, reset_counter: int, listeners: tuple[int, ...] | None = None) -> None:
+    def cycle(self, t_us: int, estimator: Filter, reset_counter: int, listeners: tuple[int, ...] | None = None) -> None:
         """Encode this cycle's frames (kept until ``flush``); at the ranging epochs send the V2V frame to
         ``listeners`` (the vehicles that range with this one now), or to every vehicle (None)."""
         notices = estimator.take_notices()
@@ -50,15 +52,16 @@ class Outbound:
                 self._send_v2v(self.encoder.no_estimate(t_us, reset_counter), listeners)
             return
         if any(n.status_changed for n in notices):
-            self._frames.append(self.encoder.estimator_status(estimator.status(t_us)))
+            self._frames.append(self.encoder.estimator_status(status_of(estimator.health(t_us))))
         if on_v2v or on_mavlink:
-            odometry = self.encoder.odometry(estimator.estimate(t_us, reset_counter))
+            estimate = odometry_of(estimator.estimate(t_us), altitude_m=self.altitude_m, reset_counter=reset_counter)
+            odometry = self.encoder.odometry(estimate)
             if on_mavlink:
                 self._frames.append(odometry)
             if on_v2v:
                 self._send_v2v(odometry, listeners)  # the V2V packet {id, x_hat, P, t}
         if t_us >= self._next_heartbeat_us:
-            self._frames += [self.encoder.heartbeat(), self.encoder.estimator_status(estimator.status(t_us))]
+            self._frames += [self.encoder.heartbeat(), self.encoder.estimator_status(status_of(estimator.health(t_us)))]
             self._next_heartbeat_us = t_us + self._heartbeat_us
 
     def _send_v2v(self, frame: bytes, listeners: tuple[int, ...] | None) -> None:

@@ -35,14 +35,13 @@ import numpy as np
 from bus import messages as m
 from bus.angles import wrap_angle
 from bus.errors import DecodeError
-from bus.mavlink_codec import MavlinkDecoder, MavlinkRejected, NoEstimate, StateEstimate
+from bus.mavlink_codec import MavlinkDecoder, MavlinkRejected, NoEstimate, StateEstimate, pose_of
 from bus.rejections import Rejections
-from vehicle.cooperative import CooperativeFix, SeenFix
+from vehicle.models.cooperative import CooperativeFix, SeenFix
 
-HISTORY = 64        # broadcasts kept per neighbour (12 s at 5 Hz)
-MAX_COPIES = 4      # frames kept per neighbour and epoch (a link fault duplicates; more is a flood)
+HISTORY = 64  # broadcasts kept per neighbour (12 s at 5 Hz)
+MAX_COPIES = 4  # frames kept per neighbour and epoch (a link fault duplicates; more is a flood)
 MAX_WAITING = 10_000
-_POSE = [0, 1, 5]   # x, y, yaw in ODOMETRY's pose covariance
 
 
 @dataclass(frozen=True)
@@ -79,7 +78,9 @@ class Broadcast:
         F[:2, 2] = self.speed_mps * dt * np.array([-heading[1], heading[0]])
         noise = self.speed_var * dt * dt * np.outer(heading, heading)
         noise[2, 2] = self.yaw_rate_var * dt * dt
-        pose = self.pose + dt * np.array([self.speed_mps * heading[0], self.speed_mps * heading[1], self.yaw_rate_radps])
+        pose = self.pose + dt * np.array(
+            [self.speed_mps * heading[0], self.speed_mps * heading[1], self.yaw_rate_radps]
+        )
         pose[2] = wrap_angle(pose[2])
         return pose, F @ self.pose_cov @ F.T + noise
 
@@ -122,7 +123,7 @@ class V2V:
         epoch = self._heard.get(sender, {}).get(stamp_us)
         if epoch is None:
             return None
-        for frame in epoch.frames[epoch.decoded:]:
+        for frame in epoch.frames[epoch.decoded :]:
             epoch.broadcast = self._decoded(sender, stamp_us, frame) or epoch.broadcast
         epoch.decoded = len(epoch.frames)
         return epoch.broadcast
@@ -142,9 +143,10 @@ class V2V:
         if not isinstance(est, StateEstimate) or est.vehicle_id != sender or est.time_usec != stamp_us:
             self.rejections.reject("impersonation", f"v2v from {sender}", "sender or stamp differs from the frame's")
             return None
-        pose = np.array([est.position_m[0], est.position_m[1], est.yaw_rad])
-        return Broadcast(pose, est.pose_covariance[np.ix_(_POSE, _POSE)], float(est.velocity_mps[0]),
-                         float(est.velocity_covariance[0, 0]), est.yaw_rate_radps, float(est.velocity_covariance[5, 5]))
+        pose = pose_of(est)
+        return Broadcast(
+            pose.pose, pose.pose_cov, pose.speed_mps, pose.speed_var, pose.yaw_rate_radps, pose.yaw_rate_var
+        )
 
     def hold(self, measurement: m.RangeBearing | m.SeenBy) -> bool:
         """Keep a ranging measurement, or a neighbour's sighting of this vehicle, until the
@@ -175,11 +177,31 @@ class V2V:
                 self.missing += 1
                 continue
             if isinstance(msg, m.SeenBy):
-                out.append(SeenFix(msg.vehicle_id, msg.stamp_us, msg.seq, msg.observer_id, msg.range_m,
-                                   msg.bearing_rad, msg.covariance, *found.carried_pose(msg.stamp_us - epoch)))
+                out.append(
+                    SeenFix(
+                        msg.vehicle_id,
+                        msg.stamp_us,
+                        msg.seq,
+                        msg.observer_id,
+                        msg.range_m,
+                        msg.bearing_rad,
+                        msg.covariance,
+                        *found.carried_pose(msg.stamp_us - epoch),
+                    )
+                )
             else:
-                out.append(CooperativeFix(msg.vehicle_id, msg.stamp_us, msg.seq, msg.target_id, msg.range_m,
-                                          msg.bearing_rad, msg.covariance, *found.carried(msg.stamp_us - epoch)))
+                out.append(
+                    CooperativeFix(
+                        msg.vehicle_id,
+                        msg.stamp_us,
+                        msg.seq,
+                        msg.target_id,
+                        msg.range_m,
+                        msg.bearing_rad,
+                        msg.covariance,
+                        *found.carried(msg.stamp_us - epoch),
+                    )
+                )
         return out
 
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from vehicle.shallow import shallow_copy
 
 THRESHOLD_SIGMAS = 6.0
-LEVEL_GAIN = 0.3       # low-pass of the level over readings
+LEVEL_GAIN = 0.3  # low-pass of the level over readings
 MAX_SLIP_S = 5.0
 
 
@@ -33,15 +33,15 @@ class SlipGuard:
     imu_period_s: float
     max_slip_s: float = MAX_SLIP_S
     offset_mps: float = 0.0
-    slips: int = 0                       # onsets seen
+    slips: int = 0  # onsets seen
     _since_us: int = 0
-    _level: float | None = None          # the slip-free speed the wheels have been reading (m/s)
-    _felt_mps: float = 0.0               # speed change the accelerometer felt since the last reading
+    _level: float | None = None  # the slip-free speed the wheels have been reading (m/s)
+    _felt_mps: float = 0.0  # speed change the accelerometer felt since the last reading
     _felt_samples: int = 0
-    _pending: float | None = None        # a jump seen on the last reading, not confirmed yet
+    _pending: float | None = None  # a jump seen on the last reading, not confirmed yet
 
     @classmethod
-    def for_datasheet(cls, odom_speed_sigma_mps: float, imu_rate_hz: float) -> "SlipGuard":
+    def for_datasheet(cls, odom_speed_sigma_mps: float, imu_rate_hz: float) -> SlipGuard:
         return cls(THRESHOLD_SIGMAS * max(odom_speed_sigma_mps, 1e-3), 1.0 / imu_rate_hz)
 
     def accelerometer(self, forward_mps2: float) -> None:
@@ -65,12 +65,13 @@ class SlipGuard:
             self._pending, self._level = residual, predicted
             return predicted
         self._pending = None
-        if self.offset_mps and (abs(self.offset_mps) <= self.threshold_mps
-                                or stamp_us - self._since_us > self.max_slip_s * 1e6):
+        if self.offset_mps and (
+            abs(self.offset_mps) <= self.threshold_mps or stamp_us - self._since_us > self.max_slip_s * 1e6
+        ):
             self.offset_mps = 0.0
             predicted, residual = reading_mps, 0.0  # wheels trusted again: the level follows them
         self._level = predicted + LEVEL_GAIN * residual
         return reading_mps - self.offset_mps
 
-    def copy(self) -> "SlipGuard":
+    def copy(self) -> SlipGuard:
         return shallow_copy(self)  # every field is an immutable scalar

@@ -34,8 +34,12 @@ def write_report(run_dir: Path) -> Report:
     if not data.maps:
         notes.append("this run's estimators have no landmarks to draw")
     written: list[tuple[str, Path]] = []
-    for title, stem, build in (("Map", "map", f.map_figure), ("Position error", "error", f.error_figure),
-                               ("Swarm RMSE", "rmse", f.rmse_figure), ("NEES", "nees", f.nees_figure)):
+    for title, stem, build in (
+        ("Map", "map", f.map_figure),
+        ("Position error", "error", f.error_figure),
+        ("Swarm RMSE", "rmse", f.rmse_figure),
+        ("NEES", "nees", f.nees_figure),
+    ):
         figure = build(data)
         if figure is None:
             notes.append(f"{title}: nothing to draw")

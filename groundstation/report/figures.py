@@ -12,13 +12,21 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 from matplotlib.ticker import FormatStrFormatter
 
+from bus.statistics import binned_rms
 from groundstation.report.rundata import RunData
-from groundstation.report.stats import binned_nees, binned_rmse, covariance_ellipse
+from groundstation.report.stats import binned_nees, covariance_ellipse
 
 MAX_ERROR_PANELS = 12
-MARKER_COLORS = {"fault_added": "tab:red", "fault_removed": "tab:green", "fault_expired": "tab:green",
-                 "vehicle_lost": "black", "vehicle_restarted": "tab:purple", "estimator_reset": "tab:purple",
-                 "gnss_unhealthy": "tab:orange", "gnss_healthy": "tab:olive"}
+MARKER_COLORS = {
+    "fault_added": "tab:red",
+    "fault_removed": "tab:green",
+    "fault_expired": "tab:green",
+    "vehicle_lost": "black",
+    "vehicle_restarted": "tab:purple",
+    "estimator_reset": "tab:purple",
+    "gnss_unhealthy": "tab:orange",
+    "gnss_healthy": "tab:olive",
+}
 
 
 def _color(index: int) -> Any:
@@ -43,14 +51,24 @@ def map_figure(data: RunData, *, ellipse_every_s: float = 5.0) -> Figure | None:
             _draw_landmarks(ax, *data.maps[vid], _color(i), vid)
     for zone in data.zones():
         spoof = "spoof" in str(zone.get("fault"))
-        ax.add_patch(Circle(tuple(zone["center_m"]), zone["radius_m"], color="tab:orange" if spoof else "tab:red",
-                            alpha=0.15, lw=1.5, label=f"{zone['fault']} {zone['name']}".strip()))
+        ax.add_patch(
+            Circle(
+                tuple(zone["center_m"]),
+                zone["radius_m"],
+                color="tab:orange" if spoof else "tab:red",
+                alpha=0.15,
+                lw=1.5,
+                label=f"{zone['fault']} {zone['name']}".strip(),
+            )
+        )
     _frame_on_tracks(ax, data)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     landmarks = "; landmarks (+) with 3-sigma ellipses" if data.maps else ""
-    ax.set_title(f"tracks: true solid, estimated dashed; 3-sigma ellipses every {ellipse_every_s:g} s{landmarks}",
-                 fontsize="medium")
+    ax.set_title(
+        f"tracks: true solid, estimated dashed; 3-sigma ellipses every {ellipse_every_s:g} s{landmarks}",
+        fontsize="medium",
+    )
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right", fontsize="small", ncols=2)
     return fig
@@ -58,7 +76,9 @@ def map_figure(data: RunData, *, ellipse_every_s: float = 5.0) -> Figure | None:
 
 def _frame_on_tracks(ax: Any, data: RunData, margin: float = 0.15) -> None:
     """Equal axes around the tracks and maps (a zone larger than the flight would shrink them to dots)."""
-    points = [rows[:, 1:3] for rows in (*data.est.values(), *data.truth.values())] + [xy for xy, _ in data.maps.values()]
+    points = [rows[:, 1:3] for rows in (*data.est.values(), *data.truth.values())] + [
+        xy for xy, _ in data.maps.values()
+    ]
     points = [p for p in points if len(p)]
     if points:
         allp = np.vstack(points)
@@ -140,8 +160,8 @@ def rmse_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
     for i, vid in enumerate(data.vehicles):
         r = data.rows_of(vid)
         if r:
-            ax.plot(*binned_rmse(r["t_s"], r["err_pos_m"], bin_s), color=_color(i), lw=0.6, alpha=0.6)
-    ax.plot(*binned_rmse(m["t_s"], m["err_pos_m"], bin_s), color="black", lw=2.0, label="swarm")
+            ax.plot(*binned_rms(r["t_s"], r["err_pos_m"], bin_s), color=_color(i), lw=0.6, alpha=0.6)
+    ax.plot(*binned_rms(m["t_s"], m["err_pos_m"], bin_s), color="black", lw=2.0, label="swarm")
     events = data.marker_events()
     _mark_events(ax, events)
     _marker_legend(ax, events)

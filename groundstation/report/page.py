@@ -14,10 +14,19 @@ STYLE = """body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1000p
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
 th{background:#f0f0f0}.problems{background:#fff4e5;border-left:4px solid #f90;padding:.5em 1em}
 img{max-width:100%}code{background:#f4f4f4;padding:0 3px}"""
-TABLE_COLUMNS = (("vehicle", "vehicle"), ("samples", "samples"), ("rmse_m", "RMSE [m]"),
-                 ("max_error_m", "max error [m]"), ("anees", "ANEES (3 dof)"), ("resets", "resets"),
-                 ("overruns", "overruns"), ("gnss_rejected", "GNSS rejected"), ("dropped_stale", "stale dropped"),
-                 ("mavlink_rejected", "MAVLink rejected"), ("decode_errors", "decode errors"))
+TABLE_COLUMNS = (
+    ("vehicle", "vehicle"),
+    ("samples", "samples"),
+    ("rmse_m", "RMSE [m]"),
+    ("max_error_m", "max error [m]"),
+    ("anees", "ANEES (3 dof)"),
+    ("resets", "resets"),
+    ("overruns", "overruns"),
+    ("gnss_rejected", "GNSS rejected"),
+    ("dropped_stale", "stale dropped"),
+    ("mavlink_rejected", "MAVLink rejected"),
+    ("decode_errors", "decode errors"),
+)
 RAW_FILES = ("summary.json", "metrics.csv", "events.jsonl", "config.json", "timing.json")
 MAX_EVENT_ROWS = 300
 
@@ -30,8 +39,9 @@ def _cell(value: Any) -> str:
 
 def _table(rows: list[dict[str, Any]]) -> str:
     head = "".join(f"<th>{label}</th>" for _, label in TABLE_COLUMNS)
-    body = "".join("<tr>" + "".join(f"<td>{_cell(r.get(key))}</td>" for key, _ in TABLE_COLUMNS) + "</tr>"
-                   for r in rows)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{_cell(r.get(key))}</td>" for key, _ in TABLE_COLUMNS) + "</tr>" for r in rows
+    )
     return f"<table><tr>{head}</tr>{body}</table>"
 
 
@@ -39,8 +49,11 @@ def _events(events: list[dict[str, Any]]) -> str:
     shown = events[:MAX_EVENT_ROWS]
     rows = "".join(
         f"<tr><td>{_cell(e.get('t_s'))}</td><td style='text-align:left'>{html.escape(str(e.get('event')))}</td>"
-        f"<td style='text-align:left'><code>{html.escape(str({k: v for k, v in e.items() if k not in ('t_s', 'event')}))}</code></td></tr>"
-        for e in shown)
+        "<td style='text-align:left'><code>"
+        + html.escape(str({k: v for k, v in e.items() if k not in ("t_s", "event")}))
+        + "</code></td></tr>"
+        for e in shown
+    )
     more = f"<p>{len(events) - len(shown)} more in events.jsonl</p>" if len(events) > len(shown) else ""
     return f"<table><tr><th>t [s]</th><th>event</th><th>details</th></tr>{rows}</table>{more}"
 
@@ -50,8 +63,9 @@ def _figure(title: str, png: Path) -> str:
     return f"<h2>{html.escape(title)}</h2><img alt='{html.escape(title)}' src='data:image/png;base64,{encoded}'>"
 
 
-def render_page(data: RunData, table_rows: list[dict[str, Any]], figures: list[tuple[str, Path]],
-                notes: list[str]) -> str:
+def render_page(
+    data: RunData, table_rows: list[dict[str, Any]], figures: list[tuple[str, Path]], notes: list[str]
+) -> str:
     """The HTML text of the report; ``figures`` are (title, PNG path) pairs to embed."""
     summary = data.summary or {}
     name = summary.get("name") or (data.config or {}).get("name") or data.path.name
@@ -67,9 +81,11 @@ def render_page(data: RunData, table_rows: list[dict[str, Any]], figures: list[t
         f" &middot; seed: {html.escape(str(summary.get('seed', '-')))} &middot; vehicles: {len(data.vehicles)}"
         f" &middot; swarm RMSE: <b>{_cell(rmse)} m</b></p>",
         f"<div class='problems'><b>What is missing or was skipped</b><ul>{problems}</ul></div>" if problems else "",
-        "<h2>Per vehicle</h2>", _table(table_rows),
+        "<h2>Per vehicle</h2>",
+        _table(table_rows),
         *(_figure(title, png) for title, png in figures),
-        "<h2>Events</h2>", _events(data.events),
+        "<h2>Events</h2>",
+        _events(data.events),
         f"<p>raw files: {links}</p>" if links else "",
         "</body></html>",
     ]

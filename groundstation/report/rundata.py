@@ -15,8 +15,9 @@ import numpy as np
 
 from bus.errors import SwarmlocError
 
-FAULT_MARKER_EVENTS = frozenset({"vehicle_lost", "vehicle_restarted", "estimator_reset",
-                                 "gnss_unhealthy", "gnss_healthy"})
+FAULT_MARKER_EVENTS = frozenset(
+    {"vehicle_lost", "vehicle_restarted", "estimator_reset", "gnss_unhealthy", "gnss_healthy"}
+)
 
 
 class ReportError(SwarmlocError):
@@ -29,11 +30,13 @@ class RunData:
     config: dict[str, Any] | None = None
     summary: dict[str, Any] | None = None
     timing: dict[str, Any] | None = None
-    metrics: dict[str, np.ndarray] = field(default_factory=dict)   # column name -> (N,) values
+    metrics: dict[str, np.ndarray] = field(default_factory=dict)  # column name -> (N,) values
     events: list[dict[str, Any]] = field(default_factory=list)
-    est: dict[int, np.ndarray] = field(default_factory=dict)       # vehicle -> (N, 8) TUM rows
-    truth: dict[int, np.ndarray] = field(default_factory=dict)     # vehicle -> (N, 8) TUM rows
-    maps: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)  # SLAM vehicle -> xy (m, 2), cov (m, 2, 2)
+    est: dict[int, np.ndarray] = field(default_factory=dict)  # vehicle -> (N, 8) TUM rows
+    truth: dict[int, np.ndarray] = field(default_factory=dict)  # vehicle -> (N, 8) TUM rows
+    maps: dict[int, tuple[np.ndarray, np.ndarray]] = field(
+        default_factory=dict
+    )  # SLAM vehicle -> xy (m, 2), cov (m, 2, 2)
     problems: list[str] = field(default_factory=list)
 
     @property
@@ -55,8 +58,11 @@ class RunData:
 
     def marker_events(self) -> list[dict[str, Any]]:
         """Events worth a marker on time plots: faults and what they cause."""
-        return [e for e in self.events if str(e.get("event", "")).startswith("fault_")
-                or e.get("event") in FAULT_MARKER_EVENTS]
+        return [
+            e
+            for e in self.events
+            if str(e.get("event", "")).startswith("fault_") or e.get("event") in FAULT_MARKER_EVENTS
+        ]
 
     def zones(self) -> list[dict[str, Any]]:
         """Jamming or spoofing zones announced in the events: ``{"center_m": [x, y], "radius_m": r, ...}``."""
@@ -64,8 +70,12 @@ class RunData:
         for e in self.events:
             zone = e.get("zone") if e.get("event") == "fault_added" else None
             if isinstance(zone, dict) and "center_m" in zone and "radius_m" in zone:
-                seen[str(e.get("name", len(seen)))] = {**zone, "fault": e.get("fault", "zone"),
-                                                       "name": e.get("name", ""), "t_s": e.get("t_s")}
+                seen[str(e.get("name", len(seen)))] = {
+                    **zone,
+                    "fault": e.get("fault", "zone"),
+                    "name": e.get("name", ""),
+                    "t_s": e.get("t_s"),
+                }
         return list(seen.values())
 
 
@@ -79,9 +89,12 @@ def load_run(path: Path) -> RunData:
         raise ReportError(f"{path} is not a run directory: it has none of {', '.join(known)}")
     data = RunData(path=path)
     data.config = _read_json(path / "config.json", data.problems)
-    data.summary = _read_json(path / "summary.json", data.problems,
-                              missing="summary.json is missing: the run did not finish (killed or still running); "
-                                      "counters and the final table are unavailable, RMSE is computed from metrics.csv")
+    data.summary = _read_json(
+        path / "summary.json",
+        data.problems,
+        missing="summary.json is missing: the run did not finish (killed or still running); "
+        "counters and the final table are unavailable, RMSE is computed from metrics.csv",
+    )
     data.timing = _read_json(path / "timing.json", data.problems)
     data.metrics = _read_metrics(path / "metrics.csv", data.problems)
     data.events = _read_events(path / "events.jsonl", data.problems)
@@ -110,7 +123,9 @@ def _read_landmarks(file: Path, problems: list[str]) -> tuple[np.ndarray, np.nda
     except (TypeError, KeyError, ValueError) as exc:
         problems.append(f"{file.name} is damaged and was ignored ({exc})")
         return None
-    cov = np.stack([np.stack([packed[:, 0], packed[:, 1]], axis=1), np.stack([packed[:, 1], packed[:, 2]], axis=1)], axis=1)
+    cov = np.stack(
+        [np.stack([packed[:, 0], packed[:, 1]], axis=1), np.stack([packed[:, 1], packed[:, 2]], axis=1)], axis=1
+    )
     return xy, cov
 
 
@@ -125,11 +140,12 @@ def _read_json(file: Path, problems: list[str], missing: str | None = None) -> d
         return None
 
 
-def _read_rows(file: Path, width: int, problems: list[str], skip_header: bool = False,
-               sep: str | None = None) -> np.ndarray:
+def _read_rows(
+    file: Path, width: int, problems: list[str], skip_header: bool = False, sep: str | None = None
+) -> np.ndarray:
     """(N, width) floats from a text table; lines of another width or not numeric are skipped and counted
     (the last line of a killed run is often cut short)."""
-    lines = file.read_text(errors="replace").splitlines()[1 if skip_header else 0:]
+    lines = file.read_text(errors="replace").splitlines()[1 if skip_header else 0 :]
     rows, bad = [], 0
     for line in lines:
         fields = line.split(sep)
@@ -142,8 +158,10 @@ def _read_rows(file: Path, width: int, problems: list[str], skip_header: bool = 
         elif line.strip():
             bad += 1
     if bad:
-        problems.append(f"{file.relative_to(file.parents[1]) if file.parent.name == 'tum' else file.name}: "
-                        f"{bad} malformed line(s) skipped")
+        problems.append(
+            f"{file.relative_to(file.parents[1]) if file.parent.name == 'tum' else file.name}: "
+            f"{bad} malformed line(s) skipped"
+        )
     return np.array(rows, dtype=float).reshape(-1, width)
 
 

@@ -5,24 +5,14 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.special import chdtri
 
+from bus import statistics
 from groundstation.report.rundata import RunData
 
-NEES_DOF = 3
 
-
-def binned_rmse(t_s: np.ndarray, err_m: np.ndarray, bin_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """RMSE of ``err_m`` (N,) in bins of ``bin_s`` seconds of ``t_s`` (N,): (bin centres s, RMSE m), empty bins left out."""
-    index = np.floor(t_s / bin_s).astype(int)
-    count = np.bincount(index)
-    total = np.bincount(index, weights=err_m ** 2)
-    used = count > 0
-    return (np.flatnonzero(used) + 0.5) * bin_s, np.sqrt(total[used] / count[used])
-
-
-def binned_nees(t_s: np.ndarray, vehicle: np.ndarray, nees: np.ndarray, bin_s: float,
-                dof: int = NEES_DOF) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def binned_nees(
+    t_s: np.ndarray, vehicle: np.ndarray, nees: np.ndarray, bin_s: float, dof: int = statistics.POSE_NEES_DOF
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Swarm-average NEES per time bin with its two-sided 95% chi-square band.
 
     Samples of one vehicle are correlated in time, so each bin takes one sample per vehicle (its first
@@ -38,8 +28,7 @@ def binned_nees(t_s: np.ndarray, vehicle: np.ndarray, nees: np.ndarray, bin_s: f
     total = np.bincount(index[first], weights=nees[first])
     used = count > 0
     k = count[used]
-    lower = chdtri(k * dof, 0.975) / k
-    upper = chdtri(k * dof, 0.025) / k
+    lower, upper = statistics.chi2_bands(dof, k)
     return (np.flatnonzero(used) + 0.5) * bin_s, total[used] / k, lower, upper
 
 
@@ -53,19 +42,21 @@ def vehicle_table(data: RunData) -> list[dict[str, Any]]:
         s, t = from_summary.get(str(vid), {}), timing.get(str(vid), {})
         m = data.rows_of(vid)
         err = m.get("err_pos_m", np.empty(0))
-        rows.append({
-            "vehicle": vid,
-            "samples": s.get("samples", len(err)),
-            "rmse_m": s.get("rmse_m", float(np.sqrt(np.mean(err ** 2))) if len(err) else None),
-            "max_error_m": s.get("max_error_m", float(err.max()) if len(err) else None),
-            "anees": s.get("anees", float(np.mean(m["nees"])) if len(err) else None),
-            "overruns": t.get("overruns", s.get("overruns")),
-            "gnss_rejected": s.get("gnss_rejected"),
-            "dropped_stale": s.get("dropped_stale"),
-            "mavlink_rejected": s.get("mavlink_rejected"),
-            "decode_errors": s.get("decode_errors"),
-            "resets": int(m["reset_counter"].max()) if len(err) and "reset_counter" in m else None,
-        })
+        rows.append(
+            {
+                "vehicle": vid,
+                "samples": s.get("samples", len(err)),
+                "rmse_m": s.get("rmse_m", float(np.sqrt(np.mean(err**2))) if len(err) else None),
+                "max_error_m": s.get("max_error_m", float(err.max()) if len(err) else None),
+                "anees": s.get("anees", float(np.mean(m["nees"])) if len(err) else None),
+                "overruns": t.get("overruns", s.get("overruns")),
+                "gnss_rejected": s.get("gnss_rejected"),
+                "dropped_stale": s.get("dropped_stale"),
+                "mavlink_rejected": s.get("mavlink_rejected"),
+                "decode_errors": s.get("decode_errors"),
+                "resets": int(m["reset_counter"].max()) if len(err) and "reset_counter" in m else None,
+            }
+        )
     return rows
 
 
@@ -73,7 +64,7 @@ def swarm_rmse(data: RunData) -> float | None:
     if data.summary and data.summary.get("swarm", {}).get("rmse_m") is not None:
         return data.summary["swarm"]["rmse_m"]
     err = data.metrics.get("err_pos_m")
-    return float(np.sqrt(np.mean(err ** 2))) if err is not None and len(err) else None
+    return float(np.sqrt(np.mean(err**2))) if err is not None and len(err) else None
 
 
 def covariance_ellipse(cov_xy: np.ndarray, n_sigma: float = 3.0, points: int = 48) -> np.ndarray:

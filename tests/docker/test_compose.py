@@ -33,18 +33,26 @@ def compose(tmp_path):
     env = {**os.environ, "VEHICLES": "3", "COMPOSE_PROJECT_NAME": project}
     shutil.rmtree(ROOT / "runs" / "compose", ignore_errors=True)
     yield [*command, "-f", str(ROOT / "docker-compose.yml")], env
-    subprocess.run([*command, "-f", str(ROOT / "docker-compose.yml"), "down", "-v", "--remove-orphans"],
-                   env=env, capture_output=True, cwd=ROOT, timeout=300)
+    subprocess.run(
+        [*command, "-f", str(ROOT / "docker-compose.yml"), "down", "-v", "--remove-orphans"],
+        env=env,
+        capture_output=True,
+        cwd=ROOT,
+        timeout=300,
+    )
 
 
 def test_compose_swarm_of_three_vehicles(compose):
     command, env = compose
     build = subprocess.run([*command, "build"], env=env, cwd=ROOT, capture_output=True, text=True, timeout=1800)
     assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
-    up = subprocess.run([*command, "up", "-d", "--scale", "vehicle=3"], env=env, cwd=ROOT, capture_output=True,
-                        text=True, timeout=600)
+    up = subprocess.run(
+        [*command, "up", "-d", "--scale", "vehicle=3"], env=env, cwd=ROOT, capture_output=True, text=True, timeout=600
+    )
     assert up.returncode == 0, up.stdout[-3000:] + up.stderr[-3000:]
-    gs = subprocess.run([*command, "ps", "-q", "groundstation"], env=env, cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    gs = subprocess.run(
+        [*command, "ps", "-q", "groundstation"], env=env, cwd=ROOT, capture_output=True, text=True
+    ).stdout.strip()
     status = subprocess.run(["docker", "wait", gs], capture_output=True, text=True, timeout=900).stdout.strip()
     logs = subprocess.run([*command, "logs", "--tail", "30"], env=env, cwd=ROOT, capture_output=True, text=True).stdout
     assert status == "0", logs[-5000:]

@@ -19,13 +19,27 @@ ESTIMATES_PER_S = round(VehicleConfig().mavlink_rate_hz)  # ODOMETRY frames a ve
 def swarm_command(out: Path, *args: str, report: bool = False) -> list[str]:
     """`swarm up` with ``args``; with ``report`` it writes its report (as by default), else --no-report:
     only the tests about reports pay for the figures."""
-    return [sys.executable, "-m", "groundstation.cli", "up", "--quiet", "--out", str(out),
-            *(() if report else ("--no-report",)), *args]
+    return [
+        sys.executable,
+        "-m",
+        "cli",
+        "up",
+        "--quiet",
+        "--out",
+        str(out),
+        *(() if report else ("--no-report",)),
+        *args,
+    ]
 
 
 def run_swarm(out: Path, *args: str, timeout_s: float = 240, report: bool = False) -> subprocess.CompletedProcess:
-    return subprocess.run(swarm_command(out, *args, report=report), capture_output=True, text=True,
-                          timeout=timeout_s, env={**os.environ, "COLUMNS": "200"})
+    return subprocess.run(
+        swarm_command(out, *args, report=report),
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
+        env={**os.environ, "COLUMNS": "200"},
+    )
 
 
 def wait_for_metrics(run_dir: Path, min_bytes: int, timeout_s: float = 120) -> None:
@@ -61,8 +75,9 @@ def three_vehicle_runs(tmp_path_factory) -> list[Path]:
     dirs = []
     for copy in range(2):
         out = tmp_path_factory.mktemp("runs")
-        result = run_swarm(out, "--vehicles", "3", "--duration", "30", "--seed", "11", "--name", "same",
-                           report=copy == 0)
+        result = run_swarm(
+            out, "--vehicles", "3", "--duration", "30", "--seed", "11", "--name", "same", report=copy == 0
+        )
         assert result.returncode == 0, result.stdout + result.stderr
         dirs.append(out / "same")
     return dirs

@@ -60,8 +60,9 @@ class Lab:
         self._in(ns, "link", "set", "lo", "up")
 
     def run(self, host: str, argv: list[str], *, env: dict[str, str], log) -> subprocess.Popen:
-        return subprocess.Popen(["ip", "netns", "exec", self.ns(host), *argv], env=env, stdout=log, stderr=log,
-                                stdin=subprocess.DEVNULL)
+        return subprocess.Popen(
+            ["ip", "netns", "exec", self.ns(host), *argv], env=env, stdout=log, stderr=log, stdin=subprocess.DEVNULL
+        )
 
     def close(self) -> None:
         for ns in reversed(self.namespaces):

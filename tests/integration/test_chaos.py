@@ -7,15 +7,16 @@ import json
 
 import pytest
 
-from groundstation.chaos import ALL_KINDS
+from launch.chaos import ALL_KINDS
 from tests.integration.conftest import ESTIMATES_PER_S, read_summary, run_swarm
 
 pytestmark = pytest.mark.integration
 
 
 def test_chaos_run_survives_every_kind_of_fault(tmp_path):
-    result = run_swarm(tmp_path, "--vehicles", "6", "--duration", "120", "--chaos", "7", "--name", "chaos",
-                       timeout_s=600, report=True)
+    result = run_swarm(
+        tmp_path, "--vehicles", "6", "--duration", "120", "--chaos", "7", "--name", "chaos", timeout_s=600, report=True
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     assert "died" not in result.stdout  # the planned kill is reported as a kill, nothing else died
     run = tmp_path / "chaos"

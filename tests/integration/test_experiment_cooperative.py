@@ -12,14 +12,33 @@ pytestmark = pytest.mark.integration
 
 
 def _experiment(out, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "groundstation.cli", "experiment", "cooperative", "--out", str(out),
-                           "--quiet", *args], capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "COLUMNS": "200"})
+    return subprocess.run(
+        [sys.executable, "-m", "cli", "experiment", "cooperative", "--out", str(out), "--quiet", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "COLUMNS": "200"},
+    )
 
 
 def test_cooperation_beats_dead_reckoning_and_the_reference_is_scored_alike(tmp_path):
-    result = _experiment(tmp_path, "--seeds", "1", "--vehicles", "4", "--jammed", "3", "--jam-start", "5",
-                         "--jam", "15", "--variants", "dead-reckoning,ci-ekf", "--world", "ideal")
+    result = _experiment(
+        tmp_path,
+        "--seeds",
+        "1",
+        "--vehicles",
+        "4",
+        "--jammed",
+        "3",
+        "--jam-start",
+        "5",
+        "--jam",
+        "15",
+        "--variants",
+        "dead-reckoning,ci-ekf",
+        "--world",
+        "ideal",
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     folder = tmp_path / "cooperative"
     rows = json.loads((folder / "experiment.json").read_text())["variants"]
@@ -34,9 +53,11 @@ def test_cooperation_beats_dead_reckoning_and_the_reference_is_scored_alike(tmp_
 
 
 def test_a_bad_option_is_one_line_and_starts_nothing(tmp_path):
-    for args, message in ((["--variants", "ci-ekf,kalman"], "unknown variant(s) kalman"),
-                          (["--vehicles", "4", "--jammed", "5"], "--jammed 5 is more than --vehicles 4"),
-                          (["--world", "mars"], "--world must be honest or ideal")):
+    for args, message in (
+        (["--variants", "ci-ekf,kalman"], "unknown variant(s) kalman"),
+        (["--vehicles", "4", "--jammed", "5"], "--jammed 5 is more than --vehicles 4"),
+        (["--world", "mars"], "--world must be honest or ideal"),
+    ):
         result = _experiment(tmp_path, *args)
         assert result.returncode == 1 and "Traceback" not in result.stderr
         assert result.stderr.startswith("swarm: error: ") and message in result.stderr, result.stderr

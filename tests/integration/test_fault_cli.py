@@ -17,8 +17,13 @@ pytestmark = pytest.mark.integration
 
 
 def fault(out, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "groundstation.cli", "fault", *args, "--out", str(out)],
-                          capture_output=True, text=True, timeout=60, env={**os.environ, "COLUMNS": "200"})
+    return subprocess.run(
+        [sys.executable, "-m", "cli", "fault", *args, "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env={**os.environ, "COLUMNS": "200"},
+    )
 
 
 def _events(run) -> list[dict]:
@@ -34,15 +39,27 @@ def _wait_for(condition, what: str, timeout_s: float = 90) -> None:
 
 def test_fault_commands_against_a_running_swarm(tmp_path):
     assert "no swarm running" in fault(tmp_path, "list").stderr
-    process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "3", "--duration", "3000", "--name", "live"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(
+        swarm_command(tmp_path, "--vehicles", "3", "--duration", "3000", "--name", "live"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     run = tmp_path / "live"
     try:
-        _wait_for(lambda: (run / "swarm.json").exists() and (run / "metrics.csv").exists()
-                  and (run / "metrics.csv").stat().st_size > 5_000, "the run to start")
+        _wait_for(
+            lambda: (
+                (run / "swarm.json").exists()
+                and (run / "metrics.csv").exists()
+                and (run / "metrics.csv").stat().st_size > 5_000
+            ),
+            "the run to start",
+        )
         added = fault(tmp_path, "add", "loss", "--to", "v3", "--topic", "imu", "--percent", "30", "--name", "imu-loss")
         assert added.returncode == 0 and "plan version 1" in added.stdout, added.stderr
-        assert fault(tmp_path, "add", "jam-gnss", "--center", "0,-20", "--radius", "25m", "--for", "60s").returncode == 0
+        assert (
+            fault(tmp_path, "add", "jam-gnss", "--center", "0,-20", "--radius", "25m", "--for", "60s").returncode == 0
+        )
         before = fault(tmp_path, "list").stdout
         assert "imu-loss" in before and "jam-gnss-1" in before and "active" in before
         for args, message in [
@@ -58,8 +75,10 @@ def test_fault_commands_against_a_running_swarm(tmp_path):
             assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
         assert "plan v2" in fault(tmp_path, "list").stdout  # unchanged by the bad requests
         assert fault(tmp_path, "kill", "v2", "--restart-after", "3s").returncode == 0
-        _wait_for(lambda: sum(e["event"] == "vehicle_joined" and e["vehicle"] == 2 for e in _events(run)) == 2,
-                  "vehicle 2 to come back")
+        _wait_for(
+            lambda: sum(e["event"] == "vehicle_joined" and e["vehicle"] == 2 for e in _events(run)) == 2,
+            "vehicle 2 to come back",
+        )
         assert fault(tmp_path, "remove", "imu-loss").returncode == 0
         assert fault(tmp_path, "clear").returncode == 0
         _wait_for(lambda: _scored_until(run, vehicle=2) > _kill_time(run) + 8, "vehicle 2 to publish again")
@@ -73,7 +92,9 @@ def test_fault_commands_against_a_running_swarm(tmp_path):
     kinds = [e["event"] for e in _events(run)]
     assert kinds.count("fault_added") == 3 and kinds.count("fault_removed") == 3  # imu-loss, then clear: 2 more
     assert "vehicle_lost" in kinds
-    resets = [line.split(",")[10] for line in (run / "metrics.csv").read_text().splitlines()[1:] if line.split(",")[1] == "2"]
+    resets = [
+        line.split(",")[10] for line in (run / "metrics.csv").read_text().splitlines()[1:] if line.split(",")[1] == "2"
+    ]
     assert resets[0] == "0" and int(resets[-1]) >= 1
     assert "vehicle-2 killed by fault kill-1" in output and "vehicle-2 restarted" in output
 

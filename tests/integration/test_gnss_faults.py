@@ -37,18 +37,27 @@ def test_jammed_vehicle_flags_gnss_and_recovers(tmp_path):
     assert [h[:2] for h in health] == [("gnss_unhealthy", 1), ("gnss_healthy", 1)], health
     assert 10.0 < health[0][2] <= 12.0 and 25.0 < health[1][2] <= 31.0
     summary = read_summary(run_dir)
-    assert {k: summary["events"].get(k) for k in ("fault_added", "fault_started", "fault_expired")} == \
-        {"fault_added": 1, "fault_started": 1, "fault_expired": 1}
+    assert {k: summary["events"].get(k) for k in ("fault_added", "fault_started", "fault_expired")} == {
+        "fault_added": 1,
+        "fault_started": 1,
+        "fault_expired": 1,
+    }
     assert summary["vehicles"]["1"]["rmse_m"] < 2.0
     assert "jam-gnss" in (run_dir / "report.html").read_text()
 
 
-@pytest.mark.parametrize("text, message", [
-    ("name = [", "not valid TOML"),
-    ("[[faults]]\nkind = \"teleport\"", "faults.0"),
-    ("[world]\nvehicles = 2\n[[faults]]\nkind = \"blackout\"\nvehicle = 7\nsensor = \"gnss\"", "vehicle 7 does not exist"),
-    ("[[faults]]\nkind = \"jam-gnss\"\ncenter_m = [0, 0]\nradius_m = -5", "radius_m"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("name = [", "not valid TOML"),
+        ('[[faults]]\nkind = "teleport"', "faults.0"),
+        (
+            '[world]\nvehicles = 2\n[[faults]]\nkind = "blackout"\nvehicle = 7\nsensor = "gnss"',
+            "vehicle 7 does not exist",
+        ),
+        ('[[faults]]\nkind = "jam-gnss"\ncenter_m = [0, 0]\nradius_m = -5', "radius_m"),
+    ],
+)
 def test_bad_scenarios_get_a_one_line_error(tmp_path, text, message):
     scenario = tmp_path / "bad.toml"
     scenario.write_text(text)

@@ -11,7 +11,7 @@ import pytest
 
 from bus.config import build_config
 from bus.secrets import role_env, write_secrets
-from groundstation.launcher import Child, free_port, wait_for_port
+from launch.launcher import Child, free_port, wait_for_port
 from tests.integration.conftest import ESTIMATES_PER_S, read_summary
 
 pytestmark = pytest.mark.integration
@@ -22,21 +22,30 @@ def test_vehicles_starting_together_claim_distinct_ids(tmp_path):
     config = build_config({"world": {"vehicles": 3, "seed": 2}, "clock": {"duration_s": 6}})
     config.dump(tmp_path / "config.json")
     config.for_vehicle().dump(tmp_path / "vehicle.json")
-    cli, conf, run_dir = [sys.executable, "-m", "groundstation.cli"], str(tmp_path / "config.json"), tmp_path / "run"
+    cli, conf, run_dir = [sys.executable, "-m", "cli"], str(tmp_path / "config.json"), tmp_path / "run"
     processes = []
 
     def start(name: str, args: list[str], role: str, **extra: str) -> subprocess.Popen:
         env = {**os.environ, **role_env(secrets, role), "SWARMLOC_ZENOH_CONNECT": f"tcp/127.0.0.1:{port}", **extra}
-        process = subprocess.Popen(cli + args, env=env, stdout=subprocess.DEVNULL, stderr=open(tmp_path / f"{name}.log", "wb"))
+        process = subprocess.Popen(
+            cli + args, env=env, stdout=subprocess.DEVNULL, stderr=open(tmp_path / f"{name}.log", "wb")
+        )
         processes.append(process)
         return process
 
-    router = start("router", ["router", "--listen", f"tcp/127.0.0.1:{port}", "--credentials",
-                              str(secrets / "credentials.txt")], "router")
+    router = start(
+        "router",
+        ["router", "--listen", f"tcp/127.0.0.1:{port}", "--credentials", str(secrets / "credentials.txt")],
+        "router",
+    )
     wait_for_port(port, 15.0, Child("router", router, tmp_path / "router.log", True))
     for name in ("alpha", "bravo", "charlie"):  # before the ground station: they retry until it answers
-        start(name, ["vehicle", "--config", str(tmp_path / "vehicle.json"), "--id", "auto"], "enroll",
-              SWARMLOC_VEHICLE_NAME=name)
+        start(
+            name,
+            ["vehicle", "--config", str(tmp_path / "vehicle.json"), "--id", "auto"],
+            "enroll",
+            SWARMLOC_VEHICLE_NAME=name,
+        )
     gs = start("gs", ["gs", "--config", conf, "--run-dir", str(run_dir), "--quiet"], "groundstation")
     start("world", ["sim", "--config", conf], "world")
     try:

@@ -26,18 +26,31 @@ pytestmark = pytest.mark.integration
 DURATION_S = 150
 FLOOD = 10_000
 REFUSED = {"v/2/mavlink", "v/1/v2v", "ctl/ack/1", "v/1/status", "v/1/feed", "ctl/clock"}  # by the router, to vehicle-3
-ALLOWED = {"v/x/v2v", "v/x/mavlink", "v/3/mavlink", "v/3/v2v", "v/3/status", "ctl/ack/3"}   # reach the processes
+ALLOWED = {"v/x/v2v", "v/x/mavlink", "v/3/mavlink", "v/3/v2v", "v/3/status", "ctl/ack/3"}  # reach the processes
 
 
 def _estimate(vid: int, t_us: int, cov=None) -> StateEstimate:
-    return StateEstimate(vid, t_us, np.array([1.0, 2.0, -30.0]), 0.0, np.zeros(3), 0.0,
-                         np.eye(6) * 0.5 if cov is None else cov, np.eye(6))
+    return StateEstimate(
+        vid,
+        t_us,
+        np.array([1.0, 2.0, -30.0]),
+        0.0,
+        np.zeros(3),
+        0.0,
+        np.eye(6) * 0.5 if cov is None else cov,
+        np.eye(6),
+    )
 
 
 def _start(tmp_path, name: str, *extra: str):
-    process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "3", "--duration", str(DURATION_S), "--seed", "5",
-                                             "--name", name, *extra), stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(
+        swarm_command(
+            tmp_path, "--vehicles", "3", "--duration", str(DURATION_S), "--seed", "5", "--name", name, *extra
+        ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     run = tmp_path / name
     wait_for_metrics(run, 5_000)
     handle = json.loads((run / "swarm.json").read_text())
@@ -46,7 +59,9 @@ def _start(tmp_path, name: str, *extra: str):
 
 def _attacker(endpoint: str, user: str | None = None, password: str | None = None) -> ZenohBus:
     # role "groundstation" switches off our own in-process check: only the router decides
-    return ZenohBus(BusConfig(connect=(endpoint,)), role="groundstation", transport=Transport(user=user, password=password))
+    return ZenohBus(
+        BusConfig(connect=(endpoint,)), role="groundstation", transport=Transport(user=user, password=password)
+    )
 
 
 def _heard(bus: ZenohBus, key: str):
@@ -74,7 +89,7 @@ def test_a_compromised_vehicle_cannot_speak_for_others_or_stop_the_swarm(tmp_pat
     process, run, endpoint = _start(tmp_path, "secure")
     secrets = run / "secrets"
     key3 = bytes.fromhex((secrets / "vehicle-3.key").read_text().strip())
-    signed = MavlinkEncoder(vehicle_id=3, signing_key=key3, link_id=1)   # its own key, another link
+    signed = MavlinkEncoder(vehicle_id=3, signing_key=key3, link_id=1)  # its own key, another link
     as_two = MavlinkEncoder(vehicle_id=2, signing_key=key3, link_id=1)
     as_nine = MavlinkEncoder(vehicle_id=9, signing_key=key3, link_id=1)
     now = 1_000_000
@@ -94,18 +109,22 @@ def test_a_compromised_vehicle_cannot_speak_for_others_or_stop_the_swarm(tmp_pat
         put("v/x/v2v", b"bytes"), put("v/x/mavlink", b"bytes")
         bus.declare_token("swarm/alive/vehicle/\u00b2")
         # hostile but well-formed, on its own keys: reaches the processes
-        put("v/3/mavlink", as_two.odometry(_estimate(2, now)))                  # as vehicle 2: not 2's signature
-        put("v/3/v2v", as_two.odometry(_estimate(2, 200_000)))                  # impersonation (vehicles 1, 2)
+        put("v/3/mavlink", as_two.odometry(_estimate(2, now)))  # as vehicle 2: not 2's signature
+        put("v/3/v2v", as_two.odometry(_estimate(2, 200_000)))  # impersonation (vehicles 1, 2)
         put("v/3/status", m.encode(m.VehicleStatus(1, 0, 0, 0, 0.0, 0.0, 0, 0, 0, 0)))  # status as vehicle 1
-        put("v/3/mavlink", as_nine.odometry(_estimate(9, now)))                 # unknown sysid
-        for cov in (np.zeros((6, 6)), np.diag([1.0, 1.0, 1e-6, 1e-6, 1e-6, 0.0]),
-                    np.diag([1.0, 1.0, 1e-6, 1e-6, 1e-6, -1.0]), np.diag([1e12, 1.0, 1e-6, 1e-6, 1e-6, 1.0])):
-            put("v/3/mavlink", signed.odometry(_estimate(3, now, cov)))          # degenerate x 4
-        put("v/3/mavlink", signed.odometry(_estimate(3, 2**50)))                # far future
-        put("ctl/ack/3", b"\x93\x01\x02")                                       # malformed ack
-        put("v/3/status", b"\xc1")                                              # malformed status
+        put("v/3/mavlink", as_nine.odometry(_estimate(9, now)))  # unknown sysid
+        for cov in (
+            np.zeros((6, 6)),
+            np.diag([1.0, 1.0, 1e-6, 1e-6, 1e-6, 0.0]),
+            np.diag([1.0, 1.0, 1e-6, 1e-6, 1e-6, -1.0]),
+            np.diag([1e12, 1.0, 1e-6, 1e-6, 1e-6, 1.0]),
+        ):
+            put("v/3/mavlink", signed.odometry(_estimate(3, now, cov)))  # degenerate x 4
+        put("v/3/mavlink", signed.odometry(_estimate(3, 2**50)))  # far future
+        put("ctl/ack/3", b"\x93\x01\x02")  # malformed ack
+        put("v/3/status", b"\xc1")  # malformed status
         put("v/3/mavlink", b"\xfd" * 100_000), put("v/3/v2v", b"\xfd" * 2_000), put("ctl/ack/3", b"x" * 10_000)
-        put("v/3/mavlink", signed.heartbeat()[:-7])                             # truncated
+        put("v/3/mavlink", signed.heartbeat()[:-7])  # truncated
         flood = publishers["v/3/mavlink"]
         for k in range(FLOOD):
             flood.put(b"\xfe" + k.to_bytes(4, "little"))
@@ -114,9 +133,16 @@ def test_a_compromised_vehicle_cannot_speak_for_others_or_stop_the_swarm(tmp_pat
     _assert_scored_in_full(summary)
     rejected = summary["rejected"]["by_process"]
     # the bad token is refused twice: when it appears and when it goes
-    assert rejected["groundstation"] == {"bad_key": 3, "bad_signature": 1, "impersonation": 1, "unknown_sysid": 1,
-                                         "degenerate": 4, "stamp_out_of_range": 1, "oversized": 1,
-                                         "malformed": FLOOD + 2}
+    assert rejected["groundstation"] == {
+        "bad_key": 3,
+        "bad_signature": 1,
+        "impersonation": 1,
+        "unknown_sysid": 1,
+        "degenerate": 4,
+        "stamp_out_of_range": 1,
+        "oversized": 1,
+        "malformed": FLOOD + 2,
+    }
     assert rejected["world"] == {"bad_key": 2, "malformed": 1, "oversized": 1}
     for vid in (1, 2):
         assert rejected[f"vehicle-{vid}"] == {"bad_key": 1, "impersonation": 1, "oversized": 1}
@@ -131,16 +157,16 @@ def test_the_cases_of_the_issue_are_survived_with_no_filtering_at_all(tmp_path):
         _heard(bus, "swarm/v/x/v2v").put(b"any bytes")
         _heard(bus, "swarm/v/x/mavlink").put(b"any bytes")
         bus.declare_token("swarm/alive/vehicle/\u00b2")
-        _heard(bus, "swarm/v/2/mavlink").put(zero)                              # degenerate, as vehicle 2
+        _heard(bus, "swarm/v/2/mavlink").put(zero)  # degenerate, as vehicle 2
         _heard(bus, "swarm/ctl/ack/\u00b2").put(b"x")
-        _heard(bus, "swarm/v/2/feed").put(b"\x00" * 50)                          # garbage as the world's feed
-        _heard(bus, "swarm/ctl/clock").put(b"\xc1")                             # garbage as the clock
+        _heard(bus, "swarm/v/2/feed").put(b"\x00" * 50)  # garbage as the world's feed
+        _heard(bus, "swarm/ctl/clock").put(b"\xc1")  # garbage as the clock
         time.sleep(0.5)
     _finish(process)
     summary = read_summary(run)
     _assert_scored_in_full(summary)
     rejected = summary["rejected"]["by_process"]
     assert rejected["groundstation"] == {"bad_key": 3, "degenerate": 1, "malformed": 1}  # + the garbage clock
-    assert rejected["world"] == {"bad_key": 3}                                  # the token twice and the ack
-    assert rejected["vehicle-2"]["malformed"] == 2                              # its feed and the clock
-    assert all(rejected[f"vehicle-{v}"]["bad_key"] == 1 for v in (1, 2, 3))     # v/x/v2v
+    assert rejected["world"] == {"bad_key": 3}  # the token twice and the ack
+    assert rejected["vehicle-2"]["malformed"] == 2  # its feed and the clock
+    assert all(rejected[f"vehicle-{v}"]["bad_key"] == 1 for v in (1, 2, 3))  # v/x/v2v

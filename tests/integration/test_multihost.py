@@ -32,11 +32,16 @@ def lab():
 def test_swarm_across_four_hosts_and_two_routers(lab, tmp_path):
     secrets = write_secrets(tmp_path / "secrets", vehicles=3)
     main = f"tcp/{lab.addresses['rtr']}:7447"
-    config = build_config({"name": "multihost", "world": {"vehicles": 3, "seed": 3},
-                           "clock": {"duration_s": DURATION_S, "start_timeout_s": 90}})
+    config = build_config(
+        {
+            "name": "multihost",
+            "world": {"vehicles": 3, "seed": 3},
+            "clock": {"duration_s": DURATION_S, "start_timeout_s": 90},
+        }
+    )
     config.dump(tmp_path / "config.json")
     config.for_vehicle().dump(tmp_path / "vehicle.json")
-    cli = [sys.executable, "-m", "groundstation.cli"]
+    cli = [sys.executable, "-m", "cli"]
     processes = []
 
     def start(host: str, name: str, args: list[str], role: str, connect: str | None = None):

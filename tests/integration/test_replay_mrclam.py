@@ -21,8 +21,23 @@ EXCERPT = Path(__file__).resolve().parents[1] / "data" / "MRCLAM_Dataset6_first2
 
 
 def _replay(out: Path, *args: str) -> subprocess.CompletedProcess:
-    command = [sys.executable, "-m", "groundstation.cli", "replay", "mrclam", str(EXCERPT), "--quiet",
-               "--out", str(out), "--name", "replay", "--duration", "120", "--no-report", *args]
+    command = [
+        sys.executable,
+        "-m",
+        "cli",
+        "replay",
+        "mrclam",
+        str(EXCERPT),
+        "--quiet",
+        "--out",
+        str(out),
+        "--name",
+        "replay",
+        "--duration",
+        "120",
+        "--no-report",
+        *args,
+    ]
     return subprocess.run(command, capture_output=True, text=True, timeout=300, env={**os.environ, "COLUMNS": "200"})
 
 
@@ -31,9 +46,12 @@ def runs(tmp_path_factory) -> dict[str, Path]:
     """The window replayed with known-map; and with landmark sightings withheld from robots 2 and 3,
     alone and cooperating (twice: a cooperative replay, V2V pairing and relays included, must be
     reproducible to the byte)."""
-    variants = {"known-map": (), "alone": ("--withhold-landmarks", "2,3"),
-                "together": ("--withhold-landmarks", "2,3", "--cooperative"),
-                "together-again": ("--withhold-landmarks", "2,3", "--cooperative")}
+    variants = {
+        "known-map": (),
+        "alone": ("--withhold-landmarks", "2,3"),
+        "together": ("--withhold-landmarks", "2,3", "--cooperative"),
+        "together-again": ("--withhold-landmarks", "2,3", "--cooperative"),
+    }
     out = {}
     for name, extra in variants.items():
         folder = tmp_path_factory.mktemp(name)

@@ -11,8 +11,14 @@ import subprocess
 
 import pytest
 
-from tests.integration.conftest import (ESTIMATES_PER_S, processes_matching, read_summary, run_swarm, swarm_command,
-                                       wait_for_metrics)
+from tests.integration.conftest import (
+    ESTIMATES_PER_S,
+    processes_matching,
+    read_summary,
+    run_swarm,
+    swarm_command,
+    wait_for_metrics,
+)
 
 pytestmark = pytest.mark.integration
 KILL = """
@@ -48,7 +54,7 @@ def test_killed_vehicle_is_restarted_and_rejoins_with_reset_counter(tmp_path):
     after = [r for r in rows if float(r["t_s"]) > 14.0]
     assert before and all(r["reset_counter"] == "0" for r in before)
     assert after and float(after[-1]["t_s"]) == 40.0 and all(int(r["reset_counter"]) >= 1 for r in after)
-    assert max(float(r["err_pos_m"]) for r in after[len(after) // 2:]) < 2.0  # re-initialised from GNSS
+    assert max(float(r["err_pos_m"]) for r in after[len(after) // 2 :]) < 2.0  # re-initialised from GNSS
     events = [json.loads(line) for line in (run / "events.jsonl").read_text().splitlines()]
     lives = [e for e in events if e.get("vehicle") == 2 and e["event"] in ("vehicle_joined", "vehicle_lost")]
     assert [e["event"] for e in lives][:3] == ["vehicle_joined", "vehicle_lost", "vehicle_joined"]
@@ -57,9 +63,12 @@ def test_killed_vehicle_is_restarted_and_rejoins_with_reset_counter(tmp_path):
 
 
 def test_restart_on_failure_brings_back_a_vehicle_and_the_ground_station(tmp_path):
-    process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "3", "--duration", "40", "--name", "phoenix",
-                                             "--restart", "on-failure"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(
+        swarm_command(tmp_path, "--vehicles", "3", "--duration", "40", "--name", "phoenix", "--restart", "on-failure"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     run = tmp_path / "phoenix"
     wait_for_metrics(run, 30_000)
     os.kill(processes_matching(f"{run}/vehicle.json --id 3")[0], signal.SIGKILL)

@@ -19,7 +19,7 @@ from bus.errors import BusUnavailable
 from bus.mavlink_codec import MavlinkEncoder, StateEstimate, signing_now, split_frames
 from bus.secrets import write_secrets
 from bus.session import Transport, ZenohBus
-from groundstation.launcher import free_port, wait_for_port, Child
+from launch.launcher import Child, free_port, wait_for_port
 from tests.integration.conftest import ESTIMATES_PER_S, read_summary, run_swarm, swarm_command, wait_for_metrics
 
 pytestmark = pytest.mark.integration
@@ -28,9 +28,11 @@ pytestmark = pytest.mark.integration
 def _router(tmp_path, *args: str) -> tuple[subprocess.Popen, int]:
     port = free_port()
     scheme = "tls" if "--tls-cert" in args else "tcp"
-    process = subprocess.Popen([sys.executable, "-m", "groundstation.cli", "router", "--listen",
-                                f"{scheme}/127.0.0.1:{port}", *args], stdout=subprocess.DEVNULL,
-                               stderr=open(tmp_path / f"router-{port}.log", "wb"))
+    process = subprocess.Popen(
+        [sys.executable, "-m", "cli", "router", "--listen", f"{scheme}/127.0.0.1:{port}", *args],
+        stdout=subprocess.DEVNULL,
+        stderr=open(tmp_path / f"router-{port}.log", "wb"),
+    )
     wait_for_port(port, 15.0, Child("router", process, tmp_path / f"router-{port}.log", True))
     return process, port
 
@@ -59,9 +61,13 @@ def test_router_refuses_bad_logins_and_enforces_access_control(tmp_path):
         for transport in (_login(secrets, "vehicle-1", "wrong-password"), Transport()):
             with pytest.raises(BusUnavailable, match="refused the login"):
                 _bus(port, transport)
-        with _bus(port, _login(secrets, "world")) as world, _bus(port, _login(secrets, "vehicle-1")) as vehicle, \
-                _bus(port, _login(secrets, "vehicle-2")) as rogue, _bus(port, _login(secrets, "groundstation")) as gs, \
-                _bus(port, _login(secrets, "enroll")) as enroll:
+        with (
+            _bus(port, _login(secrets, "world")) as world,
+            _bus(port, _login(secrets, "vehicle-1")) as vehicle,
+            _bus(port, _login(secrets, "vehicle-2")) as rogue,
+            _bus(port, _login(secrets, "groundstation")) as gs,
+            _bus(port, _login(secrets, "enroll")) as enroll,
+        ):
             at_vehicle, at_gs, alive = queue.SimpleQueue(), queue.SimpleQueue(), queue.SimpleQueue()
             vehicle.subscribe("swarm/truth", at_vehicle)
             vehicle.subscribe("swarm/ctl/faults/plan", at_vehicle)
@@ -104,8 +110,12 @@ def test_router_refuses_bad_logins_and_enforces_access_control(tmp_path):
 def test_the_bus_runs_over_tls_and_refuses_untrusted_peers(tmp_path):
     ca, stranger = trustme.CA(), trustme.CA()
     cert = ca.issue_cert("localhost", "127.0.0.1")
-    for pem, name in ((cert.private_key_pem, "key.pem"), (cert.cert_chain_pems[0], "cert.pem"),
-                      (ca.cert_pem, "ca.pem"), (stranger.cert_pem, "stranger.pem")):
+    for pem, name in (
+        (cert.private_key_pem, "key.pem"),
+        (cert.cert_chain_pems[0], "cert.pem"),
+        (ca.cert_pem, "ca.pem"),
+        (stranger.cert_pem, "stranger.pem"),
+    ):
         pem.write_to_path(str(tmp_path / name))
     router, port = _router(tmp_path, "--tls-cert", str(tmp_path / "cert.pem"), "--tls-key", str(tmp_path / "key.pem"))
     try:
@@ -113,8 +123,10 @@ def test_the_bus_runs_over_tls_and_refuses_untrusted_peers(tmp_path):
             _bus(port, Transport(tls_root_ca=str(tmp_path / "stranger.pem")), "tls")
         with pytest.raises(BusUnavailable):
             _bus(port, Transport())  # plain tcp to a TLS endpoint
-        with _bus(port, Transport(tls_root_ca=str(tmp_path / "ca.pem")), "tls") as a, \
-                _bus(port, Transport(tls_root_ca=str(tmp_path / "ca.pem")), "tls") as b:
+        with (
+            _bus(port, Transport(tls_root_ca=str(tmp_path / "ca.pem")), "tls") as a,
+            _bus(port, Transport(tls_root_ca=str(tmp_path / "ca.pem")), "tls") as b,
+        ):
             inbox = queue.SimpleQueue()
             b.subscribe("swarm/test", inbox)
             time.sleep(0.3)
@@ -123,8 +135,21 @@ def test_the_bus_runs_over_tls_and_refuses_untrusted_peers(tmp_path):
     finally:
         router.terminate()
         router.wait(10)
-    result = run_swarm(tmp_path, "--vehicles", "2", "--duration", "5", "--name", "tls", "--tls-cert",
-                       str(tmp_path / "cert.pem"), "--tls-key", str(tmp_path / "key.pem"), "--tls-ca", str(tmp_path / "ca.pem"))
+    result = run_swarm(
+        tmp_path,
+        "--vehicles",
+        "2",
+        "--duration",
+        "5",
+        "--name",
+        "tls",
+        "--tls-cert",
+        str(tmp_path / "cert.pem"),
+        "--tls-key",
+        str(tmp_path / "key.pem"),
+        "--tls-ca",
+        str(tmp_path / "ca.pem"),
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     assert read_summary(tmp_path / "tls")["vehicles"]["2"]["samples"] == 5 * ESTIMATES_PER_S + 1
 
@@ -144,8 +169,12 @@ def _forge(process_env_secrets, port: int, genuine: list[bytes]) -> None:
 
 
 def test_unsigned_forged_and_replayed_mavlink_is_rejected_and_the_genuine_stream_survives(tmp_path):
-    process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "3", "--duration", "40", "--name", "signed"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(
+        swarm_command(tmp_path, "--vehicles", "3", "--duration", "40", "--name", "signed"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     run = tmp_path / "signed"
     wait_for_metrics(run, 20_000)
     port = int(json.loads((run / "swarm.json").read_text())["connect"][0].rsplit(":", 1)[1])
@@ -161,7 +190,7 @@ def test_unsigned_forged_and_replayed_mavlink_is_rejected_and_the_genuine_stream
     assert summary["vehicles"]["2"]["mavlink_rejected"] == 3
     # every genuine estimate, after the forged one too
     assert summary["vehicles"]["2"]["samples"] == 40 * ESTIMATES_PER_S + 1
-    assert summary["vehicles"]["2"]["max_error_m"] < 5.0        # the forged position was never scored
+    assert summary["vehicles"]["2"]["max_error_m"] < 5.0  # the forged position was never scored
 
 
 def test_ground_control_software_sees_every_vehicle_over_udp(tmp_path):
@@ -169,8 +198,9 @@ def test_ground_control_software_sees_every_vehicle_over_udp(tmp_path):
 
     port = free_port()
     gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=255)
-    result = run_swarm(tmp_path, "--vehicles", "3", "--duration", "5", "--name", "gcs",
-                       "--mavlink-out", f"udpout:127.0.0.1:{port}")
+    result = run_swarm(
+        tmp_path, "--vehicles", "3", "--duration", "5", "--name", "gcs", "--mavlink-out", f"udpout:127.0.0.1:{port}"
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     heartbeats, odometry = set(), {}
     while (message := gcs.recv_match(blocking=True, timeout=1.0)) is not None:

@@ -11,26 +11,29 @@ import pytest
 
 from bus.config import build_config
 from bus.secrets import role_env, write_secrets
-from groundstation.launcher import free_port
+from launch.launcher import free_port
 from tests.integration.conftest import ESTIMATES_PER_S, read_summary
 
 pytestmark = pytest.mark.integration
-CLI = [sys.executable, "-m", "groundstation.cli"]
+CLI = [sys.executable, "-m", "cli"]
 LATE_S = 10.0
 DURATION_S = 10
 
 
 def test_processes_started_before_their_router_form_the_swarm(tmp_path):
     secrets, port = write_secrets(tmp_path / "secrets", vehicles=3), free_port()
-    config = build_config({"name": "late-router", "world": {"vehicles": 3, "seed": 4}, "clock": {"duration_s": DURATION_S}})
+    config = build_config(
+        {"name": "late-router", "world": {"vehicles": 3, "seed": 4}, "clock": {"duration_s": DURATION_S}}
+    )
     config.dump(tmp_path / "config.json")
     config.for_vehicle().dump(tmp_path / "vehicle.json")
     run_dir, processes = tmp_path / "run", {}
 
     def start(name: str, args: list[str], user: str) -> subprocess.Popen:
         env = {**os.environ, **role_env(secrets, user), "SWARMLOC_ZENOH_CONNECT": f"tcp/127.0.0.1:{port}"}
-        processes[name] = subprocess.Popen(CLI + args, env=env, stdout=subprocess.DEVNULL,
-                                           stderr=open(tmp_path / f"{name}.log", "wb"))
+        processes[name] = subprocess.Popen(
+            CLI + args, env=env, stdout=subprocess.DEVNULL, stderr=open(tmp_path / f"{name}.log", "wb")
+        )
         return processes[name]
 
     conf, vconf = str(tmp_path / "config.json"), str(tmp_path / "vehicle.json")
@@ -40,8 +43,11 @@ def test_processes_started_before_their_router_form_the_swarm(tmp_path):
     gs = start("groundstation", ["gs", "--config", conf, "--run-dir", str(run_dir), "--quiet"], "groundstation")
     time.sleep(LATE_S)  # the scenario: the router comes 10 s late
     assert all(p.poll() is None for p in processes.values()), "a process gave up before its router came"
-    start("router", ["router", "--listen", f"tcp/127.0.0.1:{port}", "--credentials", str(secrets / "credentials.txt")],
-          "router")
+    start(
+        "router",
+        ["router", "--listen", f"tcp/127.0.0.1:{port}", "--credentials", str(secrets / "credentials.txt")],
+        "router",
+    )
     try:
         assert gs.wait(timeout=180) == 0, (tmp_path / "groundstation.log").read_text()[-3000:]
         for name in ("world", "vehicle-1", "vehicle-2", "vehicle-3"):
@@ -62,9 +68,18 @@ def test_processes_started_before_their_router_form_the_swarm(tmp_path):
 
 def test_a_router_that_never_comes_is_a_one_line_error(tmp_path):
     build_config({"world": {"vehicles": 1}}).for_vehicle().dump(tmp_path / "vehicle.json")
-    env = {**os.environ, "SWARMLOC_ZENOH_CONNECT": f"tcp/127.0.0.1:{free_port()}", "SWARMLOC_ZENOH_CONNECT_TIMEOUT_S": "2"}
-    result = subprocess.run(CLI + ["vehicle", "--config", str(tmp_path / "vehicle.json"), "--id", "1"], env=env,
-                            capture_output=True, text=True, timeout=60)
+    env = {
+        **os.environ,
+        "SWARMLOC_ZENOH_CONNECT": f"tcp/127.0.0.1:{free_port()}",
+        "SWARMLOC_ZENOH_CONNECT_TIMEOUT_S": "2",
+    }
+    result = subprocess.run(
+        CLI + ["vehicle", "--config", str(tmp_path / "vehicle.json"), "--id", "1"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 1
     errors = [line for line in result.stderr.splitlines() if "error" in line]
     assert errors == [line for line in errors if line.startswith("swarm: error:")] and len(errors) == 1
@@ -81,13 +96,17 @@ def _manual_swarm(tmp_path, extra_clock: dict):
 
     def start(name: str, args: list[str], user: str) -> subprocess.Popen:
         env = {**os.environ, **role_env(secrets, user), "SWARMLOC_ZENOH_CONNECT": f"tcp/127.0.0.1:{port}"}
-        processes[name] = subprocess.Popen(CLI + args, env=env, stdout=subprocess.DEVNULL,
-                                           stderr=open(tmp_path / f"{name}.log", "wb"))
+        processes[name] = subprocess.Popen(
+            CLI + args, env=env, stdout=subprocess.DEVNULL, stderr=open(tmp_path / f"{name}.log", "wb")
+        )
         return processes[name]
 
     conf, vconf = str(tmp_path / "config.json"), str(tmp_path / "vehicle.json")
-    start("router", ["router", "--listen", f"tcp/127.0.0.1:{port}", "--credentials", str(secrets / "credentials.txt")],
-          "router")
+    start(
+        "router",
+        ["router", "--listen", f"tcp/127.0.0.1:{port}", "--credentials", str(secrets / "credentials.txt")],
+        "router",
+    )
     start("groundstation", ["gs", "--config", conf, "--run-dir", str(tmp_path / "run"), "--quiet"], "groundstation")
     start("world", ["sim", "--config", conf], "world")
     for vid in (1, 2):
@@ -95,8 +114,10 @@ def _manual_swarm(tmp_path, extra_clock: dict):
     return processes
 
 
-@pytest.mark.parametrize("victim, survivor, status", [("world", "groundstation", "world-lost"),
-                                                      ("groundstation", "world", "groundstation-lost")])
+@pytest.mark.parametrize(
+    "victim, survivor, status",
+    [("world", "groundstation", "world-lost"), ("groundstation", "world", "groundstation-lost")],
+)
 def test_the_world_and_the_ground_station_end_the_run_when_the_other_is_gone(tmp_path, victim, survivor, status):
     from tests.integration.conftest import wait_for_metrics
 

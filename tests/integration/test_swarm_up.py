@@ -13,8 +13,14 @@ import time
 
 import pytest
 
-from tests.integration.conftest import (ESTIMATES_PER_S, processes_matching, read_summary, run_swarm, swarm_command,
-                                       wait_for_metrics)
+from tests.integration.conftest import (
+    ESTIMATES_PER_S,
+    processes_matching,
+    read_summary,
+    run_swarm,
+    swarm_command,
+    wait_for_metrics,
+)
 
 pytestmark = pytest.mark.integration
 GNSS_SIGMA_M = 1.5  # the default SensorSpec.gnss_sigma_m
@@ -39,7 +45,9 @@ def test_the_clock_tick_changes_no_estimate(three_vehicle_runs, tmp_path):
     """Lockstep ticks of 20 ms (one per cycle) and of the default 500 ms (five V2V latencies) give the
     same run: samples carry their stamps, vehicles cycle at 50 Hz in sim time either way, and a cycle
     waits for the neighbours' broadcasts its ranging pairs with."""
-    result = run_swarm(tmp_path, "--vehicles", "3", "--duration", "30", "--seed", "11", "--name", "same", "--tick", "0.02")
+    result = run_swarm(
+        tmp_path, "--vehicles", "3", "--duration", "30", "--seed", "11", "--name", "same", "--tick", "0.02"
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     assert (tmp_path / "same" / "metrics.csv").read_bytes() == (three_vehicle_runs[0] / "metrics.csv").read_bytes()
     assert (tmp_path / "same" / "summary.json").read_text() == (three_vehicle_runs[0] / "summary.json").read_text()
@@ -51,16 +59,22 @@ def test_run_directory_is_complete(three_vehicle_runs):
     for name in ("config.json", "metrics.csv", "events.jsonl", "summary.json", "timing.json", "report.html"):
         assert (run / name).stat().st_size > 0, name
     for vid in (1, 2, 3):
-        est, truth = (run / "tum" / f"est_v{vid}.tum").read_text().splitlines(), \
-                     (run / "tum" / f"truth_v{vid}.tum").read_text().splitlines()
+        est, truth = (
+            (run / "tum" / f"est_v{vid}.tum").read_text().splitlines(),
+            (run / "tum" / f"truth_v{vid}.tum").read_text().splitlines(),
+        )
         assert len(est) == len(truth) == 30 * ESTIMATES_PER_S + 1 and len(est[0].split()) == 8
     events = [json.loads(line)["event"] for line in (run / "events.jsonl").read_text().splitlines()]
     assert events.count("vehicle_joined") == 3 and "run_started" in events and events[-1] == "run_ended"
 
 
 def test_killed_vehicle_is_logged_and_the_others_finish(tmp_path):
-    process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "3", "--duration", "40", "--name", "kill"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(
+        swarm_command(tmp_path, "--vehicles", "3", "--duration", "40", "--name", "kill"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     run = tmp_path / "kill"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:  # wait until scoring has begun, then kill vehicle 2
@@ -83,8 +97,12 @@ def test_killed_vehicle_is_logged_and_the_others_finish(tmp_path):
 
 
 def test_sigint_shuts_everything_down_and_leaves_a_summary(tmp_path):
-    process = subprocess.Popen(swarm_command(tmp_path, "--vehicles", "2", "--duration", "600", "--name", "stop"),
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(
+        swarm_command(tmp_path, "--vehicles", "2", "--duration", "600", "--name", "stop"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     run = tmp_path / "stop"
     wait_for_metrics(run, 2_000)
     process.send_signal(signal.SIGINT)
@@ -93,11 +111,14 @@ def test_sigint_shuts_everything_down_and_leaves_a_summary(tmp_path):
     assert processes_matching(f"{run}/config.json") == processes_matching(f"{run}/vehicle.json") == []
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--duration", "-5"], "duration_s"),
-    (["--vehicles", "0"], "vehicles"),
-    (["--mode", "warp"], "unknown mode"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--duration", "-5"], "duration_s"),
+        (["--vehicles", "0"], "vehicles"),
+        (["--mode", "warp"], "unknown mode"),
+    ],
+)
 def test_bad_arguments_give_a_one_line_error(tmp_path, args, message):
     result = run_swarm(tmp_path, *args, timeout_s=60)
     assert result.returncode == 1
@@ -107,8 +128,9 @@ def test_bad_arguments_give_a_one_line_error(tmp_path, args, message):
 
 
 def test_realtime_mode_runs_and_reports_loop_timing(tmp_path):
-    result = run_swarm(tmp_path, "--vehicles", "2", "--duration", "6", "--mode", "realtime", "--speed", "2",
-                       "--name", "rt")
+    result = run_swarm(
+        tmp_path, "--vehicles", "2", "--duration", "6", "--mode", "realtime", "--speed", "2", "--name", "rt"
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     summary = read_summary(tmp_path / "rt")
     timing = json.loads((tmp_path / "rt" / "timing.json").read_text())
@@ -147,5 +169,5 @@ def test_evo_ape_on_our_tum_files_matches_our_rmse(three_vehicle_runs):
         rmse = ape.get_statistic(metrics.StatisticsType.rmse)
         assert est.num_poses == entry["samples"]
         assert rmse == pytest.approx(entry["rmse_m"], abs=2e-6)
-        total_sq, total_n = total_sq + rmse ** 2 * est.num_poses, total_n + est.num_poses
+        total_sq, total_n = total_sq + rmse**2 * est.num_poses, total_n + est.num_poses
     assert math.sqrt(total_sq / total_n) == pytest.approx(summary["swarm"]["rmse_m"], abs=2e-6)

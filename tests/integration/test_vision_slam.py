@@ -21,9 +21,13 @@ def runs(tmp_path_factory):
     """`swarm experiment vision-slam`: a circle and a figure-8 UAV, GNSS jammed all flight, 60 s,
     flown with ekf-slam and with dead reckoning on the same seed."""
     out = tmp_path_factory.mktemp("experiment")
-    result = subprocess.run([sys.executable, "-m", "groundstation.cli", "experiment", "vision-slam", "--out", str(out),
-                             "--seed", "3", "--quiet"], capture_output=True, text=True, timeout=300,
-                            env={**os.environ, "COLUMNS": "200"})
+    result = subprocess.run(
+        [sys.executable, "-m", "cli", "experiment", "vision-slam", "--out", str(out), "--seed", "3", "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "COLUMNS": "200"},
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     folder = out / "vision-slam"
     return {"slam": folder / "slam", "dr": folder / "dead-reckoning", "folder": folder}
@@ -31,8 +35,11 @@ def runs(tmp_path_factory):
 
 def _sigma_xy(run, vehicle: int) -> dict[float, float]:
     with (run / "metrics.csv").open() as handle:
-        return {float(r["t_s"]): math.hypot(float(r["sigma_x_m"]), float(r["sigma_y_m"]))
-                for r in csv.DictReader(handle) if r["vehicle"] == str(vehicle)}
+        return {
+            float(r["t_s"]): math.hypot(float(r["sigma_x_m"]), float(r["sigma_y_m"]))
+            for r in csv.DictReader(handle)
+            if r["vehicle"] == str(vehicle)
+        }
 
 
 def test_camera_vehicles_map_the_ground_they_fly_over(runs):
@@ -61,7 +68,10 @@ def test_slam_beats_dead_reckoning_on_the_same_seed(runs):
 def test_the_experiment_writes_both_runs_the_maps_and_the_comparison(runs):
     folder = runs["folder"]
     table = json.loads((folder / "experiment.json").read_text())
-    assert table["slam"]["vehicles"]["1"]["landmarks"] >= 50 and table["dead-reckoning"]["vehicles"]["1"]["landmarks"] is None
+    assert (
+        table["slam"]["vehicles"]["1"]["landmarks"] >= 50
+        and table["dead-reckoning"]["vehicles"]["1"]["landmarks"] is None
+    )
     for name in ("error_vs_dead_reckoning.png", "nees_vs_dead_reckoning.png"):
         assert (folder / name).stat().st_size > 10_000
     for vid in (1, 2):
@@ -74,8 +84,12 @@ def test_the_experiment_writes_both_runs_the_maps_and_the_comparison(runs):
 def test_a_missing_orthophoto_is_one_line_before_anything_starts(tmp_path):
     scenario = tmp_path / "ortho.toml"
     scenario.write_text('[world]\nterrain = "/no/such/ortho.png"\n[sensors]\ncamera_rate_hz = 10\n')
-    result = subprocess.run([sys.executable, "-m", "groundstation.cli", "up", str(scenario), "--quiet", "--out",
-                             str(tmp_path)], capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "cli", "up", str(scenario), "--quiet", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 1 and "Traceback" not in result.stderr
     assert result.stderr.strip() == "swarm: error: terrain image /no/such/ortho.png does not exist (world.terrain)"
     assert not list(tmp_path.glob("run*"))  # no run was started

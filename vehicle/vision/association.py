@@ -17,7 +17,9 @@ def in_view(landmarks_xy_m: np.ndarray, pose: np.ndarray, half_extent_m: float) 
     return np.flatnonzero(np.all(np.abs(to_body(landmarks_xy_m, pose)) <= half_extent_m, axis=1))
 
 
-def match(frame_descriptors: np.ndarray, map_descriptors: np.ndarray, norm: int, ratio: float = 0.8) -> list[tuple[int, int]]:
+def match(
+    frame_descriptors: np.ndarray, map_descriptors: np.ndarray, norm: int, ratio: float = 0.8
+) -> list[tuple[int, int]]:
     """One-to-one pairs (frame keypoint, map row). Each landmark in view looks for its keypoint in
     the frame and keeps it when the best beats the frame's second best by ``ratio`` (Lowe's test
     among the frame's own keypoints: a landmark mapped twice does not veto itself); a keypoint
@@ -43,8 +45,9 @@ def to_body(points_xy_m: np.ndarray, pose: np.ndarray) -> np.ndarray:
     return np.stack([d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c], axis=1)
 
 
-def rigidly_consistent(predicted_m: np.ndarray, measured_m: np.ndarray, threshold_m: float,
-                       min_inliers: int = 3) -> np.ndarray:
+def rigidly_consistent(
+    predicted_m: np.ndarray, measured_m: np.ndarray, threshold_m: float, min_inliers: int = 3
+) -> np.ndarray:
     """Which matches (k,) agree on one rotation + translation between where the map predicts the
     landmarks (k, 2) and where the frame sees them (k, 2), both body frame [m] (RANSAC, OpenCV). A
     pose error moves every correct match alike; a false match does not. Fewer than ``min_inliers``
@@ -52,9 +55,15 @@ def rigidly_consistent(predicted_m: np.ndarray, measured_m: np.ndarray, threshol
     k = len(predicted_m)
     if k < min_inliers:
         return np.zeros(k, dtype=bool)
-    _, inliers = cv2.estimateAffinePartial2D(predicted_m.astype(np.float32), measured_m.astype(np.float32),
-                                             method=cv2.RANSAC, ransacReprojThreshold=threshold_m,
-                                             maxIters=200, confidence=0.99, refineIters=0)
+    _, inliers = cv2.estimateAffinePartial2D(
+        predicted_m.astype(np.float32),
+        measured_m.astype(np.float32),
+        method=cv2.RANSAC,
+        ransacReprojThreshold=threshold_m,
+        maxIters=200,
+        confidence=0.99,
+        refineIters=0,
+    )
     if inliers is None:
         return np.zeros(k, dtype=bool)
     mask = inliers.ravel().astype(bool)

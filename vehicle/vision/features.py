@@ -55,7 +55,7 @@ def thin_indices(points_px: np.ndarray, responses: np.ndarray, cell_px: int = 30
         return np.zeros(0, dtype=np.int64)
     cells = (points_px // cell_px).astype(np.int64)
     key = cells[:, 0] * 1_000_003 + cells[:, 1]
-    order = np.lexsort((-responses, key))      # by cell, strongest first within a cell
+    order = np.lexsort((-responses, key))  # by cell, strongest first within a cell
     first = np.ones(len(order), dtype=bool)
     first[1:] = key[order][1:] != key[order][:-1]
     return np.sort(order[first])
@@ -64,8 +64,12 @@ def thin_indices(points_px: np.ndarray, responses: np.ndarray, cell_px: int = 30
 def garbage_reason(pixels: object) -> str | None:
     """Why a camera frame cannot be used (None: it can): not a square grey uint8 image, empty,
     all black, or without texture (grey-level spread under 2)."""
-    if not isinstance(pixels, np.ndarray) or pixels.dtype != np.uint8 or pixels.ndim != 2 \
-            or pixels.shape[0] != pixels.shape[1]:
+    if (
+        not isinstance(pixels, np.ndarray)
+        or pixels.dtype != np.uint8
+        or pixels.ndim != 2
+        or pixels.shape[0] != pixels.shape[1]
+    ):
         return "not a square grey uint8 frame"
     if pixels.size == 0:
         return "empty frame"
@@ -85,8 +89,9 @@ def range_bearing(points_px: np.ndarray, size_px: int, metres_per_pixel: float) 
     return np.stack([np.hypot(forward, left), np.arctan2(left, forward)], axis=1)
 
 
-def pixel_noise_to_range_bearing(points_px: np.ndarray, size_px: int, metres_per_pixel: float,
-                                 sigma_px: float) -> np.ndarray:
+def pixel_noise_to_range_bearing(
+    points_px: np.ndarray, size_px: int, metres_per_pixel: float, sigma_px: float
+) -> np.ndarray:
     """Covariances (k, 2, 2) of [range, bearing] for an isotropic keypoint error of ``sigma_px``:
     sigma_r = sigma_px s, sigma_b = sigma_px s / r (r floored at one pixel)."""
     rb = range_bearing(points_px, size_px, metres_per_pixel)

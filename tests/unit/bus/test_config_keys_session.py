@@ -25,8 +25,13 @@ def test_bad_values_name_the_field():
 
 
 def test_environment_overrides_bus_endpoints():
-    conf = BusConfig().with_env({"SWARMLOC_ZENOH_CONNECT": "tcp/10.0.0.1:7447, tcp/10.0.0.2:7447",
-                                 "SWARMLOC_ZENOH_MODE": "peer", "SWARMLOC_PREFIX": "fleet/a"})
+    conf = BusConfig().with_env(
+        {
+            "SWARMLOC_ZENOH_CONNECT": "tcp/10.0.0.1:7447, tcp/10.0.0.2:7447",
+            "SWARMLOC_ZENOH_MODE": "peer",
+            "SWARMLOC_PREFIX": "fleet/a",
+        }
+    )
     assert conf.connect == ("tcp/10.0.0.1:7447", "tcp/10.0.0.2:7447")
     assert (conf.mode, conf.prefix) == ("peer", "fleet/a")
     with pytest.raises(ConfigError, match="mode"):
@@ -35,22 +40,50 @@ def test_environment_overrides_bus_endpoints():
 
 def test_defaults_round_trip_through_json(tmp_path):
     from bus.config import load_config
+
     SwarmConfig().dump(tmp_path / "c.json")
     assert load_config(tmp_path / "c.json") == SwarmConfig()
 
 
-@pytest.mark.parametrize("expr, is_truth", [
-    ("swarm/truth", True), ("swarm/*", True), ("swarm/**", True), ("**", True), ("swarm/v/3/feed", False),
-    ("swarm/v/*/mavlink", False), ("swarm/ctl/clock", False), ("swarm/v/**", False), ("not a key//", False),
-])
+@pytest.mark.parametrize(
+    "expr, is_truth",
+    [
+        ("swarm/truth", True),
+        ("swarm/*", True),
+        ("swarm/**", True),
+        ("**", True),
+        ("swarm/v/3/feed", False),
+        ("swarm/v/*/mavlink", False),
+        ("swarm/ctl/clock", False),
+        ("swarm/v/**", False),
+        ("not a key//", False),
+    ],
+)
 def test_truth_detection_covers_wildcards(expr, is_truth):
     assert KeySpace("swarm").is_truth(expr) is is_truth
 
 
-@pytest.mark.parametrize("text, expected", [
-    ("1", 1), ("250", 250), ("42", 42), ("0", None), ("251", None), ("007", None), ("²", None), ("-3", None),
-    ("+3", None), (" 3", None), ("3 ", None), ("３", None), ("", None), ("x", None), ("1e2", None), ("99999999999999", None),
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("1", 1),
+        ("250", 250),
+        ("42", 42),
+        ("0", None),
+        ("251", None),
+        ("007", None),
+        ("²", None),
+        ("-3", None),
+        ("+3", None),
+        (" 3", None),
+        ("3 ", None),
+        ("３", None),
+        ("", None),
+        ("x", None),
+        ("1e2", None),
+        ("99999999999999", None),
+    ],
+)
 def test_vehicle_ids_are_plain_ascii_decimals_in_range(text, expected):
     assert parse_vehicle_id(text) == expected
 
@@ -65,9 +98,21 @@ def test_keys_parse_to_what_they_name():
     assert keys.parse(keys.ack("gs")) == ParsedKey("ack", ident="gs")
     assert keys.parse(keys.alive("vehicle", 4)) == ParsedKey("alive", 4, role="vehicle", ident="4")
     assert keys.parse(keys.truth()).kind == "truth" and keys.parse(keys.clock()).kind == "clock"
-    for bad in ("swarm/v/x/v2v", "swarm/v/²/mavlink", "swarm/v/3/sensor/imu", "swarm/v/3/mavlink/extra",
-                "swarm/v/3/v2v/0", "swarm/v/3/v2v/x", "swarm/v/3/v2v/4/5", "swarm/v/3/feed/4",
-                "swarm/alive/vehicle/²", "swarm/alive/pilot/1", "other/v/1/mavlink", "swarm", "swarm/ctl/ack/0"):
+    for bad in (
+        "swarm/v/x/v2v",
+        "swarm/v/²/mavlink",
+        "swarm/v/3/sensor/imu",
+        "swarm/v/3/mavlink/extra",
+        "swarm/v/3/v2v/0",
+        "swarm/v/3/v2v/x",
+        "swarm/v/3/v2v/4/5",
+        "swarm/v/3/feed/4",
+        "swarm/alive/vehicle/²",
+        "swarm/alive/pilot/1",
+        "other/v/1/mavlink",
+        "swarm",
+        "swarm/ctl/ack/0",
+    ):
         assert keys.parse(bad) is None, bad
         assert keys.vehicle_of(bad) is None
 
@@ -75,8 +120,15 @@ def test_keys_parse_to_what_they_name():
 @given(st.text(max_size=40))
 def test_any_key_parses_or_gives_none(tail):
     keys = KeySpace("swarm")
-    for key in (tail, f"swarm/{tail}", f"swarm/v/{tail}/mavlink", f"swarm/alive/vehicle/{tail}", f"swarm/ctl/ack/{tail}",
-                f"swarm/v/3/v2v/{tail}", f"swarm/v/{tail}/v2v/3"):
+    for key in (
+        tail,
+        f"swarm/{tail}",
+        f"swarm/v/{tail}/mavlink",
+        f"swarm/alive/vehicle/{tail}",
+        f"swarm/ctl/ack/{tail}",
+        f"swarm/v/3/v2v/{tail}",
+        f"swarm/v/{tail}/v2v/3",
+    ):
         parsed = keys.parse(key)
         assert parsed is None or isinstance(parsed, ParsedKey)
         assert parsed is None or parsed.vehicle_id is None or 1 <= parsed.vehicle_id <= 250
@@ -123,8 +175,9 @@ def test_the_compose_vehicle_config_is_the_vehicle_part_of_the_compose_config():
     deploy = Path(__file__).resolve().parents[3] / "deploy"
     swarm = load_config(deploy / "compose-config.json", env={})
     assert load_vehicle_config(deploy / "compose-vehicle.json", env={}) == swarm.for_vehicle()
-    assert "seed" not in json.loads((deploy / "compose-vehicle.json").read_text()) and "world" not in \
-        json.loads((deploy / "compose-vehicle.json").read_text())
+    assert "seed" not in json.loads((deploy / "compose-vehicle.json").read_text()) and "world" not in json.loads(
+        (deploy / "compose-vehicle.json").read_text()
+    )
 
 
 def test_vehicle_configs_take_the_swarm_size_from_the_environment(tmp_path):

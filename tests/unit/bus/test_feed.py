@@ -54,40 +54,44 @@ def _mutate_gnss(fn):
         rows = _rows(body, "gnss", 6)
         fn(rows)
         _set(body, "gnss", rows)
+
     return mutate
 
 
-@pytest.mark.parametrize("mutate, reason", [
-    (lambda b: b.update(vehicle_id=0), "vehicle_id"),
-    (lambda b: b.update(vehicle_id="2"), "vehicle_id"),
-    (lambda b: b.update(stamp_us=-5), "stamp_us"),
-    (lambda b: b.update(extra=1), "fields"),
-    (lambda b: b.pop("tick"), "fields"),
-    (lambda b: b.update(type="Other"), "type tag"),
-    (lambda b: b["imu"].update(data=b["imu"]["data"][:-8]), "values"),
-    (lambda b: b["imu"].update(stamp=b"\x00" * 7), "8-byte"),
-    (lambda b: b["imu"].update(seq0=-1), "seq0"),
-    (lambda b: b["imu"].pop("seq0"), "block"),
-    (lambda b: b.update(imu=[1, 2, 3]), "block"),
-    (lambda b: b["imu"].update(stamp=np.arange(11, dtype="<i8")[::-1].tobytes()), "ordered"),
-    (lambda b: b["imu"].update(stamp=(np.arange(11, dtype="<i8") * 10_000 + 10**7).tobytes()), "inside the tick"),
-    (lambda b: b["imu"].update(stamp=np.zeros(11, dtype="<i8").tobytes()), "one stamp"),
-    (_mutate_gnss(lambda r: r.__setitem__((0, 0), math.nan)), "finite"),
-    (_mutate_gnss(lambda r: r.__setitem__((0, 0), 1e9)), "within"),
-    (_mutate_gnss(lambda r: r.__setitem__((0, slice(2, 6)), [0.0, 0.0, 0.0, 0.0])), "positive definite"),
-    (_mutate_gnss(lambda r: r.__setitem__((0, slice(2, 6)), [1.0, 2.0, 2.0, 1.0])), "positive definite"),
-    (_mutate_gnss(lambda r: r.__setitem__((0, slice(2, 6)), [1.0, 0.5, 0.1, 1.0])), "symmetric"),
-    (lambda b: _set(b, "ranging", np.where(np.arange(7) == 0, 2.0, _rows(b, "ranging", 7))), "other vehicles"),
-    (lambda b: _set(b, "ranging", np.where(np.arange(7) == 0, 2.5, _rows(b, "ranging", 7))), "other vehicles"),
-    (lambda b: _set(b, "ranging", np.where(np.arange(7) == 1, -1.0, _rows(b, "ranging", 7))), "range"),
-    (lambda b: _set(b, "prior", np.where(np.arange(12) == 3, -1.0, _rows(b, "prior", 12))), "positive definite"),
-    (lambda b: b.update(listeners=[1, 1]), "distinct"),
-    (lambda b: b.update(listeners=[2]), "own vehicle"),
-    (lambda b: b.update(listeners=[0]), "listeners"),
-    (lambda b: b.update(listeners=[True]), "listeners"),
-    (lambda b: b.update(listeners="1"), "listeners"),
-    (lambda b: b.update(listeners=list(range(1, 253))), "listeners"),
-])
+@pytest.mark.parametrize(
+    "mutate, reason",
+    [
+        (lambda b: b.update(vehicle_id=0), "vehicle_id"),
+        (lambda b: b.update(vehicle_id="2"), "vehicle_id"),
+        (lambda b: b.update(stamp_us=-5), "stamp_us"),
+        (lambda b: b.update(extra=1), "fields"),
+        (lambda b: b.pop("tick"), "fields"),
+        (lambda b: b.update(type="Other"), "type tag"),
+        (lambda b: b["imu"].update(data=b["imu"]["data"][:-8]), "values"),
+        (lambda b: b["imu"].update(stamp=b"\x00" * 7), "8-byte"),
+        (lambda b: b["imu"].update(seq0=-1), "seq0"),
+        (lambda b: b["imu"].pop("seq0"), "block"),
+        (lambda b: b.update(imu=[1, 2, 3]), "block"),
+        (lambda b: b["imu"].update(stamp=np.arange(11, dtype="<i8")[::-1].tobytes()), "ordered"),
+        (lambda b: b["imu"].update(stamp=(np.arange(11, dtype="<i8") * 10_000 + 10**7).tobytes()), "inside the tick"),
+        (lambda b: b["imu"].update(stamp=np.zeros(11, dtype="<i8").tobytes()), "one stamp"),
+        (_mutate_gnss(lambda r: r.__setitem__((0, 0), math.nan)), "finite"),
+        (_mutate_gnss(lambda r: r.__setitem__((0, 0), 1e9)), "within"),
+        (_mutate_gnss(lambda r: r.__setitem__((0, slice(2, 6)), [0.0, 0.0, 0.0, 0.0])), "positive definite"),
+        (_mutate_gnss(lambda r: r.__setitem__((0, slice(2, 6)), [1.0, 2.0, 2.0, 1.0])), "positive definite"),
+        (_mutate_gnss(lambda r: r.__setitem__((0, slice(2, 6)), [1.0, 0.5, 0.1, 1.0])), "symmetric"),
+        (lambda b: _set(b, "ranging", np.where(np.arange(7) == 0, 2.0, _rows(b, "ranging", 7))), "other vehicles"),
+        (lambda b: _set(b, "ranging", np.where(np.arange(7) == 0, 2.5, _rows(b, "ranging", 7))), "other vehicles"),
+        (lambda b: _set(b, "ranging", np.where(np.arange(7) == 1, -1.0, _rows(b, "ranging", 7))), "range"),
+        (lambda b: _set(b, "prior", np.where(np.arange(12) == 3, -1.0, _rows(b, "prior", 12))), "positive definite"),
+        (lambda b: b.update(listeners=[1, 1]), "distinct"),
+        (lambda b: b.update(listeners=[2]), "own vehicle"),
+        (lambda b: b.update(listeners=[0]), "listeners"),
+        (lambda b: b.update(listeners=[True]), "listeners"),
+        (lambda b: b.update(listeners="1"), "listeners"),
+        (lambda b: b.update(listeners=list(range(1, 253))), "listeners"),
+    ],
+)
 def test_malformed_batches_are_rejected_with_a_clear_error(mutate, reason):
     body = _body()
     mutate(body)
@@ -126,14 +130,36 @@ def test_mutated_batches_decode_or_raise_decode_error(data):
 
 
 json_like = st.recursive(
-    st.none() | st.booleans() | st.integers(-(2**63), 2**64 - 1) | st.floats() | st.text(max_size=8) | st.binary(max_size=40),
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**63), 2**64 - 1)
+    | st.floats()
+    | st.text(max_size=8)
+    | st.binary(max_size=40),
     lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4),
     max_leaves=12,
 )
 
 
-@given(st.sampled_from(["vehicle_id", "tick", "stamp_us", "imu", "odom", "gnss", "ranging", "seen", "landmark", "prior",
-                        "listeners", "x"]), json_like)
+@given(
+    st.sampled_from(
+        [
+            "vehicle_id",
+            "tick",
+            "stamp_us",
+            "imu",
+            "odom",
+            "gnss",
+            "ranging",
+            "seen",
+            "landmark",
+            "prior",
+            "listeners",
+            "x",
+        ]
+    ),
+    json_like,
+)
 def test_well_formed_msgpack_with_wrong_values_raises_decode_error(field, value):
     body = _body()
     body[field] = value
@@ -170,10 +196,18 @@ def test_landmark_sightings_round_trip_several_per_stamp():
     assert samples[1][1].range_m == 2.0 and np.allclose(samples[1][1].covariance, np.diag([0.04, 0.001]))
 
 
-@pytest.mark.parametrize("column, value, reason", [
-    (0, 2.5, "ids must be integers"), (0, -1.0, "ids must be integers"), (0, 2e6, "within"),
-    (1, -0.5, "range must be >= 0"), (2, 11.0, "bearing"), (3, -0.01, "positive definite"), (3, math.inf, "finite"),
-])
+@pytest.mark.parametrize(
+    "column, value, reason",
+    [
+        (0, 2.5, "ids must be integers"),
+        (0, -1.0, "ids must be integers"),
+        (0, 2e6, "within"),
+        (1, -0.5, "range must be >= 0"),
+        (2, 11.0, "bearing"),
+        (3, -0.01, "positive definite"),
+        (3, math.inf, "finite"),
+    ],
+)
 def test_malformed_landmark_sightings_are_rejected_with_a_clear_error(column, value, reason):
     rows = np.array([LANDMARK_ROW, LANDMARK_ROW])
     rows[1, column] = value
@@ -191,11 +225,11 @@ def test_truth_rows_of_nan_mean_no_truth_and_partial_nan_is_refused():
         feed.decode_truth(feed.encode_truth(batch))
 
 
-SEEN_ROW = [4.0, 3.2, 0.4, 0.02, 0.0, 0.0, 0.0003]   # observer 4, range, bearing, covariance (2, 2)
+SEEN_ROW = [4.0, 3.2, 0.4, 0.02, 0.0, 0.0, 0.0003]  # observer 4, range, bearing, covariance (2, 2)
 
 
 def _seen_batch(rows: np.ndarray) -> bytes:
-    stamps = np.array([20_000, 20_000, 60_000][:len(rows)], dtype=np.int64)
+    stamps = np.array([20_000, 20_000, 60_000][: len(rows)], dtype=np.int64)
     return feed.encode_batch(feed.SensorBatch(3, 1, 100_000, {"seen": (stamps, 7, rows)}))
 
 
@@ -209,10 +243,18 @@ def test_relayed_sightings_round_trip_as_seen_by():
     assert np.allclose(second.covariance, np.diag([0.01, 0.001]))
 
 
-@pytest.mark.parametrize("column, value, reason", [
-    (0, 3.0, "observer ids must be other vehicles"), (0, 0.0, "observer ids"), (0, 251.0, "observer ids"),
-    (0, 1.5, "observer ids"), (1, -0.5, "range must be >= 0"), (2, 11.0, "bearing"), (6, 0.0, "positive definite"),
-])
+@pytest.mark.parametrize(
+    "column, value, reason",
+    [
+        (0, 3.0, "observer ids must be other vehicles"),
+        (0, 0.0, "observer ids"),
+        (0, 251.0, "observer ids"),
+        (0, 1.5, "observer ids"),
+        (1, -0.5, "range must be >= 0"),
+        (2, 11.0, "bearing"),
+        (6, 0.0, "positive definite"),
+    ],
+)
 def test_malformed_relayed_sightings_are_rejected_with_a_clear_error(column, value, reason):
     rows = np.array([SEEN_ROW, SEEN_ROW])
     rows[1, column] = value

@@ -14,8 +14,9 @@ from sim.world import World
 
 
 def _batch() -> feed.SensorBatch:
-    world = World(build_config({"world": {"vehicles": 2, "seed": 4, "terrain_size_px": 512},
-                                "sensors": {"camera_rate_hz": 10}}))
+    world = World(
+        build_config({"world": {"vehicles": 2, "seed": 4, "terrain_size_px": 512}, "sensors": {"camera_rate_hz": 10}})
+    )
     out = world.advance(200_000)
     return feed.SensorBatch(1, 2, 200_000, out.blocks(1), out.camera(1))
 
@@ -38,18 +39,21 @@ def _body() -> dict:
     return msgpack.unpackb(PAYLOAD, raw=False)
 
 
-@pytest.mark.parametrize("mutate, reason", [
-    (lambda c: c.update(pixels=c["pixels"][:-1]), "pixel bytes"),
-    (lambda c: c.update(size=81), "pixel bytes"),
-    (lambda c: c.update(size=4), "size"),
-    (lambda c: c.update(scale=c["scale"][:-8]), "scales"),
-    (lambda c: c.update(scale=np.array([0.1, -1.0, 0.1]).tobytes()), "ground scale"),
-    (lambda c: c.update(scale=np.array([0.1, np.nan, 0.1]).tobytes()), "ground scale"),
-    (lambda c: c.update(stamp=np.array([0, 0, 100_000], "<i8").tobytes()), "increasing"),
-    (lambda c: c.update(stamp=np.array([0, 100_000, 900_000], "<i8").tobytes()), "inside the tick"),
-    (lambda c: c.update(pixels="text"), "pixel bytes"),
-    (lambda c: c.pop("scale"), "block"),
-])
+@pytest.mark.parametrize(
+    "mutate, reason",
+    [
+        (lambda c: c.update(pixels=c["pixels"][:-1]), "pixel bytes"),
+        (lambda c: c.update(size=81), "pixel bytes"),
+        (lambda c: c.update(size=4), "size"),
+        (lambda c: c.update(scale=c["scale"][:-8]), "scales"),
+        (lambda c: c.update(scale=np.array([0.1, -1.0, 0.1]).tobytes()), "ground scale"),
+        (lambda c: c.update(scale=np.array([0.1, np.nan, 0.1]).tobytes()), "ground scale"),
+        (lambda c: c.update(stamp=np.array([0, 0, 100_000], "<i8").tobytes()), "increasing"),
+        (lambda c: c.update(stamp=np.array([0, 100_000, 900_000], "<i8").tobytes()), "inside the tick"),
+        (lambda c: c.update(pixels="text"), "pixel bytes"),
+        (lambda c: c.pop("scale"), "block"),
+    ],
+)
 def test_malformed_camera_blocks_are_rejected_with_a_clear_error(mutate, reason):
     body = _body()
     mutate(body["camera"])
@@ -58,7 +62,12 @@ def test_malformed_camera_blocks_are_rejected_with_a_clear_error(mutate, reason)
 
 
 json_like = st.recursive(
-    st.none() | st.booleans() | st.integers(-(2**63), 2**64 - 1) | st.floats() | st.text(max_size=8) | st.binary(max_size=40),
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**63), 2**64 - 1)
+    | st.floats()
+    | st.text(max_size=8)
+    | st.binary(max_size=40),
     lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4),
     max_leaves=12,
 )

@@ -35,16 +35,19 @@ def _body() -> dict:
     return msgpack.unpackb(PAYLOAD, raw=False)
 
 
-@pytest.mark.parametrize("mutate, reason", [
-    (lambda b: b.update(vehicle_id=0), "vehicle_id"),
-    (lambda b: b.update(type="VehicleStatus"), "type tag"),
-    (lambda b: b.update(extra=1), "fields"),
-    (lambda b: b.update(xy=b["xy"][:-8]), "rows of 2"),
-    (lambda b: b.update(cov=b["cov"][:-24]), "positions but 2 covariances"),
-    (lambda b: b.update(xy=np.array([[np.nan, 0.0]] * 3).tobytes()), "finite"),
-    (lambda b: b.update(cov=np.array([[1.0, 2.0, 1.0]] * 3).tobytes()), "positive definite"),
-    (lambda b: b.update(cov=np.array([[-1.0, 0.0, 1.0]] * 3).tobytes()), "positive definite"),
-])
+@pytest.mark.parametrize(
+    "mutate, reason",
+    [
+        (lambda b: b.update(vehicle_id=0), "vehicle_id"),
+        (lambda b: b.update(type="VehicleStatus"), "type tag"),
+        (lambda b: b.update(extra=1), "fields"),
+        (lambda b: b.update(xy=b["xy"][:-8]), "rows of 2"),
+        (lambda b: b.update(cov=b["cov"][:-24]), "positions but 2 covariances"),
+        (lambda b: b.update(xy=np.array([[np.nan, 0.0]] * 3).tobytes()), "finite"),
+        (lambda b: b.update(cov=np.array([[1.0, 2.0, 1.0]] * 3).tobytes()), "positive definite"),
+        (lambda b: b.update(cov=np.array([[-1.0, 0.0, 1.0]] * 3).tobytes()), "positive definite"),
+    ],
+)
 def test_malformed_maps_are_rejected_with_a_clear_error(mutate, reason):
     body = _body()
     mutate(body)
@@ -60,8 +63,15 @@ def test_any_bytes_decode_or_raise_decode_error(payload):
         pass
 
 
-@given(st.sampled_from(["type", "v", "vehicle_id", "stamp_us", "xy", "cov"]),
-       st.none() | st.booleans() | st.integers(-(2**63), 2**64 - 1) | st.floats() | st.text(max_size=8) | st.binary(max_size=64))
+@given(
+    st.sampled_from(["type", "v", "vehicle_id", "stamp_us", "xy", "cov"]),
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**63), 2**64 - 1)
+    | st.floats()
+    | st.text(max_size=8)
+    | st.binary(max_size=64),
+)
 def test_any_value_in_any_field_decodes_or_raises_decode_error(field, value):
     body = _body()
     body[field] = value
@@ -78,7 +88,7 @@ def test_the_ground_station_keeps_the_last_map_and_refuses_one_in_another_name(t
     older = encode_map(LandmarkMap(2, 500_000, XY[:1], COV[:1]))
     for payload in (older, PAYLOAD, m.encode(m.VehicleStatus(2, 1_500_000, 75, 0, 0.0, 0.0, 0, 0, 0, 0))):
         gs.handle(Envelope(keys.status(2), payload))
-    gs.handle(Envelope(keys.status(1), PAYLOAD))        # vehicle 2's map on vehicle 1's key
+    gs.handle(Envelope(keys.status(1), PAYLOAD))  # vehicle 2's map on vehicle 1's key
     gs.handle(Envelope(keys.status(1), b"\x81\xa1x\x01"))  # neither a status nor a map
     assert counts_to_dict(gs.rejections.as_counts()) == {"impersonation": 1, "malformed": 1}
     assert set(gs.reports.maps) == {2} and 2 in gs.reports.statuses

@@ -11,8 +11,9 @@ N = 20_000
 STEP_US = 10_000
 
 
-def _through(stage: LinkFaultStage, n: int = N, key: str = "swarm/v/3/sensor/imu", topic: str = "imu",
-             src: str = "v3") -> list[tuple[int, int]]:
+def _through(
+    stage: LinkFaultStage, n: int = N, key: str = "swarm/v/3/sensor/imu", topic: str = "imu", src: str = "v3"
+) -> list[tuple[int, int]]:
     """Offer n packets stamped every 10 ms; returns (seq, delivery time us) in delivery order."""
     out = []
     for seq in range(n):
@@ -99,6 +100,7 @@ def test_selected_packets_come_out_in_stamp_order_whatever_their_arrival():
 def test_faults_select_by_source_destination_topic_and_time():
     fault = Loss(name="l", src="v[12]", dst="gs", topic="mav*", percent=100, start_s=1.0, for_s=1.0)
     stage = LinkFaultStage("gs", seed=0, faults=(fault,))
+
     def offer(src: str, topic: str, t_s: float) -> bool:
         now = stage.offer(Arrival(f"{src}/{topic}", src, topic, round(t_s * 1e6), 0))
         return bool(now + stage.release(10**12))

@@ -7,8 +7,18 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
 from bus.errors import DecodeError
-from bus.mavlink_codec import (COMPONENT_ID, EstimatorStatus, Heartbeat, StatusText, MavlinkDecoder, MavlinkEncoder, MavlinkRejected,
-                               NoEstimate, StateEstimate, signing_now)
+from bus.mavlink_codec import (
+    COMPONENT_ID,
+    EstimatorStatus,
+    Heartbeat,
+    MavlinkDecoder,
+    MavlinkEncoder,
+    MavlinkRejected,
+    NoEstimate,
+    StateEstimate,
+    StatusText,
+    signing_now,
+)
 
 KEY = bytes(range(32))
 
@@ -16,8 +26,17 @@ KEY = bytes(range(32))
 def _estimate(t_us: int = 1_000_000, vehicle_id: int = 3) -> StateEstimate:
     rng = np.random.default_rng(1)
     a = rng.normal(size=(6, 6))
-    return StateEstimate(vehicle_id, t_us, np.array([10.0, -4.0, -30.0]), 2.5, np.array([4.0, 0.0, 0.0]), 0.2,
-                         a @ a.T + np.eye(6), np.diag([0.1, 0.2, 0.3, 0.4, 0.5, 0.6]), reset_counter=4)
+    return StateEstimate(
+        vehicle_id,
+        t_us,
+        np.array([10.0, -4.0, -30.0]),
+        2.5,
+        np.array([4.0, 0.0, 0.0]),
+        0.2,
+        a @ a.T + np.eye(6),
+        np.diag([0.1, 0.2, 0.3, 0.4, 0.5, 0.6]),
+        reset_counter=4,
+    )
 
 
 def test_odometry_round_trip_keeps_pose_covariance_and_metadata():
@@ -39,8 +58,13 @@ def test_an_odometry_of_unknown_covariance_says_no_estimate_and_nothing_else():
     cov = est.pose_covariance.copy()
     cov[1, 1] = np.nan
     with pytest.raises(MavlinkRejected):
-        MavlinkDecoder().decode(MavlinkEncoder(vehicle_id=3).odometry(StateEstimate(
-            3, est.time_usec, est.position_m, 0.0, est.velocity_mps, 0.0, cov, est.velocity_covariance)))
+        MavlinkDecoder().decode(
+            MavlinkEncoder(vehicle_id=3).odometry(
+                StateEstimate(
+                    3, est.time_usec, est.position_m, 0.0, est.velocity_mps, 0.0, cov, est.velocity_covariance
+                )
+            )
+        )
 
 
 def test_frames_are_mavlink2_with_vehicle_sysid_and_compid_191():
@@ -118,8 +142,11 @@ def test_mutated_frames_raise_decode_error_or_decode(data):
 def test_estimator_status_and_statustext_round_trip_signed():
     key = bytes(range(32))
     encoder, decoder = MavlinkEncoder(vehicle_id=4, signing_key=key), MavlinkDecoder(signing_key=key)
-    status = decoder.decode(encoder.estimator_status(
-        EstimatorStatus(4, 12_000_000, mavlink2.ESTIMATOR_GPS_GLITCH | mavlink2.ESTIMATOR_ATTITUDE, 1.75, 0.5)))
+    status = decoder.decode(
+        encoder.estimator_status(
+            EstimatorStatus(4, 12_000_000, mavlink2.ESTIMATOR_GPS_GLITCH | mavlink2.ESTIMATOR_ATTITUDE, 1.75, 0.5)
+        )
+    )
     assert status.vehicle_id == 4 and status.time_usec == 12_000_000 and status.gps_glitch
     assert status.pos_horiz_ratio == pytest.approx(1.75)
     text = decoder.decode(encoder.statustext(4, "GNSS unhealthy: spoofing suspected"))
@@ -136,12 +163,17 @@ def test_a_far_future_signing_timestamp_is_refused_even_with_the_right_key():
     assert decoder.decode(genuine.odometry(_estimate())).vehicle_id == 3  # the stream was not frozen
 
 
-@pytest.mark.parametrize("cov", [
-    np.zeros((6, 6)),                                  # all zeros
-    np.diag([1.0, 1.0, 1e-6, 1e-6, 1e-6, 0.0]),        # singular in yaw
-    np.diag([1.0, 4.0, 1e-6, 1e-6, 1e-6, 1.0]) + np.pad([[0.0, 3.0], [3.0, 0.0]], ((0, 4), (0, 4))),  # indefinite: xy det < 0
-    np.diag([1e12, 1.0, 1e-6, 1e-6, 1e-6, 1.0]),       # huge
-], ids=["zero", "singular", "indefinite", "huge"])
+@pytest.mark.parametrize(
+    "cov",
+    [
+        np.zeros((6, 6)),  # all zeros
+        np.diag([1.0, 1.0, 1e-6, 1e-6, 1e-6, 0.0]),  # singular in yaw
+        np.diag([1.0, 4.0, 1e-6, 1e-6, 1e-6, 1.0])
+        + np.pad([[0.0, 3.0], [3.0, 0.0]], ((0, 4), (0, 4))),  # indefinite: xy det < 0
+        np.diag([1e12, 1.0, 1e-6, 1e-6, 1e-6, 1.0]),  # huge
+    ],
+    ids=["zero", "singular", "indefinite", "huge"],
+)
 def test_degenerate_covariances_are_rejected(cov):
     est = StateEstimate(3, 1_000_000, np.array([1.0, 2.0, -30.0]), 0.1, np.zeros(3), 0.0, cov, np.eye(6))
     with pytest.raises(MavlinkRejected, match="degenerate"):
@@ -151,7 +183,10 @@ def test_degenerate_covariances_are_rejected(cov):
 def test_each_sender_is_checked_against_its_own_key_and_unknown_senders_are_refused():
     keys = {1: bytes([1] * 32), 2: bytes([2] * 32)}
     decoder = MavlinkDecoder(key_for=keys.get)
-    assert decoder.decode(MavlinkEncoder(vehicle_id=2, signing_key=keys[2]).odometry(_estimate(vehicle_id=2))).vehicle_id == 2
+    assert (
+        decoder.decode(MavlinkEncoder(vehicle_id=2, signing_key=keys[2]).odometry(_estimate(vehicle_id=2))).vehicle_id
+        == 2
+    )
     with pytest.raises(MavlinkRejected, match="bad_signature"):  # vehicle 1's key speaking as vehicle 2
         decoder.decode(MavlinkEncoder(vehicle_id=2, signing_key=keys[1]).odometry(_estimate(vehicle_id=2)))
     with pytest.raises(MavlinkRejected, match="unknown_sysid"):
@@ -161,7 +196,10 @@ def test_each_sender_is_checked_against_its_own_key_and_unknown_senders_are_refu
 def test_concatenated_frames_split_by_their_lengths():
     from bus.mavlink_codec import split_frames
 
-    frames = [MavlinkEncoder(vehicle_id=3, signing_key=KEY).odometry(_estimate()), MavlinkEncoder(vehicle_id=3).heartbeat()]
+    frames = [
+        MavlinkEncoder(vehicle_id=3, signing_key=KEY).odometry(_estimate()),
+        MavlinkEncoder(vehicle_id=3).heartbeat(),
+    ]
     assert split_frames(b"".join(frames)) == (frames, 0)
     assert split_frames(b"".join(frames) + b"\xfd\x05") == (frames, 2)
     assert split_frames(b"junk" + frames[0]) == ([], len(frames[0]) + 4)

@@ -29,7 +29,8 @@ SAMPLES = [
 
 def _equal(a, b) -> bool:
     return all(
-        np.array_equal(getattr(a, f), getattr(b, f)) if isinstance(getattr(a, f), np.ndarray)
+        np.array_equal(getattr(a, f), getattr(b, f))
+        if isinstance(getattr(a, f), np.ndarray)
         else getattr(a, f) == getattr(b, f)
         for f in a.__dataclass_fields__
     )
@@ -48,23 +49,26 @@ def _pack(body: dict) -> bytes:
     return msgpack.packb(body, use_bin_type=True)
 
 
-@pytest.mark.parametrize("mutate, reason", [
-    (lambda b: b.update(vehicle_id=0), "outside"),
-    (lambda b: b.update(vehicle_id=True), "integer"),
-    (lambda b: b.update(stamp_us=-1), "outside"),
-    (lambda b: b.pop("seq"), "missing"),
-    (lambda b: b.update(extra=1), "unexpected"),
-    (lambda b: b.update(type="ImuSample"), "type tag"),
-    (lambda b: b.update(v=99), "version"),
-    (lambda b: b["position_m"].update(data=np.array([math.nan, 0.0]).tobytes()), "finite"),
-    (lambda b: b["position_m"].update(data=np.array([math.inf, 0.0]).tobytes()), "finite"),
-    (lambda b: b["position_m"].update(shape=[3]), "shape"),
-    (lambda b: b["position_m"].update(dtype="<f4"), "dtype"),
-    (lambda b: b["position_m"].update(data=b"\x00" * 15), "raw bytes"),
-    (lambda b: b["covariance_m2"].update(data=np.array([1.0, 0.0, 0.0, -1.0]).tobytes()), "positive definite"),
-    (lambda b: b["covariance_m2"].update(data=np.array([1.0, 0.5, 0.0, 1.0]).tobytes()), "symmetric"),
-    (lambda b: b["position_m"].update(data=np.array([1e9, 0.0]).tobytes()), "within"),
-])
+@pytest.mark.parametrize(
+    "mutate, reason",
+    [
+        (lambda b: b.update(vehicle_id=0), "outside"),
+        (lambda b: b.update(vehicle_id=True), "integer"),
+        (lambda b: b.update(stamp_us=-1), "outside"),
+        (lambda b: b.pop("seq"), "missing"),
+        (lambda b: b.update(extra=1), "unexpected"),
+        (lambda b: b.update(type="ImuSample"), "type tag"),
+        (lambda b: b.update(v=99), "version"),
+        (lambda b: b["position_m"].update(data=np.array([math.nan, 0.0]).tobytes()), "finite"),
+        (lambda b: b["position_m"].update(data=np.array([math.inf, 0.0]).tobytes()), "finite"),
+        (lambda b: b["position_m"].update(shape=[3]), "shape"),
+        (lambda b: b["position_m"].update(dtype="<f4"), "dtype"),
+        (lambda b: b["position_m"].update(data=b"\x00" * 15), "raw bytes"),
+        (lambda b: b["covariance_m2"].update(data=np.array([1.0, 0.0, 0.0, -1.0]).tobytes()), "positive definite"),
+        (lambda b: b["covariance_m2"].update(data=np.array([1.0, 0.5, 0.0, 1.0]).tobytes()), "symmetric"),
+        (lambda b: b["position_m"].update(data=np.array([1e9, 0.0]).tobytes()), "within"),
+    ],
+)
 def test_malformed_gnss_is_rejected_with_a_clear_error(mutate, reason):
     body = _body(SAMPLES[2])
     mutate(body)
@@ -100,7 +104,12 @@ def test_mutated_valid_payloads_decode_or_raise_decode_error(msg, data):
 
 
 json_like = st.recursive(
-    st.none() | st.booleans() | st.integers(-(2**63), 2**64 - 1) | st.floats() | st.text(max_size=8) | st.binary(max_size=16),
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**63), 2**64 - 1)
+    | st.floats()
+    | st.text(max_size=8)
+    | st.binary(max_size=16),
     lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4),
     max_leaves=12,
 )

@@ -11,26 +11,32 @@ from bus.errors import DecodeError
 from bus.faults import Delay, JamGnss, Kill, Loss, check_fault
 from bus.plan import FaultPlan, FaultReply, FaultRequest, decode_json, encode_json
 
-PLAN = FaultPlan(version=3, faults=(
-    Delay(name="d", dst="v*", topic="mavlink", delay_s=0.2, jitter_s=0.05, distribution="pareto"),
-    Loss(name="l", dst="v3", percent=30, burst=4),
-    JamGnss(name="j", center_m=(40.0, 10.0), radius_m=25.0, start_s=5, for_s=60),
-    Kill(name="k", vehicle=2, start_s=10, restart_after_s=10),
-))
+PLAN = FaultPlan(
+    version=3,
+    faults=(
+        Delay(name="d", dst="v*", topic="mavlink", delay_s=0.2, jitter_s=0.05, distribution="pareto"),
+        Loss(name="l", dst="v3", percent=30, burst=4),
+        JamGnss(name="j", center_m=(40.0, 10.0), radius_m=25.0, start_s=5, for_s=60),
+        Kill(name="k", vehicle=2, start_s=10, restart_after_s=10),
+    ),
+)
 
 
 def test_plan_round_trip():
     assert decode_json(FaultPlan, encode_json(PLAN)) == PLAN
 
 
-@pytest.mark.parametrize("payload, message", [
-    (b"{", "FaultPlan"),
-    (b'{"version": -1, "faults": []}', "version"),
-    (b'{"version": 1, "faults": [{"kind": "teleport"}]}', "faults"),
-    (b'{"version": 1, "faults": [{"kind": "loss", "percent": 130}]}', "percent"),
-    (b'{"version": 1, "faults": [{"kind": "delay", "delay_s": -1}]}', "delay_s"),
-    (b'{"version": 1, "faults": [], "extra": 1}', "extra"),
-])
+@pytest.mark.parametrize(
+    "payload, message",
+    [
+        (b"{", "FaultPlan"),
+        (b'{"version": -1, "faults": []}', "version"),
+        (b'{"version": 1, "faults": [{"kind": "teleport"}]}', "faults"),
+        (b'{"version": 1, "faults": [{"kind": "loss", "percent": 130}]}', "percent"),
+        (b'{"version": 1, "faults": [{"kind": "delay", "delay_s": -1}]}', "delay_s"),
+        (b'{"version": 1, "faults": [], "extra": 1}', "extra"),
+    ],
+)
 def test_malformed_plans_raise_one_clear_error(payload, message):
     with pytest.raises(DecodeError, match=message):
         decode_json(FaultPlan, payload)
@@ -51,8 +57,26 @@ json_values = st.recursive(
     lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=10), children, max_size=5),
     max_leaves=20,
 )
-FIELDS = ["kind", "name", "start_s", "for_s", "dst", "src", "topic", "delay_s", "jitter_s", "distribution",
-          "percent", "burst", "center_m", "radius_m", "vehicle", "sensor", "restart_after_s", "gap_s"]
+FIELDS = [
+    "kind",
+    "name",
+    "start_s",
+    "for_s",
+    "dst",
+    "src",
+    "topic",
+    "delay_s",
+    "jitter_s",
+    "distribution",
+    "percent",
+    "burst",
+    "center_m",
+    "radius_m",
+    "vehicle",
+    "sensor",
+    "restart_after_s",
+    "gap_s",
+]
 
 
 @given(st.binary(max_size=300))

@@ -4,10 +4,10 @@ change and every start and end logged as an event; MAVLink link quality; the kil
 import pytest
 
 from bus.faults import JamGnss, Kill, Loss
+from bus.kill_schedule import KillSchedule
 from bus.plan import FaultRequest
 from groundstation.fault_control import FaultControl
 from groundstation.link_quality import StreamQuality
-from bus.kill_schedule import KillSchedule
 
 
 def _control(*faults):
@@ -26,18 +26,27 @@ def test_faults_added_at_run_time_start_now_and_are_logged():
     assert added.name == "loss-1" and added.start_s == 5.0
     control.advance(16_000_000)
     kinds = [(kind, stamp) for kind, stamp, _ in log]
-    assert kinds == [("fault_added", 0), ("fault_started", 1_000_000), ("fault_expired", 3_000_000),
-                     ("fault_added", 5_000_000), ("fault_started", 5_000_000), ("fault_expired", 15_000_000)]
+    assert kinds == [
+        ("fault_added", 0),
+        ("fault_started", 1_000_000),
+        ("fault_expired", 3_000_000),
+        ("fault_added", 5_000_000),
+        ("fault_started", 5_000_000),
+        ("fault_expired", 15_000_000),
+    ]
     assert [s.state for s in reply.states] == ["expired", "active"]
 
 
-@pytest.mark.parametrize("request_, message", [
-    (FaultRequest(op="add", fault=Loss(dst="v7", percent=30)), "matches nothing"),
-    (FaultRequest(op="add", fault=Kill(vehicle=9)), "vehicle 9 does not exist"),
-    (FaultRequest(op="add", fault=Loss(name="j", percent=1)), "exists already"),
-    (FaultRequest(op="remove", name="ghost"), "no fault named 'ghost'"),
-    (FaultRequest(op="add"), "needs a fault"),
-])
+@pytest.mark.parametrize(
+    "request_, message",
+    [
+        (FaultRequest(op="add", fault=Loss(dst="v7", percent=30)), "matches nothing"),
+        (FaultRequest(op="add", fault=Kill(vehicle=9)), "vehicle 9 does not exist"),
+        (FaultRequest(op="add", fault=Loss(name="j", percent=1)), "exists already"),
+        (FaultRequest(op="remove", name="ghost"), "no fault named 'ghost'"),
+        (FaultRequest(op="add"), "needs a fault"),
+    ],
+)
 def test_bad_requests_get_one_clear_error_and_change_nothing(request_, message):
     control, log = _control(JamGnss(name="j", center_m=(0, 0), radius_m=5))
     before = control.plan()

@@ -7,8 +7,8 @@ def test_joins_and_departures_follow_the_ticks_members():
     log = MembershipLog(resumed=False)
     assert log.change((1, 2, 3)) == ([1, 2, 3], [])
     assert log.change((1, 2, 3)) == ([], [])
-    assert log.change((1, 3)) == ([], [2])       # killed: the next tick no longer waits for it
-    assert log.change((3, 1, 2)) == ([2], [])    # restarted: waited for again
+    assert log.change((1, 3)) == ([], [2])  # killed: the next tick no longer waits for it
+    assert log.change((3, 1, 2)) == ([2], [])  # restarted: waited for again
     assert log.change(()) == ([], [1, 2, 3])
 
 

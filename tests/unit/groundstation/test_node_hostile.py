@@ -26,8 +26,9 @@ def _gs(tmp_path) -> GroundStation:
 
 
 def _estimate(vid: int, t_us: int, cov=None, x: float = 1.0) -> StateEstimate:
-    return StateEstimate(vid, t_us, np.array([x, 2.0, -30.0]), 0.0, np.zeros(3), 0.0,
-                         np.eye(6) * 0.5 if cov is None else cov, np.eye(6))
+    return StateEstimate(
+        vid, t_us, np.array([x, 2.0, -30.0]), 0.0, np.zeros(3), 0.0, np.eye(6) * 0.5 if cov is None else cov, np.eye(6)
+    )
 
 
 def _frame(vid: int, t_us: int, key_of: int | None = None, **kw) -> bytes:
@@ -47,19 +48,25 @@ def test_hostile_input_is_counted_by_reason_and_only_genuine_estimates_are_score
     _truth(gs, [0, 20_000, 40_000])
     answers = []
     hostile = [
-        Envelope("swarm/v/x/mavlink", b"bytes"), Envelope("swarm/v/\u00b2/mavlink", b"bytes"),
-        Envelope("swarm/v/9/mavlink", _frame(9, 0)),                              # not in the swarm
-        Envelope(keys.mavlink(2), b"garbage"),                                     # not MAVLink
-        Envelope(keys.mavlink(2), _frame(2, 20_000, cov=np.zeros((6, 6)))),       # zero covariance, signed
-        Envelope(keys.mavlink(2), _frame(3, 20_000)),                              # vehicle 3's frame on 2's key
-        Envelope(keys.mavlink(2), _frame(2, 20_000, key_of=1)),                    # signed with vehicle 1's key
-        Envelope(keys.mavlink(2), _frame(2, 3_000_000_000)),                       # far future (sim time 0)
+        Envelope("swarm/v/x/mavlink", b"bytes"),
+        Envelope("swarm/v/\u00b2/mavlink", b"bytes"),
+        Envelope("swarm/v/9/mavlink", _frame(9, 0)),  # not in the swarm
+        Envelope(keys.mavlink(2), b"garbage"),  # not MAVLink
+        Envelope(keys.mavlink(2), _frame(2, 20_000, cov=np.zeros((6, 6)))),  # zero covariance, signed
+        Envelope(keys.mavlink(2), _frame(3, 20_000)),  # vehicle 3's frame on 2's key
+        Envelope(keys.mavlink(2), _frame(2, 20_000, key_of=1)),  # signed with vehicle 1's key
+        Envelope(keys.mavlink(2), _frame(2, 3_000_000_000)),  # far future (sim time 0)
         Envelope(keys.mavlink(2), MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, 20_000))),  # unsigned
-        Envelope(keys.status(2), m.encode(m.VehicleStatus(3, 0, 1, 0, 0.0, 0.0, 0, 0, 0, 0))),     # status as 3
-        Envelope(keys.status(1), b"\x00"), Envelope(keys.truth(), b"\x93"), Envelope(keys.clock(), b"x"),
-        Envelope(keys.end(), b"\x01\x02"), Oversized(keys.mavlink(1), 10**7),
-        LivelinessEvent("swarm/alive/vehicle/\u00b2", True), LivelinessEvent("swarm/alive/vehicle/77", True),
-        Request(keys.claim(), b"{not json", answers.append), Request(keys.fault_request(), b"\xff" * 40, answers.append),
+        Envelope(keys.status(2), m.encode(m.VehicleStatus(3, 0, 1, 0, 0.0, 0.0, 0, 0, 0, 0))),  # status as 3
+        Envelope(keys.status(1), b"\x00"),
+        Envelope(keys.truth(), b"\x93"),
+        Envelope(keys.clock(), b"x"),
+        Envelope(keys.end(), b"\x01\x02"),
+        Oversized(keys.mavlink(1), 10**7),
+        LivelinessEvent("swarm/alive/vehicle/\u00b2", True),
+        LivelinessEvent("swarm/alive/vehicle/77", True),
+        Request(keys.claim(), b"{not json", answers.append),
+        Request(keys.fault_request(), b"\xff" * 40, answers.append),
     ]
     for item in hostile:
         gs.handle(item)
@@ -67,8 +74,16 @@ def test_hostile_input_is_counted_by_reason_and_only_genuine_estimates_are_score
         gs.handle(Envelope(keys.mavlink(2), _frame(2, t)))  # the genuine stream, after all of that
     gs.scorer.release(float("inf"))
     assert counts_to_dict(gs.rejections.as_counts()) == {
-        "bad_key": 3, "unknown_vehicle": 2, "malformed": 7, "degenerate": 1, "impersonation": 2,
-        "bad_signature": 1, "stamp_out_of_range": 1, "unsigned": 1, "oversized": 1}
+        "bad_key": 3,
+        "unknown_vehicle": 2,
+        "malformed": 7,
+        "degenerate": 1,
+        "impersonation": 2,
+        "bad_signature": 1,
+        "stamp_out_of_range": 1,
+        "unsigned": 1,
+        "oversized": 1,
+    }
     assert gs.scorer.tallies[2].samples == 3 and set(gs.scorer.tallies) == {2}
     assert len(answers) == 2 and all(b'"ok":false' in a for a in answers)
     assert gs.ended is None  # garbage on the end key did not end the run

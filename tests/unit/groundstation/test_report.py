@@ -10,9 +10,10 @@ from scipy.special import chdtri
 
 from bus.config import SwarmConfig
 from bus.mavlink_codec import StateEstimate
+from bus.statistics import binned_rms
 from groundstation.report import ReportError, write_report
 from groundstation.report.rundata import load_run
-from groundstation.report.stats import binned_nees, binned_rmse, covariance_ellipse
+from groundstation.report.stats import binned_nees, covariance_ellipse
 from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
 from groundstation.summary import build_summary, build_timing
@@ -32,8 +33,9 @@ def _write_run(path: Path, rng: np.random.Generator, vehicles: int = 2, seconds:
             cov = np.diag([0.25, 0.16, 1e-4, 1e-4, 1e-4, 1e-3])
             cov[0, 1] = cov[1, 0] = 0.05
             err = rng.multivariate_normal(np.zeros(2), cov[:2, :2])
-            est = StateEstimate(vid, t_us, np.array([*(truth[:2] + err), -30.0]), truth[2], np.zeros(3), 0.0,
-                                cov, np.eye(6))
+            est = StateEstimate(
+                vid, t_us, np.array([*(truth[:2] + err), -30.0]), truth[2], np.zeros(3), 0.0, cov, np.eye(6)
+            )
             scorer.add_estimate(est)
         if k == 30:
             run.event("fault_added", t_us, **ZONE_EVENT)
@@ -102,7 +104,7 @@ def test_zones_come_from_fault_events(run_dir):
 
 def test_binned_rmse_of_known_errors():
     t = np.array([0.1, 0.2, 1.5, 1.7])
-    centres, rmse = binned_rmse(t, np.array([3.0, 4.0, 1.0, 1.0]), 1.0)
+    centres, rmse = binned_rms(t, np.array([3.0, 4.0, 1.0, 1.0]), 1.0)
     np.testing.assert_allclose(centres, [0.5, 1.5])
     np.testing.assert_allclose(rmse, [np.sqrt(12.5), 1.0])
 

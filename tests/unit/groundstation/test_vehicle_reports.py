@@ -38,9 +38,9 @@ def test_the_latest_status_and_map_of_each_vehicle_are_kept():
 
 def test_a_report_for_another_vehicle_or_outside_the_swarm_is_refused():
     reports = _reports()
-    reports.offer(1, _status(2))   # vehicle 1's key, vehicle 2's status
-    reports.offer(3, _map(1))      # vehicle 3's key, vehicle 1's map
-    reports.offer(7, _status(7))   # a swarm of 3
+    reports.offer(1, _status(2))  # vehicle 1's key, vehicle 2's status
+    reports.offer(3, _map(1))  # vehicle 3's key, vehicle 1's map
+    reports.offer(7, _status(7))  # a swarm of 3
     assert not reports.statuses and not reports.maps
     assert reports.rejections.counts == {"impersonation": 2, "unknown_vehicle": 1}
 
@@ -53,3 +53,16 @@ def test_any_bytes_are_kept_refused_or_a_decode_error(payload, vid):
     except DecodeError:
         pass
     assert set(reports.statuses) <= {1, 2, 3} and set(reports.maps) <= {1, 2, 3}
+
+
+def test_a_final_status_is_kept_whatever_order_the_statuses_arrive_in():
+    """The last periodic status and the final one of a vehicle share a stamp and a key; the summary
+    reads the final one's counts even if the periodic one is handled after it."""
+    periodic = m.encode(m.VehicleStatus(1, 60_000_000, 3000, 0, 0.0, 0.0, 0, 0, 0, 0))
+    final = m.encode(m.VehicleStatus(1, 60_000_000, 3001, 0, 0.0, 0.0, 0, 0, 0, 0, final=True))
+    earlier = m.encode(m.VehicleStatus(1, 59_000_000, 2951, 0, 0.0, 0.0, 0, 0, 0, 0))
+    for order in ((periodic, final), (final, periodic), (final, earlier, periodic)):
+        reports = _reports()
+        for payload in order:
+            reports.offer(1, payload)
+        assert reports.statuses[1].final and reports.statuses[1].cycles == 3001

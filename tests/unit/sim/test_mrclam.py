@@ -25,10 +25,21 @@ def _excerpt(folder: Path) -> Path:
     _write(folder, "Landmark_Groundtruth.dat", ["6 0.588 -4.282 0.00004 0.00027", "7 0.682 -4.446 0.00005 0.00026"])
     for robot in range(1, 6):
         start = T0 + robot * 0.01
-        _write(folder, f"Robot{robot}_Groundtruth.dat", [f"{start + k * 0.015:.3f} {robot}.0 {k * 0.01:.4f} 0.5" for k in range(4)])
+        _write(
+            folder,
+            f"Robot{robot}_Groundtruth.dat",
+            [f"{start + k * 0.015:.3f} {robot}.0 {k * 0.01:.4f} 0.5" for k in range(4)],
+        )
         _write(folder, f"Robot{robot}_Odometry.dat", [f"{start + k * 0.015:.3f}\t0.086\t-0.398" for k in range(3)])
-        _write(folder, f"Robot{robot}_Measurement.dat", [f"{start + 0.04:.3f} 63 3.787 -0.257", f"{start + 0.02:.3f} 14 6.758 -0.005",
-                                                         f"{start + 0.05:.3f} 90 6.600 -0.022"])
+        _write(
+            folder,
+            f"Robot{robot}_Measurement.dat",
+            [
+                f"{start + 0.04:.3f} 63 3.787 -0.257",
+                f"{start + 0.02:.3f} 14 6.758 -0.005",
+                f"{start + 0.05:.3f} 90 6.600 -0.022",
+            ],
+        )
     return folder
 
 
@@ -49,18 +60,30 @@ def test_the_archive_reads_like_the_directory(tmp_path):
     with tarfile.open(archive, "w:xz") as tar:
         tar.add(folder, arcname=folder.name)
     a, b = load_mrclam(folder), load_mrclam(archive)
-    assert a.start_s == b.start_s and all(np.array_equal(a.robots[r].sightings, b.robots[r].sightings) for r in a.robots)
+    assert a.start_s == b.start_s and all(
+        np.array_equal(a.robots[r].sightings, b.robots[r].sightings) for r in a.robots
+    )
 
 
-@pytest.mark.parametrize("damage, message", [
-    (lambda f: (f / "Robot3_Odometry.dat").unlink(), "Robot3_Odometry.dat is missing"),
-    (lambda f: _write(f, "Robot2_Measurement.dat", ["1248444175.1 14 abc 0.1"]),
-     "Robot2_Measurement.dat line 5: expected 4 numbers, got '1248444175.1 14 abc 0.1'"),
-    (lambda f: _write(f, "Robot4_Odometry.dat", ["1248444175.1 0.1"]), "Robot4_Odometry.dat line 5: expected 3 numbers"),
-    (lambda f: _write(f, "Robot1_Groundtruth.dat", ["1248444175.2 1 2 3", "1248444175.1 1 2 3"]),
-     "Robot1_Groundtruth.dat: time goes backwards at data row 2"),
-    (lambda f: _write(f, "Landmark_Groundtruth.dat", ["6 0.5 nan 0.1 0.1"]), "Landmark_Groundtruth.dat line 5"),
-])
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda f: (f / "Robot3_Odometry.dat").unlink(), "Robot3_Odometry.dat is missing"),
+        (
+            lambda f: _write(f, "Robot2_Measurement.dat", ["1248444175.1 14 abc 0.1"]),
+            "Robot2_Measurement.dat line 5: expected 4 numbers, got '1248444175.1 14 abc 0.1'",
+        ),
+        (
+            lambda f: _write(f, "Robot4_Odometry.dat", ["1248444175.1 0.1"]),
+            "Robot4_Odometry.dat line 5: expected 3 numbers",
+        ),
+        (
+            lambda f: _write(f, "Robot1_Groundtruth.dat", ["1248444175.2 1 2 3", "1248444175.1 1 2 3"]),
+            "Robot1_Groundtruth.dat: time goes backwards at data row 2",
+        ),
+        (lambda f: _write(f, "Landmark_Groundtruth.dat", ["6 0.5 nan 0.1 0.1"]), "Landmark_Groundtruth.dat line 5"),
+    ],
+)
 def test_every_malformed_case_is_one_clear_error(tmp_path, damage, message):
     folder = _excerpt(tmp_path / "set")
     damage(folder)

@@ -14,8 +14,13 @@ from tests.synthetic_mrclam import synthetic
 
 def _config(**replay) -> object:
     replay.setdefault("robots", [1, 2])
-    return build_config({"world": {"vehicles": len(replay["robots"])}, "clock": {"duration_s": 40.0, "tick_s": 0.02},
-                         "replay": {"dataset": "synthetic", "start_s": 100.0, "calibration_s": [0, 100], **replay}})
+    return build_config(
+        {
+            "world": {"vehicles": len(replay["robots"])},
+            "clock": {"duration_s": 40.0, "tick_s": 0.02},
+            "replay": {"dataset": "synthetic", "start_s": 100.0, "calibration_s": [0, 100], **replay},
+        }
+    )
 
 
 def test_odometry_in_force_at_the_start_is_stamped_zero_and_repeated_stamps_keep_the_first():
@@ -35,7 +40,9 @@ def test_sightings_split_into_landmarks_and_replayed_robots():
     assert np.allclose(peers[0, 3:], cov.ravel()) and np.allclose(landmark[:, 3:], cov.ravel())
     # calibrated cameras: the range sigma is per metre of the range read
     (_, landmark), (_, peers), _ = sighting_rows(sightings, 10.0, 11.0, {1: 1, 2: 2}, (0.04, 0.02), True)
-    assert np.allclose(landmark[:, 3], (0.04 * np.array([3.0, 1.0])) ** 2) and np.allclose(peers[:, 3], (0.04 * 4.0) ** 2)
+    assert np.allclose(landmark[:, 3], (0.04 * np.array([3.0, 1.0])) ** 2) and np.allclose(
+        peers[:, 3], (0.04 * 4.0) ** 2
+    )
     assert np.allclose(landmark[:, 6], 0.02**2)
 
 
@@ -64,9 +71,16 @@ def test_the_world_replays_every_row_once_in_ticks_that_decode():
 
 def test_withheld_landmarks_and_blackouts_send_nothing():
     data = synthetic(np.random.default_rng(2), duration_s=140.0)
-    config = _config(withhold_landmarks=[2]).model_copy(update={"faults": build_config({
-        "world": {"vehicles": 2}, "faults": [{"kind": "blackout", "vehicle": 1, "sensor": "odom", "start_s": 10.0,
-                                               "for_s": 5.0}]}).faults})
+    config = _config(withhold_landmarks=[2]).model_copy(
+        update={
+            "faults": build_config(
+                {
+                    "world": {"vehicles": 2},
+                    "faults": [{"kind": "blackout", "vehicle": 1, "sensor": "odom", "start_s": 10.0, "for_s": 5.0}],
+                }
+            ).faults
+        }
+    )
     world = ReplayWorld(config, data)
     out = world.advance(40_000_000)
     assert "landmark" not in out.blocks(2) and len(out.blocks(1)["landmark"][0]) > 20
@@ -95,7 +109,9 @@ def test_each_robot_sighting_is_relayed_to_the_robot_seen_unless_it_was_lost():
     assert np.all(seen[:, 0] == 2) and np.all(sighted[:, 0] == 1) and np.array_equal(seen[:, 1:], sighted[:, 1:])
     start_us = int(seen_stamps[0])  # a blackout over the first 2 s of sightings
     blackout = {"kind": "blackout", "vehicle": 2, "sensor": "ranging", "start_s": start_us * 1e-6, "for_s": 2.0}
-    config = _config().model_copy(update={"faults": build_config({"world": {"vehicles": 2}, "faults": [blackout]}).faults})
+    config = _config().model_copy(
+        update={"faults": build_config({"world": {"vehicles": 2}, "faults": [blackout]}).faults}
+    )
     stamps, _ = _rows_over(ReplayWorld(config, data), 1, "seen", 40.0)
     inside = (seen_stamps >= start_us) & (seen_stamps <= start_us + 2_000_000)
     assert inside.sum() >= 3 and np.array_equal(stamps, seen_stamps[~inside])
@@ -114,22 +130,34 @@ def test_truth_is_nan_where_vicon_lost_the_robot():
     assert np.all(np.isnan(out.truth[gap, 0])) and np.all(np.isfinite(out.truth[~gap, 0]))
     assert np.all(np.isfinite(out.truth[:, 1]))  # robot 2 was seen all along
     inside = np.flatnonzero(gap)[:40]  # a tick's worth of truth with the gap in it crosses the bus
-    batch = feed.TruthBatch(1, int(out.truth_stamps[inside[-1]]), out.truth_stamps[inside], np.array([1, 2]),
-                            out.truth[inside])
+    batch = feed.TruthBatch(
+        1, int(out.truth_stamps[inside[-1]]), out.truth_stamps[inside], np.array([1, 2]), out.truth[inside]
+    )
     decoded = feed.decode_truth(feed.encode_truth(batch))
     assert np.all(np.isnan(decoded.rows[:, 0])) and np.all(np.isfinite(decoded.rows[:, 1]))
 
 
 def test_calibration_recovers_the_noise_a_data_set_was_made_with():
-    data = synthetic(np.random.default_rng(4), robots=3, duration_s=300.0, lag_s=0.2, speed_sigma=0.05,
-                     rate_sigma=0.1, range_sigma=0.0, range_sigma_per_m=0.04, bearing_sigma=0.02)
+    data = synthetic(
+        np.random.default_rng(4),
+        robots=3,
+        duration_s=300.0,
+        lag_s=0.2,
+        speed_sigma=0.05,
+        rate_sigma=0.1,
+        range_sigma=0.0,
+        range_sigma_per_m=0.04,
+        bearing_sigma=0.02,
+    )
     cal = calibrate(data, (0.0, 300.0), (1, 2, 3))
     assert cal.odom_lag_s == pytest.approx(0.2, abs=0.021)
     # with a speed that hardly changes, time and distance travelled cannot be told apart: what counts is the
     # error variance the fitted model gives a 5 s window (1 m, 0.95 rad turned) against the one made
     along = cal.odom_speed_sigma_mps**2 * 0.015 * 5 + cal.odom_travel_sigma_m**2 * 1.0
     heading = cal.odom_yaw_rate_sigma_radps**2 * 0.015 * 5 + cal.odom_turn_sigma_rad**2 * 0.95
-    assert along == pytest.approx(0.05**2 * 0.015 * 5, rel=0.3) and heading == pytest.approx(0.1**2 * 0.015 * 5, rel=0.3)
+    assert along == pytest.approx(0.05**2 * 0.015 * 5, rel=0.3) and heading == pytest.approx(
+        0.1**2 * 0.015 * 5, rel=0.3
+    )
     assert cal.bearing_sigma_rad == pytest.approx(0.02, rel=0.15)
     per_robot = sighting_sigmas(data, (0.0, 300.0), (1, 2, 3))
     assert all(r == pytest.approx(0.04, rel=0.2) and b == pytest.approx(0.02, rel=0.2) for r, b in per_robot)
@@ -150,8 +178,16 @@ def test_calibration_finds_the_camera_latency_and_the_replay_stamps_sightings_wh
 
 
 def test_calibration_finds_range_error_that_persists():
-    data = synthetic(np.random.default_rng(8), robots=3, duration_s=300.0, range_sigma=0.0, range_sigma_per_m=0.015,
-                     range_correlated_per_m=0.04, range_correlation_s=3.0, sighting_rate_hz=6.0)
+    data = synthetic(
+        np.random.default_rng(8),
+        robots=3,
+        duration_s=300.0,
+        range_sigma=0.0,
+        range_sigma_per_m=0.015,
+        range_correlated_per_m=0.04,
+        range_correlation_s=3.0,
+        sighting_rate_hz=6.0,
+    )
     cal = calibrate(data, (0.0, 300.0), (1, 2, 3))
     assert cal.range_correlated_sigma_per_m == pytest.approx(0.04, rel=0.25)
     # the correlation time is the coarser estimate (seeds 8-10 give 6.2, 2.0, 3.1 s for 3 s): within 2.5x
@@ -159,8 +195,15 @@ def test_calibration_finds_range_error_that_persists():
 
 
 def test_calibration_finds_bearing_error_that_persists():
-    data = synthetic(np.random.default_rng(8), robots=3, duration_s=300.0, bearing_sigma=0.01, sighting_rate_hz=6.0,
-                     bearing_correlated_fraction=0.5, bearing_correlation_s=3.0)
+    data = synthetic(
+        np.random.default_rng(8),
+        robots=3,
+        duration_s=300.0,
+        bearing_sigma=0.01,
+        sighting_rate_hz=6.0,
+        bearing_correlated_fraction=0.5,
+        bearing_correlation_s=3.0,
+    )
     cal = calibrate(data, (0.0, 300.0), (1, 2, 3))
     assert cal.bearing_correlated_fraction == pytest.approx(0.5, rel=0.25)
     assert 3.0 / 2.5 <= cal.bearing_correlation_s <= 3.0 * 2.5
@@ -169,8 +212,15 @@ def test_calibration_finds_bearing_error_that_persists():
 
 
 def test_calibration_finds_heading_error_that_grows_with_the_turns():
-    data = synthetic(np.random.default_rng(6), robots=3, duration_s=400.0, lag_s=0.2, speed_sigma=0.02,
-                     rate_sigma=0.02, turn_sigma=0.1)
+    data = synthetic(
+        np.random.default_rng(6),
+        robots=3,
+        duration_s=400.0,
+        lag_s=0.2,
+        speed_sigma=0.02,
+        rate_sigma=0.02,
+        turn_sigma=0.1,
+    )
     assert calibrate(data, (0.0, 400.0), (1, 2, 3)).odom_turn_sigma_rad == pytest.approx(0.1, rel=0.2)
 
 

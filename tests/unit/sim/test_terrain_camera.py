@@ -57,10 +57,10 @@ def test_thinning_keeps_the_strongest_keypoint_per_cell(terrain):
     kept = thin(features, cell_px=30)
     assert 0 < len(kept.responses) < len(features.responses)
     cells = [tuple(c) for c in (kept.points_px // 30).astype(int)]
-    assert len(cells) == len(set(cells))                                  # one per cell
+    assert len(cells) == len(set(cells))  # one per cell
     for point, response in zip(kept.points_px, kept.responses):
         same = np.all((features.points_px // 30).astype(int) == (point // 30).astype(int), axis=1)
-        assert response == features.responses[same].max()                 # the strongest of its cell
+        assert response == features.responses[same].max()  # the strongest of its cell
     assert len(detect(np.zeros((80, 80), np.uint8), make_detector("orb")).responses) == 0
 
 

@@ -9,8 +9,9 @@ from sim.world import World
 
 
 def _world(seconds: float, **truth) -> tuple[World, list]:
-    world = World(build_config({"world": {"vehicles": 2, "seed": 7, "trajectories": ["waypoints"],
-                                          "sensor_truth": truth}}))
+    world = World(
+        build_config({"world": {"vehicles": 2, "seed": 7, "trajectories": ["waypoints"], "sensor_truth": truth}})
+    )
     return world, [world.advance(round(t * 1e6)) for t in np.arange(1.0, seconds + 1.0)]
 
 

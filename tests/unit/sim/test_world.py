@@ -4,10 +4,10 @@ import numpy as np
 
 from bus import feed
 from bus.config import build_config
+from experiments.harness import samples_of
 from sim import kinematics
 from sim.kinematics import unicycle_arcs
 from sim.world import World
-from tests.offline import samples_of
 
 
 def test_exact_arc_matches_fine_euler_integration():
@@ -57,8 +57,10 @@ def test_same_seed_same_bytes_other_seed_other_noise():
 
 def test_the_tick_length_changes_nothing_the_world_measures():
     cfg = build_config({"world": {"vehicles": 3, "seed": 7}})
-    per_tick = {step: [msg for v in (1, 2, 3) for msg in _samples_by_ticks(World(cfg), 3_000_000, step, v)]
-                for step in (20_000, 100_000, 1_000_000)}
+    per_tick = {
+        step: [msg for v in (1, 2, 3) for msg in _samples_by_ticks(World(cfg), 3_000_000, step, v)]
+        for step in (20_000, 100_000, 1_000_000)
+    }
     reference = per_tick[20_000]
     for step, samples in per_tick.items():
         assert len(samples) == len(reference)
@@ -100,7 +102,9 @@ def test_listeners_are_exactly_the_vehicles_that_ranged_each_one():
     pairs = {(observer, int(row[2][0])) for observer, topics in out.rows.items() for row in topics["ranging"]}
     listeners = out.listeners()
     assert {(observer, target) for target, observers in listeners.items() for observer in observers} == pairs
-    assert all(list(observers) == sorted(observers) and target not in observers for target, observers in listeners.items())
+    assert all(
+        list(observers) == sorted(observers) and target not in observers for target, observers in listeners.items()
+    )
     quiet = World(build_config({"world": {"vehicles": 9, "seed": 2}}))
     quiet.advance(100_000)
     assert quiet.advance(150_000).listeners() == {}  # no ranging epoch in (100, 150] ms
@@ -126,7 +130,14 @@ def test_blackout_silences_one_feed_and_nothing_else():
 
 
 def test_spoofed_fixes_drift_at_the_set_rate_and_jammed_ones_vanish():
-    spoof = {"kind": "spoof-gnss", "center_m": [0, 0], "radius_m": 1e5, "drift_mps": 2.0, "heading_deg": 90, "start_s": 1.0}
+    spoof = {
+        "kind": "spoof-gnss",
+        "center_m": [0, 0],
+        "radius_m": 1e5,
+        "drift_mps": 2.0,
+        "heading_deg": 90,
+        "start_s": 1.0,
+    }
     jam = {"kind": "jam-gnss", "center_m": [0, 0], "radius_m": 1e5, "start_s": 4.0}
     cfg = {"world": {"vehicles": 1, "seed": 3}}
 

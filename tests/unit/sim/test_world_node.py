@@ -21,14 +21,23 @@ def test_hostile_acks_tokens_and_plans_are_counted_and_never_count_for_anyone():
     keys = node.bus.keys
     for vid in (1, 2, 3):
         node._handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
-    for item in (LivelinessEvent("swarm/alive/vehicle/\u00b2", True), LivelinessEvent("swarm/alive/vehicle/0", True),
-                 Envelope("swarm/ctl/ack/x", b"1"), Envelope(keys.ack(2), b"garbage"),
-                 Envelope(keys.ack(2), m.encode(m.TickAck(1, 0))),      # vehicle 2 acking for vehicle 1
-                 Envelope(keys.ack(9), m.encode(m.TickAck(9, 0))),      # not in the swarm
-                 Envelope(keys.fault_plan(), b"{}"), Envelope(keys.ack("gs"), b"junk")):
+    for item in (
+        LivelinessEvent("swarm/alive/vehicle/\u00b2", True),
+        LivelinessEvent("swarm/alive/vehicle/0", True),
+        Envelope("swarm/ctl/ack/x", b"1"),
+        Envelope(keys.ack(2), b"garbage"),
+        Envelope(keys.ack(2), m.encode(m.TickAck(1, 0))),  # vehicle 2 acking for vehicle 1
+        Envelope(keys.ack(9), m.encode(m.TickAck(9, 0))),  # not in the swarm
+        Envelope(keys.fault_plan(), b"{}"),
+        Envelope(keys.ack("gs"), b"junk"),
+    ):
         node._handle(item, 0)
     assert counts_to_dict(node.rejections.as_counts()) == {
-        "bad_key": 3, "malformed": 3, "impersonation": 1, "unknown_vehicle": 1}
+        "bad_key": 3,
+        "malformed": 3,
+        "impersonation": 1,
+        "unknown_vehicle": 1,
+    }
     assert node.members.alive == {1, 2, 3} and node.members.acked == set()
     node._handle(Envelope(keys.ack(1), m.encode(m.TickAck(1, 0, 4))), 0)
     assert node.members.acked == {1} and node.members.v2v_published(3) == (4, 0, 0)
@@ -62,9 +71,11 @@ def test_a_vehicle_that_leaves_before_its_final_ack_arrives_still_completed_the_
     finishing = set(node.members.alive)
     node.members.acked = set()
     for vid in (1, 2, 3):
-        node.mailbox.lanes[0].put(LivelinessEvent(keys.alive("vehicle", vid), False))   # gone first
-    late = threading.Timer(0.3, lambda: [node.mailbox.lanes[1].put(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 7))))
-                                         for vid in (1, 2, 3)])                          # the acks after
+        node.mailbox.lanes[0].put(LivelinessEvent(keys.alive("vehicle", vid), False))  # gone first
+    late = threading.Timer(
+        0.3,
+        lambda: [node.mailbox.lanes[1].put(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 7)))) for vid in (1, 2, 3)],
+    )  # the acks after
     late.start()
     node.await_final_acks(7, finishing, threading.Event(), timeout_s=5.0)
     late.join()
@@ -79,14 +90,14 @@ def test_a_restarted_vehicle_that_acks_an_older_tick_is_waited_for_until_it_catc
     keys = node.bus.keys
     for vid in (1, 2, 3):
         node._handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
-    node._handle(LivelinessEvent(keys.alive("vehicle", 2), False), None)   # killed
-    node._handle(LivelinessEvent(keys.alive("vehicle", 2), True), None)    # restarted
+    node._handle(LivelinessEvent(keys.alive("vehicle", 2), False), None)  # killed
+    node._handle(LivelinessEvent(keys.alive("vehicle", 2), True), None)  # restarted
     assert node.members.alive == {1, 3} and node.members.joining == {2}
     node.members.acked = set()
-    node._handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 29))), 31)    # behind: tick 29 while the world is at 31
+    node._handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 29))), 31)  # behind: tick 29 while the world is at 31
     assert node.members.alive == {1, 2, 3} and node.members.acked == set()
     for vid in (1, 3):
         node._handle(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 31))), 31)
-    assert not node.members.alive <= node.members.acked                    # the clock waits for vehicle 2
+    assert not node.members.alive <= node.members.acked  # the clock waits for vehicle 2
     node._handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 31))), 31)
     assert node.members.alive <= node.members.acked

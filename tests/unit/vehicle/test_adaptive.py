@@ -5,13 +5,13 @@ the real noise and its NEES comes back near its expected value."""
 import numpy as np
 import pytest
 
-from tests.offline import nees_series_of_filters
+from experiments.harness import nees_series_of_filters
 from vehicle.adaptive import CEILING, FLOOR, InnovationWindow
 
 pytestmark = pytest.mark.monte_carlo
 
 
-RUNS, DURATION_S, FROM_S = 40, 60.0, 30   # scored once the early over-confidence has worn off
+RUNS, DURATION_S, FROM_S = 40, 60.0, 30  # scored once the early over-confidence has worn off
 TRUE_FACTOR = 3.0
 NOMINAL_VAR = 1.5**2
 
@@ -26,7 +26,7 @@ def test_the_window_estimates_the_noise_and_stays_within_the_datasheet_bounds():
     small = InnovationWindow(5)  # usable after 5
     assert small.covariance(nominal) is nominal  # not usable yet: the datasheet
     for _ in range(5):
-        small.add(np.zeros(2), np.eye(2))          # innovations smaller than predicted: R_hat < 0
+        small.add(np.zeros(2), np.eye(2))  # innovations smaller than predicted: R_hat < 0
     assert np.allclose(np.linalg.eigvalsh(small.covariance(nominal)), FLOOR)
     for _ in range(5):
         small.add(np.array([1e3, 0.0]), np.zeros((2, 2)))
@@ -38,10 +38,14 @@ def _monte_carlo() -> tuple[np.ndarray, np.ndarray, list]:
     both on each run's world, and the IAE filters at the end."""
     told, adapted, filters = [], [], []
     for seed in range(RUNS):
-        runs = nees_series_of_filters(seed, [{"adaptive_window": 0}, {"adaptive_window": 40}], duration_s=DURATION_S,
-                                      trajectory=("circle", "figure8", "waypoints")[seed % 3],
-                                      world={"sensor_truth": {"gnss_sigma_factor": TRUE_FACTOR}},
-                                      estimators_out=filters)
+        runs = nees_series_of_filters(
+            seed,
+            [{"adaptive_window": 0}, {"adaptive_window": 40}],
+            duration_s=DURATION_S,
+            trajectory=("circle", "figure8", "waypoints")[seed % 3],
+            world={"sensor_truth": {"gnss_sigma_factor": TRUE_FACTOR}},
+            estimators_out=filters,
+        )
         told.append(runs[0][0][FROM_S:])
         adapted.append(runs[1][0][FROM_S:])
     return np.array(told), np.array(adapted), filters[1::2]

@@ -6,9 +6,9 @@ import numpy as np
 from scipy.stats import chi2
 
 from bus.config import build_config
+from experiments.harness import samples_of
 from sim.world import World
-from tests.offline import samples_of
-from vehicle.estimators.ekf import UnicycleEkf
+from vehicle.estimators import ekf
 
 RUNS = 16
 PERIOD_US = 20_000
@@ -16,16 +16,18 @@ PERIOD_US = 20_000
 
 def _restart(seed: int) -> tuple[list[float], list[float]]:
     """NEES and position error every second, from 2 s after alignment, of a filter started at ~7 s."""
-    config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": [["circle", "figure8", "waypoints"][seed % 3]]}})
+    config = build_config(
+        {"world": {"vehicles": 1, "seed": seed, "trajectories": [["circle", "figure8", "waypoints"][seed % 3]]}}
+    )
     samples, truth = samples_of(World(config), 18_000_000)
     truth_at = {int(s): truth.rows[k, 0, :3] for k, s in enumerate(truth.stamps_us)}
-    est = UnicycleEkf(vehicle_id=1, spec=config.sensors, gate_probability=0.9995, altitude_m=30.0)
+    est = ekf.build(vehicle_id=1, spec=config.sensors, gate_probability=0.9995)
     start_us, aligned_us, nees, errors = 7_000_000 + 40_000 * seed, None, [], []
     samples = [(t, msg) for t, msg in samples if t not in ("prior", "ranging") and msg.stamp_us >= start_us]
     i = 0
     for t in range(start_us, 18_000_001, PERIOD_US):
         while i < len(samples) and samples[i][1].stamp_us <= t:
-            est.handle(*samples[i])
+            est.handle(samples[i][1])
             i += 1
         est.cycle(t)
         if est.initialized and aligned_us is None:

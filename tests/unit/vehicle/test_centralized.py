@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from bus.config import HONEST_DATASHEET, HONEST_WORLD, build_config
-from groundstation.centralized_reference import run_centralized
-from tests.offline import pose_nees_series
+from experiments.centralized_reference import run_centralized
+from experiments.harness import pose_nees_series
 
 pytestmark = pytest.mark.monte_carlo
 
@@ -17,11 +17,17 @@ def test_without_ranging_it_is_each_vehicles_own_ekf(datasheet):
     """Vehicle 1 of a 1-vehicle world: the joint filter and the vehicle EKF, fed the same samples
     (also with the GNSS error states, in the honest world that needs them)."""
     world = {"sensor_truth": HONEST_WORLD} if datasheet else {}
-    config = build_config({"world": {"vehicles": 1, "seed": 4, "trajectories": ["waypoints"], **world},
-                           "clock": {"duration_s": 20}, "sensors": {"ranging_max_m": 0.0, **datasheet}})
+    config = build_config(
+        {
+            "world": {"vehicles": 1, "seed": 4, "trajectories": ["waypoints"], **world},
+            "clock": {"duration_s": 20},
+            "sensors": {"ranging_max_m": 0.0, **datasheet},
+        }
+    )
     central = run_centralized(config, score_every_us=1_000_000)[1]
-    nees, errors = pose_nees_series(4, duration_s=20.0, trajectory="waypoints", world=world or None,
-                                    estimator_spec=config.sensors)
+    nees, errors = pose_nees_series(
+        4, duration_s=20.0, trajectory="waypoints", world=world or None, estimator_spec=config.sensors
+    )
     np.testing.assert_allclose(central["error_m"], errors, atol=1e-9)
     np.testing.assert_allclose(central["nees"], nees, rtol=1e-6)
 

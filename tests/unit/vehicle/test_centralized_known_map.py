@@ -6,11 +6,18 @@ over seeded runs, and a robot that sees no landmark is kept on the map by being 
 import numpy as np
 import pytest
 
-from groundstation.centralized_reference import run_centralized
+from experiments.centralized_reference import run_centralized
+from experiments.harness import replay_in_memory
 from sim.replay import ReplayWorld
-from tests.offline import replay_in_memory
 from tests.synthetic_mrclam import PERSISTING_SENSORS, PERSISTING_SIGHTING_SIGMAS, replay_config, synthetic
 from tests.unit.vehicle.test_known_map import _lost_start, _WrongPrior
+from vehicle.estimators import known_map
+
+
+def _wrong_prior_blocks(**arguments):
+    """The centralized reference's blocks, each a known-map filter with the wrong launch prior."""
+    return _WrongPrior(known_map.build(**arguments))
+
 
 pytestmark = pytest.mark.monte_carlo
 
@@ -21,16 +28,26 @@ RUNS = 12
 def test_without_robot_sightings_it_is_each_robots_own_known_map_filter():
     """Persisting errors modelled (scale and range-error states come and go) and robot 1 starting
     lost (it re-localizes): the joint filter's tracks are the separate filters' tracks."""
-    data = synthetic(np.random.default_rng(11), robots=2, duration_s=101.0, range_sigma=0.0, range_sigma_per_m=0.015,
-                     range_correlated_per_m=0.04, range_correlation_s=3.0, odom_scale=(0.06, -0.08))
-    config = replay_config("known-map", 0, PERSISTING_SENSORS, robots=2, sighting_sigmas=[PERSISTING_SIGHTING_SIGMAS] * 2)
-    alone = {vid: _lost_start(config) for vid in (1, 2)}
-    for vid, estimator in alone.items():
-        estimator.vehicle_id = vid
+    data = synthetic(
+        np.random.default_rng(11),
+        robots=2,
+        duration_s=101.0,
+        range_sigma=0.0,
+        range_sigma_per_m=0.015,
+        range_correlated_per_m=0.04,
+        range_correlation_s=3.0,
+        odom_scale=(0.06, -0.08),
+    )
+    config = replay_config(
+        "known-map", 0, PERSISTING_SENSORS, robots=2, sighting_sigmas=[PERSISTING_SIGHTING_SIGMAS] * 2
+    )
+    alone = {vid: _lost_start(config, vid) for vid in (1, 2)}
     rows = replay_in_memory(config, data, estimators=alone)
-    central = run_centralized(config, score_every_us=1_000_000, world=ReplayWorld(config, data), estimator=_WrongPrior)
+    central = run_centralized(
+        config, score_every_us=1_000_000, world=ReplayWorld(config, data), estimator=_wrong_prior_blocks
+    )
     assert all(e.counters.resets >= 1 for e in alone.values())
-    assert max(e.state_dim for e in alone.values()) > 7  # range-error states were added
+    assert max(len(e.x) for e in alone.values()) > 7  # range-error states were added
     for vid in (1, 2):
         np.testing.assert_allclose(central[vid]["error_m"], rows[vid][:, 1], atol=1e-9)
         np.testing.assert_allclose(central[vid]["nees"], rows[vid][:, 2], rtol=1e-6)
@@ -41,8 +58,10 @@ def _with_robot_sightings(seed: int) -> tuple[dict, dict]:
     and the separate known-map filters' rows."""
     data = synthetic(np.random.default_rng(300 + seed), robots=2, duration_s=101.0, robot_sighting_rate_hz=2.0)
     config = replay_config("known-map", seed, robots=2, withhold_landmarks=[2])
-    return (run_centralized(config, score_every_us=1_000_000, world=ReplayWorld(config, data)),
-            replay_in_memory(config, data))
+    return (
+        run_centralized(config, score_every_us=1_000_000, world=ReplayWorld(config, data)),
+        replay_in_memory(config, data),
+    )
 
 
 def test_with_robot_sightings_it_is_consistent_and_keeps_a_blind_robot_on_the_map():

@@ -9,10 +9,17 @@ import pytest
 from scipy.stats import chi2
 
 from bus.config import build_config
-from tests.offline import swarm_in_memory
-from vehicle.cooperative import (WEIGHT_GRID, CooperativeFix, CooperativeRule, SeenFix, cooperative_update,
-                                  relative_model, with_persisting_errors)
-from vehicle.ekf_slam_core import apply_correction_in_place
+from experiments.harness import swarm_in_memory
+from vehicle.models.cooperative import (
+    WEIGHT_GRID,
+    CooperativeFix,
+    CooperativeRule,
+    SeenFix,
+    cooperative_update,
+    relative_model,
+    with_persisting_errors,
+)
+from vehicle.models.landmarks import apply_correction_in_place
 
 pytestmark = pytest.mark.monte_carlo
 
@@ -62,12 +69,14 @@ def test_the_weight_maximises_the_fused_information_and_one_means_do_not_fuse(fu
         L = rng.normal(size=(2, 2)) * rng.uniform(0.01, 3.0, size=2)
         M = L @ L.T + 1e-6 * np.eye(2)
         R, S = np.diag([rng.uniform(0.01, 1.0), rng.uniform(1e-4, 1e-2)]), np.diag(rng.uniform(0, 4, 2))
+
         def information(w):
             own = w * np.linalg.inv(M)
             if w == 1.0:
                 return own
             fix = np.linalg.inv(R + S / (1 - w)) if fusion == "split-ci" else (1 - w) * np.linalg.inv(R + S)
             return own + fix
+
         scores = [np.linalg.det(information(w)) for w in WEIGHT_GRID]
         w = rule.choose_weight(M, R, S)
         chose_one += w == 1.0
@@ -106,7 +115,7 @@ def test_split_ci_keeps_the_radio_noise_whole_and_fuses_tighter_than_plain_ci():
     assert np.linalg.det(P_split[:3, :3]) < np.linalg.det(P_plain[:3, :3]) < np.linalg.det(P[:3, :3])
 
 
-OBSERVER = np.array([30.0, 10.0, -2.5])       # the neighbour that sights us: x m, y m, heading rad
+OBSERVER = np.array([30.0, 10.0, -2.5])  # the neighbour that sights us: x m, y m, heading rad
 OBSERVER_P = np.diag([0.2, 0.2, 2e-4])
 
 
@@ -128,15 +137,17 @@ def test_a_relayed_sighting_linearizes_its_own_model():
     fix = _seen_fix(x[:3], OBSERVER)
     y, H, R_sym, S = fix.linearized(x)
     step = 1e-6
-    numeric = np.column_stack([(fix.predicted(x[:3] + step * e) - fix.predicted(x[:3] - step * e)) / (2 * step)
-                               for e in np.eye(3)])
+    numeric = np.column_stack(
+        [(fix.predicted(x[:3] + step * e) - fix.predicted(x[:3] - step * e)) / (2 * step) for e in np.eye(3)]
+    )
     assert np.allclose(H, numeric, atol=1e-7) and np.allclose(y, 0.0, atol=1e-12)
 
     def seen_from(observer: np.ndarray) -> np.ndarray:
         return SeenFix(1, 0, 0, 2, 0.0, 0.0, R, observer, OBSERVER_P).predicted(x[:3])
 
-    H_o = np.column_stack([(seen_from(OBSERVER + step * e) - seen_from(OBSERVER - step * e)) / (2 * step)
-                           for e in np.eye(3)])
+    H_o = np.column_stack(
+        [(seen_from(OBSERVER + step * e) - seen_from(OBSERVER - step * e)) / (2 * step) for e in np.eye(3)]
+    )
     S_expected = H_o @ OBSERVER_P @ H_o.T
     assert np.allclose([S_expected[0, 0], S_expected[0, 1], S_expected[1, 1]], S, rtol=1e-6)
     assert np.allclose([R_sym[0], R_sym[2]], np.diag(R))
@@ -151,10 +162,18 @@ def test_persisting_errors_enter_a_sighting_as_states(relayed):
     over [x, y, theta, s, b, k] is its derivative, R keeps its white part, and cov(x, z) runs through
     the error states."""
     x = np.array([2.0, -1.0, 0.7, 0.0, 0.03, -0.01, 0.02])  # pose, gyro bias, s, b, k
-    fix = _seen_fix(x[:3], OBSERVER) if relayed else \
-        CooperativeFix(1, 0, 0, 2, 5.0, 0.2, R, NEIGHBOUR, np.diag([0.04, 0.04]))
-    errors = {"range_state": 4, "range_sigma_per_m": 0.03, "bearing_state": 5, "bearing_var": 0.5 * R[1, 1],
-              "scale_state": 6}
+    fix = (
+        _seen_fix(x[:3], OBSERVER)
+        if relayed
+        else CooperativeFix(1, 0, 0, 2, 5.0, 0.2, R, NEIGHBOUR, np.diag([0.04, 0.04]))
+    )
+    errors = {
+        "range_state": 4,
+        "range_sigma_per_m": 0.03,
+        "bearing_state": 5,
+        "bearing_var": 0.5 * R[1, 1],
+        "scale_state": 6,
+    }
     y, H, R_white, idx = with_persisting_errors(x, fix, *fix.linearized(x)[:2], fix.linearized(x)[2], errors)
     assert idx == [0, 1, 2, 4, 5, 6]
 
@@ -171,8 +190,9 @@ def test_persisting_errors_enter_a_sighting_as_states(relayed):
     assert np.allclose(R_white, (max(R[0, 0] - (0.03 * r) ** 2, 0.1 * R[0, 0]), 0.0, 0.5 * R[1, 1]))  # white floor
     P_full = np.diag([0.5, 0.5, 0.01, 1e-6, 0.03**2, 0.5 * R[1, 1], 0.05**2])
     _, M, C, _, _, cov_xz = CooperativeRule().measurement(x, P_full, fix, False, errors)
-    assert np.allclose(cov_xz, P_full[:, idx] @ H.T) and np.allclose(M, (lambda A: (A[0, 0], A[0, 1], A[1, 1]))(
-        H @ P_full[np.ix_(idx, idx)] @ H.T))
+    assert np.allclose(cov_xz, P_full[:, idx] @ H.T) and np.allclose(
+        M, (lambda A: (A[0, 0], A[0, 1], A[1, 1]))(H @ P_full[np.ix_(idx, idx)] @ H.T)
+    )
 
 
 def _seen_anees(shared: bool, rule: CooperativeRule, seed: int = 2) -> float:
@@ -238,8 +258,14 @@ def _jammed_vehicle_rmse(cooperative: bool, comms_jammed: bool) -> tuple[float, 
         faults.append({"kind": "jam-comms", "center_m": [0.0, 0.0], "radius_m": 40.0, "start_s": 8.0})
     errors, nees = [], []
     for seed in SEEDS:
-        config = build_config({"world": {"vehicles": 3, "seed": seed}, "clock": {"duration_s": 24},
-                               "vehicle": {"cooperative": cooperative}, "faults": faults})
+        config = build_config(
+            {
+                "world": {"vehicles": 3, "seed": seed},
+                "clock": {"duration_s": 24},
+                "vehicle": {"cooperative": cooperative},
+                "faults": faults,
+            }
+        )
         runs = swarm_in_memory(config)
         errors.append(runs[1]["error_m"][runs[1]["t_s"] >= 8.0])
         nees += [r["nees"] for r in runs.values()]

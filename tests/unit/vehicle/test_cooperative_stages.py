@@ -18,14 +18,20 @@ import pytest
 from scipy.stats import chi2
 
 from bus.config import build_config
-from groundstation.centralized_reference import run_centralized
-from tests.offline import swarm_in_memory
+from experiments.centralized_reference import run_centralized
+from experiments.harness import swarm_in_memory
 
 pytestmark = pytest.mark.monte_carlo
 
 
 JAM_ALL = {"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 1000.0, "start_s": 5.0}
-V2V_DELAY = {"kind": "delay", "topic": "mavlink", "dst": "v*", "delay_s": 0.15, "jitter_s": 0.1}  # neighbours' broadcasts
+V2V_DELAY = {
+    "kind": "delay",
+    "topic": "mavlink",
+    "dst": "v*",
+    "delay_s": 0.15,
+    "jitter_s": 0.1,
+}  # neighbours' broadcasts
 
 
 def _rmse(errors: list[np.ndarray]) -> float:
@@ -38,8 +44,14 @@ def test_stage_3_ranging_to_a_vehicle_with_gnss_brings_the_other_down():
     errors = {True: [], False: []}
     for cooperative in (True, False):
         for seed in (1, 2, 3):
-            config = build_config({"world": {"vehicles": 2, "seed": seed}, "clock": {"duration_s": 30},
-                                   "vehicle": {"cooperative": cooperative}, "faults": [jam_one]})
+            config = build_config(
+                {
+                    "world": {"vehicles": 2, "seed": seed},
+                    "clock": {"duration_s": 30},
+                    "vehicle": {"cooperative": cooperative},
+                    "faults": [jam_one],
+                }
+            )
             run = swarm_in_memory(config, sample_every_us=500_000)[1]
             errors[cooperative].append(run["error_m"][run["t_s"] >= 10.0])
     alone, helped = _rmse(errors[False]), _rmse(errors[True])
@@ -50,7 +62,9 @@ def _centralized_stage_4() -> tuple[float, np.ndarray]:
     """The centralized reference on stage 4's worlds: RMSE from 10 s on and the per-second ANEES."""
     errors, nees = [], []
     for seed in (1, 2, 3):
-        config = build_config({"world": {"vehicles": 4, "seed": seed}, "clock": {"duration_s": 25}, "faults": [JAM_ALL]})
+        config = build_config(
+            {"world": {"vehicles": 4, "seed": seed}, "clock": {"duration_s": 25}, "faults": [JAM_ALL]}
+        )
         for track in run_centralized(config, score_every_us=1_000_000).values():
             after = track["t_s"] >= 10.0
             errors.append(track["error_m"][after])
@@ -62,8 +76,14 @@ def _stage_4(**vehicle) -> tuple[float, np.ndarray, float]:
     """RMSE from 10 s on, the per-second NEES averaged over vehicles and seeds, and its sample count."""
     errors, nees = [], []
     for seed in (1, 2, 3):
-        config = build_config({"world": {"vehicles": 4, "seed": seed}, "clock": {"duration_s": 25},
-                               "vehicle": vehicle, "faults": [JAM_ALL, V2V_DELAY]})
+        config = build_config(
+            {
+                "world": {"vehicles": 4, "seed": seed},
+                "clock": {"duration_s": 25},
+                "vehicle": vehicle,
+                "faults": [JAM_ALL, V2V_DELAY],
+            }
+        )
         for run in swarm_in_memory(config, sample_every_us=1_000_000).values():
             after = run["t_s"] >= 10.0
             errors.append(run["error_m"][after])

@@ -5,10 +5,11 @@ import pytest
 
 from bus import messages as m
 from bus.config import SensorSpec
-from tests.offline import pose_nees_series
-from vehicle import unicycle_ekf as ekf
-from vehicle.ekf import gate_threshold, gated_update
-from vehicle.estimators.ekf import UnicycleEkf
+from bus.statistics import gate_threshold
+from experiments.harness import pose_nees_series
+from vehicle.estimators import ekf
+from vehicle.kalman import gated_update
+from vehicle.models import unicycle
 
 
 def test_gate_threshold_matches_chi_square_quantiles():
@@ -35,15 +36,23 @@ def test_gate_rejects_an_outlier_and_leaves_the_state_untouched():
 def test_prediction_follows_the_exact_arc():
     x = np.array([0.0, -10.0, 0.0, 0.0])
     for _ in range(int(2 * np.pi * 10 / 2.0 / 0.01)):  # one lap of a 10 m circle at 2 m/s
-        x = ekf.propagate_mean(x, 2.0, 0.2, 0.01)
+        x = unicycle.propagate_mean(x, 2.0, 0.2, 0.01)
     np.testing.assert_allclose(x[:2], [0.0, -10.0], atol=0.05)
 
 
 def test_noise_free_sensors_give_exact_tracking():
     """Staged validation, step one (cooperative-localization paper): no noise, no error."""
-    tiny = SensorSpec(gyro_sigma_radps=1e-9, gyro_bias_sigma_radps=1e-9, gyro_bias_walk_radps_rtsec=0.0,
-                      accel_sigma_mps2=0.0, odom_speed_sigma_mps=1e-9, odom_yaw_rate_sigma_radps=1e-9,
-                      gnss_sigma_m=1e-6, prior_sigma_m=1e-9, prior_heading_sigma_rad=1e-9)
+    tiny = SensorSpec(
+        gyro_sigma_radps=1e-9,
+        gyro_bias_sigma_radps=1e-9,
+        gyro_bias_walk_radps_rtsec=0.0,
+        accel_sigma_mps2=0.0,
+        odom_speed_sigma_mps=1e-9,
+        odom_yaw_rate_sigma_radps=1e-9,
+        gnss_sigma_m=1e-6,
+        prior_sigma_m=1e-9,
+        prior_heading_sigma_rad=1e-9,
+    )
     _, errors = pose_nees_series(3, duration_s=20.0, trajectory="waypoints", estimator_spec=tiny, world_sensors=tiny)
     assert errors.max() < 1e-4
 
@@ -56,9 +65,14 @@ def test_the_float_prediction_equals_the_matrix_one():
         v, w = rng.uniform(0, 10), rng.normal()
         steps = [(0.01, v, w), (0.01, v + rng.normal(0, 0.1), w + rng.normal(0, 0.1))]
         for use_bias in (True, False):
-            kw = dict(speed_var=rng.uniform(0, 1e-2), yaw_rate_var=rng.uniform(0, 1e-2), bias_walk_var=1e-7,
-                      use_bias=use_bias, steps=steps)
-            slow, fast = ekf.predict(x, P, v, w, 0.02, **kw), ekf.predict_fast(x, P, v, w, 0.02, **kw)
+            kw = dict(
+                speed_var=rng.uniform(0, 1e-2),
+                yaw_rate_var=rng.uniform(0, 1e-2),
+                bias_walk_var=1e-7,
+                use_bias=use_bias,
+                steps=steps,
+            )
+            slow, fast = unicycle.predict(x, P, v, w, 0.02, **kw), unicycle.predict_fast(x, P, v, w, 0.02, **kw)
             np.testing.assert_allclose(fast[0], slow[0], atol=1e-12)
             np.testing.assert_allclose(fast[1], slow[1], rtol=1e-11, atol=1e-14)
 
@@ -73,20 +87,20 @@ def test_the_positive_definiteness_check_agrees_with_cholesky():
             expected = True
         except np.linalg.LinAlgError:
             expected = False
-        assert ekf.is_spd4(P) is expected
+        assert unicycle.is_spd4(P) is expected
     for bad in (np.nan, np.inf, -np.inf):
         P = np.eye(4)
         P[1, 2] = P[2, 1] = bad
-        assert not ekf.is_spd4(P)
+        assert not unicycle.is_spd4(P)
 
 
 def _after_odometry(spec: SensorSpec, speed_mps: float, yaw_rate_radps: float, seconds: float) -> np.ndarray:
     """The covariance (4, 4) of the default EKF after ``seconds`` of constant odometry from a pose at 0."""
-    f = UnicycleEkf(vehicle_id=1, spec=spec, gate_probability=0.999, altitude_m=0.0)
-    f.handle("prior", m.PosePrior(1, 0, 0, np.zeros(3), np.diag([1e-4, 1e-4, 1e-4])))
+    f = ekf.build(vehicle_id=1, spec=spec, gate_probability=0.999)
+    f.handle(m.PosePrior(1, 0, 0, np.zeros(3), np.diag([1e-4, 1e-4, 1e-4])))
     period = round(1e6 / spec.odom_rate_hz)
     for k in range(round(seconds * 1e6 / period) + 1):
-        f.handle("odometry", m.WheelOdometry(1, k * period, k, speed_mps, yaw_rate_radps))
+        f.handle(m.WheelOdometry(1, k * period, k, speed_mps, yaw_rate_radps))
         f.cycle(k * period)
     return f.P
 

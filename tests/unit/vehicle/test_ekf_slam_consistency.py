@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from bench.common import vehicle_feed
 from bus.config import build_config
+from experiments.harness import vehicle_feed
 from sim.world import World
-from vehicle.estimators.ekf_slam import EkfSlam
+from vehicle.estimators import ekf_slam
 
 pytestmark = pytest.mark.monte_carlo
 
@@ -22,17 +22,29 @@ CHECKPOINTS_S = (10, 20, 30, 40, 50)
 def _nees_at_checkpoints(seed: int, first_estimates: tuple[bool, ...]) -> list[np.ndarray]:
     """Pose NEES (3 dof) at CHECKPOINTS_S of one run (k,), for a filter with first-estimates
     Jacobians or not, each of ``first_estimates`` on the same world (its frames detected once)."""
-    config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": ["circle"], "terrain_size_px": 640},
-                           "clock": {"duration_s": DURATION_S}, "sensors": {"camera_rate_hz": 10},
-                           "vehicle": {"estimator": "ekf-slam", "cooperative": False},
-                           "faults": [{"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 1000.0}]})
+    config = build_config(
+        {
+            "world": {"vehicles": 1, "seed": seed, "trajectories": ["circle"], "terrain_size_px": 640},
+            "clock": {"duration_s": DURATION_S},
+            "sensors": {"camera_rate_hz": 10},
+            "vehicle": {"estimator": "ekf-slam", "cooperative": False},
+            "faults": [{"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 1000.0}],
+        }
+    )
     feed = vehicle_feed(config)
     out = World(config).advance(DURATION_S * 1_000_000)
     truth = {s: row[0] for s, row in zip(out.truth_stamps, out.truth)}
     vc, front_end = config.for_vehicle(), {}
-    estimators = [EkfSlam(vehicle_id=1, spec=vc.sensors, gate_probability=vc.vehicle.gate_probability,
-                          altitude_m=vc.altitude_m, first_estimates=fej, front_end_results=front_end)
-                  for fej in first_estimates]
+    estimators = [
+        ekf_slam.build(
+            vehicle_id=1,
+            spec=vc.sensors,
+            gate_probability=vc.vehicle.gate_probability,
+            first_estimates=fej,
+            front_end_results=front_end,
+        )
+        for fej in first_estimates
+    ]
     index, nees = 0, [[] for _ in estimators]
     for t in range(0, DURATION_S * 1_000_000 + 1, CYCLE_US):
         first = index
@@ -40,12 +52,11 @@ def _nees_at_checkpoints(seed: int, first_estimates: tuple[bool, ...]) -> list[n
             index += 1
         for estimator, its_nees in zip(estimators, nees):
             for sample in feed[first:index]:
-                estimator.handle(*sample)
+                estimator.handle(sample[1])
             estimator.cycle(t)
             if t % 1_000_000 == 0 and t // 1_000_000 in CHECKPOINTS_S:
                 pose = truth[t]
-                e = np.array([*(estimator.x[:2] - pose[:2]),
-                              (estimator.x[2] - pose[2] + np.pi) % (2 * np.pi) - np.pi])
+                e = np.array([*(estimator.x[:2] - pose[:2]), (estimator.x[2] - pose[2] + np.pi) % (2 * np.pi) - np.pi])
                 its_nees.append(float(e @ np.linalg.solve(estimator.P[:3, :3], e)))
     return [np.array(n) for n in nees]
 

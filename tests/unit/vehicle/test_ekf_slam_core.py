@@ -7,8 +7,14 @@ import pytest
 from scipy.stats import chi2
 
 from bus.angles import wrap_angle
-from vehicle.ekf_slam_core import (add_landmark_with_errors, add_landmarks, landmark_from, observe, predict_pose,
-                                   update)
+from vehicle.models.landmarks import (
+    add_landmark_with_errors,
+    add_landmarks,
+    landmark_from,
+    observe,
+    predict_pose,
+    update,
+)
 
 pytestmark = pytest.mark.monte_carlo
 
@@ -40,7 +46,7 @@ def test_observation_jacobians_match_finite_differences():
         _, H_pose, H_landmark = observe(x, 3, j)
         numeric = _numeric_jacobian(lambda state: observe(state, 3, j)[0], x, bearing=True)
         np.testing.assert_allclose(H_pose, numeric[:, :3], atol=1e-5)
-        np.testing.assert_allclose(H_landmark, numeric[:, 3 + 2 * j:5 + 2 * j], atol=1e-5)
+        np.testing.assert_allclose(H_landmark, numeric[:, 3 + 2 * j : 5 + 2 * j], atol=1e-5)
         others = np.delete(numeric, [0, 1, 2, 3 + 2 * j, 4 + 2 * j], axis=1)
         assert np.abs(others).max() < 1e-9  # nothing else enters the observation
 
@@ -57,10 +63,10 @@ def test_initialisation_jacobians_match_finite_differences():
 
 def test_a_batch_of_new_landmarks_grows_the_covariance_as_y_p_y_transposed():
     rng = np.random.default_rng(3)
-    x, P = np.array([1.0, -2.0, 0.4, 0.01, 5.0, 6.0]), _spd(rng, 6)   # pose with a gyro bias + 1 landmark
+    x, P = np.array([1.0, -2.0, 0.4, 0.01, 5.0, 6.0]), _spd(rng, 6)  # pose with a gyro bias + 1 landmark
     zs, R = np.array([[10.0, 0.3], [4.0, -1.2], [7.5, 2.9]]), np.diag([0.09, 0.0004])
     x_batch, P_batch = add_landmarks(x, P, zs, R)
-    x_seq, P_seq = x, P                                             # the paper: one Y per landmark
+    x_seq, P_seq = x, P  # the paper: one Y per landmark
     for z in zs:
         point, Gx, Gz = landmark_from(x, z)
         n = len(x_seq)
@@ -109,13 +115,13 @@ def test_the_in_place_update_equals_the_textbook_update():
     S = H @ P @ H.T + R
     K = P @ H.T @ np.linalg.inv(S)
     x_ref = x + K @ np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
-    P_ref = (np.eye(13) - K @ H) @ P @ (np.eye(13) - K @ H).T + K @ R @ K.T   # Joseph form
+    P_ref = (np.eye(13) - K @ H) @ P @ (np.eye(13) - K @ H).T + K @ R @ K.T  # Joseph form
     memory = P.__array_interface__["data"][0]
     result = update(x, P, 3, 2, z, R, gate=1e9)
-    assert result.accepted and P.__array_interface__["data"][0] == memory      # P updated where it is
+    assert result.accepted and P.__array_interface__["data"][0] == memory  # P updated where it is
     np.testing.assert_allclose(x, x_ref, atol=1e-12)
     np.testing.assert_allclose(P, P_ref, atol=1e-10)
-    np.testing.assert_array_equal(P, P.T)                                        # exactly symmetric
+    np.testing.assert_array_equal(P, P.T)  # exactly symmetric
     assert not update(x, P, 3, 2, z + np.array([50.0, 0.0]), R, gate=13.8).accepted
 
 
@@ -138,13 +144,16 @@ def _circle_run(seed: int, *, duration_s: float = 60.0, dt_s: float = 0.1, belie
     pose_nees = []
     for _ in range(round(duration_s / dt_s)):
         w_true = speed / radius
-        for _ in range(sub):                                   # truth: exact arcs, slightly wobbling inputs
+        for _ in range(sub):  # truth: exact arcs, slightly wobbling inputs
             v, w = speed * (1 + 0.01 * rng.normal()), w_true * (1 + 0.01 * rng.normal())
             h = dt_s / sub
-            truth = truth + [v / w * (np.sin(truth[2] + w * h) - np.sin(truth[2])),
-                             -v / w * (np.cos(truth[2] + w * h) - np.cos(truth[2])), w * h]
+            truth = truth + [
+                v / w * (np.sin(truth[2] + w * h) - np.sin(truth[2])),
+                -v / w * (np.cos(truth[2] + w * h) - np.cos(truth[2])),
+                w * h,
+            ]
         v_m, w_m = speed + sigma_v * rng.normal(), w_true + sigma_w * rng.normal()
-        mid = x[2] + 0.5 * w_m * dt_s                             # the heading halfway through the step
+        mid = x[2] + 0.5 * w_m * dt_s  # the heading halfway through the step
         c, s = np.cos(mid), np.sin(mid)
         F = np.array([[1, 0, -v_m * dt_s * s], [0, 1, v_m * dt_s * c], [0, 0, 1]])
         G = np.array([[dt_s * c, -0.5 * v_m * dt_s**2 * s], [dt_s * s, 0.5 * v_m * dt_s**2 * c], [0, dt_s]])
@@ -168,7 +177,7 @@ def _circle_run(seed: int, *, duration_s: float = 60.0, dt_s: float = 0.1, belie
                 mapped[i] = base + k
         e = np.array([*(x[:2] - truth[:2]), wrap_angle(x[2] - truth[2])])
         pose_nees.append(float(e @ np.linalg.solve(P[:3, :3], e)))
-    order = sorted(mapped, key=mapped.get)                     # the map's slots in state order
+    order = sorted(mapped, key=mapped.get)  # the map's slots in state order
     e_map = x[3:] - landmarks[order].ravel()
     map_nees = float(e_map @ np.linalg.solve(P[3:, 3:], e_map))
     return np.array(pose_nees), map_nees, 2 * len(order)
@@ -177,7 +186,7 @@ def _circle_run(seed: int, *, duration_s: float = 60.0, dt_s: float = 0.1, belie
 @pytest.mark.parametrize("runs", [50])
 def test_pose_and_landmark_nees_are_inside_their_bands_over_monte_carlo_runs(runs):
     results = [_circle_run(seed) for seed in range(runs)]
-    pose = np.mean([r[0] for r in results], axis=0)              # run-averaged NEES per step (3 dof)
+    pose = np.mean([r[0] for r in results], axis=0)  # run-averaged NEES per step (3 dof)
     lo, hi = chi2.ppf([0.025, 0.975], 3 * runs) / runs
     inside = np.mean((pose >= lo) & (pose <= hi))
     assert inside >= 0.9, f"run-averaged pose NEES inside [{lo:.2f}, {hi:.2f}] for only {inside:.0%} of steps"

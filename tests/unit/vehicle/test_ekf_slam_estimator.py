@@ -5,19 +5,24 @@ reported once, and a fusion-horizon replay reproduces the state exactly."""
 import numpy as np
 import pytest
 
-from bench.common import vehicle_feed
 from bus import messages as m
 from bus.config import build_config
+from experiments.harness import vehicle_feed
 from vehicle.estimators import get_estimator
 
 CYCLE_US = 20_000
 
 
 def _config(duration_s: float):
-    return build_config({"world": {"vehicles": 1, "seed": 4, "trajectories": ["circle"], "terrain_size_px": 640},
-                         "clock": {"duration_s": duration_s}, "sensors": {"camera_rate_hz": 10},
-                         "vehicle": {"estimator": "ekf-slam", "cooperative": False},
-                         "faults": [{"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 1000.0}]})
+    return build_config(
+        {
+            "world": {"vehicles": 1, "seed": 4, "trajectories": ["circle"], "terrain_size_px": 640},
+            "clock": {"duration_s": duration_s},
+            "sensors": {"camera_rate_hz": 10},
+            "vehicle": {"estimator": "ekf-slam", "cooperative": False},
+            "faults": [{"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 1000.0}],
+        }
+    )
 
 
 def _run(estimator, feed, start_us: int, end_us: int, index: int = 0, every_us: int = 1_000_000):
@@ -25,7 +30,7 @@ def _run(estimator, feed, start_us: int, end_us: int, index: int = 0, every_us: 
     sigma = {}
     for t in range(start_us, end_us + 1, CYCLE_US):
         while index < len(feed) and feed[index][1].stamp_us <= t:
-            estimator.handle(*feed[index])
+            estimator.handle(feed[index][1])
             index += 1
         estimator.cycle(t)
         if t % every_us == 0:
@@ -45,7 +50,7 @@ def test_the_map_grows_with_the_ground_covered(circle_run):
     estimator, _ = circle_run
     c = estimator.counters
     assert c.frames_used == 401 and c.landmarks >= 40
-    assert estimator.descriptors.shape[0] == c.landmarks and len(estimator.x) == 4 + 2 * c.landmarks
+    assert estimator.state.landmarks.descriptors.shape[0] == c.landmarks and len(estimator.x) == 4 + 2 * c.landmarks
     P = estimator.P
     assert np.allclose(P, P.T, atol=1e-9) and np.linalg.eigvalsh(P).min() > 0
 
@@ -69,15 +74,25 @@ def test_garbage_frames_are_refused_and_reported_once_even_when_replayed():
     feed = [(t, msg) for t, msg in vehicle_feed(config) if t != "camera"]
     index, _ = _run(estimator, feed, 0, 100_000)
     snapshot = estimator.snapshot()
-    garbage = [np.zeros((80, 80), np.uint8), np.full((80, 80), 128, np.uint8), np.zeros((80, 80), np.float32),
-               np.zeros((80, 40), np.uint8), np.zeros((0, 0), np.uint8)]
+    garbage = [
+        np.zeros((80, 80), np.uint8),
+        np.full((80, 80), 128, np.uint8),
+        np.zeros((80, 80), np.float32),
+        np.zeros((80, 40), np.uint8),
+        np.zeros((0, 0), np.uint8),
+    ]
     for k, pixels in enumerate(garbage):
-        estimator.handle("camera", m.CameraFrame(1, 120_000 + k, 100 + k, pixels, 0.1))
+        estimator.handle(m.CameraFrame(1, 120_000 + k, 100 + k, pixels, 0.1))
     estimator.restore(snapshot)  # a replay meets the same frames again
     for k, pixels in enumerate(garbage):
-        estimator.handle("camera", m.CameraFrame(1, 120_000 + k, 100 + k, pixels, 0.1))
+        estimator.handle(m.CameraFrame(1, 120_000 + k, 100 + k, pixels, 0.1))
     assert [r[0] for r in refused] == ["garbage_frame"] * 5
-    assert {r[2] for r in refused} == {"all black", "no texture (uniform grey)", "not a square grey uint8 frame", "empty frame"}
+    assert {r[2] for r in refused} == {
+        "all black",
+        "no texture (uniform grey)",
+        "not a square grey uint8 frame",
+        "empty frame",
+    }
     assert estimator.counters.frames_used == 0 and estimator.counters.landmarks == 0
     _run(estimator, feed, 140_000, 200_000, index)  # the loop goes on
     assert np.isfinite(estimator.x).all()

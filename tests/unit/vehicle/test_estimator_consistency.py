@@ -6,7 +6,7 @@ import pytest
 from scipy.stats import chi2
 
 from bus.config import SensorSpec
-from tests.offline import nees_series_of_filters, pose_nees_series
+from experiments.harness import nees_series_of_filters, pose_nees_series
 
 pytestmark = pytest.mark.monte_carlo
 
@@ -18,8 +18,14 @@ KINDS = ("circle", "figure8", "waypoints")
 
 def _monte_carlo(estimator_spec=None, kind: str = "ekf") -> np.ndarray:
     """(RUNS, steps) NEES, one seeded run each, trajectories cycling through every kind."""
-    return np.array([pose_nees_series(seed, duration_s=20.0, trajectory=KINDS[seed % 3],
-                                      estimator_spec=estimator_spec, kind=kind)[0] for seed in range(RUNS)])
+    return np.array(
+        [
+            pose_nees_series(
+                seed, duration_s=20.0, trajectory=KINDS[seed % 3], estimator_spec=estimator_spec, kind=kind
+            )[0]
+            for seed in range(RUNS)
+        ]
+    )
 
 
 def _fraction_inside_bounds(nees: np.ndarray) -> float:
@@ -51,8 +57,15 @@ def test_the_check_catches_an_overconfident_and_an_underconfident_filter():
     """Same harness, filter told its gyro is 20x better, or 20x worse, than it is."""
     optimistic = SensorSpec(gyro_sigma_radps=0.0005, gyro_bias_sigma_radps=0.0005, gyro_bias_walk_radps_rtsec=0.0)
     pessimistic = SensorSpec(gyro_sigma_radps=0.2, gyro_bias_walk_radps_rtsec=0.01)
-    runs = [nees_series_of_filters(seed, [{"estimator_spec": optimistic}, {"estimator_spec": pessimistic}],
-                                   duration_s=20.0, trajectory=KINDS[seed % 3]) for seed in range(RUNS)]
+    runs = [
+        nees_series_of_filters(
+            seed,
+            [{"estimator_spec": optimistic}, {"estimator_spec": pessimistic}],
+            duration_s=20.0,
+            trajectory=KINDS[seed % 3],
+        )
+        for seed in range(RUNS)
+    ]
     for i, side in enumerate(("over", "under")):
         nees = np.array([run[i][0] for run in runs])
         lo, hi = _anees_interval(nees)

@@ -1,4 +1,4 @@
-"""The GNSS error states (vehicle.gnss_error): the model's algebra, the datasheet's checks, and the
+"""The GNSS error states (vehicle.models.gnss_error): the model's algebra, the datasheet's checks, and the
 point of them: a filter fusing fixes whose error wanders over a minute stays consistent only when it
 estimates that error (two-sided: without the states the same harness finds it over-confident)."""
 
@@ -7,8 +7,8 @@ import pytest
 from pydantic import ValidationError
 
 from bus.config import SensorSpec
-from tests.offline import nees_series_of_filters, pose_nees_series
-from vehicle.gnss_error import GnssErrorModel, aligned_covariance, augment_motion, observation
+from experiments.harness import nees_series_of_filters, pose_nees_series
+from vehicle.models.gnss_error import GnssErrorModel, aligned_covariance, augment_motion, observation
 
 pytestmark = pytest.mark.monte_carlo
 
@@ -42,8 +42,16 @@ def test_the_datasheet_refuses_a_correlated_part_larger_than_the_total():
 
 def _per_run_anees(specs: list[SensorSpec]) -> list[np.ndarray]:
     """Each run's ANEES (RUNS,) of an EKF told each of ``specs``, all on each run's world."""
-    runs = [nees_series_of_filters(seed, [{"estimator_spec": spec} for spec in specs], duration_s=60.0,
-                                   trajectory=KINDS[seed % 3], world=GAUSS_MARKOV_WORLD) for seed in range(RUNS)]
+    runs = [
+        nees_series_of_filters(
+            seed,
+            [{"estimator_spec": spec} for spec in specs],
+            duration_s=60.0,
+            trajectory=KINDS[seed % 3],
+            world=GAUSS_MARKOV_WORLD,
+        )
+        for seed in range(RUNS)
+    ]
     return [np.array([run[i][0].mean() for run in runs]) for i in range(len(specs))]
 
 
@@ -61,8 +69,18 @@ def test_estimating_the_wandering_gnss_error_keeps_the_filter_consistent():
 
 def test_the_ukf_carries_the_same_states():
     """Same world, UKF: its ANEES interval holds 3 as well (fewer runs: it is slower)."""
-    runs = np.array([pose_nees_series(seed, duration_s=40.0, trajectory=KINDS[seed % 3], world=GAUSS_MARKOV_WORLD,
-                                      estimator_spec=SensorSpec(gnss_correlated_sigma_m=1.0), kind="ukf")[0].mean()
-                     for seed in range(12)])
+    runs = np.array(
+        [
+            pose_nees_series(
+                seed,
+                duration_s=40.0,
+                trajectory=KINDS[seed % 3],
+                world=GAUSS_MARKOV_WORLD,
+                estimator_spec=SensorSpec(gnss_correlated_sigma_m=1.0),
+                kind="ukf",
+            )[0].mean()
+            for seed in range(12)
+        ]
+    )
     half = 1.96 * runs.std(ddof=1) / np.sqrt(len(runs))
     assert runs.mean() - half <= 3.0 <= runs.mean() + half, (runs.mean(), half)

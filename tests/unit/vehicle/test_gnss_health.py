@@ -4,12 +4,18 @@ jamming flagged within seconds, a slowly drifting spoofer detected, and recovery
 import numpy as np
 import pytest
 
-from tests.offline import gnss_fault_run
+from experiments.harness import gnss_fault_run
 from vehicle.gnss_health import GnssHealth
 
 JAM = {"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 100.0, "start_s": 20.0, "for_s": 20.0}
-SPOOF = {"kind": "spoof-gnss", "center_m": [0.0, 0.0], "radius_m": 100.0, "start_s": 20.0, "for_s": 40.0,
-         "drift_mps": 0.5}
+SPOOF = {
+    "kind": "spoof-gnss",
+    "center_m": [0.0, 0.0],
+    "radius_m": 100.0,
+    "start_s": 20.0,
+    "for_s": 40.0,
+    "drift_mps": 0.5,
+}
 
 
 def test_honest_gnss_is_never_flagged():

@@ -16,8 +16,9 @@ def test_mean_and_variance_factor_of_samples_inside_one_interval():
     assert np.isclose(mean, 1.5) and np.isclose(factor, 0.25)
 
 
-def _predicted_and_actual_variance(rng: np.random.Generator, input_us: int, cycle_us: int, runs: int = 4000
-                                   ) -> tuple[float, float]:
+def _predicted_and_actual_variance(
+    rng: np.random.Generator, input_us: int, cycle_us: int, runs: int = 4000
+) -> tuple[float, float]:
     """Distance error variance (sigma 1 per sample) after 1 s: the sum of the per-cycle variances
     the filter would add, and the Monte Carlo variance of the integrated sample noise."""
     stamps = np.arange(0, 1_000_000, input_us)

@@ -9,11 +9,16 @@ import pytest
 from scipy.stats import chi2
 
 from bus import messages as m
-from tests.offline import replay_in_memory
-from tests.synthetic_mrclam import (LANDMARKS, PERSISTING_SENSORS, PERSISTING_SIGHTING_SIGMAS, replay_config, synthetic,
-                                     with_persisting_errors)
-from vehicle.estimators import get_estimator
-from vehicle.estimators import known_map
+from experiments.harness import replay_in_memory
+from tests.synthetic_mrclam import (
+    LANDMARKS,
+    PERSISTING_SENSORS,
+    PERSISTING_SIGHTING_SIGMAS,
+    replay_config,
+    synthetic,
+    with_persisting_errors,
+)
+from vehicle.estimators import get_estimator, known_map
 
 pytestmark = pytest.mark.monte_carlo
 
@@ -62,8 +67,13 @@ def _range_scale_nees(sensors: dict) -> tuple[float, float, float]:
     5 % short, for a filter told ``sensors`` (the nominal datasheet otherwise)."""
     nees = []
     for seed in range(RUNS):
-        data = synthetic(np.random.default_rng(300 + seed), robots=1, duration_s=101.0, sighting_rate_hz=6.0,
-                         range_scale=(0.06, -0.05)[seed % 2])
+        data = synthetic(
+            np.random.default_rng(300 + seed),
+            robots=1,
+            duration_s=101.0,
+            sighting_rate_hz=6.0,
+            range_scale=(0.06, -0.05)[seed % 2],
+        )
         rows = replay_in_memory(replay_config("known-map", seed, sensors), data, every_us=10_000_000)[1]
         nees += rows[rows[:, 0] >= SAMPLES_FROM_S * 1e6, 2].tolist()
     low, high = chi2.ppf([0.025, 0.975], 3 * len(nees)) / len(nees)
@@ -77,19 +87,24 @@ def test_a_camera_range_scale_that_is_off_is_estimated_and_nees_stays_inside_the
     assert anees > high, anees
 
 
-class _WrongPrior(known_map.KnownMapEkf):
-    """Takes the launch prior 1.5 m and 0.4 rad off while believing it within 5 cm and 1 degree."""
+class _WrongPrior:
+    """A known-map filter that takes the launch prior 1.5 m and 0.4 rad off while believing it within
+    5 cm and 1 degree (everything but ``handle`` is the filter's)."""
 
-    def handle(self, topic, msg):
+    def __init__(self, inner) -> None:
+        self.inner = inner
+
+    def __getattr__(self, name: str):
+        return getattr(self.inner, name)
+
+    def handle(self, msg):
         if isinstance(msg, m.PosePrior):
             msg = dataclasses.replace(msg, pose=msg.pose + [1.5, -0.5, 0.4])
-        super().handle(topic, msg)
+        self.inner.handle(msg)
 
 
-def _lost_start(config) -> object:
-    spec = config.for_vehicle()
-    return _WrongPrior(vehicle_id=1, spec=spec.sensors, gate_probability=spec.vehicle.gate_probability,
-                       altitude_m=0.0, landmarks=spec.vehicle.landmarks)
+def _lost_start(config, vehicle_id: int = 1) -> object:
+    return _WrongPrior(known_map.from_config(config.for_vehicle(), vehicle_id))
 
 
 @pytest.mark.parametrize("relocalize", [True, False])
@@ -111,13 +126,13 @@ def test_a_lost_robot_relocalizes_against_the_map(monkeypatch, relocalize):
 def test_unknown_landmarks_and_misreadings_are_not_fused():
     config = replay_config("known-map", 0)
     estimator = get_estimator(config.for_vehicle(), 1)
-    estimator.handle("prior", m.PosePrior(1, 0, 0, np.zeros(3), np.diag([0.01, 0.01, 0.001])))
+    estimator.handle(m.PosePrior(1, 0, 0, np.zeros(3), np.diag([0.01, 0.01, 0.001])))
     x0, P0 = estimator.x.copy(), estimator.P.copy()
     cov = np.diag([0.01, 0.0004])
-    estimator.handle("landmark", m.LandmarkSighting(1, 1000, 0, 99, 3.0, 0.1, cov))  # not on the map
-    assert estimator.unknown_landmarks == 1 and np.array_equal(estimator.x, x0)
+    estimator.handle(m.LandmarkSighting(1, 1000, 0, 99, 3.0, 0.1, cov))  # not on the map
+    assert estimator.state.landmarks.unknown_landmarks == 1 and np.array_equal(estimator.x, x0)
     lx, ly = LANDMARKS[6, 1:3]  # landmark 12 at (4, 0): truly 4 m ahead; read as 7 m (a misreading)
-    estimator.handle("landmark", m.LandmarkSighting(1, 2000, 1, 12, np.hypot(lx, ly) + 3.0, 0.0, cov))
-    assert estimator.sightings_rejected == 1 and np.allclose(estimator.x[:2], x0[:2], atol=1e-3)
-    estimator.handle("landmark", m.LandmarkSighting(1, 3000, 2, 12, np.hypot(lx, ly) + 0.05, 0.0, cov))
-    assert estimator.sightings_fused == 1 and np.all(np.diagonal(estimator.P)[:2] < np.diagonal(P0)[:2])
+    estimator.handle(m.LandmarkSighting(1, 2000, 1, 12, np.hypot(lx, ly) + 3.0, 0.0, cov))
+    assert estimator.state.landmarks.rejected == 1 and np.allclose(estimator.x[:2], x0[:2], atol=1e-3)
+    estimator.handle(m.LandmarkSighting(1, 3000, 2, 12, np.hypot(lx, ly) + 0.05, 0.0, cov))
+    assert estimator.state.landmarks.fused == 1 and np.all(np.diagonal(estimator.P)[:2] < np.diagonal(P0)[:2])

@@ -33,22 +33,38 @@ PRIOR = {"prior": (np.array([0]), 0, np.concatenate([np.zeros(3), np.eye(3).rave
 
 
 def _estimate(vid: int, t_us: int, cov: np.ndarray | None = None) -> StateEstimate:
-    return StateEstimate(vid, t_us, np.array([1.0, 2.0, -30.0]), 0.0, np.zeros(3), 0.0,
-                         np.eye(6) if cov is None else cov, np.eye(6))
+    return StateEstimate(
+        vid, t_us, np.array([1.0, 2.0, -30.0]), 0.0, np.zeros(3), 0.0, np.eye(6) if cov is None else cov, np.eye(6)
+    )
 
 
 def test_garbage_on_every_key_is_counted_by_reason_and_the_node_keeps_working():
     node, _ = _node()
     keys = node.bus.keys
-    items = [Envelope(keys.feed(1), b"\xc1garbage"), Envelope(keys.clock(), b"\x00"), Envelope(keys.fault_plan(), b"{"),
-             Envelope("swarm/v/x/v2v", b"anything"), Envelope("swarm/v/\u00b2/v2v", b"x"), Envelope("swarm/v/9/v2v", b"x"),
-             Envelope(keys.v2v(2), b"not mavlink"), Envelope(keys.feed(1), _batch(2, 0, 0, PRIOR)),
-             Envelope(keys.v2v(2), MavlinkEncoder(vehicle_id=3).odometry(_estimate(3, 0))),
-             Envelope(keys.v2v(3), MavlinkEncoder(vehicle_id=3).heartbeat()), Oversized(keys.v2v(2), 10**6), None]
+    items = [
+        Envelope(keys.feed(1), b"\xc1garbage"),
+        Envelope(keys.clock(), b"\x00"),
+        Envelope(keys.fault_plan(), b"{"),
+        Envelope("swarm/v/x/v2v", b"anything"),
+        Envelope("swarm/v/\u00b2/v2v", b"x"),
+        Envelope("swarm/v/9/v2v", b"x"),
+        Envelope(keys.v2v(2), b"not mavlink"),
+        Envelope(keys.feed(1), _batch(2, 0, 0, PRIOR)),
+        Envelope(keys.v2v(2), MavlinkEncoder(vehicle_id=3).odometry(_estimate(3, 0))),
+        Envelope(keys.v2v(3), MavlinkEncoder(vehicle_id=3).heartbeat()),
+        Oversized(keys.v2v(2), 10**6),
+        None,
+    ]
     for item in items:
         assert node.take(item) is None
     assert counts_to_dict(node.rejections.as_counts()) == {
-        "malformed": 4, "bad_key": 2, "unknown_vehicle": 1, "impersonation": 2, "unexpected": 1, "oversized": 1}
+        "malformed": 4,
+        "bad_key": 2,
+        "unknown_vehicle": 1,
+        "impersonation": 2,
+        "unexpected": 1,
+        "oversized": 1,
+    }
     node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
     node.cycle(0)
     assert node.estimator.initialized
@@ -58,8 +74,14 @@ def test_garbage_on_every_key_is_counted_by_reason_and_the_node_keeps_working():
 def test_any_bytes_on_any_key_are_counted_never_raised(payload, topic, ident):
     node, _ = _node()
     before = node.rejections.total
-    for key in (f"swarm/v/{ident}/{topic}", "swarm/v/1/feed", "swarm/ctl/clock", "swarm/v/2/v2v", "swarm/v/2/v2v/1",
-                f"swarm/v/2/v2v/{ident}"):
+    for key in (
+        f"swarm/v/{ident}/{topic}",
+        "swarm/v/1/feed",
+        "swarm/ctl/clock",
+        "swarm/v/2/v2v",
+        "swarm/v/2/v2v/1",
+        f"swarm/v/2/v2v/{ident}",
+    ):
         result = node.take(Envelope(key, payload))
         assert result is None or isinstance(result, m.ClockTick)
     assert node.rejections.total >= before
@@ -116,7 +138,7 @@ def test_a_cycle_inside_a_long_tick_waits_for_the_broadcasts_its_ranging_pairs_w
     node.take(Envelope(keys.feed(1), _batch(1, 1, 500_000, _ranging(1, [200_000, 200_000], [2, 3]))))
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 500_000, 0, False, (), (1, 2, 3), (1, 2)))))
     assert node.ready(tick)
-    assert node.unheard_neighbours(tick, 280_000) == []              # not matured yet
+    assert node.unheard_neighbours(tick, 280_000) == []  # not matured yet
     assert node.unheard_neighbours(tick, 300_000) == [(2, 200_000)]  # 3 is rejoining: not waited for
     node.take(Envelope(keys.v2v(2), MavlinkEncoder(vehicle_id=2).no_estimate(200_000)))
     assert node.unheard_neighbours(tick, 300_000) == []
@@ -147,8 +169,17 @@ def test_a_vehicle_config_carries_nothing_that_determines_truth():
     """Swarms that differ in everything that makes truth (world seed, trajectories, layout, speed)
     give their vehicles byte-identical configs: a vehicle cannot rebuild the world from its own."""
     a = build_config({"world": {"seed": 1, "trajectories": ["circle"], "radius_m": 20.0, "spacing_m": 60.0}})
-    b = build_config({"world": {"seed": 987654, "trajectories": ["waypoints", "figure8"], "radius_m": 35.0,
-                                "spacing_m": 90.0, "speed_mps": 6.0}})
+    b = build_config(
+        {
+            "world": {
+                "seed": 987654,
+                "trajectories": ["waypoints", "figure8"],
+                "radius_m": 35.0,
+                "spacing_m": 90.0,
+                "speed_mps": 6.0,
+            }
+        }
+    )
     assert a.for_vehicle().model_dump_json() == b.for_vehicle().model_dump_json()
     dumped = a.for_vehicle().model_dump()
     assert "world" not in dumped and "seed" not in str(dumped).replace("fault_seed", "")
@@ -206,8 +237,11 @@ def test_v2v_frames_go_to_the_listeners_the_batch_names_else_to_everyone():
     keys = node.bus.keys
     for tick, listeners in enumerate([(), (3, 4), (), ()]):  # batches for stamps 0, 20, 40, 60 ms
         blocks = PRIOR if tick == 0 else {}
-        node.take(Envelope(keys.feed(1), feed.encode_batch(feed.SensorBatch(1, tick, tick * 20_000, blocks,
-                                                                            listeners=listeners))))
+        node.take(
+            Envelope(
+                keys.feed(1), feed.encode_batch(feed.SensorBatch(1, tick, tick * 20_000, blocks, listeners=listeners))
+            )
+        )
     assert node.inbound.listeners_at(0) is None and node.inbound.listeners_at(20_000) == (3, 4)
     assert node.inbound.listeners_at(40_000) == () and node.inbound.listeners_at(80_000) is None
     node.cycle(0)  # a V2V epoch (every 200 ms) with no batch before the first: broadcast
@@ -264,12 +298,15 @@ def test_realtime_the_final_tick_ends_the_loop_after_the_cycles_up_to_its_stamp(
     acks = queue.Queue()
     hub.add_subscription(keys.ack(1), acks)
     world = node.mailbox.lanes[0]
-    for item in (Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, wall.time_ns(), False))),
-                 Envelope(keys.clock(), m.encode(m.ClockTick(1, 20_000, wall.time_ns(), True))),  # before the batches
-                 Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)), Envelope(keys.feed(1), _batch(1, 1, 20_000, {}))):
+    for item in (
+        Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, wall.time_ns(), False))),
+        Envelope(keys.clock(), m.encode(m.ClockTick(1, 20_000, wall.time_ns(), True))),  # before the batches
+        Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)),
+        Envelope(keys.feed(1), _batch(1, 1, 20_000, {})),
+    ):
         world.put(item)
     run_realtime(node, threading.Event())
-    assert node.stats.cycles == 2 and node.estimator.initialized and node.estimator.time_us == 20_000
+    assert node.stats.cycles == 2 and node.estimator.initialized and node.estimator.state.time_us == 20_000
     assert m.decode(m.TickAck, acks.get_nowait().payload).tick == 1
 
 
@@ -285,10 +322,13 @@ def test_realtime_a_late_loop_files_the_queued_batches_before_cycling():
     node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": "realtime"}}).for_vehicle(), 1)
     keys = node.bus.keys
     long_ago = wall.time_ns() - 10**9  # every deadline of this run is past
-    for item in (Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, long_ago, False))),
-                 Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)), Envelope(keys.feed(1), _batch(1, 1, 20_000, {})),
-                 Envelope(keys.clock(), m.encode(m.ClockTick(1, 20_000, long_ago, True)))):
+    for item in (
+        Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, long_ago, False))),
+        Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)),
+        Envelope(keys.feed(1), _batch(1, 1, 20_000, {})),
+        Envelope(keys.clock(), m.encode(m.ClockTick(1, 20_000, long_ago, True))),
+    ):
         node.world_lane.put(item)
     run_realtime(node, threading.Event())
-    assert node.stats.cycles == 2 and node.estimator.time_us == 20_000
+    assert node.stats.cycles == 2 and node.estimator.state.time_us == 20_000
     assert node.fusion.counters.replays == 0 and node.fusion.counters.dropped_stale == 0

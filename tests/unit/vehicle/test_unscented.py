@@ -3,10 +3,11 @@
 
 import numpy as np
 
+from bus import messages as m
 from bus.config import build_config
-from vehicle import unscented as ut
-from vehicle.cooperative import CooperativeFix, cooperative_update
 from vehicle.estimators import get_estimator
+from vehicle.models import unscented as ut
+from vehicle.models.cooperative import CooperativeFix, cooperative_update
 
 RNG = np.random.default_rng(3)
 A = RNG.normal(size=(4, 4)) * 0.3
@@ -41,9 +42,12 @@ def test_the_ukf_ci_update_agrees_with_the_ekf_one_when_the_neighbour_is_far():
     ukf = get_estimator(config.for_vehicle(), 1)
     P = np.diag([1.0, 1.0, 1e-4, 1e-6])
     x = np.array([0.0, 0.0, 0.1, 0.0])
-    ukf.x, ukf.P, ukf.time_us = x.copy(), P.copy(), 0
+    ukf.handle(m.PosePrior(1, 0, 0, x[:3], P[:3, :3]))
+    ukf.state.P[3, 3] = P[3, 3]
     fix = CooperativeFix(1, 0, 0, 2, 200.5, 0.89, np.diag([0.09, 4e-4]), np.array([120.0, 160.0]), np.eye(2) * 0.5)
-    result = ukf._cooperative_update(fix)
-    x_ekf, P_ekf, ekf_result = cooperative_update(x, P, fix, ukf._gate)
+    ukf.handle(fix)
+    x_ukf, P_ukf, result = cooperative_update(x, P, fix, ukf.gate, unscented=True)
+    x_ekf, P_ekf, ekf_result = cooperative_update(x, P, fix, ukf.gate)
+    assert ukf.counters.v2v_fused == 1 and np.array_equal(ukf.x, x_ukf) and np.array_equal(ukf.P, P_ukf)
     assert result.accepted and ekf_result.accepted and np.isclose(result.nis, ekf_result.nis, rtol=1e-3)
     assert np.allclose(ukf.x, x_ekf, atol=1e-3) and np.allclose(ukf.P, P_ekf, rtol=1e-2, atol=1e-8)

@@ -9,7 +9,7 @@ import numpy as np
 from bus import messages as m
 from bus.mavlink_codec import MavlinkEncoder, StateEstimate
 from bus.rejections import Rejections
-from vehicle.cooperative import SeenFix
+from vehicle.models.cooperative import SeenFix
 from vehicle.v2v import V2V
 
 PERIOD_US = 200_000
@@ -19,8 +19,16 @@ def _heard(yaw: float) -> V2V:
     """Vehicle 1's V2V, having heard vehicle 2 at epoch 0.2 s: at (3, 4) m, heading ``yaw``, 0.5 m/s."""
     v2v = V2V(1, latency_us=100_000, rejections=Rejections(logging.getLogger("test"), "test"), period_us=PERIOD_US)
     pose_cov = np.diag([0.04, 0.04, 1e-6, 1e-6, 1e-6, 0.01])
-    est = StateEstimate(2, PERIOD_US, np.array([3.0, 4.0, 0.0]), yaw, np.array([0.5, 0.0, 0.0]), 0.0, pose_cov,
-                        np.diag([0.0025, 1e-6, 1e-6, 1e-6, 1e-6, 1e-4]))
+    est = StateEstimate(
+        2,
+        PERIOD_US,
+        np.array([3.0, 4.0, 0.0]),
+        yaw,
+        np.array([0.5, 0.0, 0.0]),
+        0.0,
+        pose_cov,
+        np.diag([0.0025, 1e-6, 1e-6, 1e-6, 1e-6, 1e-4]),
+    )
     v2v.hear(2, PERIOD_US, MavlinkEncoder(vehicle_id=2).odometry(est))
     return v2v
 
@@ -56,7 +64,7 @@ def test_a_measurement_whose_epoch_was_not_heard_is_missing():
 
 def test_copies_of_one_epoch_are_decoded_when_used_and_the_last_good_one_counts():
     v2v = _heard(0.0)
-    v2v.hear(2, PERIOD_US, b"\xfd not a frame")                              # a broken copy after the good one
+    v2v.hear(2, PERIOD_US, b"\xfd not a frame")  # a broken copy after the good one
     v2v.hear(2, PERIOD_US, MavlinkEncoder(vehicle_id=2).no_estimate(PERIOD_US))  # and "no estimate"
     assert v2v.rejections.total == 0  # nothing decoded before a measurement needs the epoch
     v2v.hold(_ranging(PERIOD_US))
@@ -79,7 +87,11 @@ def test_a_relayed_sighting_pairs_with_the_observers_whole_pose_carried_to_its_i
     assert isinstance(fix, SeenFix) and (fix.observer_id, fix.range_m, fix.bearing_rad) == (2, 5.0, 0.1)
     assert np.allclose(fix.observer_pose, [3.0, 4.05, np.pi / 2], atol=1e-9)
     v_dt, dt2 = 0.5 * 0.1, 0.1**2
-    expected = np.array([[0.04 + v_dt**2 * 0.01, 0.0, -v_dt * 0.01],
-                         [0.0, 0.04 + 0.0025 * dt2, 0.0],           # speed variance along the heading
-                         [-v_dt * 0.01, 0.0, 0.01 + 1e-4 * dt2]])   # yaw-rate variance on the heading
+    expected = np.array(
+        [
+            [0.04 + v_dt**2 * 0.01, 0.0, -v_dt * 0.01],
+            [0.0, 0.04 + 0.0025 * dt2, 0.0],  # speed variance along the heading
+            [-v_dt * 0.01, 0.0, 0.01 + 1e-4 * dt2],
+        ]
+    )  # yaw-rate variance on the heading
     assert np.allclose(fix.observer_cov, expected, atol=1e-12)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bus.config import HONEST_WORLD, SensorSpec
-from tests.offline import pose_nees_series
+from experiments.harness import pose_nees_series
 from vehicle.wheel_slip import SlipGuard
 
 pytestmark = pytest.mark.monte_carlo
@@ -34,24 +34,24 @@ def rng():
 
 
 def test_a_slip_episode_is_taken_off_and_ends_with_the_grip(rng):
-    speeds = 4.0 + 0.5 * np.sin(np.arange(300) * 0.02)                 # a smooth true speed change
-    slipping = (np.arange(300) >= 100) & (np.arange(300) < 125)          # 0.5 s reading 20 % high
+    speeds = 4.0 + 0.5 * np.sin(np.arange(300) * 0.02)  # a smooth true speed change
+    slipping = (np.arange(300) >= 100) & (np.arange(300) < 125)  # 0.5 s reading 20 % high
     readings = speeds * np.where(slipping, 1.2, 1.0) + rng.normal(0.0, 0.05, 300)
     guard = SlipGuard.for_datasheet(0.05, 100.0)
     corrected = _drive(guard, speeds, readings)
     assert guard.slips == 1 and guard.offset_mps == 0.0
-    assert np.abs(corrected - speeds).max() < 0.25          # the 0.8 m/s error never reaches the filter
+    assert np.abs(corrected - speeds).max() < 0.25  # the 0.8 m/s error never reaches the filter
     assert np.abs(corrected[130:] - readings[130:]).max() == 0.0  # gripping again: readings as they are
 
 
 def test_spikes_and_real_speed_changes_are_not_slip(rng):
-    speeds = np.concatenate([np.full(100, 4.0), np.full(100, 6.0)])     # +2 m/s in one step, felt by the IMU
+    speeds = np.concatenate([np.full(100, 4.0), np.full(100, 6.0)])  # +2 m/s in one step, felt by the IMU
     readings = speeds + rng.normal(0.0, 0.05, 200)
-    readings[50] += 0.9                                                  # one wild reading
+    readings[50] += 0.9  # one wild reading
     guard = SlipGuard.for_datasheet(0.05, 100.0)
     corrected = _drive(guard, speeds, readings)
     assert guard.slips == 0
-    assert abs(corrected[50] - 4.0) < 0.2                               # the spike is taken at the level
+    assert abs(corrected[50] - 4.0) < 0.2  # the spike is taken at the level
     np.testing.assert_array_equal(corrected[51:], readings[51:])
 
 
@@ -72,8 +72,16 @@ def test_in_a_slipping_world_the_filter_is_as_good_as_without_slip():
 
     def runs(slip_rate_hz: float) -> tuple[float, float]:
         world = {"sensor_truth": {**HONEST_WORLD, "odom_slip_rate_hz": slip_rate_hz}}
-        out = [pose_nees_series(seed, duration_s=40.0, trajectory=("circle", "figure8", "waypoints")[seed % 3],
-                                world=world, estimator_spec=spec) for seed in range(8)]
+        out = [
+            pose_nees_series(
+                seed,
+                duration_s=40.0,
+                trajectory=("circle", "figure8", "waypoints")[seed % 3],
+                world=world,
+                estimator_spec=spec,
+            )
+            for seed in range(8)
+        ]
         return float(np.sqrt(np.mean([np.mean(e**2) for _, e in out]))), float(np.mean([n.mean() for n, _ in out]))
 
     (rmse_slip, anees_slip), (rmse_grip, anees_grip) = runs(0.1), runs(0.0)

@@ -1,0 +1,39 @@
+"""What a vehicle's estimator says about itself, in its own frame and units, before any wire format:
+the pose with its covariance and the inputs it moves with (``PoseEstimate``), and its health
+(``Health``). ``bus.mavlink_codec`` is the one module that maps them to MAVLink ODOMETRY and
+ESTIMATOR_STATUS and back (the filter does not know MAVLink's NED 6 x 6 layout)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class PoseEstimate:
+    """A planar pose estimate at ``stamp_us``: ``pose`` [x m, y m, yaw rad] (3,) with covariance
+    ``pose_cov`` (3, 3), the forward speed (m/s) and yaw rate (rad/s) the vehicle moves with and
+    their variances ((m/s)^2, (rad/s)^2)."""
+
+    vehicle_id: int
+    stamp_us: int
+    pose: np.ndarray
+    pose_cov: np.ndarray
+    speed_mps: float = 0.0
+    speed_var: float = 0.0
+    yaw_rate_radps: float = 0.0
+    yaw_rate_var: float = 0.0
+
+
+@dataclass(frozen=True)
+class Health:
+    """An estimator's health at ``stamp_us``: whether it trusts its GNSS receiver, the larger of the
+    GNSS innovation test ratios (NIS / gate, > 1 rejects: PX4's convention) and the 1-sigma
+    horizontal position accuracy (m)."""
+
+    vehicle_id: int
+    stamp_us: int
+    gnss_healthy: bool
+    gnss_test_ratio: float
+    horizontal_sigma_m: float

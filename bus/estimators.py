@@ -1,0 +1,37 @@
+"""The estimators a vehicle can run, by the name a configuration gives them (``vehicle.estimator``):
+the one registry. Each entry names the module that builds the estimator (its ``from_config(config,
+vehicle_id, reject=...)``, resolved by ``vehicle.estimators.get_estimator``) and says in a line what it
+is; the configuration's allowed names and the generated config reference come from here. Adding an
+estimator is one new module under ``vehicle/estimators/`` and one line here."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+
+@dataclass(frozen=True)
+class EstimatorEntry:
+    module: str  # the module whose from_config builds it
+    summary: str  # one line for the config reference
+
+
+ESTIMATORS: dict[str, EstimatorEntry] = {
+    "ekf": EstimatorEntry(
+        "vehicle.estimators.ekf",
+        "EKF over [x, y, theta, gyro bias]: odometry and gyro, GNSS behind its health monitor, neighbours by CI",
+    ),
+    "ukf": EstimatorEntry(
+        "vehicle.estimators.ukf", "the same filter with the unscented transform for the motion and neighbours' fixes"
+    ),
+    "known-map": EstimatorEntry(
+        "vehicle.estimators.known_map",
+        "the EKF with camera sightings of surveyed landmarks (vehicle.landmarks) and their persisting errors",
+    ),
+    "ekf-slam": EstimatorEntry(
+        "vehicle.estimators.ekf_slam",
+        "vision EKF-SLAM: landmarks from camera frames (or a replay's sightings) mapped as it flies",
+    ),
+}
+
+EstimatorName = Literal[tuple(ESTIMATORS)]  # type: ignore[valid-type]

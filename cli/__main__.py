@@ -1,0 +1,5 @@
+"""``python -m cli``: the `swarm` command."""
+
+from cli.main import app
+
+app()

@@ -1,0 +1,139 @@
+"""`swarm experiment ...`: the papers' experiments, each a folder of ordinary run directories (with
+their reports) plus comparison figures and a JSON table (``experiments.vision_slam``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from bus.errors import SwarmlocError
+from cli.errors import fail
+
+VARIANT_NAMES = (
+    "dead-reckoning",
+    "naive",
+    "ci-ekf",
+    "ci-ukf",
+    "ci-ekf-iae",
+    "plain-ci-ekf",
+)  # experiment_cooperative.VARIANTS
+
+experiment_app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Experiments from the papers, each a folder of ordinary runs plus comparison figures.",
+)
+
+
+@experiment_app.command("vision-slam")
+def vision_slam(
+    out: Path = typer.Option(Path("runs"), help="parent folder of the experiment folder"),
+    seed: int = typer.Option(3, help="seed of trajectories, sensor noise and terrain"),
+    duration: float = typer.Option(60.0, help="simulated seconds per flight"),
+    quiet: bool = typer.Option(False, help="no progress display"),
+) -> None:
+    """The vision EKF-SLAM paper's experiment: a circle and a figure-8 UAV with GNSS jammed all flight,
+    flown with ekf-slam on camera frames and again with dead reckoning on the same seed. Writes both
+    runs (each with its report and landmark map), the comparison figures and experiment.json."""
+    from rich.console import Console
+
+    from bus.process import stop_on_signals
+    from experiments.vision_slam import compare, run_vision_slam
+    from groundstation.display import report_and_say
+
+    try:
+        folder, runs, failures = run_vision_slam(
+            out, seed=seed, duration_s=duration, stop=stop_on_signals(), show_progress=not quiet
+        )
+    except SwarmlocError as exc:
+        fail(str(exc))
+    console = Console()
+    ok = all(report_and_say(run, console) for run in runs.values())
+    table, figures = compare(folder, runs)
+    for name, flight in table.items():
+        landmarks = {vid: v.get("landmarks") for vid, v in flight["vehicles"].items()}
+        console.print(
+            f"{name}: {flight['status']}, swarm RMSE {flight['swarm_rmse_m']} m, ANEES {flight['swarm_anees']}"
+            + (f", landmarks {landmarks}" if any(landmarks.values()) else ""),
+            highlight=False,
+        )
+    for failure in failures:
+        console.print(f"[red]swarm: {failure}[/red]")
+    for figure in figures:
+        console.print(f"figure: {figure}")
+    console.print(f"experiment: {folder}")
+    if failures or not ok:
+        raise typer.Exit(1)
+
+
+@experiment_app.command("cooperative")
+def cooperative(
+    out: Path = typer.Option(Path("runs"), help="parent folder of the experiment folder"),
+    seeds: int = typer.Option(10, min=1, max=1000, help="how many seeds (each flies every variant)"),
+    first_seed: int = typer.Option(1, min=0, help="the first seed; the others follow"),
+    variants: str = typer.Option(
+        ",".join(VARIANT_NAMES),
+        help="comma-separated variants to fly: "
+        + ", ".join(VARIANT_NAMES)
+        + " (the centralized reference always runs)",
+    ),
+    vehicles: int = typer.Option(8, min=2, max=250, help="swarm size"),
+    jammed: int = typer.Option(6, min=1, help="the first this many vehicles lose GNSS"),
+    jam_start: float = typer.Option(20.0, min=0.0, help="sim second the jam starts"),
+    jam: float = typer.Option(120.0, min=1.0, help="seconds of jam; the run ends with it"),
+    world: str = typer.Option(
+        "honest", help="honest (a world richer than the filters: world.sensor_truth) or ideal (the filters' own models)"
+    ),
+    quiet: bool = typer.Option(False, help="no progress display"),
+) -> None:
+    """The cooperative-localization paper's experiment: GNSS jammed for most of the swarm; every
+    variant (dead reckoning, naive fusion, split CI with EKF / UKF / IAE, plain CI) flies on every seed
+    through real processes, the centralized reference runs on the same worlds. Writes each run (with
+    its report), experiment.json (RMSE and ANEES over the jam, jammed vehicles) and two figures."""
+    from rich.console import Console
+
+    from bus.process import stop_on_signals
+    from experiments.cooperative import Setup, compare, run_cooperative
+    from groundstation.display import report_and_say
+
+    chosen = [v.strip() for v in variants.split(",") if v.strip()]
+    unknown = [v for v in chosen if v not in VARIANT_NAMES]
+    if unknown or not chosen:
+        fail(f"unknown variant(s) {', '.join(unknown) or '(none given)'}; known: {', '.join(VARIANT_NAMES)}")
+    if jammed > vehicles:
+        fail(f"--jammed {jammed} is more than --vehicles {vehicles}")
+    if world not in ("honest", "ideal"):
+        fail(f"--world must be honest or ideal, got {world!r}")
+    setup = Setup(vehicles=vehicles, jammed=jammed, jam_start_s=jam_start, jam_s=jam, world=world)
+    try:
+        folder, runs, central, failures = run_cooperative(
+            out,
+            seeds=list(range(first_seed, first_seed + seeds)),
+            variants=chosen,
+            setup=setup,
+            stop=stop_on_signals(),
+            show_progress=not quiet,
+        )
+        table, figures = compare(folder, runs, central, setup)
+    except SwarmlocError as exc:
+        fail(str(exc))
+    console = Console()
+    reported = [report_and_say(run, console) for by_seed in runs.values() for run in by_seed.values()]
+    console.print(
+        f"jammed vehicles {setup.jammed_ids}, {jam_start:g}-{jam_start + jam:g} s, {seeds} seed(s), {world} world:",
+        highlight=False,
+    )
+    for row in table["variants"].values():
+        lo, hi = row["anees_interval_95"]
+        console.print(
+            f"  {row['label']:<44} RMSE {row['rmse_m']:7.3f} m   ANEES {row['anees']:7.2f} [{lo:.2f}, {hi:.2f}]",
+            highlight=False,
+        )
+    for failure in failures:
+        console.print(f"[red]swarm: {failure}[/red]")
+    for figure in figures:
+        console.print(f"figure: {figure}")
+    console.print(f"experiment: {folder}")
+    if failures or not all(reported):
+        raise typer.Exit(1)

@@ -1,0 +1,241 @@
+"""The `swarm` command: run a whole swarm (`up`) or one process of it (`router`, `sim`, `vehicle`, `gs`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from bus.errors import SwarmlocError
+from cli import process_commands
+from cli.errors import REPORT_HELP, fail
+from cli.experiment_commands import experiment_app
+from cli.fault_commands import fault_app
+from cli.replay_commands import replay_app
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="swarmloc: multi-process swarm localization over zenoh, with MAVLink 2 state packets.",
+)
+app.add_typer(fault_app, name="fault")
+app.add_typer(experiment_app, name="experiment")
+app.add_typer(replay_app, name="replay")
+
+
+@app.command()
+def up(
+    scenario: Optional[Path] = typer.Argument(
+        None, help="TOML scenario (config and fault timeline); options below override it"
+    ),
+    vehicles: Optional[int] = typer.Option(None, help="number of vehicles (1-250) [default: 5]"),
+    duration: Optional[float] = typer.Option(None, help="simulated seconds [default: 60]"),
+    mode: Optional[str] = typer.Option(
+        None, help="lockstep (reproducible, as fast as possible) or realtime [default: lockstep]"
+    ),
+    speed: Optional[float] = typer.Option(None, help="realtime only: sim seconds per wall second [default: 1]"),
+    seed: Optional[int] = typer.Option(None, help="seed of trajectories and sensor noise [default: 0]"),
+    tick: Optional[float] = typer.Option(
+        None, help="sim seconds the world advances per clock tick [default: 0.5 lockstep, 0.02 realtime]"
+    ),
+    out: Path = typer.Option(Path("runs"), help="parent folder of run directories"),
+    name: Optional[str] = typer.Option(
+        None, help="run directory name (a suffix is added if it exists) [default: the scenario's name, or run]"
+    ),
+    quiet: bool = typer.Option(False, help="no progress display, only the final table"),
+    restart: str = typer.Option(
+        "no", help="no, or on-failure: start a vehicle or the ground station again when it dies"
+    ),
+    chaos: Optional[int] = typer.Option(None, help="add a random fault timeline of every kind, drawn from this seed"),
+    insecure: bool = typer.Option(False, help="no zenoh logins, no access control, no MAVLink signing"),
+    mavlink_out: Optional[str] = typer.Option(
+        None, help="forward every vehicle's MAVLink to a GCS: udpout:HOST[:PORT]"
+    ),
+    tls_cert: Optional[Path] = typer.Option(
+        None, help="run the bus over TLS: the router's PEM certificate (for localhost)"
+    ),
+    tls_key: Optional[Path] = typer.Option(None, help="TLS: the router's PEM private key"),
+    tls_ca: Optional[Path] = typer.Option(None, help="TLS: the PEM CA that signed the certificate"),
+    fault_seed: Optional[int] = typer.Option(
+        None, help="seed of link-fault decisions (independent of --seed) [default: 1]"
+    ),
+    report: bool = typer.Option(True, help=REPORT_HELP),
+) -> None:
+    """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table and write the report."""
+    from bus.config import build_config
+    from bus.process import stop_on_signals
+    from groundstation.mavlink_out import parse_udpout
+    from launch.launcher import Security, launch
+    from launch.scenario import load_scenario, overlay
+
+    if mode not in (None, "lockstep", "realtime"):
+        fail(f"unknown mode {mode!r}: use lockstep or realtime")
+    if restart not in ("no", "on-failure"):
+        fail(f"unknown restart policy {restart!r}: use no or on-failure")
+    tls = [tls_cert, tls_key, tls_ca]
+    if any(tls) and not all(p is not None and p.is_file() for p in tls):
+        fail("TLS needs --tls-cert, --tls-key and --tls-ca, all existing PEM files")
+    try:
+        base = load_scenario(scenario) if scenario else {}
+        config = build_config(
+            overlay(
+                base,
+                {
+                    "name": name,
+                    "world": {"vehicles": vehicles, "seed": seed},
+                    "fault_seed": fault_seed,
+                    "clock": {"mode": mode, "speed": speed, "duration_s": duration, "tick_s": tick},
+                },
+            )
+        )
+        if chaos is not None:
+            config = with_chaos(config, chaos)
+        if mavlink_out:
+            parse_udpout(mavlink_out)
+        security = Security(
+            tls_certificate=tls_cert, tls_private_key=tls_key, tls_root_ca=tls_ca, mavlink_out=mavlink_out
+        )
+        run_dir, failures, notes = launch(
+            config,
+            out,
+            show_progress=not quiet,
+            stop=stop_on_signals(),
+            restart=restart,
+            secure=not insecure,
+            security=security,
+        )
+    except SwarmlocError as exc:
+        fail(str(exc))
+    _print_result(run_dir, failures, notes, report=report)
+
+
+@app.command()
+def config(
+    scenario: Optional[Path] = typer.Argument(
+        None, help="TOML scenario (config and fault timeline); options below override it"
+    ),
+    out: Path = typer.Option(..., help="directory for config.json and vehicle.json (created)"),
+    vehicles: Optional[int] = typer.Option(None, help="number of vehicles (1-250) [default: 5]"),
+    duration: Optional[float] = typer.Option(None, help="simulated seconds [default: 60]"),
+    mode: Optional[str] = typer.Option(None, help="lockstep or realtime [default: lockstep]"),
+    seed: Optional[int] = typer.Option(None, help="seed of trajectories and sensor noise [default: 0]"),
+) -> None:
+    """Write the configs of a deployment: config.json for the world and the ground station (the whole
+    scenario, seed and trajectories included) and vehicle.json for the vehicles (only what a vehicle
+    needs: no seed, no trajectories, nothing that determines truth)."""
+    from bus.config import build_config
+    from launch.scenario import load_scenario, overlay
+
+    if mode not in (None, "lockstep", "realtime"):
+        fail(f"unknown mode {mode!r}: use lockstep or realtime")
+    try:
+        base = load_scenario(scenario) if scenario else {}
+        swarm = build_config(
+            overlay(
+                base, {"world": {"vehicles": vehicles, "seed": seed}, "clock": {"mode": mode, "duration_s": duration}}
+            )
+        )
+        out.mkdir(parents=True, exist_ok=True)
+        swarm.dump(out / "config.json")
+        swarm.for_vehicle().dump(out / "vehicle.json")
+    except OSError as exc:
+        fail(f"cannot write to {out}: {exc.strerror or exc}")
+    except SwarmlocError as exc:
+        fail(str(exc))
+    typer.echo(f"wrote {out / 'config.json'} (world, ground station) and {out / 'vehicle.json'} (vehicles)")
+
+
+def with_chaos(config, seed: int):
+    """``config`` with a chaos fault timeline (every kind of fault) added to its own faults."""
+    from bus.config import build_config
+    from launch.chaos import chaos_faults
+
+    data = config.model_dump(mode="json")
+    data["faults"] = data["faults"] + chaos_faults(
+        seed, vehicles=config.world.vehicles, duration_s=config.clock.duration_s, spacing_m=config.world.spacing_m
+    )
+    return build_config(data)
+
+
+def _print_result(run_dir: Path, failures: list[str], notes: list[str], *, report: bool = True) -> None:
+    """The run's table, then its report (``report``: written now; else how to write it later); exits
+    1 when a process failed, no summary was written or the report could not be."""
+    from rich.console import Console
+
+    from groundstation.display import rmse_table
+
+    console = Console()
+    for note in notes:
+        console.print(f"[yellow]swarm: {note}[/yellow]", highlight=False)
+    for failure in failures:
+        console.print(f"[red]swarm: {failure}[/red]")
+    summary_path = run_dir / "summary.json"
+    if summary_path.exists():
+        summary = json.loads(summary_path.read_text())
+        timing_path = run_dir / "timing.json"
+        timing = json.loads(timing_path.read_text()) if timing_path.exists() else None
+        console.print(rmse_table(summary, timing, title=f"{summary['name']}: {summary['status']}"))
+    else:
+        console.print(f"[red]swarm: no summary.json was written in {run_dir}[/red]")
+    console.print(f"run directory: {run_dir}")
+    from groundstation.display import report_and_say
+
+    if report:
+        report_ok = report_and_say(run_dir, console)
+    else:
+        console.print(f"report: not written (--no-report); `swarm report {run_dir}` writes it", highlight=False)
+        report_ok = True
+    if failures or not summary_path.exists() or not report_ok:
+        raise typer.Exit(1)
+
+
+@app.command()
+def report(run_dir: Path = typer.Argument(..., help="a run directory written by `swarm up` (may be partial)")) -> None:
+    """Write report.html (self-contained) and report/*.png for a run directory; says what is missing."""
+    from rich.console import Console
+
+    from groundstation.display import report_and_say
+
+    if not report_and_say(run_dir, Console()):
+        raise typer.Exit(1)
+
+
+@app.command()
+def secrets(
+    out: Path = typer.Option(..., help="directory for the secrets (created, owner-only)"),
+    vehicles: int = typer.Option(5, min=1, max=250, help="logins and signing keys for vehicles 1..N"),
+    keep: bool = typer.Option(True, help="leave an existing set alone (containers share one)"),
+    enroll_out: Optional[Path] = typer.Option(
+        None, help="also copy the enroll login (all that --id auto vehicles get) to this directory"
+    ),
+) -> None:
+    """Write a fresh master MAVLink key, one zenoh password per role, a login and a signing key per
+    vehicle, and the router's credentials file: what `swarm up` does for every run, for deployments
+    (compose) to share."""
+    import shutil
+
+    from bus.secrets import write_secrets
+
+    try:
+        if keep and (out / "credentials.txt").exists():
+            typer.echo(f"secrets in {out} exist; kept")
+        else:
+            write_secrets(out, vehicles=vehicles)
+            typer.echo(f"secrets for {vehicles} vehicles written to {out}")
+        if enroll_out is not None:
+            enroll_out.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(out / "enroll.password", enroll_out / "enroll.password")
+    except OSError as exc:
+        fail(f"cannot write secrets to {out}: {exc.strerror or exc}")
+    except SwarmlocError as exc:
+        fail(str(exc))
+
+
+for _command in process_commands.COMMANDS:
+    app.command()(_command)
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,137 @@
+"""`swarm replay ...`: a recorded data set through the real swarm (launch.replay_setup)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from bus.config import SwarmConfig
+from bus.errors import SwarmlocError
+from cli.errors import REPORT_HELP, fail
+from launch.replay_setup import ESTIMATORS
+
+replay_app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Replay a recorded multi-robot data set through the swarm's real processes.",
+)
+
+
+def _numbers(text: str, what: str, kind=int) -> tuple:
+    try:
+        return tuple(kind(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        fail(f"{what} must be comma-separated numbers, got {text!r}")
+
+
+@replay_app.command("mrclam")
+def mrclam(
+    dataset: Path = typer.Argument(..., help="an MRCLAM data set (1-9): its directory or its .tar.xz"),
+    robots: str = typer.Option("1,2,3,4,5", help="robots to replay, comma-separated; vehicle 1 is the first"),
+    estimator: str = typer.Option(
+        "known-map",
+        help="dead-reckoning, known-map (the surveyed landmarks), slam, or "
+        "centralized (the reference: one filter over every robot with the map and every "
+        "robot sighting, in this process, no bus)",
+    ),
+    cooperative: bool = typer.Option(
+        False, help="also fuse the robots' sightings of each other (covariance intersection)"
+    ),
+    relay: bool = typer.Option(
+        True,
+        help="cooperative: each sighting also reaches the robot seen, which fuses it "
+        "with the observer's broadcast pose",
+    ),
+    start: Optional[float] = typer.Option(
+        None, help="data set second the replay starts [default: the calibration's end]"
+    ),
+    duration: Optional[float] = typer.Option(None, help="seconds replayed [default: to the data set's end]"),
+    calibrate: str = typer.Option(
+        "0,120",
+        help="data set interval START,END (s) the datasheet is calibrated on "
+        "(odometry lag, camera latency, noise and the part of it that persists); the "
+        "replayed window may not overlap it",
+    ),
+    withhold_landmarks: str = typer.Option("", help="robots whose landmark sightings are withheld, comma-separated"),
+    mode: str = typer.Option("lockstep", help="lockstep (as fast as possible, reproducible) or realtime"),
+    speed: float = typer.Option(1.0, help="realtime only: data set seconds per wall second"),
+    seed: int = typer.Option(0, help="seed of the launch priors' perturbation"),
+    out: Path = typer.Option(Path("runs"), help="parent folder of run directories"),
+    name: Optional[str] = typer.Option(None, help="run directory name [default: mrclam-<estimator>]"),
+    quiet: bool = typer.Option(False, help="no progress display, only the final table"),
+    insecure: bool = typer.Option(False, help="no zenoh logins, no access control, no MAVLink signing"),
+    report: bool = typer.Option(True, help=REPORT_HELP),
+) -> None:
+    """Replay the UTIAS MRCLAM data set (Leung et al., IJRR 2011): each robot a vehicle process, the
+    world playing its odometry, landmark and robot sightings and Vicon truth on sim time, the ground
+    station scoring. Writes a run directory and report like `swarm up`."""
+    from bus.process import stop_on_signals
+    from cli.main import _print_result
+    from launch.launcher import launch
+    from launch.replay_setup import ReplayChoice, replay_config
+
+    if estimator not in ESTIMATORS:
+        fail(f"unknown estimator {estimator!r}: use {', '.join(ESTIMATORS)}")
+    if mode not in ("lockstep", "realtime"):
+        fail(f"unknown mode {mode!r}: use lockstep or realtime")
+    interval = _numbers(calibrate, "--calibrate", float)
+    if len(interval) != 2:
+        fail(f"--calibrate must be START,END in seconds, got {calibrate!r}")
+    choice = ReplayChoice(
+        str(dataset),
+        _numbers(robots, "--robots"),
+        estimator,
+        cooperative,
+        start,
+        duration,
+        interval,
+        _numbers(withhold_landmarks, "--withhold-landmarks"),
+        seed,
+        relay,
+    )
+    if estimator == "centralized" and mode != "lockstep":
+        fail("the centralized reference runs in this process as fast as it can: --mode realtime does not apply")
+    try:
+        config = replay_config(
+            choice,
+            name=name or f"mrclam-{estimator}{'-coop' if cooperative else ''}",
+            overrides={"clock": {"mode": mode, "speed": speed}},
+        )
+        if estimator == "centralized":
+            _reference(config, out)
+            return
+        run_dir, failures, notes = launch(
+            config, out, show_progress=not quiet, stop=stop_on_signals(), secure=not insecure
+        )
+    except SwarmlocError as exc:
+        fail(str(exc))
+    _print_result(run_dir, failures, notes, report=report)
+
+
+def _reference(config: SwarmConfig, out: Path) -> None:
+    """The centralized reference on the replay: a run directory with config.json and reference.json
+    (per robot and swarm RMSE, max error, ANEES, in summary.json's shape), and the table printed."""
+    import json
+
+    from rich.console import Console
+
+    from experiments.centralized_reference import run_centralized, tracks_summary
+    from groundstation.display import rmse_table
+    from launch.launcher import unique_run_dir
+
+    run_dir = unique_run_dir(out, config.name)
+    config.dump(run_dir / "config.json")
+    summary = {
+        "name": config.name,
+        "status": "finished",
+        "reference": "centralized",
+        "seed": config.world.seed,
+        "duration_s": config.clock.duration_s,
+        **tracks_summary(run_centralized(config)),
+    }
+    (run_dir / "reference.json").write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
+    console = Console()
+    console.print(rmse_table(summary, title=f"{config.name}: centralized reference (one process, no bus)"))
+    console.print(f"run directory: {run_dir}")

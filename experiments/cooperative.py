@@ -1,0 +1,261 @@
+"""`swarm experiment cooperative`: the cooperative-localization paper's experiment. A swarm (8
+vehicles) loses GNSS on most of its members (6) for a long stretch (120 s); the others keep it. Each
+decentralized variant flies through real processes, one run directory per variant and seed:
+independent dead reckoning, naive fusion, split CI with the EKF and the UKF, split CI with IAE,
+plain CI. The centralized reference (``vehicle.centralized``) runs in this process on the same
+world. Scored over the jam, on the jammed vehicles only, every 0.2 s of sim time.
+
+Consistency: ANEES is the mean pose NEES (3 dof). Its 95% interval comes from the spread of the
+per-seed means (seeds are independent; vehicles of one swarm are not, since they fuse each other);
+``anees_band`` is the chi-square band a consistent filter's per-instant average over all jammed runs
+would lie in if those runs were independent - a reference line, narrower than the truth.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from bus import statistics
+from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, build_config
+from groundstation.report.rundata import load_run
+
+SCORE_EVERY_US = 200_000
+CENTRALIZED = "centralized"
+VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "dead-reckoning": ("independent dead reckoning (no cooperation)", {"cooperative": False}),
+    "naive": ("naive fusion (double counts)", {"cooperative_fusion": "naive"}),
+    "ci-ekf": ("split CI, EKF", {}),
+    "ci-ukf": ("split CI, UKF", {"estimator": "ukf"}),
+    "ci-ekf-iae": ("split CI, EKF, IAE", {"adaptive_noise": True}),
+    "plain-ci-ekf": ("plain CI, EKF", {"cooperative_fusion": "ci"}),
+}
+LABELS = {**{name: label for name, (label, _) in VARIANTS.items()}, CENTRALIZED: "centralized reference"}
+
+
+@dataclass(frozen=True)
+class Setup:
+    """The experiment's swarm: ``vehicles`` of which the first ``jammed`` lose GNSS from ``jam_start_s``
+    for ``jam_s`` (the run ends with the jam); ``world``: "honest" (``HONEST_WORLD``) or "ideal"."""
+
+    vehicles: int = 8
+    jammed: int = 6
+    jam_start_s: float = 20.0
+    jam_s: float = 120.0
+    world: str = "honest"
+
+    @property
+    def jammed_ids(self) -> list[int]:
+        return list(range(1, self.jammed + 1))
+
+
+def cooperative_config(variant: str, seed: int, setup: Setup) -> SwarmConfig:
+    """One variant's swarm on ``seed``: GNSS silent for the jammed vehicles over the jam."""
+    blackouts = [
+        {
+            "name": f"jam-v{vid}",
+            "kind": "blackout",
+            "vehicle": vid,
+            "sensor": "gnss",
+            "start_s": setup.jam_start_s,
+            "for_s": setup.jam_s,
+        }
+        for vid in setup.jammed_ids
+    ]
+    sensor_truth, datasheet = (HONEST_WORLD, HONEST_DATASHEET) if setup.world == "honest" else ({}, {})
+    vehicle = VARIANTS[variant][1] if variant in VARIANTS else {}
+    return build_config(
+        {
+            "name": f"{variant}-seed{seed}",
+            "world": {"vehicles": setup.vehicles, "seed": seed, "sensor_truth": sensor_truth},
+            "sensors": datasheet,
+            "clock": {"duration_s": setup.jam_start_s + setup.jam_s},
+            "vehicle": vehicle,
+            "faults": blackouts,
+        }
+    )
+
+
+def run_cooperative(
+    out: Path, *, seeds: list[int], variants: list[str], setup: Setup, stop: threading.Event, show_progress: bool
+) -> tuple[Path, dict[str, dict[int, Path]], dict[str, dict[int, Any]], list[str]]:
+    """Fly every variant on every seed (real processes) and the centralized reference (in process).
+    Returns the experiment folder, run directories [variant][seed], the centralized tracks
+    [seed] and failures."""
+    from experiments.centralized_reference import run_centralized
+    from launch.launcher import launch, unique_run_dir
+
+    folder = unique_run_dir(out, "cooperative")
+    runs: dict[str, dict[int, Path]] = {}
+    central: dict[str, dict[int, Any]] = {CENTRALIZED: {}}
+    failures: list[str] = []
+    for seed in seeds:
+        for variant in variants:
+            if stop.is_set():
+                return folder, runs, central, failures + ["stopped"]
+            run_dir, failed, _ = launch(
+                cooperative_config(variant, seed, setup), folder, show_progress=show_progress, stop=stop
+            )
+            runs.setdefault(variant, {})[seed] = run_dir
+            failures += [f"{variant} seed {seed}: {f}" for f in failed]
+        central[CENTRALIZED][seed] = run_centralized(
+            cooperative_config(CENTRALIZED, seed, setup), score_every_us=SCORE_EVERY_US
+        )
+    return folder, runs, central, failures
+
+
+def jammed_tracks_of_run(run_dir: Path, setup: Setup) -> dict[int, dict[str, np.ndarray]]:
+    """Per jammed vehicle of one run: t_s, error_m, nees over the jam, every 0.2 s."""
+    metrics = load_run(run_dir).metrics
+    if not metrics:
+        return {}
+    stamps = np.round(metrics["t_s"] * 1e6).astype(np.int64)
+    scored = (stamps % SCORE_EVERY_US == 0) & _in_jam(metrics["t_s"], setup)
+    out = {}
+    for vid in setup.jammed_ids:
+        keep = scored & (metrics["vehicle"] == vid)
+        if keep.any():
+            out[vid] = {
+                "t_s": metrics["t_s"][keep],
+                "error_m": metrics["err_pos_m"][keep],
+                "nees": metrics["nees"][keep],
+            }
+    return out
+
+
+def _in_jam(t_s: np.ndarray, setup: Setup) -> np.ndarray:
+    return (t_s >= setup.jam_start_s) & (t_s <= setup.jam_start_s + setup.jam_s)
+
+
+def jammed_tracks_of_reference(
+    tracks: dict[int, dict[str, np.ndarray]], setup: Setup
+) -> dict[int, dict[str, np.ndarray]]:
+    """The centralized reference's tracks restricted like :func:`jammed_tracks_of_run`."""
+    return {
+        vid: {k: v[_in_jam(track["t_s"], setup)] for k, v in track.items()}
+        for vid, track in tracks.items()
+        if vid in setup.jammed_ids
+    }
+
+
+def summarize(tracks: dict[int, dict[int, dict[str, np.ndarray]]]) -> dict[str, Any]:
+    """One variant's row from its jammed tracks [seed][vehicle]: RMSE (m), max error, ANEES with the
+    95% interval from the per-seed means, the chi-square band and the share of instants inside it."""
+    per_seed = [
+        np.concatenate([t["nees"] for t in by_vehicle.values()]) for by_vehicle in tracks.values() if by_vehicle
+    ]
+    errors = np.concatenate([t["error_m"] for by_vehicle in tracks.values() for t in by_vehicle.values()])
+    series = [t for by_vehicle in tracks.values() for t in by_vehicle.values()]
+    length = min(len(t["nees"]) for t in series)
+    instant = np.mean([t["nees"][:length] for t in series], axis=0)
+    runs = len(series)
+    band = np.array(statistics.chi2_band(statistics.POSE_NEES_DOF, runs=runs))
+    seed_means = np.array([s.mean() for s in per_seed])
+    half = 1.96 * seed_means.std(ddof=1) / np.sqrt(len(seed_means)) if len(seed_means) > 1 else float("nan")
+    anees = float(np.mean(np.concatenate(per_seed)))
+    return {
+        "rmse_m": float(np.sqrt(np.mean(errors**2))),
+        "max_error_m": float(errors.max()),
+        "anees": anees,
+        "anees_interval_95": [anees - half, anees + half],
+        "anees_band_95": band.tolist(),
+        "share_of_instants_in_band": float(np.mean((instant >= band[0]) & (instant <= band[1]))),
+        "seeds": len(per_seed),
+        "jammed_runs": runs,
+        "samples": int(errors.size),
+    }
+
+
+def compare(
+    folder: Path, runs: dict[str, dict[int, Path]], central: dict[str, dict[int, Any]], setup: Setup
+) -> tuple[dict[str, Any], list[Path]]:
+    """experiment.json (one row per variant, ratios to dead reckoning and to the centralized
+    reference) and the figures; returns the table and the figure paths."""
+    tracks = {
+        variant: {seed: jammed_tracks_of_run(path, setup) for seed, path in by_seed.items()}
+        for variant, by_seed in runs.items()
+    }
+    tracks |= {
+        name: {seed: jammed_tracks_of_reference(t, setup) for seed, t in by_seed.items()}
+        for name, by_seed in central.items()
+    }
+    tracks = {name: by_seed for name, by_seed in tracks.items() if any(by_seed.values())}
+    rows = {name: {"label": LABELS.get(name, name), **summarize(by_seed)} for name, by_seed in tracks.items()}
+    for row in rows.values():
+        for base in ("dead-reckoning", CENTRALIZED):
+            if base in rows:
+                row[f"rmse_vs_{base}"] = row["rmse_m"] / rows[base]["rmse_m"]
+    table = {"setup": setup.__dict__, "score_every_s": SCORE_EVERY_US * 1e-6, "variants": rows}
+    (folder / "experiment.json").write_text(json.dumps(table, indent=2, sort_keys=True) + "\n")
+    written = []
+    for stem, build in (("rmse_during_jam", error_figure), ("anees_during_jam", nees_figure)):
+        figure = build(tracks, setup)
+        path = folder / f"{stem}.png"
+        figure.savefig(path, dpi=100)
+        written.append(path)
+    return table, written
+
+
+def _binned(
+    tracks: dict[int, dict[int, dict[str, np.ndarray]]], key: str, bin_s: float, root_mean_square: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bin centres (s) and the mean (or RMS) of ``key`` over all seeds and jammed vehicles per bin."""
+    t = np.concatenate([v["t_s"] for s in tracks.values() for v in s.values()])
+    values = np.concatenate([v[key] for s in tracks.values() for v in s.values()])
+    return (statistics.binned_rms if root_mean_square else statistics.binned_mean)(t, values, bin_s)
+
+
+def _variant_lines(tracks: dict[str, dict], key: str, bin_s: float, root_mean_square: bool) -> tuple[Figure, Any]:
+    """A figure with one binned line of ``key`` per variant (the centralized reference dashed), log y."""
+    fig = Figure(figsize=(9.0, 4.5), layout="constrained")
+    ax = fig.subplots()
+    for k, (name, by_seed) in enumerate(tracks.items()):
+        t, value = _binned(by_seed, key, bin_s, root_mean_square)
+        ax.plot(
+            t,
+            value,
+            color=f"C{k}",
+            lw=1.4 if name in (CENTRALIZED, "ci-ekf") else 1.0,
+            ls="--" if name == CENTRALIZED else "-",
+            label=LABELS.get(name, name),
+        )
+    ax.set_yscale("log")
+    ax.set_xlabel("sim time [s]")
+    ax.grid(alpha=0.3, which="both")
+    return fig, ax
+
+
+def error_figure(tracks: dict[str, dict], setup: Setup, bin_s: float = 2.0) -> Figure:
+    """Position RMSE of the jammed vehicles over the jam, one line per variant (log scale)."""
+    fig, ax = _variant_lines(tracks, "error_m", bin_s, True)
+    ax.set_ylabel("position RMSE of the jammed vehicles [m]")
+    ax.set_title(
+        f"GNSS jammed for {setup.jammed} of {setup.vehicles} vehicles from {setup.jam_start_s:g} s "
+        f"({setup.world} world; RMS over seeds and jammed vehicles per {bin_s:g} s)",
+        fontsize="medium",
+    )
+    ax.legend(fontsize="small", ncols=2)
+    return fig
+
+
+def nees_figure(tracks: dict[str, dict], setup: Setup, bin_s: float = 2.0) -> Figure:
+    """Pose ANEES of the jammed vehicles over the jam per variant, with the 3-dof expectation and the
+    chi-square band for the largest variant's count of jammed runs taken as independent (log scale)."""
+    fig, ax = _variant_lines(tracks, "nees", bin_s, False)
+    runs = max(sum(len(s) for s in by_seed.values()) for by_seed in tracks.values())
+    lo, hi = statistics.chi2_band(statistics.POSE_NEES_DOF, runs=runs)
+    ax.axhspan(lo, hi, color="grey", alpha=0.2, lw=0, label=f"95% band, {runs} independent runs")
+    ax.axhline(statistics.POSE_NEES_DOF, color="black", lw=0.8, ls=":")
+    ax.set_ylabel("pose ANEES (3 dof) of the jammed vehicles")
+    ax.set_title(
+        f"consistency during the jam ({setup.world} world; mean over seeds and jammed vehicles per {bin_s:g} s)",
+        fontsize="medium",
+    )
+    ax.legend(fontsize="small", ncols=2, loc="upper left", framealpha=0.9)
+    return fig

@@ -1,0 +1,323 @@
+"""The in-process harness: the pure world (or a data-set replay) feeding estimators with no bus, in
+stamp order, cycle by cycle at the vehicles' loop rate, so that the tests' Monte Carlo runs, the
+benchmarks and the centralized reference all run filters the one same way.
+
+``run`` advances the world a chunk at a time; every ``Listener`` (a filter and the vehicles whose
+samples it hears: one for a vehicle filter, all of them for the centralized reference) gets every
+sample stamped at or before a cycle's time, in stamp order (vehicles in id order at equal stamps),
+then the cycle; ``on_cycle(t_us, truth)`` sees the truth rows (N, 5) of that instant, when the world
+has them. With ``wire`` the samples go through the wire format first (bus.feed), as a vehicle
+process receives them. The functions below are the runs the tests and benchmarks share.
+"""
+
+from __future__ import annotations
+
+import queue
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bus import feed, statistics
+from bus.config import SensorSpec, build_config
+from vehicle.estimators import ekf, ukf
+from vehicle.estimators.filter import Filter
+from vehicle.gnss_health import GnssHealthSpec
+
+PERIOD_US = 20_000  # the vehicles' default loop period (50 Hz)
+CHUNK_US = 1_000_000
+
+
+@dataclass(frozen=True)
+class Listener:
+    """A filter (``handle(msg)``, ``cycle(t_us)``) and the vehicles whose samples it hears."""
+
+    vehicle_ids: tuple[int, ...]
+    filter: Any
+
+
+def samples(out: Any, vehicle_id: int, stamp_us: int, *, wire: bool = False, camera: bool = False) -> list:
+    """One vehicle's samples (topic, message) of a world step's output, in stamp order; ``wire``:
+    through the wire format and back; ``camera``: with its camera frames."""
+    frames = out.camera(vehicle_id) if camera else None
+    batch = feed.SensorBatch(vehicle_id, 0, stamp_us, out.blocks(vehicle_id), frames)
+    return feed.decode_batch(feed.encode_batch(batch)).samples() if wire else batch.samples()
+
+
+def samples_of(world: Any, until_us: int, vehicle_id: int = 1) -> tuple[list[tuple[str, object]], feed.TruthBatch]:
+    """Advance ``world`` to ``until_us``: one vehicle's samples (topic, message) in stamp order, and
+    the truth of every vehicle, both through the wire format (one batch per second)."""
+    samples, stamps, rows, ids = [], [], [], world.vehicle_ids()
+    end = world.now_us
+    while end < until_us:
+        end = min(until_us, end + 1_000_000)
+        out = world.advance(end)
+        batch = feed.encode_batch(feed.SensorBatch(vehicle_id, 0, end, out.blocks(vehicle_id)))
+        samples += feed.decode_batch(batch).samples()
+        stamps += out.truth_stamps
+        rows += out.truth
+    truth = feed.TruthBatch(
+        0,
+        until_us,
+        np.array(stamps, dtype=np.int64),
+        np.array(ids),
+        np.array(rows).reshape(len(stamps), len(ids), feed.TRUTH_WIDTH),
+    )
+    return samples, truth
+
+
+def run(
+    world: Any,
+    listeners: list[Listener],
+    *,
+    end_us: int,
+    period_us: int = PERIOD_US,
+    chunk_us: int = CHUNK_US,
+    wire: bool = False,
+    camera: bool = False,
+    on_cycle: Callable[[int, np.ndarray | None], None] | None = None,
+) -> None:
+    """Cycles at 0, ``period_us``, ... up to ``end_us`` (module docstring)."""
+    pending: list[list] = [[] for _ in listeners]
+    t_us = chunk_end = 0
+    while t_us <= end_us:
+        chunk_end = min(end_us, chunk_end + chunk_us)
+        out = world.advance(chunk_end)
+        truth = dict(zip(out.truth_stamps, out.truth))
+        heard = {vid for listener in listeners for vid in listener.vehicle_ids}
+        by_vehicle = {vid: samples(out, vid, chunk_end, wire=wire, camera=camera) for vid in sorted(heard)}
+        for stream, listener in zip(pending, listeners):
+            stream += [s for vid in listener.vehicle_ids for s in by_vehicle[vid]]
+            stream.sort(key=lambda item: item[1].stamp_us)  # stable: vehicles in id order at equal stamps
+        taken = [0] * len(listeners)
+        while t_us <= chunk_end:
+            for k, (stream, listener) in enumerate(zip(pending, listeners)):
+                while taken[k] < len(stream) and stream[taken[k]][1].stamp_us <= t_us:
+                    listener.filter.handle(stream[taken[k]][1])
+                    taken[k] += 1
+                listener.filter.cycle(t_us)
+            if on_cycle is not None:
+                on_cycle(t_us, truth.get(t_us))
+            t_us += period_us
+        pending = [stream[k:] for stream, k in zip(pending, taken)]
+
+
+def pose_score(f: Filter, truth_pose: np.ndarray) -> tuple[float, float]:
+    """(pose NEES, position error m) of a filter's estimate against the truth pose (3,)."""
+    error = statistics.pose_error(f.state.x[:3], truth_pose)
+    return statistics.nees(error, f.state.P[:3, :3]), float(np.hypot(error[0], error[1]))
+
+
+def vehicle_filter(spec: SensorSpec, gate_probability: float, kind: str = "ekf", adaptive_window: int = 0) -> Filter:
+    """Vehicle 1's filter of ``kind`` (ekf or ukf); ``adaptive_window``: IAE."""
+    build = ukf.build if kind == "ukf" else ekf.build
+    return build(vehicle_id=1, spec=spec, gate_probability=gate_probability, adaptive_window=adaptive_window)
+
+
+def nees_series_of_filters(
+    seed: int,
+    filters: list[dict],
+    *,
+    duration_s: float,
+    trajectory: str,
+    every_us: int = 1_000_000,
+    world_sensors: SensorSpec | None = None,
+    world: dict | None = None,
+    estimators_out: list | None = None,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Pose NEES and position error (m) of vehicle 1's filters on one simulated world, sampled every
+    ``every_us``: ``filters`` holds each one's ``estimator_spec`` (what it assumes), ``kind`` (ekf,
+    ukf) and ``adaptive_window`` (IAE); ``world_sensors`` overrides what the world simulates, ``world``
+    adds to its section (e.g. its sensor_truth); ``estimators_out`` receives the filters."""
+    from sim.world import World
+
+    sensors = (world_sensors or SensorSpec()).model_dump()
+    config = build_config(
+        {"world": {"vehicles": 1, "seed": seed, "trajectories": [trajectory], **(world or {})}, "sensors": sensors}
+    )
+    estimators = [
+        vehicle_filter(
+            f.get("estimator_spec") or config.sensors,
+            config.vehicle.gate_probability,
+            f.get("kind", "ekf"),
+            f.get("adaptive_window", 0),
+        )
+        for f in filters
+    ]
+    if estimators_out is not None:
+        estimators_out.extend(estimators)
+    scores: list[list[tuple[float, float]]] = [[] for _ in filters]
+
+    def score(t_us: int, truth: np.ndarray | None) -> None:
+        if t_us % every_us or not any(e.initialized for e in estimators):
+            return
+        for estimator, its_scores in zip(estimators, scores):
+            if estimator.initialized:
+                its_scores.append(pose_score(estimator, truth[0, :3]))
+
+    listeners = [Listener((1,), e) for e in estimators]
+    run(World(config), listeners, end_us=round(duration_s * 1e6), wire=True, on_cycle=score)
+    return [(np.array([n for n, _ in s]), np.array([e for _, e in s])) for s in scores]
+
+
+def pose_nees_series(
+    seed: int,
+    *,
+    duration_s: float,
+    trajectory: str,
+    every_us: int = 1_000_000,
+    estimator_spec: SensorSpec | None = None,
+    world_sensors: SensorSpec | None = None,
+    kind: str = "ekf",
+    world: dict | None = None,
+    adaptive_window: int = 0,
+    estimator_out: list | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`nees_series_of_filters` of one filter."""
+    filters = [{"estimator_spec": estimator_spec, "kind": kind, "adaptive_window": adaptive_window}]
+    return nees_series_of_filters(
+        seed,
+        filters,
+        duration_s=duration_s,
+        trajectory=trajectory,
+        every_us=every_us,
+        world_sensors=world_sensors,
+        world=world,
+        estimators_out=estimator_out,
+    )[0]
+
+
+def gnss_fault_run(
+    seed: int, *, duration_s: float, faults: list[dict], monitor: bool = True, every_us: int = 200_000
+) -> dict[str, np.ndarray]:
+    """One vehicle on its circle with world ``faults``: time (s), position error (m) and GNSS health,
+    sampled every ``every_us``. ``monitor=False`` fuses every fix that passes the gate (no health checks)."""
+    from sim.world import World
+
+    config = build_config({"world": {"vehicles": 1, "seed": seed, "trajectories": ["circle"]}, "faults": faults})
+    estimator = vehicle_filter(config.sensors, config.vehicle.gate_probability)
+    if not monitor:
+        estimator.state.gnss_health.spec = GnssHealthSpec(
+            mean_gate_probability=1.0 - 1e-300, unhealthy_after_s=1e9, fix_timeout_s=1e9
+        )
+    t, errors, healthy = [], [], []
+
+    def score(t_us: int, truth: np.ndarray | None) -> None:
+        if t_us % every_us or not estimator.initialized:
+            return
+        t.append(t_us * 1e-6)
+        errors.append(float(np.hypot(*(estimator.state.x[:2] - truth[0, :2]))))
+        healthy.append(estimator.state.gnss_health.healthy)
+
+    run(World(config), [Listener((1,), estimator)], end_us=round(duration_s * 1e6) - 1, wire=True, on_cycle=score)
+    return {"t_s": np.array(t), "error_m": np.array(errors), "healthy": np.array(healthy)}
+
+
+def replay_in_memory(
+    config, data, *, every_us: int = 1_000_000, estimators: dict | None = None
+) -> dict[int, np.ndarray]:
+    """A data-set replay (sim.replay) with every vehicle's filter in this process, no bus: per vehicle,
+    rows [t us, position error m, pose NEES] every ``every_us`` where truth exists. ``estimators``
+    replaces the configured ones (vehicle id -> filter)."""
+    from sim.replay import ReplayWorld
+    from vehicle.estimators import get_estimator
+
+    world = ReplayWorld(config, data)
+    vehicle_config = config.for_vehicle()
+    estimators = estimators or {vid: get_estimator(vehicle_config, vid) for vid in world.vehicle_ids()}
+    ids = world.vehicle_ids()
+    rows: dict[int, list] = {vid: [] for vid in estimators}
+
+    def score(t_us: int, truth: np.ndarray | None) -> None:
+        if t_us % every_us or truth is None:
+            return
+        for vid, estimator in estimators.items():
+            pose = truth[ids.index(vid), :3]
+            if estimator.initialized and np.isfinite(pose[0]):
+                nees, error = pose_score(estimator, pose)
+                rows[vid].append([t_us, error, nees])
+
+    listeners = [Listener((vid,), e) for vid, e in estimators.items()]
+    end_us = round(config.clock.duration_s * 1e6)
+    run(world, listeners, end_us=end_us, chunk_us=PERIOD_US, on_cycle=score)
+    return {vid: np.array(r).reshape(-1, 3) for vid, r in rows.items()}
+
+
+def swarm_in_memory(config, *, sample_every_us: int = 200_000) -> dict[int, dict[str, np.ndarray]]:
+    """The real vehicle nodes (V2V, link faults, fusion horizon) and the world in one process over
+    the in-memory bus, in lockstep. Returns per vehicle: t_s, position error (m), pose NEES and its
+    position (2 dof) and heading (1 dof) parts of the published estimates, sampled every
+    ``sample_every_us``."""
+    from bus.mavlink_codec import MavlinkDecoder, StateEstimate, split_frames
+    from bus.memory import MemoryHub
+    from groundstation.scoring import score
+    from sim.node import WorldNode
+    from vehicle.node import VehicleNode
+
+    hub = MemoryHub(config.bus.prefix)
+    world_bus, keys = hub.connect("world"), None
+    world = WorldNode(world_bus, config)
+    keys = world_bus.keys
+    listener = hub.connect("groundstation")
+    estimates: queue.SimpleQueue = queue.SimpleQueue()
+    listener.subscribe(keys.mavlink("*"), estimates)
+    nodes = [VehicleNode(hub.connect("vehicle"), config.for_vehicle(), vid) for vid in world.world.vehicle_ids()]
+    for node in nodes:
+        node.join()
+    truth: dict[tuple[int, int], np.ndarray] = {}
+    v2v_sent = {}
+    for k in range(world.final_tick + 1):
+        prepared = world.prepare(k)
+        batch = feed.decode_truth(prepared.truth)
+        for i, stamp in enumerate(batch.stamps_us.tolist()):
+            for n, vid in enumerate(batch.vehicle_ids.tolist()):
+                truth[(vid, stamp)] = batch.rows[i, n, :3]
+        for vid, sent in v2v_sent.items():
+            world.members.on_v2v_count(vid, sent)
+        world.send(prepared, final=False)
+        for node in nodes:
+            tick = None
+            while not node.mailbox.empty():
+                tick = node.take(node.mailbox.get_nowait()) or tick
+            for t_us in node.cycles_due(prepared.stamp_us):
+                node.cycle(t_us)
+            node.outbound.flush()
+            v2v_sent[node.vehicle_id] = node.outbound.v2v_sent
+    decoder, out = MavlinkDecoder(), {}
+    while not estimates.empty():
+        for frame in split_frames(estimates.get().payload)[0]:
+            est = decoder.decode(frame)
+            if isinstance(est, StateEstimate) and est.time_usec % sample_every_us == 0:
+                s = score(est, truth[(est.vehicle_id, est.time_usec)])
+                e, cov = s.error_m, s.pose_covariance
+                out.setdefault(est.vehicle_id, []).append(
+                    (
+                        est.time_usec * 1e-6,
+                        s.position_error_m,
+                        s.nees,
+                        float(e[:2] @ np.linalg.solve(cov[:2, :2], e[:2])),
+                        float(e[2] ** 2 / cov[2, 2]),
+                    )
+                )
+    names = ("t_s", "error_m", "nees", "nees_position", "nees_heading")
+    return {vid: dict(zip(names, map(np.array, zip(*rows)))) for vid, rows in out.items()}
+
+
+def vehicle_feed(config, vehicle_id: int = 1) -> list[tuple[Any, Any]]:
+    """Every sample the world measures for one vehicle over ``config.clock.duration_s``, camera frames
+    included, in stamp order, as (topic, message) pairs: what the vehicle process unpacks."""
+    from sim.world import World
+
+    end_us = round(config.clock.duration_s * 1e6)
+    return samples(World(config).advance(end_us), vehicle_id, end_us, camera=True)
+
+
+def feed_filter(f: Filter, stream: Iterable[tuple[Any, Any]], *, period_us: int = PERIOD_US) -> None:
+    """Hand a filter a recorded stream (topic, message) in stamp order, cycling every ``period_us``."""
+    t_us = 0
+    for _, msg in stream:
+        while t_us < msg.stamp_us:
+            f.cycle(t_us)
+            t_us += period_us
+        f.handle(msg)

@@ -1,0 +1,25 @@
+"""`swarm config` writes a deployment's two configs: the vehicles' one holds nothing that determines
+truth; bad input is a one-line error."""
+
+import json
+
+from typer.testing import CliRunner
+
+from bus.config import load_config, load_vehicle_config
+from cli.main import app
+
+
+def test_config_writes_the_world_config_and_a_vehicle_config_without_truth(tmp_path):
+    result = CliRunner().invoke(app, ["config", "--out", str(tmp_path), "--vehicles", "3", "--seed", "9"])
+    assert result.exit_code == 0, result.output
+    assert load_config(tmp_path / "config.json").world.seed == 9
+    vehicle = json.loads((tmp_path / "vehicle.json").read_text())
+    assert load_vehicle_config(tmp_path / "vehicle.json").vehicles == 3
+    text = json.dumps(vehicle)  # fault_seed (link-fault decisions) is all a vehicle may know of seeds
+    assert '"seed"' not in text and "trajector" not in text and "world" not in vehicle
+
+
+def test_config_refuses_bad_input_in_one_line(tmp_path):
+    result = CliRunner().invoke(app, ["config", "--out", str(tmp_path), "--vehicles", "300"])
+    assert result.exit_code == 1 and "world.vehicles" in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "config.json").exists()

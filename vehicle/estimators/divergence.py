@@ -1,0 +1,61 @@
+"""Divergence of a vehicle filter: when its state is no longer usable (non-finite, or a covariance no
+longer positive definite), it restarts from the last good state with the covariance inflated
+(``DIVERGENCE_INFLATION`` times, plus a floor on the pose and the GNSS error states).
+
+``FullCheck`` checks all of P every cycle (a small filter); ``MapCheck`` checks a SLAM filter in O(n)
+(the pose block positive definite, every variance positive and finite: a full check would cost
+O(n^3) per cycle) and refreshes its fallback, an n x n copy, once per ``GOOD_PERIOD_US``. Pure."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from vehicle.estimators.state import FilterState, frozen
+from vehicle.models import unicycle
+
+DIVERGENCE_INFLATION = 10.0
+DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^2
+GOOD_PERIOD_US = 1_000_000
+
+
+class FullCheck:
+    def diverged(self, s: FilterState) -> bool:
+        """Non-finite state or a covariance that is no longer (finite and) positive definite."""
+        return not (math.isfinite(sum(s.x.tolist())) and unicycle.is_spd(s.P))
+
+    def remember(self, s: FilterState, t_us: int) -> None:
+        """This cycle's state is the one to fall back to."""
+        s.last_good = (frozen(s.x.copy()), frozen(s.P.copy()))
+
+    def inflated(self, P: np.ndarray, gnss) -> np.ndarray:
+        """The fallback covariance: inflated, with a floor on the pose and the GNSS error states
+        (none on other added states)."""
+        floor = np.zeros(len(P))
+        floor[:4] = DIVERGENCE_FLOOR
+        if gnss.error is not None:
+            floor[4:6] = gnss.error.variance_m2
+        return DIVERGENCE_INFLATION * P + np.diag(floor)
+
+
+class MapCheck:
+    def diverged(self, s: FilterState) -> bool:
+        """Non-finite state, a pose block that is not positive definite, or a variance <= 0."""
+        diagonal = np.diagonal(s.P)
+        return not (
+            math.isfinite(float(s.x.sum()))
+            and unicycle.is_spd4(s.P[:4, :4])
+            and bool(np.all(diagonal > 0))
+            and math.isfinite(float(diagonal.sum()))
+        )
+
+    def remember(self, s: FilterState, t_us: int) -> None:
+        if t_us >= s.good_until_us:
+            s.last_good = (frozen(s.x.copy()), frozen(s.P.copy()))
+            s.good_until_us = t_us + GOOD_PERIOD_US
+
+    def inflated(self, P: np.ndarray, gnss) -> np.ndarray:
+        out = DIVERGENCE_INFLATION * P
+        out[:4, :4] += np.diag(DIVERGENCE_FLOOR)
+        return out

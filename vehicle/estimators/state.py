@@ -1,0 +1,109 @@
+"""The state of a vehicle estimator: one object holding everything a fusion-horizon replay must
+restore (navlie's ``State``, grown by what a real vehicle filter carries besides mean and covariance).
+
+``FilterState.copy`` is the only snapshot there is, and it copies every field by one rule
+(``copied``), so nothing can be left off a hand-kept list:
+
+- numbers, strings, tuples and frozen dataclasses are immutable: shared;
+- a numpy array is copied, unless it is read-only: a read-only array is shared, and numpy itself
+  raises if anyone writes to it (the landmark descriptors of a SLAM map are large and only ever
+  replaced by a grown copy, so they are kept read-only and never copied);
+- lists, dicts and sets are copied one level deep (their entries are immutable values);
+- an object with a ``copy()`` method is copied by it (held inputs, the GNSS health monitor);
+- a mutable dataclass without one is copied field by field by the same rule (the models' books);
+- anything else is refused with a TypeError when the state is first copied.
+
+What a replay must *not* undo lives outside the state, on the estimator: notices already given,
+front-end results cached by frame, the floor of the reset counter.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
+
+import numpy as np
+
+from vehicle.adaptive import NoiseAdaptation
+from vehicle.alignment import GnssAlignment
+from vehicle.gnss_health import GnssHealth
+from vehicle.inputs import HeldInput
+from vehicle.wheel_slip import SlipGuard
+
+T = TypeVar("T")
+_IMMUTABLE = (int, float, complex, str, bytes, bool, tuple, frozenset, type(None))
+
+
+@dataclass
+class EstimatorCounters:
+    """Cumulative counts an estimator reports (VehicleStatus)."""
+
+    gnss_accepted: int = 0
+    gnss_rejected: int = 0
+    stale: int = 0
+    resets: int = 0
+    v2v_fused: int = 0
+    v2v_rejected: int = 0
+    landmarks: int = 0  # SLAM: landmarks in the map; known-map: landmarks in the surveyed map
+    landmarks_updated: int = 0  # SLAM: landmarks the last usable camera frame updated
+    frames_used: int = 0  # SLAM: camera frames through the front end
+
+
+@dataclass
+class FilterState:
+    """Mean ``x`` (n,) and covariance ``P`` (n, n) (None before the first prior or alignment), the
+    time they stand at, the inputs held since then, the GNSS monitors, the divergence fallback, and
+    the books of the models that keep any (``landmarks``: the map's, ``errors``: the sighting error
+    states')."""
+
+    speed: HeldInput
+    gyro: HeldInput
+    odom_yaw: HeldInput
+    slip: SlipGuard
+    gnss_health: GnssHealth
+    alignment: GnssAlignment
+    iae: NoiseAdaptation | None = None
+    x: np.ndarray | None = None
+    P: np.ndarray | None = None
+    time_us: int = 0
+    counters: EstimatorCounters = field(default_factory=EstimatorCounters)
+    last_good: tuple[np.ndarray, np.ndarray] | None = None  # (x, P), read-only: shared by copies
+    good_until_us: int = -1  # the fallback is refreshed from then on
+    prior_xy: np.ndarray | None = None  # position as last propagated, before any update (first estimates)
+    landmarks: Any = None
+    errors: Any = None
+
+    def copy(self) -> FilterState:
+        """An independent copy (module docstring)."""
+        return _fieldwise(self)
+
+
+def copied(value: T) -> T:
+    """``value`` copied by the module docstring's rule."""
+    if isinstance(value, _IMMUTABLE):
+        return value
+    if isinstance(value, np.ndarray):
+        return value if not value.flags.writeable else value.copy()
+    if isinstance(value, (list, dict, set)):
+        return type(value)(value)
+    copy = getattr(value, "copy", None)
+    if callable(copy):
+        return copy()
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return value if value.__dataclass_params__.frozen else _fieldwise(value)
+    raise TypeError(f"the filter state cannot copy a {type(value).__name__}: give it a copy() method")
+
+
+def _fieldwise(value: T) -> T:
+    """A mutable dataclass copied field by field with :func:`copied`."""
+    twin = object.__new__(type(value))
+    for f in dataclasses.fields(value):
+        object.__setattr__(twin, f.name, copied(getattr(value, f.name)))
+    return twin
+
+
+def frozen(array: np.ndarray) -> np.ndarray:
+    """``array`` made read-only (in place) and returned: states share it instead of copying it."""
+    array.setflags(write=False)
+    return array

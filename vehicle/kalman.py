@@ -1,0 +1,47 @@
+"""The Kalman update every estimator shares: one gated update in Joseph form (gates from
+``bus.statistics.gate_threshold``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class UpdateResult:
+    """Outcome of one measurement update; ``test_ratio`` = NIS / gate, accepted when <= 1."""
+
+    accepted: bool
+    nis: float
+    test_ratio: float
+
+
+def gated_update(
+    x: np.ndarray, P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float
+) -> tuple[np.ndarray, np.ndarray, UpdateResult]:
+    """One EKF update in Joseph form, skipped when the innovation fails the gate.
+
+    x (n,), P (n, n), innovation y = z - h(x) (m,), H (m, n), R (m, m), gate = chi-square threshold.
+    Returns the new x, P (symmetric positive definite) and the test result.
+    P+ = (I - K H) P (I - K H)^T + K R K^T   (Joseph form, stable for any gain K).
+    """
+    PHt = P @ H.T
+    S = H @ PHt + R
+    S_inv = _inverse2(S) if S.shape == (2, 2) else np.linalg.inv(S)
+    nis = float(innovation @ S_inv @ innovation)
+    ratio = nis / gate
+    if not ratio <= 1.0:  # also rejects NaN
+        return x, P, UpdateResult(False, nis, ratio)
+    K = PHt @ S_inv  # K = P H^T S^-1
+    I_KH = np.eye(len(x)) - K @ H
+    P_new = I_KH @ P @ I_KH.T + K @ R @ K.T
+    return x + K @ innovation, 0.5 * (P_new + P_new.T), UpdateResult(True, nis, ratio)
+
+
+def _inverse2(S: np.ndarray) -> np.ndarray:
+    """The inverse of a 2 x 2 matrix on floats (LAPACK's per-call cost dominates at this size); a
+    singular S raises ZeroDivisionError."""
+    (a, b), (c, d) = S.tolist()
+    det = a * d - b * c
+    return np.array([[d / det, -b / det], [-c / det, a / det]])

@@ -1,0 +1,1 @@
+"""Models the estimators are built from (pure maths)."""
