@@ -1,6 +1,6 @@
 """Vision EKF-SLAM costs:
 
-- the core (vehicle/ekf_slam_core.py): one range-bearing update against the size of the map, the
+- the core (vehicle/models/landmarks.py): one range-bearing update against the size of the map, the
   in-place update (five columns for the gain, two rank-1 BLAS updates on P's own memory) side by
   side with the textbook dense one that builds new n x n arrays per update (target: <= 5 ms at
   900 landmarks);

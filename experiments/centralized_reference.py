@@ -11,12 +11,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from bus import feed, statistics
+from bus import statistics
 from bus.config import SwarmConfig
+from experiments import harness
 from vehicle.centralized import CentralizedEkf
 from vehicle.estimators.filter import Filter
-
-CHUNK_US = 1_000_000
 
 
 def run_centralized(
@@ -35,34 +34,21 @@ def run_centralized(
     if estimator is not None:
         blocks["estimator"] = estimator
     filt = CentralizedEkf(ids, spec=config.sensors, gate_probability=config.vehicle.gate_probability, **blocks)
+    rows: dict[int, list[tuple[float, float, float]]] = {vid: [] for vid in ids}
+
+    def score(t_us: int, truth: np.ndarray | None) -> None:
+        if t_us % score_every_us or not filt.initialized or truth is None:
+            return
+        for k, vid in enumerate(ids):
+            if not np.isfinite(truth[k, 0]):  # a gap in the recorded truth
+                continue
+            pose, cov = filt.pose(vid)
+            error = statistics.pose_error(pose, truth[k, :3])
+            rows[vid].append((t_us * 1e-6, float(np.hypot(error[0], error[1])), statistics.nees(error, cov)))
+
     period_us = round(1e6 / config.vehicle.loop_rate_hz)
     end_us = round(config.clock.duration_s * 1e6)
-    rows: dict[int, list[tuple[float, float, float]]] = {vid: [] for vid in ids}
-    pending: list = []
-    t_us = chunk_end = 0
-    while t_us <= end_us:
-        chunk_end = min(end_us, chunk_end + CHUNK_US)
-        out = world.advance(chunk_end)
-        truth = dict(zip(out.truth_stamps, out.truth))
-        samples = [s for vid in ids for s in feed.SensorBatch(vid, 0, chunk_end, out.blocks(vid)).samples()]
-        pending += samples
-        pending.sort(key=lambda item: item[1].stamp_us)  # stable: vehicles in id order at equal stamps
-        i = 0
-        while t_us <= chunk_end:
-            while i < len(pending) and pending[i][1].stamp_us <= t_us:
-                filt.handle(pending[i][1])
-                i += 1
-            filt.cycle(t_us)
-            if t_us % score_every_us == 0 and filt.initialized and t_us in truth:
-                for k, vid in enumerate(ids):
-                    if not np.isfinite(truth[t_us][k, 0]):  # a gap in the recorded truth
-                        continue
-                    pose, cov = filt.pose(vid)
-                    error = statistics.pose_error(pose, truth[t_us][k, :3])
-                    nees = statistics.nees(error, cov)
-                    rows[vid].append((t_us * 1e-6, float(np.hypot(error[0], error[1])), nees))
-            t_us += period_us
-        pending = pending[i:]
+    harness.run(world, [harness.Listener(tuple(ids), filt)], end_us=end_us, period_us=period_us, on_cycle=score)
     names = ("t_s", "error_m", "nees")
     return {vid: dict(zip(names, map(np.array, zip(*r)))) for vid, r in rows.items() if r}
 

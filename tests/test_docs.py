@@ -1,0 +1,51 @@
+"""The docs build with no broken link or missing page (``mkdocs build --strict``), and the tutorial's
+estimator does what the tutorial says it does (as navlie runs its examples)."""
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bus import statistics
+from bus.estimators import ESTIMATORS, EstimatorEntry
+from examples import derated_gnss
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_docs_build_strictly(tmp_path):
+    mkdocs = shutil.which("mkdocs", path=str(Path(sys.executable).parent)) or shutil.which("mkdocs")
+    if mkdocs is None:
+        pytest.fail("mkdocs is not installed: it is a dev dependency (pip install -e '.[dev]')")
+    result = subprocess.run(
+        [mkdocs, "build", "--strict", "--site-dir", str(tmp_path / "site")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    cli = (tmp_path / "site" / "reference" / "cli" / "index.html").read_text()
+    assert "swarm up" in cli and "--vehicles" in cli  # generated from the typer app
+    config = (tmp_path / "site" / "reference" / "config" / "index.html").read_text()
+    assert all(name in config for name in ESTIMATORS)  # generated from the registry and the models
+
+
+def test_the_tutorial_estimator_is_consistent_where_the_plain_ekf_is_not():
+    runs = 10
+    anees = derated_gnss.compare(range(1, runs + 1))
+    low, high = statistics.chi2_band(3, runs=runs)
+    assert low <= anees["ekf-derated"] <= high, anees
+    assert anees["ekf"] > high, anees  # the control: the same worlds, the reports taken at their word
+
+
+def test_one_registry_line_makes_the_tutorial_estimator_selectable(monkeypatch):
+    from bus.config import build_config
+    from vehicle.estimators import get_estimator
+
+    monkeypatch.setitem(ESTIMATORS, "ekf-derated", EstimatorEntry("examples.derated_gnss", "the tutorial's"))
+    config = build_config({}).for_vehicle()
+    config = config.model_copy(update={"vehicle": config.vehicle.model_copy(update={"estimator": "ekf-derated"})})
+    assert get_estimator(config, 1).name == "ekf-derated"
