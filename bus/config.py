@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from bus.errors import ConfigError
 from bus.estimators import ESTIMATORS, EstimatorName
-from bus.faults import LINK_KINDS, Fault, check_fault, named
+from bus.faults import BEHAVIOUR_KINDS, LINK_KINDS, Fault, check_fault, named
 from bus.replay_config import ReplayConfig
 
 
@@ -262,7 +262,39 @@ class WorldConfig(_Strict):
         description="side of the procedural terrain "
         "(default: large enough for every start pad and trajectory, at least 2048)",
     )
+    terrain_period_px: int = Field(
+        0,
+        ge=0,
+        le=512,
+        description="procedural terrain: 0 varied ground; above 0 one tile of this side repeated "
+        "(repetitive texture: every keypoint has look-alikes a period away)",
+    )
     sensor_truth: SensorTruth = SensorTruth()
+
+
+class ArSlamConfig(_Strict):
+    """``ar-ekf-slam``'s adaptive observation range (the AR-EKF-SLAM paper's values as defaults)."""
+
+    r0_m: float = Field(25.0, gt=0, le=10_000, description="the range R a flight starts with (m)")
+    r_max_m: float = Field(35.0, gt=0, le=10_000, description="R grows no further than this (m)")
+    n_min: int = Field(8, ge=1, le=100_000, description="fewer landmarks in the local map: R grows")
+    n_max: int = Field(50, ge=2, le=100_000, description="more landmarks in the local map: R shrinks")
+    dr_m: float = Field(0.1, gt=0, le=1_000, description="how much R changes per camera frame (m)")
+    reentry: Literal["reinit", "ci", "naive"] = Field(
+        "reinit",
+        description="a retired landmark seen again: reinit (initialised as new), ci (and its old marginal "
+        "fused by Covariance Intersection) or naive (its old marginal put back uncorrelated: over-confident)",
+    )
+
+    @model_validator(mode="after")
+    def _a_range_that_can_settle(self) -> ArSlamConfig:
+        if self.r0_m > self.r_max_m:
+            raise ValueError(f"r0_m {self.r0_m:g} is above r_max_m {self.r_max_m:g}")
+        if self.n_min >= self.n_max:
+            raise ValueError(f"n_min {self.n_min} must be below n_max {self.n_max}")
+        if self.dr_m >= self.r_max_m:
+            raise ValueError(f"dr_m {self.dr_m:g} must be below r_max_m {self.r_max_m:g}")
+        return self
 
 
 class VehicleConfig(_Strict):
@@ -274,7 +306,22 @@ class VehicleConfig(_Strict):
     landmarks: tuple[tuple[int, float, float], ...] = Field(
         (), max_length=10_000, description="known-map: the surveyed landmarks, (id, x m, y m)"
     )
-    features: Literal["sift", "orb"] = Field("sift", description="ekf-slam: keypoint detector")
+    features: Literal["sift", "orb"] = Field("sift", description="ekf-slam, ar-ekf-slam: keypoint detector")
+    ar: ArSlamConfig = Field(default_factory=ArSlamConfig, description="ar-ekf-slam: the adaptive range")
+    association: Literal["descriptor", "nn", "jcbb", "aco"] = Field(
+        "descriptor",
+        description="ekf-slam, ar-ekf-slam: which keypoint is which landmark: descriptor match with a rigid "
+        "consensus, or among each landmark's descriptor shortlist Mahalanobis nearest neighbour (nn), joint "
+        "compatibility branch and bound (jcbb) or the ant colony (aco)",
+    )
+    odometry: Literal["wheel", "visual"] = Field(
+        "wheel",
+        description="where every vehicle's speed comes from: its wheels, or visual odometry from consecutive "
+        "camera frames (a vehicle without wheels; needs sensors.camera_rate_hz)",
+    )
+    visual_odometry_vehicles: tuple[int, ...] = Field(
+        (), max_length=1000, description="these vehicles use visual odometry whatever `odometry` says"
+    )
     loop_rate_hz: float = Field(50.0, gt=0, le=1000)
     gate_probability: float = Field(0.9995, gt=0.5, lt=1.0, description="chi-square gate for GNSS")
     heartbeat_period_s: float = Field(1.0, gt=0)
@@ -302,6 +349,16 @@ class VehicleConfig(_Strict):
         "innovations of the last adaptive_window fixes instead of trusting the datasheet",
     )
     adaptive_window: int = Field(40, ge=5, le=10_000, description="IAE window, fixes per sensor")
+    neighbour_monitor: bool = Field(
+        True,
+        description="judge each neighbour's fixes for consistency and stop fusing a neighbour that lies "
+        "(vehicle.neighbours; docs: liars)",
+    )
+
+    def visual_odometry(self, vehicle_id: int) -> bool:
+        """Does this vehicle take its speed from visual odometry?"""
+        return self.odometry == "visual" or vehicle_id in self.visual_odometry_vehicles
+
     v2v_latency_s: float = Field(0.1, ge=0, le=5, description="ranging waits this long for the neighbour's estimate")
     mavlink_rate_hz: float = Field(
         10.0,
@@ -371,8 +428,22 @@ class SwarmConfig(_Strict):
 
     @model_validator(mode="after")
     def _slam_has_a_camera(self) -> SwarmConfig:
-        if self.vehicle.estimator == "ekf-slam" and not self.sensors.camera_rate_hz and self.replay is None:
-            raise ValueError("vehicle.estimator = 'ekf-slam' needs a camera: set sensors.camera_rate_hz (e.g. 10)")
+        slam = self.vehicle.estimator in ("ekf-slam", "ar-ekf-slam")
+        if slam and not self.sensors.camera_rate_hz and self.replay is None:
+            raise ValueError(
+                f"vehicle.estimator = {self.vehicle.estimator!r} needs a camera: set sensors.camera_rate_hz (e.g. 10)"
+            )
+        visual = self.vehicle.odometry == "visual" or self.vehicle.visual_odometry_vehicles
+        if visual and not self.sensors.camera_rate_hz:
+            raise ValueError("visual odometry needs a camera: set sensors.camera_rate_hz (e.g. 10)")
+        if visual and self.vehicle.fusion_horizon_s < 1.0 / self.sensors.camera_rate_hz:
+            raise ValueError(
+                "visual odometry's motion arrives one camera period late: vehicle.fusion_horizon_s must be at "
+                f"least the camera period ({1.0 / self.sensors.camera_rate_hz:g} s)"
+            )
+        unknown = sorted(set(self.vehicle.visual_odometry_vehicles) - set(range(1, self.world.vehicles + 1)))
+        if unknown:
+            raise ValueError(f"vehicle.visual_odometry_vehicles names vehicles not in the swarm: {unknown}")
         if self.vehicle.estimator == "known-map" and not self.vehicle.landmarks:
             raise ValueError("vehicle.estimator = 'known-map' needs the map: vehicle.landmarks")
         return self
@@ -413,7 +484,7 @@ class SwarmConfig(_Strict):
             vehicle=self.vehicle,
             altitude_m=self.world.altitude_m,
             fault_seed=self.fault_seed,
-            faults=tuple(f for f in self.faults if f.kind in LINK_KINDS),
+            faults=tuple(f for f in self.faults if f.kind in LINK_KINDS + BEHAVIOUR_KINDS),
         )
 
 

@@ -32,6 +32,10 @@ ESTIMATORS: dict[str, EstimatorEntry] = {
         "vehicle.estimators.ekf_slam",
         "vision EKF-SLAM: landmarks from camera frames (or a replay's sightings) mapped as it flies",
     ),
+    "ar-ekf-slam": EstimatorEntry(
+        "vehicle.estimators.ar_ekf_slam",
+        "EKF-SLAM keeping only the landmarks within an adaptive range in its state (AR-EKF-SLAM paper)",
+    ),
 }
 
 EstimatorName = Literal[tuple(ESTIMATORS)]  # type: ignore[valid-type]

@@ -7,7 +7,10 @@ until the end of the run). Zones are circles in the world's x-y plane (metres).
 - link faults, applied by each receiving process's bus layer (``bus.link_faults``): ``delay``,
   ``loss``, ``duplicate``, ``reorder``, selected by source, destination and topic globs;
 - ``kill``: the vehicle process is SIGKILLed at ``start_s`` and, with ``restart_after_s``, started
-  again by the supervisor (``swarm up``).
+  again by the supervisor (``swarm up``);
+- ``lie``: a vehicle that lies to its neighbours, applied by the liar's own outbound bus layer to
+  the V2V broadcasts it sends (its estimator and its MAVLink stream to the ground station stay
+  honest, so the ground station scores what the lie does to the others).
 
 Endpoints are named ``v<id>`` (vehicles), ``gs`` (ground station) and ``world``.
 """
@@ -19,7 +22,7 @@ import re
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from bus.topics import Topic
 
@@ -94,6 +97,33 @@ class Kill(_Fault):
         return None if self.restart_after_s is None else round((self.start_s + self.restart_after_s) * 1e6)
 
 
+class Lie(_Fault):
+    """Vehicle ``vehicle`` broadcasts its estimate moved by ``offset_m`` plus an offset growing at
+    ``drift_mps`` along ``heading_deg`` (0 = +x) since ``start_s``, with its covariance times
+    ``cov_scale`` (0.01: a hundred times too sure). Validly signed: it speaks only for itself."""
+
+    kind: Literal["lie"] = "lie"
+    vehicle: int = Field(ge=1, le=250)
+    offset_m: tuple[float, float] = Field((0.0, 0.0), description="constant offset [x, y] (m)")
+    drift_mps: float = Field(0.0, ge=0, le=100)
+    heading_deg: float = Field(0.0, ge=-360, le=360)
+    cov_scale: float = Field(1.0, gt=0, le=1e6)
+
+    @model_validator(mode="after")
+    def _says_something_false(self) -> Lie:
+        if not (any(self.offset_m) or self.drift_mps or self.cov_scale != 1.0):
+            raise ValueError("a lie needs --offset, --drift or --cov-scale: this one would tell the truth")
+        if not all(abs(v) <= 1e6 for v in self.offset_m):
+            raise ValueError("--offset: each coordinate must be within +-1e6 m")
+        return self
+
+    def offset_at(self, t_s: float) -> np.ndarray:
+        """The position offset (2,) [m] the liar adds at sim time ``t_s`` (active or not)."""
+        heading = np.radians(self.heading_deg)
+        grown = self.drift_mps * max(0.0, t_s - self.start_s)
+        return np.array(self.offset_m) + grown * np.array([np.cos(heading), np.sin(heading)])
+
+
 class _LinkFault(_Fault):
     """Selects traffic by source, destination and topic (globs: ``v*``, ``v3``, ``gs``, ``mavlink``)."""
 
@@ -144,9 +174,11 @@ class Reorder(_LinkFault):
 
 
 PHYSICAL_KINDS = ("jam-gnss", "spoof-gnss", "jam-comms", "blackout")
+BEHAVIOUR_KINDS = ("lie",)
 LINK_KINDS = ("delay", "loss", "duplicate", "reorder")
 Fault = Annotated[
-    JamGnss | SpoofGnss | JamComms | Blackout | Kill | Delay | Loss | Duplicate | Reorder, Field(discriminator="kind")
+    JamGnss | SpoofGnss | JamComms | Blackout | Kill | Lie | Delay | Loss | Duplicate | Reorder,
+    Field(discriminator="kind"),
 ]
 
 

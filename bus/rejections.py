@@ -29,6 +29,7 @@ REASONS = (
     "held_full",  # dropped at the bound of the link-fault stage's held packets
     "pending_full",  # dropped at the bound of the ground station's pending scores
     "garbage_frame",  # a camera frame the front end cannot use: wrong shape or type, empty, black, uniform
+    "no_visual_motion",  # visual odometry found no motion between two frames (too few matches, degenerate)
 )
 _INDEX = {reason: i for i, reason in enumerate(REASONS)}
 MAX_LOGGED = 1000  # distinct (reason, where) pairs logged; past that, rejections are only counted

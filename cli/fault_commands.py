@@ -8,6 +8,7 @@ The grammar is close to netem and toxiproxy::
     swarm fault add loss --to v3 --percent 30 [--burst 5]
     swarm fault add jam-gnss --center 40,10 --radius 25m --for 60s
     swarm fault kill v2 --restart-after 10s
+    swarm fault add lie --vehicle v3 --offset 30,-30 --cov-scale 0.01 --for 60s
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from bus.errors import ConfigError, SwarmlocError
 from cli.errors import fail
 
 fault_app = typer.Typer(no_args_is_help=True, help="Inspect and change the fault plan of a running swarm.")
-KINDS = ("delay", "loss", "duplicate", "reorder", "jam-gnss", "spoof-gnss", "jam-comms", "blackout")
+KINDS = ("delay", "loss", "duplicate", "reorder", "jam-gnss", "spoof-gnss", "jam-comms", "blackout", "lie")
 _UNITS_S = {"us": 1e-6, "ms": 1e-3, "s": 1.0, "min": 60.0, "": 1.0}
 _UNITS_M = {"m": 1.0, "km": 1000.0, "": 1.0}
 REPLY_TIMEOUT_S = 5.0
@@ -43,6 +44,9 @@ FLAGS = {
     "restart_after_s": "--restart-after",
     "percent": "--percent",
     "burst": "--burst",
+    "offset_m": "--offset",
+    "cov_scale": "--cov-scale",
+    "vehicle": "--vehicle",
 }
 
 
@@ -66,13 +70,14 @@ def percent(text: str | None) -> float | None:
     return None if text is None else _quantity(text.rstrip("%"), {"": 1.0}, "--percent")
 
 
-def centre(text: str | None) -> list[float] | None:
+def centre(text: str | None, flag: str = "--center") -> list[float] | None:
+    """'X,Y' in metres (units allowed on each) -> [x, y]."""
     if text is None:
         return None
     parts = text.split(",")
     if len(parts) != 2:
-        raise ConfigError(f"--center: expected X,Y in metres, got {text!r}")
-    return [metres(p, "--center") for p in parts]
+        raise ConfigError(f"{flag}: expected X,Y in metres, got {text!r}")
+    return [metres(p, flag) for p in parts]
 
 
 def vehicle_number(text: str) -> int:
@@ -117,7 +122,9 @@ def ask(request: dict, out: Path, run: Optional[Path], connect: Optional[str]) -
     except ValidationError as exc:
         first = exc.errors()[0]
         field = str(first["loc"][-1]) if first["loc"] else "fault"
-        raise ConfigError(f"invalid fault: {FLAGS.get(field, field)}: {first['msg']}") from None
+        message = first["msg"].removeprefix("Value error, ")
+        where = "" if field in KINDS else f"{FLAGS.get(field, field)}: "  # a whole fault's check names its flags
+        raise ConfigError(f"invalid fault: {where}{message}") from None
     endpoints, prefix, env = find_swarm(out, run, connect)
     reply = _query(BusConfig(mode="client", connect=endpoints, prefix=prefix), payload, env)
     if reply is None:
@@ -185,9 +192,11 @@ def add(
     gap: Optional[str] = typer.Option(None, help="reorder: how long a held-back packet waits, e.g. 100ms"),
     center: Optional[str] = typer.Option(None, help="zones: X,Y in metres"),
     radius: Optional[str] = typer.Option(None, help="zones: e.g. 25m"),
-    drift: Optional[float] = typer.Option(None, help="spoof-gnss: offset growth in m/s"),
-    heading: Optional[float] = typer.Option(None, help="spoof-gnss: direction of the offset in degrees (0 = +x)"),
-    vehicle: Optional[str] = typer.Option(None, help="blackout: the vehicle (v3 or 3)"),
+    drift: Optional[float] = typer.Option(None, help="spoof-gnss, lie: offset growth in m/s"),
+    heading: Optional[float] = typer.Option(None, help="spoof-gnss, lie: direction of the growth in degrees (0 = +x)"),
+    offset: Optional[str] = typer.Option(None, help="lie: constant offset X,Y in metres of the broadcast position"),
+    cov_scale: Optional[float] = typer.Option(None, help="lie: broadcast covariance times this (0.01: 100x too sure)"),
+    vehicle: Optional[str] = typer.Option(None, help="blackout, lie: the vehicle (v3 or 3)"),
     sensor: Optional[str] = typer.Option(None, help="blackout: imu, odom, gnss or ranging"),
     name: Optional[str] = typer.Option(None, help="a unique name (default: <kind>-<n>)"),
     in_: Optional[str] = typer.Option(None, "--in", help="start this long from now (default: now)"),
@@ -216,6 +225,8 @@ def add(
             "radius_m": metres(radius, "--radius"),
             "drift_mps": drift,
             "heading_deg": heading,
+            "offset_m": centre(offset, "--offset"),
+            "cov_scale": cov_scale,
             "sensor": sensor,
             "vehicle": vehicle_number(vehicle) if vehicle else None,
             "start_s": seconds(in_, "--in"),

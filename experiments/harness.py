@@ -244,11 +244,13 @@ def replay_in_memory(
     return {vid: np.array(r).reshape(-1, 3) for vid, r in rows.items()}
 
 
-def swarm_in_memory(config, *, sample_every_us: int = 200_000) -> dict[int, dict[str, np.ndarray]]:
+def swarm_in_memory(
+    config, *, sample_every_us: int = 200_000, nodes_out: list | None = None
+) -> dict[int, dict[str, np.ndarray]]:
     """The real vehicle nodes (V2V, link faults, fusion horizon) and the world in one process over
     the in-memory bus, in lockstep. Returns per vehicle: t_s, position error (m), pose NEES and its
     position (2 dof) and heading (1 dof) parts of the published estimates, sampled every
-    ``sample_every_us``."""
+    ``sample_every_us``; ``nodes_out`` receives the vehicle nodes."""
     from bus.mavlink_codec import MavlinkDecoder, StateEstimate, split_frames
     from bus.memory import MemoryHub
     from groundstation.scoring import score
@@ -265,6 +267,8 @@ def swarm_in_memory(config, *, sample_every_us: int = 200_000) -> dict[int, dict
     nodes = [VehicleNode(hub.connect("vehicle"), config.for_vehicle(), vid) for vid in world.world.vehicle_ids()]
     for node in nodes:
         node.join()
+    if nodes_out is not None:
+        nodes_out.extend(nodes)
     truth: dict[tuple[int, int], np.ndarray] = {}
     v2v_sent = {}
     for k in range(world.final_tick + 1):

@@ -9,6 +9,7 @@ and event counts already there, so summary.json still covers the whole run.
 from __future__ import annotations
 
 import logging
+import re
 import time
 from collections import Counter
 from pathlib import Path
@@ -257,6 +258,10 @@ class GroundStation:
             )
             if decoded.text.startswith("estimator reset"):
                 self.event("estimator_reset", vehicle=decoded.vehicle_id, text=decoded.text)
+            verdict = trust_verdict(decoded.text)
+            if verdict is not None:
+                kind, neighbour, reason = verdict
+                self.event(kind, vehicle=decoded.vehicle_id, neighbour=neighbour, reason=reason)
 
     def _on_estimator_status(self, status: EstimatorStatus) -> None:
         """GNSS health changes (the GPS glitch flag) become events, stamped with the vehicle's time."""
@@ -365,3 +370,16 @@ class GroundStation:
             out["world"] = self.ended.rejected
         out.update({f"vehicle-{vid}": st.rejected for vid, st in sorted(self.reports.statuses.items()) if st.rejected})
         return out
+
+
+_VERDICT = re.compile(r"(distrust|trust) v([1-9][0-9]{0,2}): (.{0,60})")
+
+
+def trust_verdict(text: str) -> tuple[str, int, str] | None:
+    """("neighbour_distrusted" | "neighbour_trusted", neighbour, reason) from a vehicle's STATUSTEXT
+    (vehicle.estimators.filter says "distrust v3: <reason>"), None for any other text (total)."""
+    match = _VERDICT.fullmatch(text) if isinstance(text, str) else None
+    if match is None:
+        return None
+    kind = "neighbour_distrusted" if match.group(1) == "distrust" else "neighbour_trusted"
+    return kind, int(match.group(2)), match.group(3)

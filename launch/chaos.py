@@ -13,7 +13,7 @@ import numpy as np
 
 LINK_KINDS = ("delay", "loss", "duplicate", "reorder")
 ZONE_KINDS = ("jam-gnss", "spoof-gnss", "jam-comms")
-ALL_KINDS = (*LINK_KINDS, *ZONE_KINDS, "blackout", "kill")
+ALL_KINDS = (*LINK_KINDS, *ZONE_KINDS, "blackout", "kill", "lie")
 
 
 def _link(kind: str, rng: np.random.Generator, vehicles: int) -> dict:
@@ -54,6 +54,13 @@ def _fault(kind: str, rng: np.random.Generator, vehicles: int, extent_m: float) 
     vehicle = int(rng.integers(1, vehicles + 1))
     if kind == "blackout":
         return {"vehicle": vehicle, "sensor": str(rng.choice(["imu", "odom", "gnss", "ranging"]))}
+    if kind == "lie":
+        return {
+            "vehicle": vehicle,
+            "offset_m": [round(float(c), 1) for c in rng.uniform(-30, 30, 2)],
+            "drift_mps": round(float(rng.uniform(0, 0.3)), 2),
+            "cov_scale": round(float(rng.choice([0.01, 0.1, 1.0])), 2),
+        }
     return {"vehicle": vehicle, "restart_after_s": round(float(rng.uniform(3, 15)), 1)}
 
 

@@ -88,3 +88,15 @@ def procedural_terrain(rng: np.random.Generator, *, size_px: int = 2048, metres_
         centre = tuple(int(v) for v in rng.uniform(0, size_px, size=2))
         cv2.circle(image, centre, int(rng.integers(2, 7)), float(rng.uniform(20, 70)), -1)
     return Terrain(np.clip(image, 0, 255).astype(np.uint8), metres_per_pixel)
+
+
+def repetitive_terrain(
+    rng: np.random.Generator, *, size_px: int, period_px: int, metres_per_pixel: float = 0.1
+) -> Terrain:
+    """One ``period_px`` square tile of the procedural terrain repeated over ``size_px`` x ``size_px``
+    (tiles, paving, a planted orchard): every keypoint has exact look-alikes a period away."""
+    source = procedural_terrain(rng, size_px=max(256, 4 * period_px), metres_per_pixel=metres_per_pixel).image
+    start = (source.shape[0] - period_px) // 2
+    tile = source[start : start + period_px, start : start + period_px]
+    reps = -(-size_px // period_px)
+    return Terrain(np.ascontiguousarray(np.tile(tile, (reps, reps))[:size_px, :size_px]), metres_per_pixel)

@@ -21,7 +21,7 @@ from sim import sensors
 from sim.camera import camera_frame
 from sim.kinematics import unicycle_arcs
 from sim.physical_faults import PhysicalFaults
-from sim.terrain import Terrain, load_terrain, procedural_terrain
+from sim.terrain import Terrain, load_terrain, procedural_terrain, repetitive_terrain
 from sim.trajectories import make_trajectory, start_pads
 from sim.true_errors import TrueErrors, wobble, wobble_tones
 
@@ -100,9 +100,12 @@ def make_terrain(config: SwarmConfig) -> Terrain:
     if wc.terrain:
         return load_terrain(wc.terrain, wc.terrain_metres_per_pixel)
     size_px = wc.terrain_size_px or terrain_size_for(config)
-    return procedural_terrain(
-        np.random.default_rng([wc.seed, 0, 7]), size_px=size_px, metres_per_pixel=wc.terrain_metres_per_pixel
-    )
+    rng = np.random.default_rng([wc.seed, 0, 7])
+    if wc.terrain_period_px:
+        return repetitive_terrain(
+            rng, size_px=size_px, period_px=wc.terrain_period_px, metres_per_pixel=wc.terrain_metres_per_pixel
+        )
+    return procedural_terrain(rng, size_px=size_px, metres_per_pixel=wc.terrain_metres_per_pixel)
 
 
 def terrain_size_for(config: SwarmConfig, margin_m: float = 20.0) -> int:

@@ -31,19 +31,20 @@ class HeldInput:
     segments: list = None  # (duration us, value) of the closed holds of the last interval
 
     def __post_init__(self) -> None:
-        self.segments, self._open = [], []
+        self.segments, self._open, self._weight = [], [], 1.0
 
-    def sample(self, stamp_us: int, value: float) -> None:
-        """A new sample at ``stamp_us`` (>= the last close); it is held from now on."""
+    def sample(self, stamp_us: int, value: float, weight: float = 1.0) -> None:
+        """A new sample at ``stamp_us`` (>= the last close); it is held from now on. ``weight``: its
+        variance relative to the nominal sigma^2 (a measurement that reports its own variance)."""
         if self.value is not None:
             held = stamp_us - self._segment_us
             self._last_hold_us = stamp_us - self.stamp_us
             self._integral += self.value * held
-            self._sq_us2 += float(held) * self._last_hold_us
+            self._sq_us2 += float(held) * self._last_hold_us * self._weight
             if held > 0:
                 self._open.append((held, self.value))
         self._segment_us = max(stamp_us, self.start_us)
-        self.value, self.stamp_us = value, stamp_us
+        self.value, self.stamp_us, self._weight = value, stamp_us, weight
 
     def close(self, t_us: int) -> tuple[float, float]:
         """Mean over [start, t_us] and the variance factor sum(o_i^2) / dt^2 (multiply by sigma^2);
@@ -56,7 +57,7 @@ class HeldInput:
             return 0.0, 1.0
         held = t_us - self._segment_us
         integral = self._integral + self.value * held
-        sq = self._sq_us2 + float(held) * max(t_us - self.stamp_us, self._last_hold_us)
+        sq = self._sq_us2 + float(held) * max(t_us - self.stamp_us, self._last_hold_us) * self._weight
         self.segments = self._open + ([(held, self.value)] if held > 0 else [])
         self.restart(t_us)
         return integral / dt, sq / (float(dt) * dt)
@@ -66,7 +67,7 @@ class HeldInput:
         twin = HeldInput(
             self.value, self.stamp_us, self.start_us, self._segment_us, self._integral, self._sq_us2, self._last_hold_us
         )
-        twin.segments, twin._open = list(self.segments), list(self._open)
+        twin.segments, twin._open, twin._weight = list(self.segments), list(self._open), self._weight
         return twin
 
     def restart(self, t_us: int) -> None:
@@ -79,3 +80,19 @@ def swept(segments: list[tuple[int, float]]) -> float:
     """sum |value| * duration over an input's hold segments [(duration us, value)]: the distance (m) or
     the angle (rad) that a speed or a rate moved the vehicle by over them."""
     return sum(abs(value) * held_us for held_us, value in segments) * 1e-6
+
+
+@dataclass(frozen=True)
+class VisualMotion:
+    """Mean forward speed (m/s) and yaw rate (rad/s) between two frames, with their variances from the
+    fit (an infinite yaw-rate variance: not measured); stamped just after the first frame, ``seq``
+    twice that frame's plus one (twice the first frame's: the unknown speed before it). Fed to the
+    filter as its odometry (vehicle.visual_odometry)."""
+
+    vehicle_id: int
+    stamp_us: int
+    seq: int
+    speed_mps: float
+    yaw_rate_radps: float
+    speed_var: float
+    yaw_rate_var: float

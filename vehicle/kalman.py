@@ -10,11 +10,15 @@ import numpy as np
 
 @dataclass(frozen=True)
 class UpdateResult:
-    """Outcome of one measurement update; ``test_ratio`` = NIS / gate, accepted when <= 1."""
+    """Outcome of one measurement update; ``test_ratio`` = NIS / gate, accepted when <= 1; where the
+    update says them (a neighbour's fix, for the neighbour monitor): the ``innovation`` y (m floats)
+    and its covariance S as its upper triangle (``innovation_cov``, row by row)."""
 
     accepted: bool
     nis: float
     test_ratio: float
+    innovation: tuple[float, ...] | None = None
+    innovation_cov: tuple[float, ...] | None = None
 
 
 def gated_update(

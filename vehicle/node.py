@@ -29,6 +29,7 @@ from vehicle.models.cooperative import SeenFix
 from vehicle.outbound import Outbound
 from vehicle.sequence import SequenceTracker
 from vehicle.v2v import V2V
+from vehicle.visual_odometry import ANNOUNCE_OFFSET_US, VisualOdometry
 
 log = logging.getLogger("swarmloc.vehicle")
 GS_LISTEN_WAIT_S = 2.0
@@ -114,6 +115,11 @@ class VehicleNode:
             rejections=self.rejections,
             period_us=round(1e6 / config.sensors.ranging_rate_hz),
         )
+        self.visual_odometry = (
+            VisualOdometry(vehicle_id, detector=vc.features, reject=self.rejections.reject)
+            if vc.visual_odometry(vehicle_id)
+            else None
+        )
         self.sequences = SequenceTracker()
         self.stats = LoopStats()
         self.period_us = round(1e6 / vc.loop_rate_hz)
@@ -167,7 +173,20 @@ class VehicleNode:
                 self.fusion.expect(d.stamp_us)
         else:
             self.sequences.see(d.topic, d.payload.seq)
-            self.fusion.push(d.topic, d.payload)
+            if self.visual_odometry is not None and d.topic in (Topic.ODOM, Topic.CAMERA):
+                self._visual_odometry(d)
+            else:
+                self.fusion.push(d.topic, d.payload)
+
+    def _visual_odometry(self, d: Delivery) -> None:
+        """A vehicle on visual odometry has no wheels: its speed is the motion between camera frames,
+        announced with the first frame and pushed with the second (vehicle.visual_odometry)."""
+        if d.topic is Topic.ODOM:
+            return
+        for motion in self.visual_odometry.on_frame(d.payload):
+            self.fusion.push(Topic.ODOM, motion)
+        self.fusion.push(d.topic, d.payload)
+        self.fusion.expect(d.stamp_us + ANNOUNCE_OFFSET_US)
 
     def _on_tick(self, tick: m.ClockTick) -> m.ClockTick:
         """A vehicle that joins a running swarm (a restart) starts from its first tick: what was
@@ -249,7 +268,13 @@ class VehicleNode:
         for fix in self.v2v.mature(t_us):
             self.fusion.push(Topic.SEEN if isinstance(fix, SeenFix) else Topic.RANGING, fix)
         self.fusion.cycle(t_us)
-        self.outbound.cycle(t_us, self.estimator, self.reset_counter, listeners=self.inbound.listeners_at(t_us))
+        self.outbound.cycle(
+            t_us,
+            self.estimator,
+            self.reset_counter,
+            listeners=self.inbound.listeners_at(t_us),
+            lies=self.inbound.lies,
+        )
         if self.outbound.status_due(t_us):
             self.publish_status(t_us)
 

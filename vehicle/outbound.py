@@ -1,7 +1,8 @@
 """What a vehicle sends: its signed MAVLink stream (ODOMETRY at ``mavlink_rate_hz``, HEARTBEAT and
 ESTIMATOR_STATUS at 1 Hz, STATUSTEXT for notices), the V2V broadcast at every ranging epoch (its
 estimate, or a NoEstimate ODOMETRY before it has one), its loop statistics and its lockstep
-acknowledgements.
+acknowledgements. A vehicle told to lie (the ``lie`` fault, bus.lies) changes only its V2V
+broadcast, signed with its own key on a second link: its MAVLink to the ground station stays honest.
 
 MAVLink is a byte stream: the frames of one lockstep tick travel as one message (as several frames
 share one UDP datagram); in realtime each cycle's frames go out at once.
@@ -11,7 +12,10 @@ from __future__ import annotations
 
 from bus import messages as m
 from bus.config import VehicleProcessConfig
+from bus.estimate import PoseEstimate
+from bus.faults import Lie
 from bus.landmark_map import LandmarkMap, encode_map
+from bus.lies import active_lies, told
 from bus.mavlink_codec import MavlinkEncoder, odometry_of, status_of
 from bus.session import Bus
 from vehicle.estimators.filter import Filter
@@ -22,6 +26,7 @@ class Outbound:
         keys, vc = bus.keys, config.vehicle
         self.vehicle_id, self.altitude_m = vehicle_id, config.altitude_m
         self.encoder = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key)
+        self._lie_encoder = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key, link_id=1)
         self.mavlink_publisher = self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
         self.v2v_publisher = self._v2v = bus.publisher(keys.v2v(vehicle_id))
         # the addressed publishers (realtime: every neighbour's, declared up front: a declaration is a
@@ -40,7 +45,14 @@ class Outbound:
         self._frames: list[bytes] = []
         self.v2v_sent = 0
 
-    def cycle(self, t_us: int, estimator: Filter, reset_counter: int, listeners: tuple[int, ...] | None = None) -> None:
+    def cycle(
+        self,
+        t_us: int,
+        estimator: Filter,
+        reset_counter: int,
+        listeners: tuple[int, ...] | None = None,
+        lies: tuple[Lie, ...] = (),
+    ) -> None:
         """Encode this cycle's frames (kept until ``flush``); at the ranging epochs send the V2V frame to
         ``listeners`` (the vehicles that range with this one now), or to every vehicle (None)."""
         notices = estimator.take_notices()
@@ -54,15 +66,25 @@ class Outbound:
         if any(n.status_changed for n in notices):
             self._frames.append(self.encoder.estimator_status(status_of(estimator.health(t_us))))
         if on_v2v or on_mavlink:
-            estimate = odometry_of(estimator.estimate(t_us), altitude_m=self.altitude_m, reset_counter=reset_counter)
-            odometry = self.encoder.odometry(estimate)
+            pose = estimator.estimate(t_us)
+            odometry = self.encoder.odometry(odometry_of(pose, altitude_m=self.altitude_m, reset_counter=reset_counter))
             if on_mavlink:
                 self._frames.append(odometry)
-            if on_v2v:
-                self._send_v2v(odometry, listeners)  # the V2V packet {id, x_hat, P, t}
+            if on_v2v:  # the V2V packet {id, x_hat, P, t}
+                self._send_v2v(self._v2v_frame(odometry, pose, t_us, reset_counter, lies), listeners)
         if t_us >= self._next_heartbeat_us:
             self._frames += [self.encoder.heartbeat(), self.encoder.estimator_status(status_of(estimator.health(t_us)))]
             self._next_heartbeat_us = t_us + self._heartbeat_us
+
+    def _v2v_frame(
+        self, honest: bytes, estimate: PoseEstimate, t_us: int, reset_counter: int, lies: tuple[Lie, ...]
+    ) -> bytes:
+        """The honest frame, or the estimate as the plan's active lies tell it."""
+        active = active_lies(lies, self.vehicle_id, t_us / 1e6)
+        if not active:
+            return honest
+        told_estimate = odometry_of(told(estimate, active), altitude_m=self.altitude_m, reset_counter=reset_counter)
+        return self._lie_encoder.odometry(told_estimate)
 
     def _send_v2v(self, frame: bytes, listeners: tuple[int, ...] | None) -> None:
         """Broadcast (``listeners`` None: counted for lockstep's V2V barrier) or one copy per listener."""

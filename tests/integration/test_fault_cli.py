@@ -69,6 +69,10 @@ def test_fault_commands_against_a_running_swarm(tmp_path):
             (["add", "teleport"], "unknown fault kind"),
             (["remove", "ghost"], "no fault named 'ghost'"),
             (["kill", "v7"], "vehicle 7 does not exist"),
+            (["add", "lie", "--vehicle", "v3"], "would tell the truth"),
+            (["add", "lie", "--vehicle", "v9", "--offset", "30,0"], "vehicle 9 does not exist"),
+            (["add", "lie", "--vehicle", "v2", "--offset", "30"], "--offset"),
+            (["add", "lie", "--vehicle", "v2", "--cov-scale", "0"], "--cov-scale"),
         ]:
             result = fault(tmp_path, *args)
             assert result.returncode == 1 and message in result.stderr, (args, result.stderr)

@@ -15,6 +15,7 @@ from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.gnss import gnss_model
 from vehicle.models.gnss_error import GnssErrorModel
 from vehicle.models.motion import UnicycleMotion
+from vehicle.neighbours import MonitorSpec
 
 
 def build(
@@ -25,6 +26,7 @@ def build(
     cooperative: CooperativeRule = CooperativeRule(),
     adaptive_window: int = 0,
     store=None,
+    monitor: MonitorSpec | None = MonitorSpec(),
 ) -> Filter:
     """The EKF of vehicle ``vehicle_id`` for the sensors of ``spec`` (module docstring); ``store``:
     where its state lives (default: plain arrays)."""
@@ -41,6 +43,7 @@ def build(
         divergence=FullCheck(),
         cooperative=cooperative,
         adaptive_window=adaptive_window,
+        monitor=monitor,
     )
 
 
@@ -53,4 +56,5 @@ def from_config(config: VehicleProcessConfig, vehicle_id: int, *, reject=None) -
         gate_probability=vc.gate_probability,
         cooperative=CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
         adaptive_window=vc.adaptive_window if vc.adaptive_noise else 0,
+        monitor=MonitorSpec() if vc.neighbour_monitor else None,
     )

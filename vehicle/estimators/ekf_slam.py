@@ -35,6 +35,8 @@ from bus import messages as m
 from bus.angles import wrap_angle
 from bus.config import SensorSpec, VehicleProcessConfig
 from bus.statistics import gate_threshold
+from vehicle.association.methods import METHODS
+from vehicle.association.problem import problem
 from vehicle.estimators.divergence import MapCheck
 from vehicle.estimators.filter import Filter
 from vehicle.estimators.persisting_errors import SlottedErrors
@@ -46,6 +48,7 @@ from vehicle.models import landmarks as slam
 from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.gnss import WhiteGnss
 from vehicle.models.motion import POSE_DIM, UnicycleMotion
+from vehicle.neighbours import MonitorSpec
 from vehicle.vision import association, features
 
 CELL_PX = 30  # paper's thinning cell
@@ -53,6 +56,7 @@ LANDMARK_GATE_P = 0.999  # Mahalanobis gate on each landmark update
 CONSENSUS_M = 0.3  # matches must agree on one rigid motion within this [m]
 FRAMES_REMEMBERED = 32  # front-end results kept for replays (3.2 s at 10 Hz; the horizon is 0.5 s)
 MAX_LANDMARKS = 2000  # the map stops growing here (update cost is O(n^2))
+SHORTLIST = 3  # geometric association: each landmark's nearest keypoints by descriptor
 
 Reject = Callable[[str, str, str], None]
 
@@ -60,12 +64,43 @@ Reject = Callable[[str, str, str], None]
 @dataclass
 class MapBook:
     """The map's book beside x and P: each landmark's descriptor (m, d) and first estimate (m, 2)
-    (read-only arrays, replaced by grown copies), and the identified landmarks of a replay (id -> map
-    index)."""
+    (read-only arrays, replaced by grown copies), the identified landmarks of a replay (id -> map
+    index), and what a map policy keeps (``policy``: ar-ekf-slam's range and retired landmarks)."""
 
     descriptors: np.ndarray | None = None
     first_xy: np.ndarray | None = None
     index_of: dict[int, int] = field(default_factory=dict)
+    policy: object = None
+
+
+class FullMap:
+    """``ekf-slam``'s map policy: every landmark stays in the state, up to ``MAX_LANDMARKS``."""
+
+    capacity = MAX_LANDMARKS
+
+    def start(self) -> object:
+        return None
+
+    def before_frame(self, f: Filter, the_map: VisionSlamMap) -> None:
+        """Nothing to manage."""
+
+    def reenter(self, f, the_map, found, z, R, matched: set[int], half_extent_m: float) -> set[int]:
+        """No landmark ever leaves: nothing re-enters."""
+        return set()
+
+    def occupied(self, s: FilterState) -> np.ndarray | None:
+        """Where landmarks outside the state lie (new ones keep away from them): none."""
+        return None
+
+    def before_sighting(self, f: Filter, the_map: VisionSlamMap, stamp_us: int) -> None:
+        """Nothing to manage."""
+
+    def take_retired(self, s: FilterState, ident: int) -> None:
+        """An identified landmark that left the state: none ever leaves."""
+        return None
+
+    def reentered(self, s: FilterState, k: int, retired: object) -> None:
+        """Nothing re-enters."""
 
 
 class VisionSlamMap:
@@ -79,13 +114,21 @@ class VisionSlamMap:
         reject: Reject | None = None,
         first_estimates: bool = True,
         front_end_results: dict | None = None,
+        policy: object = None,
+        association: str = "descriptor",
     ) -> None:
         """``front_end_results``: where the front end remembers each frame's keypoints by (stamp, seq);
-        estimators fed the same frames (a Monte Carlo comparison) may share one and detect once."""
+        estimators fed the same frames (a Monte Carlo comparison) may share one and detect once.
+        ``policy``: which landmarks the state keeps (default ``FullMap``: all of them); ``association``:
+        "descriptor" or a method of ``vehicle.association.methods``."""
+        self.policy = FullMap() if policy is None else policy
+        self.association = association
+        self.last_pairs: list[tuple[int, int]] = []  # the last frame's (keypoint, landmark), for experiments
+        self.last_problem: tuple | None = None  # and its (association problem, assignment), geometric only
         cv2.setNumThreads(1)  # one core per vehicle process: OpenCV's thread pool would fight the others for it
         self.head_dim = head_dim
         self._detector = features.make_detector(detector)
-        self._norm = cv2.NORM_L2 if detector == "sift" else cv2.NORM_HAMMING
+        self.norm = cv2.NORM_L2 if detector == "sift" else cv2.NORM_HAMMING
         self._gate = gate_threshold(2, LANDMARK_GATE_P)
         self._reject = reject or (lambda reason, where, detail: None)
         self.first_estimates = first_estimates  # False: Jacobians at the current estimates (the paper's EKF)
@@ -110,11 +153,11 @@ class VisionSlamMap:
     # -- the state's life --------------------------------------------------------------------
 
     def start(self, s: FilterState) -> None:
-        s.landmarks = MapBook()
+        s.landmarks = MapBook(policy=self.policy.start())
 
     def initialise(self, f: Filter) -> None:
         s = f.state
-        s.landmarks = MapBook()
+        s.landmarks = MapBook(policy=self.policy.start())
         s.prior_xy = frozen(s.x[:2].copy())
         s.counters.landmarks = 0
 
@@ -125,7 +168,7 @@ class VisionSlamMap:
         """The fallback's map, and the descriptors of the landmarks it had."""
         book = s.landmarks
         if s.x is None:
-            s.landmarks, s.counters.landmarks = MapBook(), 0
+            s.landmarks, s.counters.landmarks = MapBook(policy=self.policy.start()), 0
             return
         kept = s.counters.landmarks = (len(s.x) - self.head_dim) // 2
         book.descriptors = None if book.descriptors is None else book.descriptors[:kept]
@@ -143,9 +186,12 @@ class VisionSlamMap:
                 self._reject("garbage_frame", f"camera of vehicle {f.vehicle_id}", reason)
             return
         f.propagate_to(frame.stamp_us)
+        self.policy.before_frame(f, self)
         found, z, R = self._front_end(frame, f.spec.keypoint_sigma_px)
         size, scale = frame.pixels.shape[0], frame.metres_per_pixel
-        matched = self._update_matched(f, found, z, R, half_extent_m=0.5 * size * scale)
+        half_extent_m = 0.5 * size * scale
+        matched = self._update_matched(f, found, z, R, half_extent_m=half_extent_m)
+        matched |= self.policy.reenter(f, self, found, z, R, matched, half_extent_m)
         self._add_landmarks(f.state, found, z, R, matched, cell_m=CELL_PX * scale)
         f.state.counters.frames_used += 1
 
@@ -163,6 +209,10 @@ class VisionSlamMap:
                 self._seen_frames.pop(next(iter(self._seen_frames)))
         return self._seen_frames[key]
 
+    def remembered(self, stamp_us: int, seq: int) -> tuple | None:
+        """The front end's (keypoints, z, R) of a recent frame, if still remembered (experiments)."""
+        return self._seen_frames.get((stamp_us, seq))
+
     def _update_matched(
         self, f: Filter, found: features.Features, z: np.ndarray, R: np.ndarray, *, half_extent_m: float
     ) -> set[int]:
@@ -171,7 +221,9 @@ class VisionSlamMap:
         s, book = f.state, f.state.landmarks
         mapped = self.landmarks_xy(s)
         visible = association.in_view(mapped, s.x[:3], half_extent_m)
-        pairs = association.match(found.descriptors, book.descriptors[visible], self._norm) if len(visible) else []
+        if self.association != "descriptor":
+            return self._update_associated(f, found, z, R, visible)
+        pairs = association.match(found.descriptors, book.descriptors[visible], self.norm) if len(visible) else []
         if pairs:
             seen = np.array([z[i] for i, _ in pairs])
             measured = np.stack([seen[:, 0] * np.cos(seen[:, 1]), seen[:, 0] * np.sin(seen[:, 1])], axis=1)
@@ -180,11 +232,56 @@ class VisionSlamMap:
             pairs = [pair for pair, ok in zip(pairs, agree.tolist()) if ok]
         updated = 0
         for i, row in pairs:
-            updated += int(self._update(f, int(visible[row]), z[i], R[i]))
+            updated += int(self.update_landmark(f, int(visible[row]), z[i], R[i]))
         s.counters.landmarks_updated = updated
+        self.last_pairs = [(i, int(visible[row])) for i, row in pairs]
         return {i for i, _ in pairs}
 
-    def _update(self, f: Filter, j: int, z: np.ndarray, R: np.ndarray) -> bool:
+    def _update_associated(
+        self, f: Filter, found: features.Features, z: np.ndarray, R: np.ndarray, visible: np.ndarray
+    ) -> set[int]:
+        """Geometric association (``vehicle.association``) among each visible landmark's descriptor
+        shortlist, then the sequential updates; returns the keypoints paired."""
+        s = f.state
+        self.last_problem = None
+        if not len(visible) or s.landmarks.descriptors is None:
+            s.counters.landmarks_updated, self.last_pairs = 0, []
+            return set()
+        shortlisted = association.shortlist(found.descriptors, s.landmarks.descriptors[visible], self.norm, SHORTLIST)
+        observations = sorted({i for i, _ in shortlisted})
+        pairs: list[tuple[int, int]] = []
+        if observations:
+            column = {i: a for a, i in enumerate(observations)}
+            allowed = np.zeros((len(observations), len(visible)), dtype=bool)
+            for i, row in shortlisted:
+                allowed[column[i], row] = True
+            predicted, C = self.predictions(s, visible)
+            p = problem(
+                z[observations], R[observations], predicted, C, allowed=allowed, gate_probability=LANDMARK_GATE_P
+            )
+            rng = np.random.default_rng([f.vehicle_id, s.time_us])  # a replayed frame is associated alike
+            assignment = METHODS[self.association](p, rng)
+            self.last_problem = (p, assignment)
+            pairs = [(observations[a], int(row)) for a, row in enumerate(assignment.tolist()) if row >= 0]
+        updated = sum(int(self.update_landmark(f, int(visible[row]), z[i], R[i])) for i, row in pairs)
+        s.counters.landmarks_updated = updated
+        self.last_pairs = [(i, int(visible[row])) for i, row in pairs]
+        return {i for i, _ in pairs}
+
+    def predictions(self, s: FilterState, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted observations (m, 2) of mapped landmarks ``rows`` and their joint covariance
+        C = H P H^T (2m, 2m) (Jacobians at the current estimate)."""
+        m = len(rows)
+        predicted = np.zeros((m, 2))
+        H = np.zeros((2 * m, 3 + 2 * m))
+        for a, j in enumerate(rows.tolist()):
+            predicted[a], H[2 * a : 2 * a + 2, :3], H[2 * a : 2 * a + 2, 3 + 2 * a : 5 + 2 * a] = slam.observe(
+                s.x, self.head_dim, j
+            )
+        columns = np.concatenate([[0, 1, 2], (self.head_dim + 2 * rows[:, None] + np.arange(2)).ravel()])
+        return predicted, H @ s.P[np.ix_(columns, columns)] @ H.T
+
+    def update_landmark(self, f: Filter, j: int, z: np.ndarray, R: np.ndarray) -> bool:
         """The paper's gated range-bearing update with mapped landmark j; True when fused."""
         s = f.state
         predicted, H_pose, H_landmark = slam.observe(s.x, self.head_dim, j, self._linearize_at(s, j))
@@ -209,13 +306,16 @@ class VisionSlamMap:
     ) -> None:
         """New landmarks from the thinned keypoints that matched nothing and lie farther than half a
         cell from the map (paper's initialisation, one batch per frame)."""
-        room = MAX_LANDMARKS - s.counters.landmarks
+        room = self.policy.capacity - s.counters.landmarks
         thinned = features.thin_indices(found.points_px, found.responses, CELL_PX).tolist()
         keep = [i for i in thinned if i not in matched]
         if not keep or room <= 0:
             return
         where = features.body_to_world(s.x[:3], z[keep])
         mapped = self.landmarks_xy(s)
+        outside = self.policy.occupied(s)
+        if outside is not None and len(outside):
+            mapped = np.vstack([mapped, outside])
         if len(mapped):
             gap = np.min(np.hypot(*(where[:, None, :] - mapped[None, :, :]).transpose(2, 0, 1)), axis=1)
             keep = [i for i, g in zip(keep, gap.tolist()) if g > 0.5 * cell_m]
@@ -223,9 +323,9 @@ class VisionSlamMap:
         if not keep:
             return
         s.x, s.P = slam.add_landmarks(s.x, s.P, z[keep], R[keep])
-        self._grow_book(s, found.descriptors[keep], len(keep))
+        self.grow_book(s, found.descriptors[keep], len(keep))
 
-    def _grow_book(self, s: FilterState, descriptors: np.ndarray | None, added: int) -> None:
+    def grow_book(self, s: FilterState, descriptors: np.ndarray | None, added: int) -> None:
         """The book follows ``added`` landmarks appended to the state (their descriptors, if any)."""
         book = s.landmarks
         if descriptors is not None:
@@ -241,10 +341,11 @@ class VisionSlamMap:
         """The paper's update if the landmark is mapped, else its initialisation (g, Gx, Gz).
         Identities come with the data, so no association is needed."""
         f.propagate_to(msg.stamp_us)
+        self.policy.before_sighting(f, self, msg.stamp_us)
         s, book = f.state, f.state.landmarks
         z = np.array([msg.range_m, msg.bearing_rad])
         j = book.index_of.get(msg.landmark_id)
-        if j is None and s.counters.landmarks >= MAX_LANDMARKS:
+        if j is None and s.counters.landmarks >= self.policy.capacity:
             return
         R = np.asarray(msg.covariance, dtype=float)
         errors = f.errors
@@ -252,6 +353,7 @@ class VisionSlamMap:
         if j is not None:
             self._update_identified(f, j, z, R, first)
             return
+        retired = self.policy.take_retired(s, msg.landmark_id)
         if first is None:
             s.x, s.P = slam.add_landmarks(s.x, s.P, z[None, :], msg.covariance)
         else:
@@ -262,13 +364,15 @@ class VisionSlamMap:
                 s.x, s.P, z, white, model.get("range_state"), model.get("bearing_state")
             )
         book.index_of = {**book.index_of, msg.landmark_id: s.counters.landmarks}
-        self._grow_book(s, None, 1)
+        self.grow_book(s, None, 1)
+        if retired is not None:
+            self.policy.reentered(s, len(s.x) - 2, retired)
 
     def _update_identified(self, f: Filter, j: int, z: np.ndarray, R: np.ndarray, first: int | None) -> None:
         """The paper's gated update with mapped landmark j; with its error states from ``first`` on,
         the model of added_states.persisting_sighting over [x, y, theta, errors, l_jx, l_jy]."""
         if first is None:
-            self._update(f, j, z, R)
+            self.update_landmark(f, j, z, R)
             return
         s, per = f.state, f.errors.per_subject
         predicted, H_pose, H_landmark = slam.observe(s.x, self.head_dim, j, self._linearize_at(s, j))
@@ -292,6 +396,9 @@ def build(
     cooperative: CooperativeRule = CooperativeRule(),
     adaptive_window: int = 0,
     front_end_results: dict | None = None,
+    monitor: MonitorSpec | None = MonitorSpec(),
+    policy: object = None,
+    association: str = "descriptor",
 ) -> Filter:
     """The EKF-SLAM filter of vehicle ``vehicle_id`` (module docstring); ``reject(reason, where,
     detail)`` counts the camera frames it refuses; ``first_estimates`` False: Jacobians at the
@@ -304,6 +411,8 @@ def build(
         reject=reject,
         first_estimates=first_estimates,
         front_end_results=front_end_results,
+        policy=policy,
+        association=association,
     )
     return Filter(
         name="ekf-slam",
@@ -319,6 +428,7 @@ def build(
         sightings=the_map,
         cooperative=cooperative,
         adaptive_window=adaptive_window,
+        monitor=monitor,
     )
 
 
@@ -333,4 +443,6 @@ def from_config(config: VehicleProcessConfig, vehicle_id: int, *, reject: Reject
         reject=reject,
         cooperative=CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
         adaptive_window=vc.adaptive_window if vc.adaptive_noise else 0,
+        monitor=MonitorSpec() if vc.neighbour_monitor else None,
+        association=vc.association,
     )

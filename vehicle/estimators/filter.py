@@ -40,13 +40,15 @@ from vehicle.adaptive import NoiseAdaptation
 from vehicle.alignment import GnssAlignment
 from vehicle.estimators.state import EstimatorCounters, FilterState
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
-from vehicle.inputs import HeldInput, swept
+from vehicle.inputs import HeldInput, VisualMotion, swept
 from vehicle.kalman import UpdateResult
 from vehicle.models import unicycle
 from vehicle.models.cooperative import CooperativeFix, CooperativeRule, SeenFix
+from vehicle.neighbours import MonitorSpec, Verdict, fix_of, pull_m2, see
 from vehicle.wheel_slip import SlipGuard
 
 GYRO_STALE_PERIODS = 5
+VISUAL_STALE_US = 500_000  # visual odometry this old no longer gives the yaw rate (the gyro does)
 SEVERITY_WARNING, SEVERITY_INFO = 4, 6  # MAV_SEVERITY of a notice
 
 Reject = Callable[[str, str, str], None]
@@ -83,11 +85,12 @@ class Filter:
         sightings: Any = None,
         cooperative: CooperativeRule = CooperativeRule(),
         adaptive_window: int = 0,
+        monitor: MonitorSpec | None = MonitorSpec(),
     ) -> None:
         self.name, self.vehicle_id, self.spec = name, vehicle_id, spec
         self.gnss, self.motion, self.update, self.store = gnss, motion, update, store
         self.divergence, self.errors, self.sightings = divergence, errors, sightings
-        self.cooperative = cooperative
+        self.cooperative, self.monitor = cooperative, monitor
         self.gate = gate_threshold(2, gate_probability)
         self.gate_probability = gate_probability
         self._adaptive_window = adaptive_window
@@ -206,16 +209,16 @@ class Filter:
         if msg.stamp_us < s.time_us:
             s.counters.stale += 1
             return
-        if isinstance(msg, (m.ImuSample, m.WheelOdometry)):
+        if isinstance(msg, (m.ImuSample, m.WheelOdometry, VisualMotion)):
             self._inputs(msg)
         elif isinstance(msg, m.GnssFix):
             self.propagate_to(msg.stamp_us)
             self._fuse_gnss(msg)
         elif isinstance(msg, (CooperativeFix, SeenFix)):
             self.propagate_to(msg.stamp_us)
-            result = self._cooperative_update(msg)
-            s.counters.v2v_fused += int(result.accepted)
-            s.counters.v2v_rejected += int(not result.accepted)
+            fused = self._cooperative_update(msg)
+            s.counters.v2v_fused += int(fused)
+            s.counters.v2v_rejected += int(not fused)
         elif isinstance(msg, m.LandmarkSighting) and self.sightings is not None:
             self.sightings.on_sighting(self, msg)
         elif isinstance(msg, m.CameraFrame) and self.sightings is not None:
@@ -233,12 +236,19 @@ class Filter:
         for model in self._models():
             model.initialise(self)
 
-    def _inputs(self, msg: m.ImuSample | m.WheelOdometry) -> None:
-        """Hold the gyro rate, or the wheel speed (slip taken off) and yaw rate, from their stamp on."""
-        s = self.state
+    def _inputs(self, msg: m.ImuSample | m.WheelOdometry | VisualMotion) -> None:
+        """Hold the gyro rate, or the wheel speed (slip taken off) and yaw rate, or visual odometry's
+        speed and yaw rate with the variances of their fit, from their stamp on."""
+        s, spec = self.state, self.spec
         if isinstance(msg, m.ImuSample):
             s.gyro.sample(msg.stamp_us, float(msg.gyro_radps[2]))
             s.slip.accelerometer(float(msg.accel_mps2[0]))
+        elif isinstance(msg, VisualMotion):
+            s.speed.sample(msg.stamp_us, msg.speed_mps, msg.speed_var / max(spec.odom_speed_sigma_mps**2, 1e-12))
+            if np.isfinite(msg.yaw_rate_var):  # else the yaw rate is unknown: the gyro's
+                s.visual_us = msg.stamp_us
+                weight = msg.yaw_rate_var / max(spec.odom_yaw_rate_sigma_radps**2, 1e-12)
+                s.odom_yaw.sample(msg.stamp_us, msg.yaw_rate_radps, weight)
         else:
             s.speed.sample(msg.stamp_us, s.slip.correct(msg.stamp_us, msg.speed_mps))
             s.odom_yaw.sample(msg.stamp_us, msg.yaw_rate_radps)
@@ -248,7 +258,7 @@ class Filter:
         s = self.state
         if isinstance(msg, m.ImuSample):
             s.alignment.yaw_rate(msg.stamp_us, float(msg.gyro_radps[2]))
-        if isinstance(msg, (m.ImuSample, m.WheelOdometry)):
+        if isinstance(msg, (m.ImuSample, m.WheelOdometry, VisualMotion)):
             self._inputs(msg)
         elif isinstance(msg, m.GnssFix):
             aligned = s.alignment.fix(msg.stamp_us, msg.position_m, msg.covariance_m2)
@@ -267,7 +277,13 @@ class Filter:
         speed, speed_factor = s.speed.close(stamp_us)
         gyro, gyro_factor = s.gyro.close(stamp_us)
         odom_yaw, odom_factor = s.odom_yaw.close(stamp_us)
-        fresh = s.gyro.stamp_us is not None and stamp_us - s.gyro.stamp_us <= GYRO_STALE_PERIODS * self._gyro_period_us
+        # visual odometry's yaw rate, drift-free, beats an integrated gyro whose bias nothing observes
+        visual = s.visual_us >= 0 and stamp_us - s.visual_us <= VISUAL_STALE_US
+        fresh = (
+            not visual
+            and s.gyro.stamp_us is not None
+            and stamp_us - s.gyro.stamp_us <= GYRO_STALE_PERIODS * self._gyro_period_us
+        )
         if fresh:
             rate, rate_var, rate_source = gyro, spec.gyro_sigma_radps**2 * gyro_factor, s.gyro
         else:
@@ -307,17 +323,50 @@ class Filter:
         )
         s.counters.gnss_accepted += 1
 
-    def _cooperative_update(self, fix: CooperativeFix | SeenFix) -> UpdateResult:
+    def _cooperative_update(self, fix: CooperativeFix | SeenFix) -> bool:
         """One neighbour fix by the vehicle's cooperative rule (vehicle.models.cooperative), its radio
-        noise learnt by IAE when that is on, its persisting errors as states when the filter keeps them."""
+        noise learnt by IAE when that is on, its persisting errors as states when the filter keeps them,
+        fused only while the neighbour monitor believes the neighbour (vehicle.neighbours). True when
+        it was fused."""
         s = self.state
-        adapt = None if s.iae is None else partial(s.iae.adapt, Topic.RANGING)
+        neighbour = fix.target_id if isinstance(fix, CooperativeFix) else fix.observer_id
+        believed = s.neighbours.trusts(neighbour)
+        adapt = None if s.iae is None or not believed else partial(s.iae.adapt, Topic.RANGING)
         errors = None if self.errors is None else self.errors.of_fix(self, fix)  # may grow the state: first
         unscented = self.update.unscented_fixes
         correction, result = self.cooperative.fuse(s.x, s.P, fix, self.gate, unscented, adapt, errors)
+        if self.monitor is not None:
+            self._judge(neighbour, fix, result)
+            believed = s.neighbours.trusts(neighbour)
+        if not believed:
+            s.counters.v2v_distrusted += 1
+            return False
         if correction is not None:
             self.store.correct(s, correction)
-        return result
+        return result.accepted
+
+    def _judge(self, neighbour: int, fix: CooperativeFix | SeenFix, result: UpdateResult) -> None:
+        """Hand the fix to the neighbour monitor (vehicle.neighbours). A neighbour found lying has
+        been pulling this vehicle while it was believed: the position's spread grows by as much as
+        its innovations say the pull may be, so that GNSS and the honest neighbours can pull it back
+        (and its own broadcast does not pass the pull on as certain)."""
+        s = self.state
+        observed = fix_of(fix.stamp_us, result)
+        if observed is None:
+            return
+        verdict = see(s.neighbours, self.monitor, neighbour, observed)
+        if verdict is None:
+            return
+        if not verdict.trusted:
+            since = fix.stamp_us - round(self.monitor.window_s * 1e6)
+            pull = pull_m2(s.neighbours.records[neighbour], since, fix.range_m)
+            self.store.set_spread(s, [0, 1], np.diagonal(s.P)[:2] + pull)
+        self._say(verdict)
+
+    def _say(self, verdict: Verdict) -> None:
+        """A neighbour's trust changed: a STATUSTEXT (the ground station makes it an event)."""
+        word, severity = ("trust", SEVERITY_INFO) if verdict.trusted else ("distrust", SEVERITY_WARNING)
+        self.notice(Notice(verdict.stamp_us, severity, f"{word} v{verdict.neighbour}: {verdict.reason}"))
 
     def reset_position(self, offset_m: np.ndarray, variance_m2: float) -> None:
         """Jump the position by ``offset_m`` (2,) with per-axis variance ``variance_m2``; decorrelate it."""

@@ -38,6 +38,7 @@ from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.gnss import gnss_model
 from vehicle.models.gnss_error import GnssErrorModel
 from vehicle.models.motion import UnicycleMotion
+from vehicle.neighbours import MonitorSpec
 
 LOST_AFTER = 8  # sightings in a row failing the gate
 RELOCALIZE_SIGMA = np.array([1.0, 1.0, 0.5])  # m, m, rad added to the pose's spread when lost
@@ -123,6 +124,7 @@ def build(
     cooperative: CooperativeRule = CooperativeRule(),
     adaptive_window: int = 0,
     store=None,
+    monitor: MonitorSpec | None = MonitorSpec(),
 ) -> Filter:
     """The known-map EKF of vehicle ``vehicle_id`` with the surveyed ``landmarks`` (id, x m, y m)."""
     error = GnssErrorModel.from_spec(spec)
@@ -148,6 +150,7 @@ def build(
         sightings=KnownMap(landmarks),
         cooperative=cooperative,
         adaptive_window=adaptive_window,
+        monitor=monitor,
     )
 
 
@@ -161,4 +164,5 @@ def from_config(config: VehicleProcessConfig, vehicle_id: int, *, reject=None) -
         gate_probability=vc.gate_probability,
         cooperative=CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
         adaptive_window=vc.adaptive_window if vc.adaptive_noise else 0,
+        monitor=MonitorSpec() if vc.neighbour_monitor else None,
     )

@@ -29,6 +29,7 @@ from vehicle.adaptive import NoiseAdaptation
 from vehicle.alignment import GnssAlignment
 from vehicle.gnss_health import GnssHealth
 from vehicle.inputs import HeldInput
+from vehicle.neighbours import NeighbourBook
 from vehicle.wheel_slip import SlipGuard
 
 T = TypeVar("T")
@@ -45,6 +46,7 @@ class EstimatorCounters:
     resets: int = 0
     v2v_fused: int = 0
     v2v_rejected: int = 0
+    v2v_distrusted: int = 0  # neighbours' fixes not fused because the neighbour was distrusted
     landmarks: int = 0  # SLAM: landmarks in the map; known-map: landmarks in the surveyed map
     landmarks_updated: int = 0  # SLAM: landmarks the last usable camera frame updated
     frames_used: int = 0  # SLAM: camera frames through the front end
@@ -71,6 +73,8 @@ class FilterState:
     last_good: tuple[np.ndarray, np.ndarray] | None = None  # (x, P), read-only: shared by copies
     good_until_us: int = -1  # the fallback is refreshed from then on
     prior_xy: np.ndarray | None = None  # position as last propagated, before any update (first estimates)
+    neighbours: NeighbourBook = field(default_factory=NeighbourBook)  # which neighbours it believes
+    visual_us: int = -1  # stamp of the latest visual odometry (it then gives the yaw rate, not the gyro)
     landmarks: Any = None
     errors: Any = None
 

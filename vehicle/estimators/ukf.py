@@ -15,6 +15,7 @@ from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.gnss import gnss_model
 from vehicle.models.gnss_error import GnssErrorModel
 from vehicle.models.motion import UnicycleMotion
+from vehicle.neighbours import MonitorSpec
 
 
 def build(
@@ -24,6 +25,7 @@ def build(
     gate_probability: float,
     cooperative: CooperativeRule = CooperativeRule(),
     adaptive_window: int = 0,
+    monitor: MonitorSpec | None = MonitorSpec(),
 ) -> Filter:
     """The UKF of vehicle ``vehicle_id`` for the sensors of ``spec`` (module docstring)."""
     error = GnssErrorModel.from_spec(spec)
@@ -39,6 +41,7 @@ def build(
         divergence=FullCheck(),
         cooperative=cooperative,
         adaptive_window=adaptive_window,
+        monitor=monitor,
     )
 
 
@@ -51,4 +54,5 @@ def from_config(config: VehicleProcessConfig, vehicle_id: int, *, reject=None) -
         gate_probability=vc.gate_probability,
         cooperative=CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
         adaptive_window=vc.adaptive_window if vc.adaptive_noise else 0,
+        monitor=MonitorSpec() if vc.neighbour_monitor else None,
     )

@@ -48,7 +48,9 @@ def set_spread(P: np.ndarray, indices: list[int], variances: np.ndarray) -> None
 def drop_states(x: np.ndarray, P: np.ndarray, indices: list[int]) -> tuple[np.ndarray, np.ndarray]:
     """x, P with the states at ``indices`` marginalized out (a Gaussian's marginal: rows and
     columns deleted)."""
-    keep = np.setdiff1d(np.arange(len(x)), indices)
+    mask = np.ones(len(x), dtype=bool)
+    mask[indices] = False  # the same sorted indices as np.setdiff1d, without its sorting
+    keep = np.flatnonzero(mask)
     return x[keep], P[np.ix_(keep, keep)]
 
 

@@ -240,9 +240,10 @@ class CooperativeRule:
         if adapt is not None:
             R = _sym(adapt(np.array(y), _array(_add_sym(M, S)), _array(R)))
         y0, y1 = y
-        t00, t01, t11 = _inv_sym(*_add_sym(M, R, S))
+        total = _add_sym(M, R, S)
+        t00, t01, t11 = _inv_sym(*total)
         nis = t00 * y0 * y0 + 2.0 * t01 * y0 * y1 + t11 * y1 * y1
-        result = UpdateResult(bool(nis <= gate), nis, nis / gate)
+        result = UpdateResult(bool(nis <= gate), nis, nis / gate, (y0, y1), total)
         if not result.accepted:
             return None, result
         w = self._weight(M, R, S)

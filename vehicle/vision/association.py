@@ -38,6 +38,18 @@ def match(
     return sorted((keypoint, row) for keypoint, (_, row) in best.items())
 
 
+def shortlist(
+    frame_descriptors: np.ndarray, map_descriptors: np.ndarray, norm: int, size: int
+) -> list[tuple[int, int]]:
+    """Pairs (frame keypoint, map row): each landmark's ``size`` nearest keypoints by descriptor (the
+    candidates a geometric association chooses among; on repetitive ground they include the
+    look-alikes). Descriptors (k, d), (m, d)."""
+    if len(frame_descriptors) == 0 or len(map_descriptors) == 0:
+        return []
+    knn = cv2.BFMatcher(norm).knnMatch(map_descriptors, frame_descriptors, k=min(size, len(frame_descriptors)))
+    return sorted({(match.trainIdx, match.queryIdx) for matches in knn for match in matches})
+
+
 def to_body(points_xy_m: np.ndarray, pose: np.ndarray) -> np.ndarray:
     """World points (k, 2) [m] -> [forward, left] (k, 2) [m] in the body frame of ``pose``."""
     d = points_xy_m - pose[:2]

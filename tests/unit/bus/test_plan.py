@@ -118,3 +118,17 @@ def test_claim_decoders_raise_decode_error_only(payload):
             decode_json(cls, payload)
         except DecodeError:
             pass
+
+
+def test_a_lie_must_say_something_false_and_names_a_vehicle_of_the_swarm():
+    from bus.faults import Lie
+    from bus.lies import active_lies
+
+    with pytest.raises(ValueError, match="would tell the truth"):
+        Lie(vehicle=3)
+    lie = Lie(vehicle=3, offset_m=(30.0, -30.0), drift_mps=0.15, heading_deg=90.0, start_s=10.0, for_s=60.0)
+    assert lie.offset_at(20.0) == pytest.approx([30.0, -28.5])
+    with pytest.raises(ValueError, match="vehicle 3 does not exist"):
+        check_fault(lie, 2)
+    assert active_lies((lie,), 3, 9.99) == [] and active_lies((lie,), 3, 10.0) == [lie]
+    assert active_lies((lie,), 2, 20.0) == [] and active_lies((lie,), 3, 70.0) == []

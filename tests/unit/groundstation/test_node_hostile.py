@@ -113,3 +113,23 @@ def test_the_realtime_live_table_shows_a_running_ground_station(tmp_path):
     assert gs.sim_time_us == 500_000
     with live_display("realtime", 10.0, quiet=False) as on_progress:
         on_progress(gs)
+
+
+@given(st.text(max_size=80))
+def test_trust_verdicts_are_read_from_any_statustext_or_none(text):
+    from groundstation.node import trust_verdict
+
+    verdict = trust_verdict(text)
+    assert verdict is None or (verdict[0] in ("neighbour_distrusted", "neighbour_trusted") and 1 <= verdict[1] <= 999)
+
+
+def test_trust_verdicts_name_the_neighbour_and_the_reason():
+    from groundstation.node import trust_verdict
+
+    assert trust_verdict("distrust v3: 8 of 8 fixes fail the gate") == (
+        "neighbour_distrusted",
+        3,
+        "8 of 8 fixes fail the gate",
+    )
+    assert trust_verdict("trust v12: consistent again") == ("neighbour_trusted", 12, "consistent again")
+    assert trust_verdict("GNSS unhealthy: no fix") is None and trust_verdict("distrust v0: x") is None

@@ -332,3 +332,43 @@ def test_realtime_a_late_loop_files_the_queued_batches_before_cycling():
     run_realtime(node, threading.Event())
     assert node.stats.cycles == 2 and node.estimator.state.time_us == 20_000
     assert node.fusion.counters.replays == 0 and node.fusion.counters.dropped_stale == 0
+
+
+def test_a_lying_vehicle_changes_only_its_v2v_broadcast_and_signs_it_as_itself():
+    """The ``lie`` fault in the plan: vehicle 1's V2V frames carry its position moved by the lie's
+    offset and its covariance scaled, signed with its own key; its MAVLink stream to the ground
+    station stays honest; before the lie starts and after it ends, V2V is honest too."""
+    from bus.mavlink_codec import MavlinkDecoder, pose_of, split_frames
+
+    hub = MemoryHub()
+    sent: list[tuple[str, bytes]] = []
+    deliver = hub.deliver
+    hub.deliver = lambda key, payload: (sent.append((key, payload)), deliver(key, payload))
+    lie = {"kind": "lie", "vehicle": 1, "offset_m": [30.0, -30.0], "cov_scale": 0.01, "start_s": 0.2, "for_s": 0.2}
+    config = build_config({"faults": [lie]}).for_vehicle()
+    node = VehicleNode(hub.connect("vehicle"), config, 1, signing_key=bytes(32))
+    keys = node.bus.keys
+    decoder, gs_decoder = MavlinkDecoder(signing_key=bytes(32)), MavlinkDecoder(signing_key=bytes(32))
+    node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+    for t_us in (0, 200_000, 400_000):  # V2V epochs: before, during and after the lie
+        node.cycle(t_us)
+        node.outbound.flush()
+    v2v = [pose_of(decoder.decode(p)) for k, p in sent if k == keys.v2v(1)]
+    gs = [
+        pose_of(e)
+        for k, p in sent
+        if k == keys.mavlink(1)
+        for f in split_frames(p)[0]
+        if isinstance(e := gs_decoder.decode(f), StateEstimate)
+    ]
+    honest = {round(e.stamp_us): e for e in gs}
+    assert [e.stamp_us for e in v2v] == [0, 200_000, 400_000]
+    for e in v2v:
+        offset = e.pose[:2] - honest[e.stamp_us].pose[:2]
+        scale = e.pose_cov[0, 0] / honest[e.stamp_us].pose_cov[0, 0]
+        if e.stamp_us == 200_000:
+            np.testing.assert_allclose(offset, [30.0, -30.0], atol=1e-3)
+            assert scale == pytest.approx(0.01, rel=1e-4)
+        else:
+            np.testing.assert_allclose(offset, [0.0, 0.0], atol=1e-9)
+            assert scale == pytest.approx(1.0)

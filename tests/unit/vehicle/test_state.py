@@ -20,7 +20,7 @@ def _config(estimator: str):
     sections = {
         "world": {"vehicles": 1, "seed": 5, "trajectories": ["circle"]},
         "clock": {"duration_s": 6.0},
-        "sensors": {"camera_rate_hz": 10 if estimator == "ekf-slam" else 0},
+        "sensors": {"camera_rate_hz": 10 if estimator.endswith("ekf-slam") else 0},
         "vehicle": {"estimator": estimator, "cooperative": False},
     }
     if estimator == "known-map":

@@ -1,0 +1,210 @@
+"""`swarm experiment liar`: a vehicle that lies to its neighbours, and whether the honest ones follow.
+
+Eight vehicles in the honest world (``HONEST_WORLD`` with ``HONEST_DATASHEET``), 60 s, real processes
+in lockstep. From ``LIE_START_S`` vehicle 3 (the liar) tells its neighbours, by profile:
+
+- ``gross``: its position 30 m off (every single-fix gate rejects it);
+- ``drift``: an offset growing 0.15 m/s (it passes every single-fix gate for seconds);
+- ``overconfident``: its honest position with a covariance 100 times too small;
+- ``spoofed``: nothing false on purpose: its own GNSS is spoofed (0.5 m/s), and it honestly
+  broadcasts the estimate the spoofer drags.
+
+Each profile flies with the neighbour monitor on and off (``vehicle.neighbour_monitor``), next to the
+clean swarm of the same seed; and the no-liar conditions (clean, GNSS jammed for six vehicles,
+faults on the vehicle-to-vehicle links) fly with the monitor on to count false alarms. Scored on
+the honest vehicles (all but the liar) from ``LIE_START_S`` to the end. Detection: for each vehicle
+that ranged the liar after the lie began (read off the pure world of the same seed), the time from
+its first such ranging to its first ``neighbour_distrusted`` event about the liar (the ground
+station stamps events with its clock tick: up to one 0.5 s tick late).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, build_config
+from groundstation.report.rundata import load_run
+
+LIAR = 3
+LIE_START_S = 10.0
+DURATION_S = 60.0
+VEHICLES = 8
+LIES: dict[str, dict[str, Any]] = {
+    "gross": {"offset_m": [30.0, -30.0]},
+    "drift": {"drift_mps": 0.15, "heading_deg": 45.0},
+    "overconfident": {"cov_scale": 0.01},
+}
+V2V_LINK_FAULTS = [
+    {"kind": "delay", "dst": "v*", "topic": "mavlink", "delay_s": 0.05, "jitter_s": 0.02},
+    {"kind": "loss", "dst": "v*", "topic": "mavlink", "percent": 20.0, "burst": 4.0},
+    {"kind": "duplicate", "dst": "v*", "topic": "mavlink", "percent": 10.0},
+    {"kind": "reorder", "dst": "v*", "topic": "mavlink", "percent": 10.0, "gap_s": 0.05},
+]
+PROFILES = ("gross", "drift", "overconfident", "spoofed")
+CONTROLS = ("clean", "jamming", "links")
+
+
+@dataclass(frozen=True)
+class Case:
+    condition: str  # a lie profile or a control
+    defence: bool
+    seed: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.condition}-{'defended' if self.defence else 'open'}-seed{self.seed}"
+
+
+def cases(seeds: list[int], profiles: tuple[str, ...] = PROFILES) -> list[Case]:
+    """Every run of the experiment: the controls defended (clean also open: the monitor's own cost),
+    each profile defended and open."""
+    out = []
+    for seed in seeds:
+        out += [Case("clean", True, seed), Case("clean", False, seed), Case("jamming", True, seed)]
+        out += [Case("links", True, seed)]
+        out += [Case(p, d, seed) for p in profiles for d in (True, False)]
+    return out
+
+
+def liar_config(case: Case) -> SwarmConfig:
+    faults: list[dict] = []
+    if case.condition in LIES:
+        faults.append({"name": "liar", "kind": "lie", "vehicle": LIAR, "start_s": LIE_START_S, **LIES[case.condition]})
+    elif case.condition == "spoofed":
+        faults.append(
+            {
+                "name": "spoofer",
+                "kind": "spoof-gnss",
+                "center_m": list(_pad(case.seed, LIAR)),
+                "radius_m": 60.0,
+                "drift_mps": 0.5,
+                "heading_deg": 45.0,
+                "start_s": LIE_START_S,
+            }
+        )
+    elif case.condition == "jamming":
+        faults += [
+            {"name": f"jam-v{v}", "kind": "blackout", "vehicle": v, "sensor": "gnss", "start_s": LIE_START_S}
+            for v in range(1, 7)
+        ]
+    elif case.condition == "links":
+        faults += [{"name": f"link-{k}", **f, "start_s": LIE_START_S} for k, f in enumerate(V2V_LINK_FAULTS)]
+    return build_config(
+        {
+            "name": case.name,
+            "world": {"vehicles": VEHICLES, "seed": case.seed, "sensor_truth": HONEST_WORLD},
+            "sensors": HONEST_DATASHEET,
+            "clock": {"duration_s": DURATION_S},
+            "vehicle": {"neighbour_monitor": case.defence},
+            "faults": faults,
+        }
+    )
+
+
+def _pad(seed: int, vehicle: int) -> tuple[float, float]:
+    """The vehicle's start pad (the spoofer's zone covers the liar's whole trajectory)."""
+    from sim.world import World
+
+    world = World(build_config({"world": {"vehicles": VEHICLES, "seed": seed}}))
+    x, y = world.poses[world.vehicle_ids().index(vehicle)][:2]
+    return round(float(x), 1), round(float(y), 1)
+
+
+def run_liar(
+    out: Path, *, seeds: list[int], stop: threading.Event, show_progress: bool, profiles: tuple[str, ...] = PROFILES
+) -> tuple[Path, dict[Case, Path], list[str]]:
+    """Fly every case (real processes); the experiment folder, each case's run directory, failures."""
+    from launch.launcher import launch, unique_run_dir
+
+    folder = unique_run_dir(out, "liar")
+    runs: dict[Case, Path] = {}
+    failures: list[str] = []
+    for case in cases(seeds, profiles):
+        if stop.is_set():
+            return folder, runs, failures + ["stopped"]
+        run_dir, failed, _ = launch(liar_config(case), folder, show_progress=show_progress, stop=stop)
+        runs[case] = run_dir
+        failures += [f"{case.name}: {f}" for f in failed]
+    return folder, runs, failures
+
+
+def honest_rmse(run_dir: Path) -> float | None:
+    """Position RMSE (m) of every vehicle but the liar, from LIE_START_S on."""
+    metrics = load_run(run_dir).metrics
+    if not metrics:
+        return None
+    keep = (metrics["vehicle"] != LIAR) & (metrics["t_s"] >= LIE_START_S)
+    return float(np.sqrt(np.mean(metrics["err_pos_m"][keep] ** 2))) if keep.any() else None
+
+
+def distrust_events(run_dir: Path) -> list[dict]:
+    """The run's neighbour_distrusted events."""
+    path = run_dir / "events.jsonl"
+    if not path.exists():
+        return []
+    events = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    return [e for e in events if e.get("event") == "neighbour_distrusted"]
+
+
+def rangers_of_liar(seed: int) -> dict[int, float]:
+    """The vehicles the pure world has ranging the liar after the lie began (the same world as the
+    run), with the sim time (s) of the first such ranging: detection is counted from there."""
+    from bus.feed import SensorBatch
+    from bus.topics import Topic
+    from sim.world import World
+
+    config = liar_config(Case("clean", True, seed))
+    world = World(config)
+    out = world.advance(round(DURATION_S * 1e6))
+    start = round(LIE_START_S * 1e6)
+    rangers: dict[int, float] = {}
+    for vid in world.vehicle_ids():
+        for topic, msg in SensorBatch(vid, 0, round(DURATION_S * 1e6), out.blocks(vid)).samples():
+            if topic is Topic.RANGING and msg.target_id == LIAR and msg.stamp_us >= start and vid not in rangers:
+                rangers[vid] = msg.stamp_us / 1e6
+    return rangers
+
+
+def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
+    """experiment.json: per condition and defence, the honest RMSE against the clean run of the same
+    seed, detections of the liar and false alarms."""
+    seeds = sorted({c.seed for c in runs})
+    clean = {s: honest_rmse(runs[Case("clean", False, s)]) for s in seeds if Case("clean", False, s) in runs}
+    rangers = {s: rangers_of_liar(s) for s in seeds}
+    table: dict[str, Any] = {"seeds": seeds, "liar": LIAR, "lie_start_s": LIE_START_S, "conditions": {}}
+    conditions = sorted({(c.condition, c.defence) for c in runs}, key=lambda k: (k[0] not in CONTROLS, k))
+    for condition, defence in conditions:
+        rows = [(c, p) for c, p in runs.items() if c.condition == condition and c.defence == defence]
+        ratios, delays, detected, falsely = [], [], 0, 0
+        for case, path in rows:
+            rmse = honest_rmse(path)
+            if rmse is not None and clean.get(case.seed):
+                ratios.append(rmse / clean[case.seed])
+            events = distrust_events(path)
+            liar_events = {e["vehicle"]: e["t_s"] for e in reversed(events) if e.get("neighbour") == LIAR}
+            lie = condition in PROFILES
+            falsely += sum(1 for e in events if not lie or e.get("neighbour") != LIAR)
+            if lie:
+                expected = {v: t for v, t in rangers[case.seed].items() if v != LIAR}
+                detected += sum(1 for v in expected if v in liar_events)
+                delays += [liar_events[v] - t for v, t in expected.items() if v in liar_events]
+                delays += [math.inf for v in expected if v not in liar_events]
+        key = f"{condition}-{'defended' if defence else 'open'}"
+        finite = [d for d in delays if math.isfinite(d)]
+        table["conditions"][key] = {
+            "runs": len(rows),
+            "honest_rmse_vs_clean_mean": round(float(np.mean(ratios)), 4) if ratios else None,
+            "honest_rmse_vs_clean_max": round(float(np.max(ratios)), 4) if ratios else None,
+            "rangers_that_distrusted_the_liar": f"{len(finite)} of {len(delays)}" if delays else None,
+            "detection_s_median": round(float(np.median(finite)), 2) if finite else None,
+            "detection_s_max": round(float(np.max(finite)), 2) if finite else None,
+            "false_alarms": falsely,
+        }
+    return table

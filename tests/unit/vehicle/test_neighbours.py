@@ -1,0 +1,128 @@
+"""The neighbour monitor: a consistent neighbour is never distrusted; one whose fixes all fail the
+gate is distrusted within a second or two; a slow drift that passes every gate is caught by the bias
+of its innovations; an over-confident one by its NIS; a vehicle with no grounds to trust itself
+accuses nobody; a distrusted neighbour is trusted again once it has been consistent for a while."""
+
+import math
+
+import numpy as np
+import pytest
+
+from vehicle.kalman import UpdateResult
+from vehicle.neighbours import MonitorSpec, NeighbourBook, fix_of, see, whiten
+
+SPEC = MonitorSpec()
+PERIOD_US = 200_000  # ranging at 5 Hz
+S = (0.25, 0.0, 0.25)  # innovation covariance of every fix (0.5 m sigma on each axis)
+
+
+def _fix(t_us: int, y: tuple[float, float], gate: float = 13.8):
+    nis = (y[0] ** 2 + y[1] ** 2) / 0.25
+    return fix_of(t_us, UpdateResult(nis <= gate, nis, nis / gate, y, S))
+
+
+WITNESS = 9  # a consistent neighbour: the observer's grounds to trust itself
+
+
+def _witness(book, rng, t_us):
+    y = rng.normal(0.0, 0.5, 2)
+    assert see(book, SPEC, WITNESS, _fix(t_us, (float(y[0]), float(y[1])))) is None
+
+
+def _stream(book, neighbour, offsets, rng, start_us=0):
+    """Fixes of ``neighbour`` with innovation noise N(0, S) plus ``offsets`` (k, 2), next to a
+    consistent witness; the verdicts about ``neighbour``."""
+    verdicts = []
+    for k, offset in enumerate(offsets):
+        t = start_us + k * PERIOD_US
+        _witness(book, rng, t)
+        y = rng.normal(0.0, 0.5, 2) + offset
+        verdict = see(book, SPEC, neighbour, _fix(t, (float(y[0]), float(y[1]))))
+        if verdict is not None:
+            verdicts.append(verdict)
+    return verdicts
+
+
+def test_whitening_makes_a_standard_pair():
+    w = whiten((1.0, 2.0), (4.0, 2.0, 5.0))  # L = [[2, 0], [1, 2]]: w = L^-1 y = (0.5, 0.75)
+    assert w == pytest.approx((0.5, 0.75))
+    assert whiten((1.0, 1.0), (1.0, 2.0, 1.0)) == (math.inf, math.inf)  # not positive definite
+
+
+def test_a_consistent_neighbour_is_never_distrusted():
+    rng = np.random.default_rng(1)
+    book = NeighbourBook()
+    assert _stream(book, 3, np.zeros((3000, 2)), rng) == []  # 10 minutes of fixes
+    assert book.trusts(3)
+
+
+def test_a_gross_liar_is_distrusted_once_its_last_min_fixes_fail_the_gate():
+    rng = np.random.default_rng(2)
+    book = NeighbourBook()
+    verdicts = _stream(book, 3, np.full((50, 2), 30.0), rng)
+    assert verdicts and not verdicts[0].trusted and "fail the gate" in verdicts[0].reason
+    assert verdicts[0].stamp_us <= SPEC.min_fixes * PERIOD_US and not book.trusts(3)
+
+
+def test_a_slow_drift_that_passes_every_gate_is_caught_by_its_bias():
+    rng = np.random.default_rng(3)
+    book = NeighbourBook()
+    drift = np.outer(np.arange(300) * PERIOD_US * 1e-6, [0.1, 0.0])  # 0.1 m/s: 0.02 m per fix
+    verdicts = _stream(book, 3, drift, rng)
+    assert verdicts and "biased" in verdicts[0].reason
+    offset_when_caught = 0.1 * verdicts[0].stamp_us * 1e-6
+    assert offset_when_caught < 1.8  # below the single-fix gate (3.7 sigmas, 1.86 m): the fixes still pass it
+
+
+def test_an_overconfident_neighbour_is_caught_by_its_nis():
+    rng = np.random.default_rng(4)
+    book = NeighbourBook()
+    verdicts = []
+    for k in range(100):  # its real scatter is 3 m where it claims 0.5 m
+        _witness(book, rng, k * PERIOD_US)
+        y = rng.normal(0.0, 1.5, 2)
+        verdict = see(book, SPEC, 3, _fix(k * PERIOD_US, (float(y[0]), float(y[1])), gate=1e9))
+        verdicts += [verdict] if verdict else []
+    assert verdicts and "mean NIS" in verdicts[0].reason
+
+
+def test_a_vehicle_without_grounds_to_trust_itself_accuses_nobody():
+    """Every neighbour disagreeing with the vehicle: the vehicle is the likelier one to be wrong."""
+    rng = np.random.default_rng(5)
+    book = NeighbourBook()
+    for k in range(100):
+        for neighbour in (2, 3):
+            y = rng.normal(0.0, 0.5, 2) + 5.0
+            assert see(book, SPEC, neighbour, _fix(k * PERIOD_US, (float(y[0]), float(y[1])))) is None
+    assert book.trusts(2) and book.trusts(3)
+
+
+def test_another_consistent_neighbour_is_grounds_enough():
+    rng = np.random.default_rng(6)
+    book = NeighbourBook()
+    verdicts = []
+    for k in range(100):
+        y2 = rng.normal(0.0, 0.5, 2)
+        see(book, SPEC, 2, _fix(k * PERIOD_US, (float(y2[0]), float(y2[1]))))
+        y3 = rng.normal(0.0, 0.5, 2) + 30.0
+        verdict = see(book, SPEC, 3, _fix(k * PERIOD_US, (float(y3[0]), float(y3[1]))))
+        verdicts += [verdict] if verdict else []
+    assert [v.neighbour for v in verdicts] == [3] and book.trusts(2)
+
+
+def test_a_distrusted_neighbour_is_trusted_again_after_being_consistent_for_a_while():
+    rng = np.random.default_rng(7)
+    book = NeighbourBook()
+    offsets = np.concatenate([np.full((50, 2), 30.0), np.zeros((200, 2))])
+    verdicts = _stream(book, 3, offsets, rng)
+    assert [v.trusted for v in verdicts] == [False, True]
+    assert verdicts[1].stamp_us - 50 * PERIOD_US >= SPEC.retrust_s * 1e6 and book.trusts(3)
+
+
+def test_the_book_copies_independently():
+    rng = np.random.default_rng(8)
+    book = NeighbourBook()
+    _stream(book, 3, np.zeros((20, 2)), rng)
+    twin = book.copy()
+    _stream(book, 3, np.full((20, 2), 30.0), rng, start_us=20 * PERIOD_US)
+    assert not book.trusts(3) and twin.trusts(3) and len(twin.records[3].fixes) == 20
