@@ -373,6 +373,15 @@ class VehicleConfig(_Strict):
     world_timeout_s: float = Field(60.0, gt=0, description="a vehicle whose world is gone this long gives up")
 
 
+class ViewConfig(_Strict):
+    """What the ground station shows and records for Foxglove or Lichtblick (groundstation.recording)."""
+
+    record: bool = Field(True, description="write run.mcap in the run directory (scene, poses, metrics, events)")
+    live: bool = Field(False, description="serve a Foxglove WebSocket live view while the swarm runs")
+    live_host: str = Field("127.0.0.1", min_length=1, max_length=255, description="the live view's address")
+    live_port: int = Field(8765, ge=1, le=65535, description="the live view's port")
+
+
 class SwarmConfig(_Strict):
     name: str = Field("run", pattern=r"^[A-Za-z0-9_.\-]+$")
     bus: BusConfig = BusConfig()
@@ -380,6 +389,7 @@ class SwarmConfig(_Strict):
     world: WorldConfig = WorldConfig()
     sensors: SensorSpec = SensorSpec()
     vehicle: VehicleConfig = VehicleConfig()
+    view: ViewConfig = ViewConfig()
     faults: tuple[Fault, ...] = Field((), description="fault timeline (physical, link and kill faults)")
     replay: ReplayConfig | None = Field(
         None,

@@ -62,12 +62,17 @@ def up(
         None, help="seed of link-fault decisions (independent of --seed) [default: 1]"
     ),
     report: bool = typer.Option(True, help=REPORT_HELP),
+    record: Optional[bool] = typer.Option(None, "--record/--no-record", help="write run.mcap [default: on]"),
+    live: bool = typer.Option(False, help="serve a Foxglove WebSocket live view (docs: live view)"),
+    live_host: Optional[str] = typer.Option(None, help="the live view's address [default: 127.0.0.1]"),
+    live_port: Optional[int] = typer.Option(None, help="the live view's port [default: 8765]"),
 ) -> None:
     """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table and write the report."""
     from bus.config import build_config
     from bus.process import stop_on_signals
     from groundstation.mavlink_out import parse_udpout
     from launch.launcher import Security, launch
+    from launch.live import check_live_address
     from launch.scenario import load_scenario, overlay
 
     if mode not in (None, "lockstep", "realtime"):
@@ -87,9 +92,12 @@ def up(
                     "world": {"vehicles": vehicles, "seed": seed},
                     "fault_seed": fault_seed,
                     "clock": {"mode": mode, "speed": speed, "duration_s": duration, "tick_s": tick},
+                    "view": {"record": record, "live": live or None, "live_host": live_host, "live_port": live_port},
                 },
             )
         )
+        if config.view.live:
+            check_live_address(config.view.live_host, config.view.live_port)
         if chaos is not None:
             config = with_chaos(config, chaos)
         if mavlink_out:

@@ -63,6 +63,10 @@ def mrclam(
     quiet: bool = typer.Option(False, help="no progress display, only the final table"),
     insecure: bool = typer.Option(False, help="no zenoh logins, no access control, no MAVLink signing"),
     report: bool = typer.Option(True, help=REPORT_HELP),
+    record: bool = typer.Option(True, "--record/--no-record", help="write run.mcap"),
+    live: bool = typer.Option(False, help="serve a Foxglove WebSocket live view (docs: live view)"),
+    live_host: str = typer.Option("127.0.0.1", help="the live view's address"),
+    live_port: int = typer.Option(8765, help="the live view's port"),
 ) -> None:
     """Replay the UTIAS MRCLAM data set (Leung et al., IJRR 2011): each robot a vehicle process, the
     world playing its odometry, landmark and robot sightings and Vicon truth on sim time, the ground
@@ -70,6 +74,7 @@ def mrclam(
     from bus.process import stop_on_signals
     from cli.main import _print_result
     from launch.launcher import launch
+    from launch.live import check_live_address
     from launch.replay_setup import ReplayChoice, replay_config
 
     if estimator not in ESTIMATORS:
@@ -97,8 +102,13 @@ def mrclam(
         config = replay_config(
             choice,
             name=name or f"mrclam-{estimator}{'-coop' if cooperative else ''}",
-            overrides={"clock": {"mode": mode, "speed": speed}},
+            overrides={
+                "clock": {"mode": mode, "speed": speed},
+                "view": {"record": record, "live": live, "live_host": live_host, "live_port": live_port},
+            },
         )
+        if config.view.live:
+            check_live_address(config.view.live_host, config.view.live_port)
         if estimator == "centralized":
             _reference(config, out)
             return

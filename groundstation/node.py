@@ -31,6 +31,7 @@ from groundstation.fault_control import FaultControl
 from groundstation.mavlink_in import MAX_STREAM_BYTES, MavlinkIntake
 from groundstation.mavlink_out import MavlinkForwarder
 from groundstation.membership import MembershipLog
+from groundstation.recording import open_recording
 from groundstation.resume import resume_events, resume_tallies
 from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
@@ -71,7 +72,7 @@ class GroundStation:
         bus.queryable(keys.fault_request(), control)
         bus.queryable(keys.claim(), control)
         self._plan_pub, self._ack_pub = bus.publisher(keys.fault_plan()), bus.publisher(keys.ack("gs"))
-        self.run = RunDirectory(run_dir)
+        self.run = RunDirectory(run_dir, recording=open_recording(run_dir, config.view))
         self.ids = IdRegister(vehicles=config.world.vehicles, path=run_dir / "claims.json", master_key=master_key)
         self.scorer = Scorer()
         self.intake = MavlinkIntake(

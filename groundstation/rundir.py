@@ -37,8 +37,9 @@ def drop_partial_line(path: Path) -> None:
 
 
 class RunDirectory:
-    def __init__(self, path: Path, *, flush_period_s: float = 0.5) -> None:
+    def __init__(self, path: Path, *, flush_period_s: float = 0.5, recording: Any = None) -> None:
         self.path = Path(path)
+        self.recording = recording  # groundstation.recording.Recording: the same scores and events for Foxglove
         (self.path / "tum").mkdir(parents=True, exist_ok=True)
         self._flush_period_s = flush_period_s
         self._last_flush = time.monotonic()
@@ -73,11 +74,15 @@ class RunDirectory:
             est, tp = s.estimate, s.truth_pose
             self._tum_file("est", s.vehicle_id).write(tum_line(s.stamp_us, *est.position_m, est.yaw_rad))
             self._tum_file("truth", s.vehicle_id).write(tum_line(s.stamp_us, tp[0], tp[1], est.position_m[2], tp[2]))
+        if self.recording is not None and scores:
+            self.recording.scores(scores)
         self.maybe_flush(scores[-1].stamp_us if scores else None)
 
     def event(self, kind: str, stamp_us: int, /, **fields: Any) -> None:
         record = {"t_s": round(stamp_us * 1e-6, 6), "event": kind, **fields}
         self._events.write(json.dumps(record, sort_keys=True) + "\n")
+        if self.recording is not None:
+            self.recording.event(record, stamp_us)
         self.maybe_flush()
 
     def write_json(self, name: str, data: dict[str, Any]) -> None:
@@ -100,5 +105,7 @@ class RunDirectory:
 
     def close(self) -> None:
         self.flush()
+        if self.recording is not None:
+            self.recording.close()
         for handle in (self._metrics, self._events, *self._tum.values()):
             handle.close()

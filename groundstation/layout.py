@@ -1,0 +1,47 @@
+"""The Foxglove layout that opens a swarmloc run (live or run.mcap) in one step: the scene (true and
+estimated poses, 3-sigma ellipses) beside the position error and NEES of every vehicle and the event
+log. Built with the Foxglove SDK's layout classes; ``deploy/foxglove-layout.json`` is its output
+for five vehicles (a test keeps the two equal)."""
+
+from __future__ import annotations
+
+
+def swarm_layout(vehicles: int = 5) -> str:
+    """The layout as JSON (Foxglove or Lichtblick: Layouts, Import from file)."""
+    from foxglove import layouts as fl
+
+    scene = fl.ThreeDeePanel(
+        title="swarm",
+        config=fl.ThreeDeeConfig(
+            follow_tf="world",
+            topics={
+                "/scene": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
+                **{
+                    f"/vehicle/{v}/truth": fl.BaseRendererPoseTopicSettings(visible=False, type="arrow")
+                    for v in range(1, vehicles + 1)
+                },
+            },
+        ),
+    )
+
+    def per_vehicle(field: str, label: str) -> fl.PlotPanel:
+        series = [
+            fl.PlotSeries(value=f"/metrics{{vehicle=={v}}}.{field}", label=f"v{v}", enabled=True)
+            for v in range(1, vehicles + 1)
+        ]
+        return fl.PlotPanel(title=label, config=fl.PlotConfig(paths=series, show_legend=True, y_axis_label=label))
+
+    plots = fl.SplitContainer(
+        direction="column",
+        items=[
+            fl.SplitItem(content=per_vehicle("err_pos_m", "position error [m]")),
+            fl.SplitItem(content=per_vehicle("nees", "pose NEES (3 dof)")),
+            fl.SplitItem(content=fl.LogPanel(title="events", config=fl.LogConfig(topic_to_render="/events"))),
+        ],
+    )
+    layout = fl.Layout(
+        content=fl.SplitContainer(
+            direction="row", items=[fl.SplitItem(proportion=1.4, content=scene), fl.SplitItem(content=plots)]
+        )
+    )
+    return layout.to_json()

@@ -1,0 +1,205 @@
+"""The run as Foxglove and Lichtblick see it: ``run.mcap`` in the run directory and, with ``--live``, a
+Foxglove WebSocket server, both fed from the one place that may see truth (the ground station's
+scores and events) through the Foxglove SDK, on a context of their own (no global state).
+
+Channels (log times are sim time, nanoseconds from the run's start):
+
+- ``/scene`` (foxglove.SceneUpdate): per vehicle, the estimated pose (blue arrow), the true pose
+  (green arrow) and the 3-sigma position ellipse (rotated by the covariance's eigenvectors), in
+  frame ``world``, every scored sample;
+- ``/vehicle/<id>/estimate`` and ``/vehicle/<id>/truth`` (foxglove.PoseInFrame): for trails and plots;
+- ``/metrics`` (JSON): per scored sample the vehicle's position error, NEES and sigmas (plots);
+- ``/events`` (foxglove.Log): the run's events (faults, joins, resets, distrusted neighbours).
+
+A restarted ground station cannot append to an MCAP file: it records to ``run.1.mcap`` and so on.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from groundstation.scoring import Score
+
+log = logging.getLogger("swarmloc.groundstation")
+ELLIPSE_POINTS = 36
+METRICS_SCHEMA = {
+    "title": "swarmloc.Metrics",
+    "type": "object",
+    "properties": {
+        "t_s": {"type": "number", "description": "sim time (s)"},
+        "vehicle": {"type": "integer"},
+        "err_pos_m": {"type": "number", "description": "horizontal position error (m)"},
+        "nees": {"type": ["number", "null"], "description": "pose NEES, 3 dof"},
+        "sigma_x_m": {"type": "number"},
+        "sigma_y_m": {"type": "number"},
+    },
+}
+WARNING_EVENTS = ("fault", "neighbour_distrusted", "vehicle_lost", "estimator_reset", "gnss")
+
+
+def recording_path(run_dir: Path) -> Path:
+    """``run.mcap``, or ``run.<n>.mcap`` when a previous ground station of this run left one."""
+    path, n = run_dir / "run.mcap", 0
+    while path.exists():
+        n += 1
+        path = run_dir / f"run.{n}.mcap"
+    return path
+
+
+def ellipse_xy(centre: np.ndarray, covariance: np.ndarray, sigmas: float = 3.0) -> np.ndarray:
+    """Points (ELLIPSE_POINTS, 2) of the ``sigmas`` ellipse of a 2x2 position covariance, rotated by
+    its eigenvectors."""
+    values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
+    axes = sigmas * np.sqrt(np.maximum(values, 0.0))
+    angle = np.linspace(0.0, 2.0 * np.pi, ELLIPSE_POINTS, endpoint=False)
+    unit = np.stack([axes[0] * np.cos(angle), axes[1] * np.sin(angle)], axis=1)
+    return centre + unit @ vectors.T
+
+
+class Recording:
+    """Writes the channels (module docstring) to an MCAP file and, once ``serve`` is called, to a
+    WebSocket server too."""
+
+    def __init__(self, path: Path | None) -> None:
+        import foxglove
+        from foxglove.channels import LogChannel, SceneUpdateChannel
+
+        self._foxglove = foxglove
+        self.context = foxglove.Context()
+        self.path = path
+        self.writer = foxglove.open_mcap(path, context=self.context) if path is not None else None
+        self.server = None
+        self.scene = SceneUpdateChannel("/scene", context=self.context)
+        self.metrics = foxglove.Channel("/metrics", schema=METRICS_SCHEMA, context=self.context)
+        self.events = LogChannel("/events", context=self.context)
+        self._poses: dict[tuple[str, int], Any] = {}
+
+    def serve(self, host: str, port: int) -> None:
+        """Start the live view (a Foxglove WebSocket server on ``host``:``port``)."""
+        self.server = self._foxglove.start_server(name="swarmloc", host=host, port=port, context=self.context)
+
+    def _pose_channel(self, kind: str, vehicle_id: int):
+        from foxglove.channels import PoseInFrameChannel
+
+        key = (kind, vehicle_id)
+        if key not in self._poses:
+            self._poses[key] = PoseInFrameChannel(f"/vehicle/{vehicle_id}/{kind}", context=self.context)
+        return self._poses[key]
+
+    def scores(self, scores: list[Score]) -> None:
+        from foxglove import messages as fm
+
+        entities = []
+        for s in scores:
+            ns = s.stamp_us * 1000
+            stamp = fm.Timestamp(sec=s.stamp_us // 1_000_000, nsec=(s.stamp_us % 1_000_000) * 1000)
+            est, truth = s.estimate, s.truth_pose
+            estimate_pose = _pose(fm, est.position_m[0], est.position_m[1], est.yaw_rad)
+            true_pose = _pose(fm, truth[0], truth[1], truth[2])
+            self._pose_channel("estimate", s.vehicle_id).log(
+                fm.PoseInFrame(timestamp=stamp, frame_id="world", pose=estimate_pose), log_time=ns
+            )
+            self._pose_channel("truth", s.vehicle_id).log(
+                fm.PoseInFrame(timestamp=stamp, frame_id="world", pose=true_pose), log_time=ns
+            )
+            ring = ellipse_xy(np.asarray(est.position_m[:2]), s.pose_covariance[:2, :2])
+            entities.append(
+                fm.SceneEntity(
+                    timestamp=stamp,
+                    frame_id="world",
+                    id=f"vehicle-{s.vehicle_id}",
+                    arrows=[_arrow(fm, estimate_pose, (0.2, 0.4, 1.0)), _arrow(fm, true_pose, (0.1, 0.8, 0.2))],
+                    lines=[
+                        fm.LinePrimitive(
+                            type=fm.LinePrimitiveLineType.LineLoop,
+                            thickness=2.0,
+                            scale_invariant=True,
+                            points=[fm.Point3(x=float(x), y=float(y), z=0.0) for x, y in ring],
+                            color=fm.Color(r=0.2, g=0.4, b=1.0, a=0.8),
+                        )
+                    ],
+                    texts=[
+                        fm.TextPrimitive(
+                            pose=estimate_pose,
+                            billboard=True,
+                            font_size=14.0,
+                            scale_invariant=True,
+                            color=fm.Color(r=1.0, g=1.0, b=1.0, a=1.0),
+                            text=f"v{s.vehicle_id}",
+                        )
+                    ],
+                )
+            )
+            self.metrics.log(
+                {
+                    "t_s": s.stamp_us * 1e-6,
+                    "vehicle": s.vehicle_id,
+                    "err_pos_m": s.position_error_m,
+                    "nees": s.nees if math.isfinite(s.nees) else None,
+                    "sigma_x_m": float(s.sigma[0]),
+                    "sigma_y_m": float(s.sigma[1]),
+                },
+                log_time=ns,
+            )
+        if entities:
+            self.scene.log(fm.SceneUpdate(entities=entities), log_time=scores[-1].stamp_us * 1000)
+
+    def event(self, record: dict[str, Any], stamp_us: int) -> None:
+        from foxglove import messages as fm
+
+        kind = str(record.get("event", ""))
+        level = fm.LogLevel.Warning if any(w in kind for w in WARNING_EVENTS) else fm.LogLevel.Info
+        stamp = fm.Timestamp(sec=stamp_us // 1_000_000, nsec=(stamp_us % 1_000_000) * 1000)
+        self.events.log(
+            fm.Log(timestamp=stamp, level=level, message=json.dumps(record, sort_keys=True), name="groundstation"),
+            log_time=max(stamp_us, 0) * 1000,
+        )
+
+    def close(self) -> None:
+        """Finish the MCAP file (its index and footer) and stop the server."""
+        if self.writer is not None:
+            self.writer.close()
+            self.writer = None
+        if self.server is not None:
+            self.server.stop()
+            self.server = None
+
+
+def _pose(fm, x: float, y: float, yaw: float):
+    return fm.Pose(
+        position=fm.Vector3(x=float(x), y=float(y), z=0.0),
+        orientation=fm.Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
+    )
+
+
+def _arrow(fm, pose, rgb: tuple[float, float, float]):
+    return fm.ArrowPrimitive(
+        pose=pose,
+        shaft_length=1.0,
+        shaft_diameter=0.15,
+        head_length=0.5,
+        head_diameter=0.4,
+        color=fm.Color(r=rgb[0], g=rgb[1], b=rgb[2], a=1.0),
+    )
+
+
+def open_recording(run_dir: Path, view: Any) -> Recording | None:
+    """The recording a run's ``view`` config asks for (None: neither run.mcap nor a live view). A live
+    view that cannot start (its port taken since the launcher checked) is logged, not fatal: the run
+    and its recording go on."""
+    if not (view.record or view.live):
+        return None
+    recording = Recording(recording_path(run_dir) if view.record else None)
+    if view.live:
+        try:
+            recording.serve(view.live_host, view.live_port)
+            log.info("live view: ws://%s:%d (Foxglove or Lichtblick: open connection)", view.live_host, view.live_port)
+        except Exception as exc:  # the SDK raises its own error types for a bind failure
+            log.error("live view on %s:%d did not start: %s", view.live_host, view.live_port, exc)
+    return recording

@@ -1,0 +1,153 @@
+"""run.mcap and the live view through real processes: every run directory gets run.mcap, read back
+here with the mcap library against the run's metrics.csv; `swarm up --live` serves the Foxglove
+WebSocket protocol to a real client while a lockstep run goes on, and a run stopped by Ctrl-C leaves
+a finished, readable recording."""
+
+import csv
+import json
+import os
+import signal
+import socket
+import subprocess
+import time
+from collections import defaultdict
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory
+
+from tests.integration.conftest import run_swarm, swarm_command
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    out = tmp_path_factory.mktemp("mcap")
+    result = run_swarm(out, "--vehicles", "3", "--duration", "10", "--mode", "lockstep", "--name", "rec", "--seed", "2")
+    assert result.returncode == 0, result.stdout + result.stderr
+    return out / "rec"
+
+
+def _metrics(run) -> list[dict]:
+    with (run / "metrics.csv").open() as handle:
+        return list(csv.DictReader(handle))
+
+
+class _JsonDecoders:
+    def decoder_for(self, encoding, schema):
+        return json.loads if encoding == "json" else None
+
+
+def _decoded(path):
+    with path.open("rb") as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory(), _JsonDecoders()])
+        return [(c.topic, m.log_time, decoded) for _, c, m, decoded in reader.iter_decoded_messages()]
+
+
+def test_run_mcap_holds_every_channel_with_one_estimate_per_scored_sample(recorded):
+    with (recorded / "run.mcap").open("rb") as handle:
+        summary = make_reader(handle).get_summary()
+    schemas = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+    for vid in (1, 2, 3):
+        assert schemas[f"/vehicle/{vid}/estimate"] == schemas[f"/vehicle/{vid}/truth"] == "foxglove.PoseInFrame"
+    assert schemas["/scene"] == "foxglove.SceneUpdate" and schemas["/events"] == "foxglove.Log"
+    assert schemas["/metrics"] == "swarmloc.Metrics"
+    counts = {c.topic: summary.statistics.channel_message_counts[c.id] for c in summary.channels.values()}
+    rows = _metrics(recorded)
+    per_vehicle = defaultdict(int)
+    for row in rows:
+        per_vehicle[int(row["vehicle"])] += 1
+    for vid, n in per_vehicle.items():
+        assert counts[f"/vehicle/{vid}/estimate"] == counts[f"/vehicle/{vid}/truth"] == n
+    assert counts["/metrics"] == len(rows)
+    events = (recorded / "events.jsonl").read_text().splitlines()
+    assert counts["/events"] == len(events)
+
+
+def test_times_are_sim_time_and_monotonic_and_the_poses_give_the_scored_error(recorded):
+    messages = _decoded(recorded / "run.mcap")
+    last = {}
+    for topic, log_time, _ in messages:
+        assert log_time >= last.get(topic, 0), topic
+        last[topic] = log_time
+        assert log_time <= 10_000_000_000  # nanoseconds of sim time: the run lasted 10 s
+    poses = {(topic, t): d.pose.position for topic, t, d in messages if topic.startswith("/vehicle/2/")}
+    row = next(r for r in _metrics(recorded) if r["vehicle"] == "2" and float(r["t_s"]) == 5.0)
+    t = 5_000_000_000
+    est, truth = poses[("/vehicle/2/estimate", t)], poses[("/vehicle/2/truth", t)]
+    error = np.hypot(est.x - truth.x, est.y - truth.y)
+    assert error == pytest.approx(float(row["err_pos_m"]), abs=2e-6)
+    scene = [d for topic, _, d in messages if topic == "/scene"]
+    assert {e.id for update in scene for e in update.entities} == {"vehicle-1", "vehicle-2", "vehicle-3"}
+    assert all(len(e.lines[0].points) == 36 for update in scene for e in update.entities)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_a_live_client_sees_the_channels_and_every_vehicle_and_ctrl_c_leaves_a_finished_recording(tmp_path):
+    from websockets.sync.client import connect
+
+    port = _free_port()
+    command = swarm_command(
+        tmp_path, "--vehicles", "2", "--duration", "3600", "--mode", "lockstep", "--name", "live", "--live",
+        "--live-port", str(port),
+    )  # fmt: skip
+    swarm = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=os.environ)
+    try:
+        deadline, client = time.monotonic() + 120, None
+        while client is None:
+            assert swarm.poll() is None, swarm.stdout.read()
+            assert time.monotonic() < deadline, "the live view never answered"
+            try:
+                client = connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"])
+            except OSError:
+                time.sleep(0.2)
+        with client:
+            channels, seen = {}, set()
+            while time.monotonic() < deadline and seen != {b"vehicle-1", b"vehicle-2"}:
+                frame = client.recv(timeout=30)
+                if isinstance(frame, str):
+                    message = json.loads(frame)
+                    if message.get("op") == "advertise":
+                        channels.update({c["topic"]: c["id"] for c in message["channels"]})
+                        if "/scene" in channels and not seen:
+                            request = {"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channels["/scene"]}]}
+                            client.send(json.dumps(request))
+                elif frame[0] == 1:  # message data: opcode, subscription id, timestamp, payload
+                    seen |= {v for v in (b"vehicle-1", b"vehicle-2") if v in frame[13:]}
+            assert {"/scene", "/metrics", "/events", "/vehicle/1/estimate"} <= set(channels)
+            assert seen == {b"vehicle-1", b"vehicle-2"}
+    finally:
+        swarm.send_signal(signal.SIGINT)
+        output = swarm.communicate(timeout=120)[0]
+    with (tmp_path / "live" / "run.mcap").open("rb") as handle:
+        summary = make_reader(handle).get_summary()  # the footer and index: the file was finished
+    assert summary is not None and sum(summary.statistics.channel_message_counts.values()) > 0, output
+
+
+def test_a_live_port_in_use_is_refused_before_anything_starts(tmp_path):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        result = run_swarm(tmp_path, "--vehicles", "1", "--duration", "2", "--live", "--live-port", str(port))
+    assert result.returncode != 0
+    assert f"cannot serve on 127.0.0.1:{port}" in result.stdout + result.stderr
+    assert "Traceback" not in result.stdout + result.stderr
+    assert not list(tmp_path.glob("*/metrics.csv"))  # no process started
+    bad = run_swarm(tmp_path, "--vehicles", "1", "--duration", "2", "--live", "--live-host", "no.such.host.invalid")
+    assert bad.returncode != 0 and "is not an address" in bad.stdout + bad.stderr
+
+
+def test_the_recording_can_be_turned_off(tmp_path):
+    result = run_swarm(
+        tmp_path, "--vehicles", "1", "--duration", "2", "--mode", "lockstep", "--name", "n", "--no-record"
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert not (tmp_path / "n" / "run.mcap").exists() and (tmp_path / "n" / "metrics.csv").exists()

@@ -1,0 +1,47 @@
+"""The recording's pure parts: the 3-sigma ellipse, the file name a restarted ground station takes,
+and the Foxglove layout in deploy/ kept equal to its generator."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from groundstation.layout import swarm_layout
+from groundstation.recording import ellipse_xy, recording_path
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def test_the_ellipse_is_three_sigma_along_the_covariance_eigenvectors():
+    angle = 0.4
+    R = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    covariance = R @ np.diag([4.0, 1.0]) @ R.T
+    ring = ellipse_xy(np.array([10.0, -2.0]), covariance) - np.array([10.0, -2.0])
+    along = ring @ R  # in the eigenvector frame
+    assert abs(np.max(np.abs(along[:, 0])) - 6.0) < 1e-9 and abs(np.max(np.hypot(*ring.T)) - 6.0) < 1e-9
+    assert abs(np.max(np.abs(along[:, 1])) - 3.0) < 0.05
+    assert np.allclose((along[:, 0] / 6.0) ** 2 + (along[:, 1] / 3.0) ** 2, 1.0)
+
+
+def test_a_restarted_ground_station_records_to_a_new_file(tmp_path):
+    assert recording_path(tmp_path).name == "run.mcap"
+    (tmp_path / "run.mcap").write_bytes(b"")
+    assert recording_path(tmp_path).name == "run.1.mcap"
+
+
+def test_the_layout_in_the_repository_is_the_generated_one_and_names_our_channels():
+    text = (ROOT / "deploy" / "foxglove-layout.json").read_text()
+    assert text == swarm_layout(5)
+    layout = json.dumps(json.loads(text))
+    for topic in ("/scene", "/metrics{vehicle==5}.err_pos_m", "/metrics{vehicle==1}.nees", "/events"):
+        assert topic in layout
+
+
+def test_the_compose_live_config_is_the_compose_config_with_the_live_view_on():
+    from bus.config import load_config
+
+    plain = load_config(ROOT / "deploy" / "compose-config.json", env={})
+    live = load_config(ROOT / "deploy" / "compose-config-live.json", env={})
+    assert live.view.live and live.view.live_host == "0.0.0.0" and live.view.live_port == 8765
+    assert live.model_copy(update={"view": plain.view}) == plain
+    assert "./deploy/compose-config-live.json:/config/config.json" in (ROOT / "deploy" / "compose-live.yml").read_text()
