@@ -16,6 +16,7 @@ def swarm_layout(vehicles: int = 5) -> str:
             follow_tf="world",
             topics={
                 "/scene": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
+                "/zones": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 **{
                     f"/vehicle/{v}/truth": fl.BaseRendererPoseTopicSettings(visible=False, type="arrow")
                     for v in range(1, vehicles + 1)

@@ -286,6 +286,8 @@ class GroundStation:
         if self.config.clock.mode == "lockstep":
             self._log_membership(tick)
         self.faults.advance(tick.stamp_us)
+        if self.run.recording is not None:
+            self.run.recording.zones(tick.stamp_us, self.faults.faults)
         for vid, frame in self.intake.release(tick.stamp_us, self._stream_passed):
             self._on_mavlink(vid, frame)
         if self.config.clock.mode == "lockstep" and self.previous_tick_us >= 0:

@@ -9,7 +9,9 @@ Channels (log times are sim time, nanoseconds from the run's start):
   frame ``world``, every scored sample;
 - ``/vehicle/<id>/estimate`` and ``/vehicle/<id>/truth`` (foxglove.PoseInFrame): for trails and plots;
 - ``/metrics`` (JSON): per scored sample the vehicle's position error, NEES and sigmas (plots);
-- ``/events`` (foxglove.Log): the run's events (faults, joins, resets, distrusted neighbours).
+- ``/events`` (foxglove.Log): the run's events (faults, joins, resets, distrusted neighbours);
+- ``/zones`` (foxglove.SceneUpdate): the fault zones (GNSS jamming and spoofing, comm jamming) as
+  circles while they are active, deleted when they end.
 
 A restarted ground station cannot append to an MCAP file: it records to ``run.1.mcap`` and so on.
 """
@@ -40,6 +42,7 @@ METRICS_SCHEMA = {
         "sigma_y_m": {"type": "number"},
     },
 }
+ZONE_COLOURS = {"jam-gnss": (1.0, 0.2, 0.2), "spoof-gnss": (1.0, 0.6, 0.0), "jam-comms": (0.7, 0.3, 1.0)}
 WARNING_EVENTS = ("fault", "neighbour_distrusted", "vehicle_lost", "estimator_reset", "gnss")
 
 
@@ -78,7 +81,9 @@ class Recording:
         self.scene = SceneUpdateChannel("/scene", context=self.context)
         self.metrics = foxglove.Channel("/metrics", schema=METRICS_SCHEMA, context=self.context)
         self.events = LogChannel("/events", context=self.context)
+        self.zone_scene = SceneUpdateChannel("/zones", context=self.context)
         self._poses: dict[tuple[str, int], Any] = {}
+        self._zones: set[str] = set()
 
     def serve(self, host: str, port: int) -> None:
         """Start the live view (a Foxglove WebSocket server on ``host``:``port``)."""
@@ -149,6 +154,53 @@ class Recording:
             )
         if entities:
             self.scene.log(fm.SceneUpdate(entities=entities), log_time=scores[-1].stamp_us * 1000)
+
+    def zones(self, stamp_us: int, faults: list) -> None:
+        """Draw the fault zones active at ``stamp_us`` and delete those that ended (only on a change)."""
+        from foxglove import messages as fm
+
+        t_s = stamp_us * 1e-6
+        active = {f.name: f for f in faults if hasattr(f, "radius_m") and f.active(t_s)}
+        if set(active) == self._zones:
+            return
+        stamp = fm.Timestamp(sec=stamp_us // 1_000_000, nsec=(stamp_us % 1_000_000) * 1000)
+        deletions = [fm.SceneEntityDeletion(timestamp=stamp, id=f"zone-{n}") for n in self._zones - set(active)]
+        entities = []
+        for name, fault in active.items():
+            angle = np.linspace(0.0, 2.0 * np.pi, 72, endpoint=False)
+            x = fault.center_m[0] + fault.radius_m * np.cos(angle)
+            y = fault.center_m[1] + fault.radius_m * np.sin(angle)
+            rgb = ZONE_COLOURS.get(fault.kind, (0.6, 0.6, 0.6))
+            colour = fm.Color(r=rgb[0], g=rgb[1], b=rgb[2], a=0.9)
+            centre = _pose(fm, fault.center_m[0], fault.center_m[1], 0.0)
+            entities.append(
+                fm.SceneEntity(
+                    timestamp=stamp,
+                    frame_id="world",
+                    id=f"zone-{name}",
+                    lines=[
+                        fm.LinePrimitive(
+                            type=fm.LinePrimitiveLineType.LineLoop,
+                            thickness=3.0,
+                            scale_invariant=True,
+                            points=[fm.Point3(x=float(a), y=float(b), z=0.0) for a, b in zip(x, y)],
+                            color=colour,
+                        )
+                    ],
+                    texts=[
+                        fm.TextPrimitive(
+                            pose=centre,
+                            billboard=True,
+                            font_size=14.0,
+                            scale_invariant=True,
+                            color=colour,
+                            text=f"{fault.kind} {name}",
+                        )
+                    ],
+                )
+            )
+        self.zone_scene.log(fm.SceneUpdate(deletions=deletions, entities=entities), log_time=stamp_us * 1000)
+        self._zones = set(active)
 
     def event(self, record: dict[str, Any], stamp_us: int) -> None:
         from foxglove import messages as fm

@@ -151,3 +151,19 @@ def test_the_recording_can_be_turned_off(tmp_path):
     )
     assert result.returncode == 0, result.stdout + result.stderr
     assert not (tmp_path / "n" / "run.mcap").exists() and (tmp_path / "n" / "metrics.csv").exists()
+
+
+def test_fault_zones_are_drawn_while_active_and_deleted_when_they_end(tmp_path):
+    scenario = tmp_path / "zones.toml"
+    scenario.write_text(
+        'name = "zones"\n[world]\nvehicles = 2\n[clock]\nduration_s = 6\n'
+        '[[faults]]\nname = "jammer"\nkind = "jam-gnss"\ncenter_m = [0.0, 0.0]\nradius_m = 40.0\n'
+        "start_s = 2.0\nfor_s = 2.0\n"
+    )
+    result = run_swarm(tmp_path, str(scenario), "--mode", "lockstep", "--name", "zones")
+    assert result.returncode == 0, result.stdout + result.stderr
+    zones = [(t, d) for topic, t, d in _decoded(tmp_path / "zones" / "run.mcap") if topic == "/zones"]
+    drawn = [t for t, d in zones if any(e.id == "zone-jammer" for e in d.entities)]
+    deleted = [t for t, d in zones if any(x.id == "zone-jammer" for x in d.deletions)]
+    assert len(drawn) == 1 and 2e9 <= drawn[0] <= 2.5e9, zones
+    assert len(deleted) == 1 and 4e9 <= deleted[0] <= 4.5e9, zones
