@@ -17,6 +17,7 @@ def swarm_layout(vehicles: int = 5) -> str:
             topics={
                 "/scene": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 "/zones": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
+                "/landmarks": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 **{
                     f"/vehicle/{v}/truth": fl.BaseRendererPoseTopicSettings(visible=False, type="arrow")
                     for v in range(1, vehicles + 1)

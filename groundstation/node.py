@@ -223,7 +223,11 @@ class GroundStation:
                 for vid, frame in self.intake.offer(key, parsed.vehicle_id, item.payload):
                     self._on_mavlink(vid, frame)
             elif parsed.topic == "status":
+                before = self.reports.maps.get(parsed.vehicle_id)
                 self.reports.offer(parsed.vehicle_id, item.payload)
+                after = self.reports.maps.get(parsed.vehicle_id)
+                if self.run.recording is not None and after is not None and after is not before:
+                    self.run.recording.landmarks(after)
         except DecodeError as exc:
             self.rejections.reject("malformed", key, str(exc))
 

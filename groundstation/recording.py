@@ -10,6 +10,8 @@ Channels (log times are sim time, nanoseconds from the run's start):
 - ``/vehicle/<id>/estimate`` and ``/vehicle/<id>/truth`` (foxglove.PoseInFrame): for trails and plots;
 - ``/metrics`` (JSON): per scored sample the vehicle's position error, NEES and sigmas (plots);
 - ``/events`` (foxglove.Log): the run's events (faults, joins, resets, distrusted neighbours);
+- ``/landmarks`` (foxglove.SceneUpdate): each SLAM vehicle's map as it reports it, a 3-sigma
+  ellipse per landmark;
 - ``/zones`` (foxglove.SceneUpdate): the fault zones (GNSS jamming and spoofing, comm jamming) as
   circles while they are active, deleted when they end.
 
@@ -82,6 +84,7 @@ class Recording:
         self.metrics = foxglove.Channel("/metrics", schema=METRICS_SCHEMA, context=self.context)
         self.events = LogChannel("/events", context=self.context)
         self.zone_scene = SceneUpdateChannel("/zones", context=self.context)
+        self.landmark_scene = SceneUpdateChannel("/landmarks", context=self.context)
         self._poses: dict[tuple[str, int], Any] = {}
         self._zones: set[str] = set()
 
@@ -154,6 +157,35 @@ class Recording:
             )
         if entities:
             self.scene.log(fm.SceneUpdate(entities=entities), log_time=scores[-1].stamp_us * 1000)
+
+    def landmarks(self, lmap: Any) -> None:
+        """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): one line list of 3-sigma ellipses."""
+        from foxglove import messages as fm
+
+        stamp = fm.Timestamp(sec=lmap.stamp_us // 1_000_000, nsec=(lmap.stamp_us % 1_000_000) * 1000)
+        points = []
+        for xy, cov in zip(lmap.xy_m, lmap.covariance_m2):
+            ring = ellipse_xy(np.asarray(xy), np.asarray(cov))[:: ELLIPSE_POINTS // 12]
+            for a, b in zip(ring, np.roll(ring, -1, axis=0)):
+                points += [
+                    fm.Point3(x=float(a[0]), y=float(a[1]), z=0.0),
+                    fm.Point3(x=float(b[0]), y=float(b[1]), z=0.0),
+                ]
+        entity = fm.SceneEntity(
+            timestamp=stamp,
+            frame_id="world",
+            id=f"landmarks-{lmap.vehicle_id}",
+            lines=[
+                fm.LinePrimitive(
+                    type=fm.LinePrimitiveLineType.LineList,
+                    thickness=1.0,
+                    scale_invariant=True,
+                    points=points,
+                    color=fm.Color(r=1.0, g=0.85, b=0.2, a=0.8),
+                )
+            ],
+        )
+        self.landmark_scene.log(fm.SceneUpdate(entities=[entity]), log_time=max(lmap.stamp_us, 0) * 1000)
 
     def zones(self, stamp_us: int, faults: list) -> None:
         """Draw the fault zones active at ``stamp_us`` and delete those that ended (only on a change)."""

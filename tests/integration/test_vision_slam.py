@@ -93,3 +93,17 @@ def test_a_missing_orthophoto_is_one_line_before_anything_starts(tmp_path):
     assert result.returncode == 1 and "Traceback" not in result.stderr
     assert result.stderr.strip() == "swarm: error: terrain image /no/such/ortho.png does not exist (world.terrain)"
     assert not list(tmp_path.glob("run*"))  # no run was started
+
+
+def test_the_recording_draws_each_slam_vehicles_map_as_it_reports_it(runs):
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    with (runs["slam"] / "run.mcap").open("rb") as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+        maps = [d for _, _, _, d in reader.iter_decoded_messages(topics=["/landmarks"])]
+    last = {e.id: e for update in maps for e in update.entities}  # the newest map of each vehicle
+    assert set(last) == {"landmarks-1", "landmarks-2"}
+    for vid in (1, 2):
+        final = json.loads((runs["slam"] / f"map_v{vid}.json").read_text())
+        assert len(last[f"landmarks-{vid}"].lines[0].points) == 24 * final["landmarks"]  # 12 segments each
