@@ -72,7 +72,8 @@ class GroundStation:
         bus.queryable(keys.fault_request(), control)
         bus.queryable(keys.claim(), control)
         self._plan_pub, self._ack_pub = bus.publisher(keys.fault_plan()), bus.publisher(keys.ack("gs"))
-        self.run = RunDirectory(run_dir, recording=open_recording(run_dir, config.view))
+        self.run = RunDirectory(run_dir)  # creates the directory the recording goes in
+        self.run.recording = open_recording(run_dir, config.view)
         self.ids = IdRegister(vehicles=config.world.vehicles, path=run_dir / "claims.json", master_key=master_key)
         self.scorer = Scorer()
         self.intake = MavlinkIntake(

@@ -279,7 +279,11 @@ def open_recording(run_dir: Path, view: Any) -> Recording | None:
     and its recording go on."""
     if not (view.record or view.live):
         return None
-    recording = Recording(recording_path(run_dir) if view.record else None)
+    try:
+        recording = Recording(recording_path(run_dir) if view.record else None)
+    except OSError as exc:  # a read-only or vanished run directory: the run goes on without run.mcap
+        log.error("run.mcap cannot be written in %s: %s; the run goes on without it", run_dir, exc)
+        return None
     if view.live:
         try:
             recording.serve(view.live_host, view.live_port)

@@ -45,3 +45,14 @@ def test_the_compose_live_config_is_the_compose_config_with_the_live_view_on():
     assert live.view.live and live.view.live_host == "0.0.0.0" and live.view.live_port == 8765
     assert live.model_copy(update={"view": plain.view}) == plain
     assert "./deploy/compose-config-live.json:/config/config.json" in (ROOT / "deploy" / "compose-live.yml").read_text()
+
+
+def test_a_recording_that_cannot_be_written_leaves_the_run_going(tmp_path, caplog):
+    from bus.config import ViewConfig
+    from groundstation.recording import open_recording
+
+    not_a_directory = tmp_path / "file"
+    not_a_directory.write_text("")
+    assert open_recording(not_a_directory, ViewConfig()) is None
+    assert "run.mcap cannot be written" in caplog.text
+    assert open_recording(tmp_path, ViewConfig(record=False)) is None
