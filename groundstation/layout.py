@@ -10,6 +10,8 @@ def swarm_layout(vehicles: int = 5) -> str:
     """The layout as JSON (Foxglove or Lichtblick: Layouts, Import from file)."""
     from foxglove import layouts as fl
 
+    from groundstation.recording import pose_topic
+
     scene = fl.ThreeDeePanel(
         title="swarm",
         config=fl.ThreeDeeConfig(
@@ -19,7 +21,7 @@ def swarm_layout(vehicles: int = 5) -> str:
                 "/zones": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 "/landmarks": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 **{
-                    f"/vehicle/{v}/truth": fl.BaseRendererPoseTopicSettings(visible=False, type="arrow")
+                    pose_topic(v, "truth"): fl.BaseRendererPoseTopicSettings(visible=False, type="arrow")
                     for v in range(1, vehicles + 1)
                 },
             },

@@ -48,6 +48,11 @@ ZONE_COLOURS = {"jam-gnss": (1.0, 0.2, 0.2), "spoof-gnss": (1.0, 0.6, 0.0), "jam
 WARNING_EVENTS = ("fault", "neighbour_distrusted", "vehicle_lost", "estimator_reset", "gnss")
 
 
+def pose_topic(vehicle_id: int, kind: str) -> str:
+    """The Foxglove topic of a vehicle's poses: ``kind`` is estimate or truth (not a zenoh key)."""
+    return f"/vehicle/{vehicle_id}/{kind}"
+
+
 def recording_path(run_dir: Path) -> Path:
     """``run.mcap``, or ``run.<n>.mcap`` when a previous ground station of this run left one."""
     path, n = run_dir / "run.mcap", 0
@@ -97,7 +102,7 @@ class Recording:
 
         key = (kind, vehicle_id)
         if key not in self._poses:
-            self._poses[key] = PoseInFrameChannel(f"/vehicle/{vehicle_id}/{kind}", context=self.context)
+            self._poses[key] = PoseInFrameChannel(pose_topic(vehicle_id, kind), context=self.context)
         return self._poses[key]
 
     def scores(self, scores: list[Score]) -> None:
