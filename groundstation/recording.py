@@ -111,7 +111,7 @@ class Recording:
         entities = []
         for s in scores:
             ns = s.stamp_us * 1000
-            stamp = fm.Timestamp(sec=s.stamp_us // 1_000_000, nsec=(s.stamp_us % 1_000_000) * 1000)
+            stamp = _stamp(fm, s.stamp_us)
             est, truth = s.estimate, s.truth_pose
             estimate_pose = _pose(fm, est.position_m[0], est.position_m[1], est.yaw_rad)
             true_pose = _pose(fm, truth[0], truth[1], truth[2])
@@ -128,38 +128,11 @@ class Recording:
                     frame_id="world",
                     id=f"vehicle-{s.vehicle_id}",
                     arrows=[_arrow(fm, estimate_pose, (0.2, 0.4, 1.0)), _arrow(fm, true_pose, (0.1, 0.8, 0.2))],
-                    lines=[
-                        fm.LinePrimitive(
-                            type=fm.LinePrimitiveLineType.LineLoop,
-                            thickness=2.0,
-                            scale_invariant=True,
-                            points=[fm.Point3(x=float(x), y=float(y), z=0.0) for x, y in ring],
-                            color=fm.Color(r=0.2, g=0.4, b=1.0, a=0.8),
-                        )
-                    ],
-                    texts=[
-                        fm.TextPrimitive(
-                            pose=estimate_pose,
-                            billboard=True,
-                            font_size=14.0,
-                            scale_invariant=True,
-                            color=fm.Color(r=1.0, g=1.0, b=1.0, a=1.0),
-                            text=f"v{s.vehicle_id}",
-                        )
-                    ],
+                    lines=[_loop(fm, ring, (0.2, 0.4, 1.0, 0.8), 2.0)],
+                    texts=[_label(fm, estimate_pose, f"v{s.vehicle_id}", (1.0, 1.0, 1.0, 1.0))],
                 )
             )
-            self.metrics.log(
-                {
-                    "t_s": s.stamp_us * 1e-6,
-                    "vehicle": s.vehicle_id,
-                    "err_pos_m": s.position_error_m,
-                    "nees": s.nees if math.isfinite(s.nees) else None,
-                    "sigma_x_m": float(s.sigma[0]),
-                    "sigma_y_m": float(s.sigma[1]),
-                },
-                log_time=ns,
-            )
+            self.metrics.log(metrics_record(s), log_time=ns)
         if entities:
             self.scene.log(fm.SceneUpdate(entities=entities), log_time=scores[-1].stamp_us * 1000)
 
@@ -167,7 +140,7 @@ class Recording:
         """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): one line list of 3-sigma ellipses."""
         from foxglove import messages as fm
 
-        stamp = fm.Timestamp(sec=lmap.stamp_us // 1_000_000, nsec=(lmap.stamp_us % 1_000_000) * 1000)
+        stamp = _stamp(fm, lmap.stamp_us)
         points = []
         for xy, cov in zip(lmap.xy_m, lmap.covariance_m2):
             ring = ellipse_xy(np.asarray(xy), np.asarray(cov))[:: ELLIPSE_POINTS // 12]
@@ -200,40 +173,22 @@ class Recording:
         active = {f.name: f for f in faults if hasattr(f, "radius_m") and f.active(t_s)}
         if set(active) == self._zones:
             return
-        stamp = fm.Timestamp(sec=stamp_us // 1_000_000, nsec=(stamp_us % 1_000_000) * 1000)
+        stamp = _stamp(fm, stamp_us)
         deletions = [fm.SceneEntityDeletion(timestamp=stamp, id=f"zone-{n}") for n in self._zones - set(active)]
         entities = []
         for name, fault in active.items():
             angle = np.linspace(0.0, 2.0 * np.pi, 72, endpoint=False)
             x = fault.center_m[0] + fault.radius_m * np.cos(angle)
             y = fault.center_m[1] + fault.radius_m * np.sin(angle)
-            rgb = ZONE_COLOURS.get(fault.kind, (0.6, 0.6, 0.6))
-            colour = fm.Color(r=rgb[0], g=rgb[1], b=rgb[2], a=0.9)
+            rgba = (*ZONE_COLOURS.get(fault.kind, (0.6, 0.6, 0.6)), 0.9)
             centre = _pose(fm, fault.center_m[0], fault.center_m[1], 0.0)
             entities.append(
                 fm.SceneEntity(
                     timestamp=stamp,
                     frame_id="world",
                     id=f"zone-{name}",
-                    lines=[
-                        fm.LinePrimitive(
-                            type=fm.LinePrimitiveLineType.LineLoop,
-                            thickness=3.0,
-                            scale_invariant=True,
-                            points=[fm.Point3(x=float(a), y=float(b), z=0.0) for a, b in zip(x, y)],
-                            color=colour,
-                        )
-                    ],
-                    texts=[
-                        fm.TextPrimitive(
-                            pose=centre,
-                            billboard=True,
-                            font_size=14.0,
-                            scale_invariant=True,
-                            color=colour,
-                            text=f"{fault.kind} {name}",
-                        )
-                    ],
+                    lines=[_loop(fm, np.stack([x, y], axis=1), rgba, 3.0)],
+                    texts=[_label(fm, centre, f"{fault.kind} {name}", rgba)],
                 )
             )
         self.zone_scene.log(fm.SceneUpdate(deletions=deletions, entities=entities), log_time=stamp_us * 1000)
@@ -244,7 +199,7 @@ class Recording:
 
         kind = str(record.get("event", ""))
         level = fm.LogLevel.Warning if any(w in kind for w in WARNING_EVENTS) else fm.LogLevel.Info
-        stamp = fm.Timestamp(sec=stamp_us // 1_000_000, nsec=(stamp_us % 1_000_000) * 1000)
+        stamp = _stamp(fm, stamp_us)
         self.events.log(
             fm.Log(timestamp=stamp, level=level, message=json.dumps(record, sort_keys=True), name="groundstation"),
             log_time=max(stamp_us, 0) * 1000,
@@ -296,3 +251,36 @@ def open_recording(run_dir: Path, view: Any) -> Recording | None:
         except Exception as exc:  # the SDK raises its own error types for a bind failure
             log.error("live view on %s:%d did not start: %s", view.live_host, view.live_port, exc)
     return recording
+
+
+def metrics_record(s: Score) -> dict[str, Any]:
+    """One /metrics message (METRICS_SCHEMA) of a score."""
+    return {
+        "t_s": s.stamp_us * 1e-6,
+        "vehicle": s.vehicle_id,
+        "err_pos_m": s.position_error_m,
+        "nees": s.nees if math.isfinite(s.nees) else None,
+        "sigma_x_m": float(s.sigma[0]),
+        "sigma_y_m": float(s.sigma[1]),
+    }
+
+
+def _label(fm, pose, text: str, rgba: tuple[float, float, float, float]):
+    color = fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+    return fm.TextPrimitive(pose=pose, billboard=True, font_size=14.0, scale_invariant=True, color=color, text=text)
+
+
+def _stamp(fm, stamp_us: int):
+    """A foxglove Timestamp of sim time ``stamp_us``."""
+    return fm.Timestamp(sec=stamp_us // 1_000_000, nsec=(stamp_us % 1_000_000) * 1000)
+
+
+def _loop(fm, xy: np.ndarray, rgba: tuple[float, float, float, float], thickness: float):
+    """A closed line through the points ``xy`` (k, 2) on the ground."""
+    return fm.LinePrimitive(
+        type=fm.LinePrimitiveLineType.LineLoop,
+        thickness=thickness,
+        scale_invariant=True,
+        points=[fm.Point3(x=float(a), y=float(b), z=0.0) for a, b in xy],
+        color=fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]),
+    )

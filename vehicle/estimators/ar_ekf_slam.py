@@ -34,7 +34,7 @@ import numpy as np
 
 from bus.config import ArSlamConfig, SensorSpec, VehicleProcessConfig
 from bus.statistics import gate_threshold
-from vehicle.estimators.ekf_slam import Reject, VisionSlamMap
+from vehicle.estimators.ekf_slam import Reject, VisionSlamMap, config_arguments
 from vehicle.estimators.ekf_slam import build as build_ekf_slam
 from vehicle.estimators.filter import Filter
 from vehicle.estimators.state import FilterState, frozen
@@ -264,16 +264,4 @@ def build(
 
 def from_config(config: VehicleProcessConfig, vehicle_id: int, *, reject: Reject | None = None) -> Filter:
     """:func:`build` from a vehicle's configuration (its range settings are ``vehicle.ar``)."""
-    vc = config.vehicle
-    return build(
-        vehicle_id=vehicle_id,
-        spec=config.sensors,
-        gate_probability=vc.gate_probability,
-        ar=vc.ar,
-        detector=vc.features,
-        reject=reject,
-        cooperative=CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
-        adaptive_window=vc.adaptive_window if vc.adaptive_noise else 0,
-        monitor=MonitorSpec() if vc.neighbour_monitor else None,
-        association=vc.association,
-    )
+    return build(**config_arguments(config, vehicle_id, reject), ar=config.vehicle.ar)

@@ -432,17 +432,22 @@ def build(
     )
 
 
+def config_arguments(config: VehicleProcessConfig, vehicle_id: int, reject: Reject | None) -> dict:
+    """:func:`build`'s arguments from a vehicle's configuration (also ``ar_ekf_slam``'s)."""
+    vc = config.vehicle
+    return {
+        "vehicle_id": vehicle_id,
+        "spec": config.sensors,
+        "gate_probability": vc.gate_probability,
+        "detector": vc.features,
+        "reject": reject,
+        "cooperative": CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
+        "adaptive_window": vc.adaptive_window if vc.adaptive_noise else 0,
+        "monitor": MonitorSpec() if vc.neighbour_monitor else None,
+        "association": vc.association,
+    }
+
+
 def from_config(config: VehicleProcessConfig, vehicle_id: int, *, reject: Reject | None = None) -> Filter:
     """:func:`build` from a vehicle's configuration (its keypoint detector is ``vehicle.features``)."""
-    vc = config.vehicle
-    return build(
-        vehicle_id=vehicle_id,
-        spec=config.sensors,
-        gate_probability=vc.gate_probability,
-        detector=vc.features,
-        reject=reject,
-        cooperative=CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
-        adaptive_window=vc.adaptive_window if vc.adaptive_noise else 0,
-        monitor=MonitorSpec() if vc.neighbour_monitor else None,
-        association=vc.association,
-    )
+    return build(**config_arguments(config, vehicle_id, reject))
