@@ -380,6 +380,9 @@ class ViewConfig(_Strict):
     live: bool = Field(False, description="serve a Foxglove WebSocket live view while the swarm runs")
     live_host: str = Field("127.0.0.1", min_length=1, max_length=255, description="the live view's address")
     live_port: int = Field(8765, ge=1, le=65535, description="the live view's port")
+    live_backlog: int = Field(
+        1024, ge=1, le=1_000_000, description="messages queued per live viewer; a slow viewer loses the oldest"
+    )
 
 
 class SwarmConfig(_Strict):

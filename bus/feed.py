@@ -11,7 +11,7 @@ the per-sample messages of ``bus.messages`` and judge each sample on its own (li
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import msgpack
@@ -285,13 +285,15 @@ TRUTH_WIDTH = 5  # x m, y m, theta rad, speed m/s, yaw rate rad/s
 class TruthBatch:
     """Truth of every vehicle at the truth stamps of one tick: stamps (k,) us, vehicle ids (n,),
     rows (k, n, 5) [x, y, theta, speed, yaw rate]; a row of NaN where a vehicle has no truth (a
-    replayed data set's gaps)."""
+    replayed data set's gaps); the pairs (m, 2) [observer, target] of vehicles that ranged in the
+    tick (for the live view's ranging lines)."""
 
     tick: int
     stamp_us: int
     stamps_us: np.ndarray
     vehicle_ids: np.ndarray
     rows: np.ndarray
+    pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))  # (m, 2) [observer, target]
 
 
 def encode_truth(batch: TruthBatch) -> bytes:
@@ -304,6 +306,7 @@ def encode_truth(batch: TruthBatch) -> bytes:
             "stamps": np.ascontiguousarray(batch.stamps_us, "<i8").tobytes(),
             "ids": np.ascontiguousarray(batch.vehicle_ids, "<i8").tobytes(),
             "data": np.ascontiguousarray(batch.rows, "<f8").tobytes(),
+            "pairs": np.ascontiguousarray(batch.pairs, "<i8").tobytes(),
         },
         use_bin_type=True,
     )
@@ -311,8 +314,8 @@ def encode_truth(batch: TruthBatch) -> bytes:
 
 def decode_truth(payload: bytes) -> TruthBatch:
     body = unpack_tagged(payload, "TruthBatch")
-    if set(body) != {"type", "v", "tick", "stamp_us", "stamps", "ids", "data"}:
-        raise DecodeError("TruthBatch: fields must be type, v, tick, stamp_us, stamps, ids, data")
+    if set(body) != {"type", "v", "tick", "stamp_us", "stamps", "ids", "data", "pairs"}:
+        raise DecodeError("TruthBatch: fields must be type, v, tick, stamp_us, stamps, ids, data, pairs")
     tick, stamp_us = _int(body, "tick", 0, 2**53), _int(body, "stamp_us", 0, 2**53)
     stamps, ids = _column(body["stamps"], "<i8", "stamps"), _column(body["ids"], "<i8", "ids")
     data = _column(body["data"], "<f8", "data")
@@ -327,4 +330,10 @@ def decode_truth(payload: bytes) -> TruthBatch:
     gap = np.all(np.isnan(rows), axis=2, keepdims=True)  # no truth for that vehicle at that stamp
     if not np.all((np.abs(rows) <= m.MAX_POSITION_M) | gap):
         raise DecodeError("TruthBatch: values must be finite (no truth at a stamp: a whole row of NaN)")
-    return TruthBatch(tick, stamp_us, stamps, ids, rows)
+    pairs = _column(body["pairs"], "<i8", "pairs")
+    if len(pairs) % 2 or len(pairs) > 2 * n * n:
+        raise DecodeError(f"TruthBatch: pairs must be (observer, target) pairs of the {n} vehicles")
+    pairs = pairs.reshape(-1, 2)
+    if not np.all(np.isin(pairs, ids)) or np.any(pairs[:, 0] == pairs[:, 1]):
+        raise DecodeError("TruthBatch: a ranging pair must name two different vehicles of the batch")
+    return TruthBatch(tick, stamp_us, stamps, ids, rows, pairs)

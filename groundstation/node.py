@@ -14,6 +14,8 @@ import time
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
+
 from bus import feed
 from bus import messages as m
 from bus.claims import ClaimReply, ClaimRequest
@@ -224,13 +226,21 @@ class GroundStation:
                 for vid, frame in self.intake.offer(key, parsed.vehicle_id, item.payload):
                     self._on_mavlink(vid, frame)
             elif parsed.topic == "status":
-                before = self.reports.maps.get(parsed.vehicle_id)
-                self.reports.offer(parsed.vehicle_id, item.payload)
-                after = self.reports.maps.get(parsed.vehicle_id)
-                if self.run.recording is not None and after is not None and after is not before:
-                    self.run.recording.landmarks(after)
+                self._on_status(parsed.vehicle_id, item.payload)
         except DecodeError as exc:
             self.rejections.reject("malformed", key, str(exc))
+
+    def _on_status(self, vid: int, payload: bytes) -> None:
+        """A vehicle's status report (loop statistics) or SLAM map: kept, and shown when it is new."""
+        reports = self.reports
+        before = (reports.maps.get(vid), reports.statuses.get(vid))
+        reports.offer(vid, payload)
+        landmark_map, status = reports.maps.get(vid), reports.statuses.get(vid)
+        if self.run.recording is not None:
+            if landmark_map is not None and landmark_map is not before[0]:
+                self.run.recording.landmarks(landmark_map)
+            if status is not None and status is not before[1]:
+                self.run.recording.loop(status)
 
     def _on_truth(self, batch: feed.TruthBatch) -> None:
         for k, stamp in enumerate(batch.stamps_us.tolist()):
@@ -238,6 +248,10 @@ class GroundStation:
                 self.scorer.add_truth(vid, stamp, batch.rows[k, n, :3])
         if len(batch.stamps_us):
             self.latest_truth_us = max(self.latest_truth_us, int(batch.stamps_us[-1]))
+            if self.run.recording is not None:
+                last = batch.rows[-1, :, :2]
+                where = {vid: last[n] for n, vid in enumerate(batch.vehicle_ids.tolist()) if np.isfinite(last[n]).all()}
+                self.run.recording.ranging(int(batch.stamps_us[-1]), batch.pairs, where)
 
     def _on_mavlink(self, vid: int, frame: bytes) -> None:
         decoded = self.intake.decode(vid, frame, self.sim_time_us)
@@ -271,6 +285,8 @@ class GroundStation:
 
     def _on_estimator_status(self, status: EstimatorStatus) -> None:
         """GNSS health changes (the GPS glitch flag) become events, stamped with the vehicle's time."""
+        if self.run.recording is not None:
+            self.run.recording.health(status)
         was = self.gnss_glitch.get(status.vehicle_id, False)
         self.gnss_glitch[status.vehicle_id] = status.gps_glitch
         if status.gps_glitch != was:
@@ -293,6 +309,9 @@ class GroundStation:
         self.faults.advance(tick.stamp_us)
         if self.run.recording is not None:
             self.run.recording.zones(tick.stamp_us, self.faults.faults)
+            overflows = self.run.recording.overflows()
+            if overflows:
+                self.event("live_view_overflow", times=overflows)
         for vid, frame in self.intake.release(tick.stamp_us, self._stream_passed):
             self._on_mavlink(vid, frame)
         if self.config.clock.mode == "lockstep" and self.previous_tick_us >= 0:

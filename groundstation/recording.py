@@ -13,7 +13,21 @@ Channels (log times are sim time, nanoseconds from the run's start):
 - ``/landmarks`` (foxglove.SceneUpdate): each SLAM vehicle's map as it reports it, a 3-sigma
   ellipse per landmark;
 - ``/zones`` (foxglove.SceneUpdate): the fault zones (GNSS jamming and spoofing, comm jamming) as
-  circles while they are active, deleted when they end.
+  circles while they are active, deleted when they end;
+- ``/ranging`` (foxglove.SceneUpdate): a line between the true positions of every pair of vehicles
+  that ranged each other in the world's last tick;
+- ``/terrain`` (foxglove.SceneUpdate): under a camera swarm, the terrain image as a textured model
+  (``terrain.glb`` in the run directory, written by the launcher; groundstation.terrain_model),
+  logged at the start and again whenever a live viewer subscribes to it;
+- ``/health`` (JSON): each vehicle's GNSS health as its ESTIMATOR_STATUS says (test ratio, glitch);
+- ``/swarm`` (JSON): the swarm's RMS position error over the vehicles scored at each stamp;
+- ``/loop`` (JSON): each vehicle's loop statistics as its status reports them (cycles, overruns,
+  cycle time and jitter p99, fused and missing neighbour broadcasts).
+
+A live viewer gets its own bounded queue (``view.live_backlog`` messages, the SDK's): when a slow
+viewer lets it fill, the oldest messages are dropped, never the run stalled; the SDK reports each
+time a viewer's queue overflows, and the ground station logs it as a ``live_view_overflow`` event
+(counted in summary.json).
 
 A restarted ground station cannot append to an MCAP file: it records to ``run.1.mcap`` and so on.
 """
@@ -23,6 +37,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +57,46 @@ METRICS_SCHEMA = {
         "nees": {"type": ["number", "null"], "description": "pose NEES, 3 dof"},
         "sigma_x_m": {"type": "number"},
         "sigma_y_m": {"type": "number"},
+        "nees_band_low": {"type": "number", "description": "two-sided 95 % band of one 3-dof NEES"},
+        "nees_band_high": {"type": "number"},
+    },
+}
+NEES_BAND_3DOF = (0.215795, 9.348404)  # chi-square 3 dof, two-sided 95 % for one sample (plots)
+TERRAIN_MODEL = "terrain.glb"
+SDK_OVERFLOW_LOGGER = "foxglove.websocket.connected_client.send_lossy"  # "outbox for client ... full"
+RANGING_LIFETIME_NS = 1_000_000_000
+HEALTH_SCHEMA = {
+    "title": "swarmloc.GnssHealth",
+    "type": "object",
+    "properties": {
+        "t_s": {"type": "number", "description": "the vehicle's time (s)"},
+        "vehicle": {"type": "integer"},
+        "gnss_test_ratio": {"type": "number", "description": "GNSS innovation test ratio (> 1 rejects)"},
+        "gnss_glitch": {"type": "boolean", "description": "the vehicle distrusts its receiver"},
+        "horizontal_accuracy_m": {"type": "number", "description": "1-sigma horizontal accuracy (m)"},
+    },
+}
+SWARM_SCHEMA = {
+    "title": "swarmloc.SwarmError",
+    "type": "object",
+    "properties": {
+        "t_s": {"type": "number", "description": "sim time (s)"},
+        "rms_error_m": {"type": "number", "description": "RMS position error of the vehicles scored then (m)"},
+        "vehicles": {"type": "integer"},
+    },
+}
+LOOP_SCHEMA = {
+    "title": "swarmloc.LoopStatus",
+    "type": "object",
+    "properties": {
+        "t_s": {"type": "number", "description": "sim time of the report (s)"},
+        "vehicle": {"type": "integer"},
+        "cycles": {"type": "integer"},
+        "overruns": {"type": "integer", "description": "estimator cycles that overran their period"},
+        "cycle_p99_us": {"type": "number"},
+        "jitter_p99_us": {"type": "number"},
+        "v2v_fused": {"type": "integer"},
+        "v2v_missing": {"type": "integer"},
     },
 }
 ZONE_COLOURS = {"jam-gnss": (1.0, 0.2, 0.2), "spoof-gnss": (1.0, 0.6, 0.0), "jam-comms": (0.7, 0.3, 1.0)}
@@ -90,12 +145,109 @@ class Recording:
         self.events = LogChannel("/events", context=self.context)
         self.zone_scene = SceneUpdateChannel("/zones", context=self.context)
         self.landmark_scene = SceneUpdateChannel("/landmarks", context=self.context)
+        self.ranging_scene = SceneUpdateChannel("/ranging", context=self.context)
+        self.terrain_scene = SceneUpdateChannel("/terrain", context=self.context)
+        self.health_channel = foxglove.Channel("/health", schema=HEALTH_SCHEMA, context=self.context)
+        self.loop_channel = foxglove.Channel("/loop", schema=LOOP_SCHEMA, context=self.context)
+        self.swarm_channel = foxglove.Channel("/swarm", schema=SWARM_SCHEMA, context=self.context)
         self._poses: dict[tuple[str, int], Any] = {}
         self._zones: set[str] = set()
+        self._terrain: bytes | None = None
+        self._terrain_wanted = threading.Event()  # a live viewer subscribed to /terrain (SDK thread)
+        self._overflows = _OverflowCounter()
+        self._last_ns = 0
 
-    def serve(self, host: str, port: int) -> None:
-        """Start the live view (a Foxglove WebSocket server on ``host``:``port``)."""
-        self.server = self._foxglove.start_server(name="swarmloc", host=host, port=port, context=self.context)
+    def serve(self, host: str, port: int, backlog: int = 1024) -> None:
+        """Start the live view (a Foxglove WebSocket server on ``host``:``port``), each viewer's queue
+        bounded to ``backlog`` messages."""
+        sdk_log = logging.getLogger(SDK_OVERFLOW_LOGGER)
+        sdk_log.setLevel(logging.INFO)  # the SDK reports an overflow at INFO
+        sdk_log.addHandler(self._overflows)
+        self.server = self._foxglove.start_server(
+            name="swarmloc",
+            host=host,
+            port=port,
+            context=self.context,
+            message_backlog_size=backlog,
+            server_listener=_terrain_requests(self._terrain_wanted),
+        )
+
+    def overflows(self) -> int:
+        """How many times a live viewer's queue overflowed since the last call (the SDK's reports)."""
+        return self._overflows.take()
+
+    def terrain(self, glb: bytes) -> None:
+        """The terrain model (a GLB, groundstation.terrain_model) under the scene, logged now."""
+        self._terrain = glb
+        self._log_terrain()
+
+    def _log_terrain(self) -> None:
+        from foxglove import messages as fm
+
+        model = fm.ModelPrimitive(
+            pose=_pose(fm, 0.0, 0.0, 0.0),
+            scale=fm.Vector3(x=1.0, y=1.0, z=1.0),
+            media_type="model/gltf-binary",
+            data=self._terrain,
+        )
+        entity = fm.SceneEntity(
+            timestamp=_stamp(fm, self._last_ns // 1000), frame_id="world", id="terrain", models=[model]
+        )
+        self.terrain_scene.log(fm.SceneUpdate(entities=[entity]), log_time=self._last_ns)
+
+    def _serve_requests(self) -> None:
+        """Log the terrain again for a viewer that subscribed since (the live view keeps nothing)."""
+        if self._terrain is not None and self._terrain_wanted.is_set():
+            self._terrain_wanted.clear()
+            self._log_terrain()
+
+    def ranging(self, stamp_us: int, pairs: np.ndarray, positions: dict[int, np.ndarray]) -> None:
+        """Lines between the ``positions`` (vehicle id -> (2,) m) of each ranging pair (m, 2) of a tick."""
+        from foxglove import messages as fm
+
+        points = []
+        for a, b in {tuple(sorted(p)) for p in pairs.tolist()}:
+            if a in positions and b in positions:
+                points += [fm.Point3(x=float(v[0]), y=float(v[1]), z=0.0) for v in (positions[a], positions[b])]
+        line = fm.LinePrimitive(
+            type=fm.LinePrimitiveLineType.LineList,
+            thickness=1.0,
+            scale_invariant=True,
+            points=points,
+            color=fm.Color(r=0.9, g=0.9, b=0.9, a=0.6),
+        )
+        lifetime = fm.Duration(sec=RANGING_LIFETIME_NS // 1_000_000_000, nsec=0)
+        entity = fm.SceneEntity(
+            timestamp=_stamp(fm, stamp_us), frame_id="world", id="ranging", lifetime=lifetime, lines=[line]
+        )
+        self._last_ns = max(self._last_ns, stamp_us * 1000)
+        self.ranging_scene.log(fm.SceneUpdate(entities=[entity]), log_time=stamp_us * 1000)
+        self._serve_requests()
+
+    def health(self, status: Any) -> None:
+        """One vehicle's GNSS health (a bus.mavlink_codec.EstimatorStatus)."""
+        record = {
+            "t_s": status.time_usec * 1e-6,
+            "vehicle": status.vehicle_id,
+            "gnss_test_ratio": float(status.pos_horiz_ratio),
+            "gnss_glitch": bool(status.gps_glitch),
+            "horizontal_accuracy_m": float(status.pos_horiz_accuracy_m),
+        }
+        self.health_channel.log(record, log_time=max(status.time_usec, 0) * 1000)
+
+    def loop(self, status: Any) -> None:
+        """One vehicle's loop statistics (a bus.messages.VehicleStatus)."""
+        record = {
+            "t_s": status.stamp_us * 1e-6,
+            "vehicle": status.vehicle_id,
+            "cycles": status.cycles,
+            "overruns": status.overruns,
+            "cycle_p99_us": status.cycle_p99_us,
+            "jitter_p99_us": status.jitter_p99_us,
+            "v2v_fused": status.v2v_fused,
+            "v2v_missing": status.v2v_missing,
+        }
+        self.loop_channel.log(record, log_time=max(status.stamp_us, 0) * 1000)
 
     def _pose_channel(self, kind: str, vehicle_id: int):
         from foxglove.channels import PoseInFrameChannel
@@ -135,6 +287,10 @@ class Recording:
             self.metrics.log(metrics_record(s), log_time=ns)
         if entities:
             self.scene.log(fm.SceneUpdate(entities=entities), log_time=scores[-1].stamp_us * 1000)
+        for stamp_us, errors in _errors_by_stamp(scores).items():
+            rms = math.sqrt(sum(e * e for e in errors) / len(errors))
+            record = {"t_s": stamp_us * 1e-6, "rms_error_m": rms, "vehicles": len(errors)}
+            self.swarm_channel.log(record, log_time=stamp_us * 1000)
 
     def landmarks(self, lmap: Any) -> None:
         """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): one line list of 3-sigma ellipses."""
@@ -213,6 +369,45 @@ class Recording:
         if self.server is not None:
             self.server.stop()
             self.server = None
+            logging.getLogger(SDK_OVERFLOW_LOGGER).removeHandler(self._overflows)
+
+
+class _OverflowCounter(logging.Handler):
+    """Counts the SDK's reports of a viewer's full queue (they come on the SDK's threads)."""
+
+    def __init__(self) -> None:
+        super().__init__(level=logging.DEBUG)
+        self._count, self._count_lock = 0, threading.Lock()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if "full" in record.getMessage():
+            with self._count_lock:
+                self._count += 1
+
+    def take(self) -> int:
+        with self._count_lock:
+            count, self._count = self._count, 0
+        return count
+
+
+def _terrain_requests(wanted: threading.Event) -> Any:
+    """A foxglove ServerListener: a viewer's subscription to /terrain sets ``wanted``."""
+    from foxglove.websocket import ServerListener
+
+    class TerrainRequests(ServerListener):
+        def on_subscribe(self, client: Any, channel: Any) -> None:
+            if channel.topic == "/terrain":
+                wanted.set()
+
+    return TerrainRequests()
+
+
+def _errors_by_stamp(scores: list[Score]) -> dict[int, list[float]]:
+    """The position errors of ``scores`` grouped by stamp (in stamp order)."""
+    out: dict[int, list[float]] = {}
+    for s in scores:
+        out.setdefault(s.stamp_us, []).append(s.position_error_m)
+    return dict(sorted(out.items()))
 
 
 def _pose(fm, x: float, y: float, yaw: float):
@@ -244,9 +439,12 @@ def open_recording(run_dir: Path, view: Any) -> Recording | None:
     except OSError as exc:  # a read-only or vanished run directory: the run goes on without run.mcap
         log.error("run.mcap cannot be written in %s: %s; the run goes on without it", run_dir, exc)
         return None
+    terrain = run_dir / TERRAIN_MODEL
+    if terrain.is_file():
+        recording.terrain(terrain.read_bytes())
     if view.live:
         try:
-            recording.serve(view.live_host, view.live_port)
+            recording.serve(view.live_host, view.live_port, view.live_backlog)
             log.info("live view: ws://%s:%d (Foxglove or Lichtblick: open connection)", view.live_host, view.live_port)
         except Exception as exc:  # the SDK raises its own error types for a bind failure
             log.error("live view on %s:%d did not start: %s", view.live_host, view.live_port, exc)
@@ -262,6 +460,8 @@ def metrics_record(s: Score) -> dict[str, Any]:
         "nees": s.nees if math.isfinite(s.nees) else None,
         "sigma_x_m": float(s.sigma[0]),
         "sigma_y_m": float(s.sigma[1]),
+        "nees_band_low": NEES_BAND_3DOF[0],
+        "nees_band_high": NEES_BAND_3DOF[1],
     }
 
 

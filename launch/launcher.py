@@ -96,6 +96,18 @@ def wait_for_port(port: int, timeout_s: float, router: Child) -> None:
     raise ChildFailed(f"router did not listen on port {port} within {timeout_s:g} s")
 
 
+def write_terrain_model(config: SwarmConfig, run_dir: Path) -> None:
+    """The terrain the cameras see, as the model the ground station shows under the swarm
+    (groundstation.recording's /terrain)."""
+    from groundstation.recording import TERRAIN_MODEL
+    from groundstation.terrain_model import terrain_glb
+    from sim.world import make_terrain
+
+    terrain = make_terrain(config)
+    width_m, height_m = terrain.size_m
+    (run_dir / TERRAIN_MODEL).write_bytes(terrain_glb(terrain.image, width_m, height_m))
+
+
 def unique_run_dir(out: Path, name: str) -> Path:
     candidate, n = out / name, 1
     while candidate.exists():
@@ -312,6 +324,8 @@ def launch(
     run_dir = unique_run_dir(out, config.name)
     config.dump(run_dir / "config.json")
     config.for_vehicle().dump(run_dir / "vehicle.json")
+    if config.sensors.camera_rate_hz and (config.view.record or config.view.live):
+        write_terrain_model(config, run_dir)
     if secure:
         security = dataclasses.replace(
             security, secrets_dir=write_secrets(run_dir / "secrets", vehicles=config.world.vehicles)

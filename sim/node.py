@@ -200,7 +200,9 @@ class WorldNode:
         ]
         ids = self.world.vehicle_ids()
         rows = np.array(out.truth).reshape(len(out.truth_stamps), len(ids), feed.TRUTH_WIDTH)
-        truth = feed.TruthBatch(tick, stamp, np.array(out.truth_stamps, dtype=np.int64), np.array(ids), rows)
+        ranged = out.listeners() if listeners is None else listeners
+        pairs = np.array([(o, t) for t, observers in ranged.items() for o in observers], np.int64).reshape(-1, 2)
+        truth = feed.TruthBatch(tick, stamp, np.array(out.truth_stamps, dtype=np.int64), np.array(ids), rows, pairs)
         return _Prepared(tick, stamp, batches, feed.encode_truth(truth))
 
     def send(self, prepared: _Prepared, final: bool) -> None:

@@ -49,6 +49,15 @@ class ReplayOutput:
     def camera(self, vehicle_id: int) -> CameraBlock | None:
         return None
 
+    def listeners(self) -> dict[int, tuple[int, ...]]:
+        """vehicle id -> the robots that sighted it in this advance (sorted), as sim.world's."""
+        out: dict[int, set[int]] = {}
+        for observer, topics in self.feeds.items():
+            if Topic.RANGING in topics:
+                for target in topics[Topic.RANGING][2][:, 0].astype(int).tolist():
+                    out.setdefault(target, set()).add(observer)
+        return {target: tuple(sorted(observers)) for target, observers in out.items()}
+
 
 def _stamps_us(t_s: np.ndarray, start_s: float) -> np.ndarray:
     return np.round((t_s - start_s) * 1e6).astype(np.int64)

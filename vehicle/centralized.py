@@ -76,6 +76,9 @@ class JointBlock:
     def set_spread(self, s: FilterState, indices: list[int], variances: np.ndarray) -> None:
         self.joint.spread_block(self.vehicle_id, indices, variances)
 
+    def inflate(self, s: FilterState, indices: list[int], variances: np.ndarray) -> None:
+        self.joint.inflate_block(self.vehicle_id, indices, variances)
+
 
 class CentralizedEkf:
     """EKF over every vehicle of ``vehicle_ids`` (module docstring). Feed it every vehicle's samples
@@ -205,6 +208,12 @@ class CentralizedEkf:
     def spread_block(self, vehicle_id: int, indices: list[int], variances: np.ndarray) -> None:
         """The block's states at ``indices`` uncorrelated with every joint state, with these variances."""
         added_states.set_spread(self.P, [self.block(vehicle_id).start + i for i in indices], variances)
+        self._push(vehicle_id)
+
+    def inflate_block(self, vehicle_id: int, indices: list[int], variances: np.ndarray) -> None:
+        """The block's states at ``indices`` get these variances added (process noise)."""
+        at = [self.block(vehicle_id).start + i for i in indices]
+        self.P[at, at] += variances
         self._push(vehicle_id)
 
     def update_block(

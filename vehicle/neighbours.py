@@ -12,6 +12,13 @@ neighbour:
   by the single-fix gate (a gross lie fails every one);
 - **NIS** over the last ``window_s``: the mean of w^T w, 2 for a consistent neighbour, above
   ``mean_nis`` (an over-confident covariance, or an offset inside each gate);
+- **an implausible claim**: its last ``min_fixes`` broadcasts each claim a position variance (the
+  covariance's smallest eigenvalue) below ``implausible_ratio`` times the smallest this vehicle has
+  had itself and any other neighbour has claimed over the long window. Vehicles of one swarm share
+  their datasheets, so no honest one is known ten times better (in variance) than all the others
+  ever were; a covariance shrunk on purpose makes every fix with it a strong pull, and the
+  innovations alone do not show it when the observer's own uncertainty dominates them. Such a fix
+  is not fused even before the neighbour is distrusted (``plausible``);
 - **bias** over the last ``window_s`` and over the last ``long_window_s``: n_eff |mean w|^2, chi-square
   with 2 degrees of freedom for a consistent neighbour, above ``bias`` (an offset that grows slowly
   enough to pass every single-fix gate still biases the mean, as a GNSS spoofer does). Successive
@@ -32,9 +39,12 @@ replay restores it with everything else.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from vehicle.kalman import UpdateResult
 
@@ -51,6 +61,7 @@ class MonitorSpec:
     bias: float = 40.0  # n_eff |mean whitened innovation|^2 (chi-square, 2 dof: P(> 40) = 2e-9)
     decorrelation_s: float = 1.0  # fixes closer than this count as one in the bias test (n_eff)
     retrust_s: float = 10.0
+    implausible_ratio: float = 0.1  # a claimed position variance below this times the best of the others'
 
 
 @dataclass(frozen=True)
@@ -63,6 +74,8 @@ class Fix:
     whitened: tuple[float, float]
     gated_out: bool
     innovation: tuple[float, float] = (0.0, 0.0)
+    claimed_m2: float = math.inf  # the smallest eigenvalue of the neighbour's claimed position covariance
+    fused: bool = True  # False: the gate refused it, or the vehicle did not believe it (``refused``)
 
 
 @dataclass(frozen=True)
@@ -90,12 +103,19 @@ class NeighbourRecord:
 
 @dataclass
 class NeighbourBook:
-    """Every neighbour's record."""
+    """Every neighbour's record, and the smallest position variance the vehicle has had itself."""
 
     records: dict[int, NeighbourRecord] = field(default_factory=dict)
+    own_best_m2: float = math.inf
 
     def copy(self) -> NeighbourBook:
-        return NeighbourBook({j: r.copy() for j, r in self.records.items()})
+        return NeighbourBook({j: r.copy() for j, r in self.records.items()}, self.own_best_m2)
+
+    def best_claim_m2(self, besides: int) -> float:
+        """The smallest position variance this vehicle has had, or any neighbour but ``besides`` has
+        claimed in its record."""
+        claims = (f.claimed_m2 for j, r in self.records.items() if j != besides for f in r.fixes)
+        return min(claims, default=self.own_best_m2) if self.records else self.own_best_m2
 
     def trusts(self, neighbour: int) -> bool:
         record = self.records.get(neighbour)
@@ -112,18 +132,36 @@ class Verdict:
     reason: str
 
 
-def fix_of(t_us: int, result: UpdateResult) -> Fix | None:
-    """The monitor's record of a fix from its update result (None when it did not say its innovation)."""
+def fix_of(t_us: int, result: UpdateResult, claimed_cov_m2: np.ndarray | None = None) -> Fix | None:
+    """The monitor's record of a fix from its update result (None when it did not say its innovation);
+    ``claimed_cov_m2`` (2, 2): the neighbour's claimed position covariance."""
     if result.innovation is None or result.innovation_cov is None:
         return None
     whitened = whiten(result.innovation, result.innovation_cov)
-    return Fix(t_us, result.nis, whitened, not result.accepted, tuple(result.innovation[:2]))
+    claimed = math.inf if claimed_cov_m2 is None else smallest_variance(claimed_cov_m2)
+    innovation = tuple(result.innovation[:2])
+    return Fix(t_us, result.nis, whitened, not result.accepted, innovation, claimed, result.accepted)
+
+
+def refused(book: NeighbourBook, neighbour: int) -> None:
+    """The neighbour's latest fix was not fused (distrusted, or an implausible claim): it pulled nothing."""
+    record = book.records.get(neighbour)
+    if record is not None and record.fixes:
+        record.fixes[-1] = dataclasses.replace(record.fixes[-1], fused=False)
+
+
+def smallest_variance(covariance_m2: np.ndarray) -> float:
+    """The smallest eigenvalue (m^2) of a symmetric 2 x 2 position covariance (NaN: 0, a claim of
+    certainty)."""
+    a, b, d = float(covariance_m2[0, 0]), float(covariance_m2[0, 1]), float(covariance_m2[1, 1])
+    value = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
+    return value if math.isfinite(value) else 0.0
 
 
 def pull_m2(record: NeighbourRecord, since_us: int, range_m: float) -> float:
-    """How far (squared, m^2) the neighbour's fused fixes since ``since_us`` may have pulled the
+    """How far (squared, m^2) the neighbour's fixes fused since ``since_us`` may have pulled the
     observer: the squared mean innovation, the bearing's at ``range_m``."""
-    fixes = [f for f in record.fixes if f.stamp_us > since_us and not f.gated_out]
+    fixes = [f for f in record.fixes if f.stamp_us > since_us and f.fused]
     if not fixes:
         return 0.0
     mean_range = sum(f.innovation[0] for f in fixes) / len(fixes)
@@ -172,11 +210,17 @@ def _clip(w: tuple[float, float]) -> tuple[float, float]:
     return w[0] * scale, w[1] * scale
 
 
-def failure(record: NeighbourRecord, spec: MonitorSpec, now_us: int) -> str:
-    """Why the neighbour's recent fixes are inconsistent ("" when they pass, or are too few to tell)."""
+def failure(record: NeighbourRecord, spec: MonitorSpec, now_us: int, best_m2: float = 0.0) -> str:
+    """Why the neighbour's recent fixes are inconsistent ("" when they pass, or are too few to tell);
+    ``best_m2``: the smallest position variance had or claimed by anyone else (the implausibility
+    test; 0 or infinite: none)."""
     latest = list(record.fixes)[-spec.min_fixes :]
     if len(latest) == spec.min_fixes and all(f.gated_out for f in latest):
         return f"its last {spec.min_fixes} fixes fail the gate"
+    plausible = spec.implausible_ratio * best_m2 if math.isfinite(best_m2) else 0.0
+    if len(latest) == spec.min_fixes and all(f.claimed_m2 < plausible for f in latest):
+        ratio = best_m2 / max(max(f.claimed_m2 for f in latest), 1e-300)
+        return f"claims {min(ratio, 999):.0f}x less variance than others"
     short = window_stats(record, now_us - round(spec.window_s * 1e6), spec.decorrelation_s)
     if short.fixes >= spec.min_fixes:
         if short.gated_out > spec.gate_fail_share * short.fixes:
@@ -198,7 +242,7 @@ def see(book: NeighbourBook, spec: MonitorSpec, neighbour: int, fix: Fix) -> Ver
     horizon = fix.stamp_us - round(max(spec.window_s, spec.long_window_s) * 1e6)
     while record.fixes and record.fixes[0].stamp_us <= horizon:
         record.fixes.popleft()
-    reason = failure(record, spec, fix.stamp_us)
+    reason = failure(record, spec, fix.stamp_us, _best_claim(book, spec, neighbour, record))
     if not record.distrusted:
         if reason and _credible(book, spec, neighbour, fix.stamp_us):
             record.distrusted, record.passing_since_us, record.reason = True, None, reason
@@ -212,6 +256,25 @@ def see(book: NeighbourBook, spec: MonitorSpec, neighbour: int, fix: Fix) -> Ver
         record.distrusted, record.passing_since_us, record.reason = False, None, ""
         return Verdict(fix.stamp_us, neighbour, True, "consistent again")
     return None
+
+
+def plausible(book: NeighbourBook, spec: MonitorSpec, neighbour: int) -> bool:
+    """Whether the neighbour's latest fix claims a plausible covariance (the implausibility test on
+    one fix): a fix that claims less is not fused, whether or not the neighbour is distrusted yet."""
+    record = book.records.get(neighbour)
+    if record is None or not record.fixes:
+        return True
+    best_m2 = _best_claim(book, spec, neighbour, record)
+    return not (math.isfinite(best_m2) and record.fixes[-1].claimed_m2 < spec.implausible_ratio * best_m2)
+
+
+def _best_claim(book: NeighbourBook, spec: MonitorSpec, neighbour: int, record: NeighbourRecord) -> float:
+    """The implausibility test's reference (NeighbourBook.best_claim_m2), looked up only when the
+    neighbour's latest claim is below ``implausible_ratio`` times the vehicle's own best (else the
+    test passes whatever the others claim: the reference is at most the vehicle's own best)."""
+    if not record.fixes or record.fixes[-1].claimed_m2 >= spec.implausible_ratio * book.own_best_m2:
+        return book.own_best_m2
+    return book.best_claim_m2(neighbour)
 
 
 def _credible(book: NeighbourBook, spec: MonitorSpec, accused: int, t_us: int) -> bool:

@@ -53,7 +53,9 @@ def test_run_mcap_holds_every_channel_with_one_estimate_per_scored_sample(record
     for vid in (1, 2, 3):
         assert schemas[f"/vehicle/{vid}/estimate"] == schemas[f"/vehicle/{vid}/truth"] == "foxglove.PoseInFrame"
     assert schemas["/scene"] == "foxglove.SceneUpdate" and schemas["/events"] == "foxglove.Log"
-    assert schemas["/metrics"] == "swarmloc.Metrics"
+    assert schemas["/metrics"] == "swarmloc.Metrics" and schemas["/swarm"] == "swarmloc.SwarmError"
+    assert schemas["/ranging"] == "foxglove.SceneUpdate" and schemas["/health"] == "swarmloc.GnssHealth"
+    assert schemas["/loop"] == "swarmloc.LoopStatus"
     counts = {c.topic: summary.statistics.channel_message_counts[c.id] for c in summary.channels.values()}
     rows = _metrics(recorded)
     per_vehicle = defaultdict(int)
@@ -82,6 +84,26 @@ def test_times_are_sim_time_and_monotonic_and_the_poses_give_the_scored_error(re
     scene = [d for topic, _, d in messages if topic == "/scene"]
     assert {e.id for update in scene for e in update.entities} == {"vehicle-1", "vehicle-2", "vehicle-3"}
     assert all(len(e.lines[0].points) == 36 for update in scene for e in update.entities)
+
+
+def test_ranging_lines_join_true_positions_and_status_channels_follow_every_vehicle(recorded):
+    messages = _decoded(recorded / "run.mcap")
+    truth = {(topic, t): (d.pose.position.x, d.pose.position.y) for topic, t, d in messages if "/truth" in topic}
+    true_points = {xy for xy in truth.values()}
+    lines = [e.lines[0].points for topic, _, d in messages if topic == "/ranging" for e in d.entities]
+    drawn = [p for points in lines for p in points]
+    assert len(drawn) > 0 and all(len(points) % 2 == 0 for points in lines)
+    assert all((p.x, p.y) in true_points for p in drawn)  # the world's ranging pairs, at the true positions
+    rows = _metrics(recorded)
+    swarm = {round(d["t_s"], 6): d for topic, _, d in messages if topic == "/swarm"}
+    assert set(swarm) == {round(float(r["t_s"]), 6) for r in rows}
+    at_5 = [float(r["err_pos_m"]) for r in rows if float(r["t_s"]) == 5.0]
+    assert swarm[5.0]["rms_error_m"] == pytest.approx(np.sqrt(np.mean(np.square(at_5))), rel=1e-5)
+    health = [d for topic, _, d in messages if topic == "/health"]
+    loops = [d for topic, _, d in messages if topic == "/loop"]
+    assert {d["vehicle"] for d in health} == {d["vehicle"] for d in loops} == {1, 2, 3}
+    assert not any(d["gnss_glitch"] for d in health)  # a clean run
+    assert max(d["cycles"] for d in loops if d["vehicle"] == 1) > 0
 
 
 def _free_port() -> int:
@@ -129,6 +151,40 @@ def test_a_live_client_sees_the_channels_and_every_vehicle_and_ctrl_c_leaves_a_f
     with (tmp_path / "live" / "run.mcap").open("rb") as handle:
         summary = make_reader(handle).get_summary()  # the footer and index: the file was finished
     assert summary is not None and sum(summary.statistics.channel_message_counts.values()) > 0, output
+
+
+def test_a_viewer_that_never_reads_loses_messages_counted_and_never_holds_the_run(tmp_path):
+    """A viewer that subscribes to every channel and then reads nothing: its queue (4 messages here)
+    overflows, the run ends normally and summary.json counts the overflows."""
+    from websockets.sync.client import connect
+
+    port = _free_port()
+    scenario = tmp_path / "slow.toml"
+    scenario.write_text(f"[view]\nlive = true\nlive_port = {port}\nlive_backlog = 4\n")
+    command = swarm_command(tmp_path, str(scenario), "--vehicles", "3", "--duration", "60", "--mode", "lockstep",
+                            "--name", "slow")  # fmt: skip
+    swarm = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=os.environ)
+    deadline, sock = time.monotonic() + 120, None
+    while sock is None:
+        assert swarm.poll() is None and time.monotonic() < deadline, "the live view never answered"
+        try:
+            sock = socket.create_connection(("127.0.0.1", port))
+        except OSError:
+            time.sleep(0.2)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 2048)  # a slow link
+    protocols = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
+    with connect(f"ws://127.0.0.1:{port}", sock=sock, subprotocols=protocols) as client:
+        channels: dict[str, int] = {}
+        while "/metrics" not in channels:
+            message = client.recv(timeout=30)
+            if isinstance(message, str) and json.loads(message).get("op") == "advertise":
+                channels.update({c["topic"]: c["id"] for c in json.loads(message)["channels"]})
+        subscriptions = [{"id": k, "channelId": cid} for k, cid in enumerate(channels.values())]
+        client.send(json.dumps({"op": "subscribe", "subscriptions": subscriptions}))
+        output = swarm.communicate(timeout=300)[0]  # the viewer reads nothing more
+    assert swarm.returncode == 0, output
+    summary = json.loads((tmp_path / "slow" / "summary.json").read_text())
+    assert summary["events"].get("live_view_overflow", 0) >= 1 and summary["swarm"]["samples"] > 0
 
 
 def test_a_live_port_in_use_is_refused_before_anything_starts(tmp_path):

@@ -107,3 +107,18 @@ def test_the_recording_draws_each_slam_vehicles_map_as_it_reports_it(runs):
     for vid in (1, 2):
         final = json.loads((runs["slam"] / f"map_v{vid}.json").read_text())
         assert len(last[f"landmarks-{vid}"].lines[0].points) == 24 * final["landmarks"]  # 12 segments each
+
+
+def test_the_recording_lays_the_terrain_the_cameras_saw_under_the_scene(runs):
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    glb = (runs["slam"] / "terrain.glb").read_bytes()
+    with (runs["slam"] / "run.mcap").open("rb") as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+        updates = [d for _, _, _, d in reader.iter_decoded_messages(topics=["/terrain"])]
+    assert len(updates) == 1  # once at the start (again only for a live viewer that subscribes)
+    (entity,) = updates[0].entities
+    (model,) = entity.models
+    assert entity.id == "terrain" and model.media_type == "model/gltf-binary" and model.data == glb
+    assert glb[:4] == b"glTF"

@@ -44,7 +44,16 @@ from vehicle.inputs import HeldInput, VisualMotion, swept
 from vehicle.kalman import UpdateResult
 from vehicle.models import unicycle
 from vehicle.models.cooperative import CooperativeFix, CooperativeRule, SeenFix
-from vehicle.neighbours import MonitorSpec, Verdict, fix_of, pull_m2, see
+from vehicle.neighbours import (
+    MonitorSpec,
+    Verdict,
+    fix_of,
+    plausible,
+    pull_m2,
+    refused,
+    see,
+    smallest_variance,
+)
 from vehicle.wheel_slip import SlipGuard
 
 GYRO_STALE_PERIODS = 5
@@ -336,8 +345,7 @@ class Filter:
         unscented = self.update.unscented_fixes
         correction, result = self.cooperative.fuse(s.x, s.P, fix, self.gate, unscented, adapt, errors)
         if self.monitor is not None:
-            self._judge(neighbour, fix, result)
-            believed = s.neighbours.trusts(neighbour)
+            believed = self._judge(neighbour, fix, result)
         if not believed:
             s.counters.v2v_distrusted += 1
             return False
@@ -345,23 +353,30 @@ class Filter:
             self.store.correct(s, correction)
         return result.accepted
 
-    def _judge(self, neighbour: int, fix: CooperativeFix | SeenFix, result: UpdateResult) -> None:
-        """Hand the fix to the neighbour monitor (vehicle.neighbours). A neighbour found lying has
-        been pulling this vehicle while it was believed: the position's spread grows by as much as
-        its innovations say the pull may be, so that GNSS and the honest neighbours can pull it back
-        (and its own broadcast does not pass the pull on as certain)."""
+    def _judge(self, neighbour: int, fix: CooperativeFix | SeenFix, result: UpdateResult) -> bool:
+        """Hand the fix to the neighbour monitor (vehicle.neighbours); True when it may be fused (the
+        neighbour believed and the fix's claimed covariance plausible). A neighbour found lying has
+        been pulling this vehicle while it was believed: the position's variance grows by as much as
+        the innovations of its fused fixes say the pull may be (as process noise: the correlations
+        are kept), so that GNSS and the honest neighbours can pull it back (and its own broadcast
+        does not pass the pull on as certain)."""
         s = self.state
-        observed = fix_of(fix.stamp_us, result)
+        claimed = fix.neighbour_cov_m2 if isinstance(fix, CooperativeFix) else fix.observer_cov[:2, :2]
+        observed = fix_of(fix.stamp_us, result, claimed)
         if observed is None:
-            return
+            return s.neighbours.trusts(neighbour)
+        s.neighbours.own_best_m2 = min(s.neighbours.own_best_m2, smallest_variance(s.P[:2, :2]))
         verdict = see(s.neighbours, self.monitor, neighbour, observed)
-        if verdict is None:
-            return
-        if not verdict.trusted:
-            since = fix.stamp_us - round(self.monitor.window_s * 1e6)
-            pull = pull_m2(s.neighbours.records[neighbour], since, fix.range_m)
-            self.store.set_spread(s, [0, 1], np.diagonal(s.P)[:2] + pull)
-        self._say(verdict)
+        believed = s.neighbours.trusts(neighbour) and plausible(s.neighbours, self.monitor, neighbour)
+        if not believed:
+            refused(s.neighbours, neighbour)
+        if verdict is not None:
+            if not verdict.trusted:
+                since = fix.stamp_us - round(self.monitor.window_s * 1e6)
+                pull = pull_m2(s.neighbours.records[neighbour], since, fix.range_m)
+                self.store.inflate(s, [0, 1], np.full(2, pull))
+            self._say(verdict)
+        return believed
 
     def _say(self, verdict: Verdict) -> None:
         """A neighbour's trust changed: a STATUSTEXT (the ground station makes it an event)."""

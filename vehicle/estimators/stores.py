@@ -61,6 +61,10 @@ class DenseStore:
         """The states at ``indices`` get these variances, uncorrelated with every other state."""
         added_states.set_spread(s.P, indices, variances)
 
+    def inflate(self, s: FilterState, indices: list[int], variances: np.ndarray) -> None:
+        """The states at ``indices`` get these variances added (process noise: correlations kept)."""
+        s.P[indices, indices] += variances
+
 
 class InPlaceStore(DenseStore):
     """A SLAM map's x and P, changed in place (module docstring); adding and dropping states still

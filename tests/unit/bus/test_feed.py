@@ -181,6 +181,24 @@ def test_truth_round_trip_and_rejections():
         feed.decode_truth(msgpack.packb(body, use_bin_type=True))
 
 
+def test_the_ranging_pairs_of_a_tick_travel_with_truth_and_must_name_vehicles_of_the_batch():
+    world = World(build_config({"world": {"vehicles": 3, "seed": 4}}))
+    out = world.advance(1_000_000)
+    ranged = out.listeners()
+    pairs = np.array([(o, t) for t, observers in ranged.items() for o in observers]).reshape(-1, 2)
+    assert len(pairs) > 0  # three vehicles 60 m apart range each other within a second
+    batch = feed.TruthBatch(10, 1_000_000, np.array(out.truth_stamps), np.array([1, 2, 3]), np.array(out.truth), pairs)
+    np.testing.assert_array_equal(feed.decode_truth(feed.encode_truth(batch)).pairs, pairs)
+    body = msgpack.unpackb(feed.encode_truth(batch), raw=False)
+    for bad, reason in (([1, 4], "two different vehicles"), ([2, 2], "two different vehicles"), ([1], "pairs")):
+        body["pairs"] = np.array(bad, "<i8").tobytes()
+        with pytest.raises(DecodeError, match=reason):
+            feed.decode_truth(msgpack.packb(body, use_bin_type=True))
+    del body["pairs"]
+    with pytest.raises(DecodeError, match="fields must be"):
+        feed.decode_truth(msgpack.packb(body, use_bin_type=True))
+
+
 def _landmark_batch(rows: np.ndarray) -> bytes:
     stamps = np.arange(len(rows), dtype=np.int64) // 2 * 10_000 + 50_000  # two sightings per frame
     return feed.encode_batch(feed.SensorBatch(3, 1, 100_000, {"landmark": (stamps, 0, rows)}))

@@ -33,7 +33,9 @@ def test_the_layout_in_the_repository_is_the_generated_one_and_names_our_channel
     text = (ROOT / "deploy" / "foxglove-layout.json").read_text()
     assert text == swarm_layout(5)
     layout = json.dumps(json.loads(text))
-    for topic in ("/scene", "/metrics{vehicle==5}.err_pos_m", "/metrics{vehicle==1}.nees", "/events"):
+    topics = ("/scene", "/metrics{vehicle==5}.err_pos_m", "/metrics{vehicle==1}.nees", "/events", "/ranging")
+    topics += ("/terrain", "/health{vehicle==3}.gnss_test_ratio", "/loop{vehicle==2}.overruns", "/swarm.rms_error_m")
+    for topic in topics:
         assert topic in layout
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from vehicle.kalman import UpdateResult
-from vehicle.neighbours import MonitorSpec, NeighbourBook, fix_of, see, whiten
+from vehicle.neighbours import MonitorSpec, NeighbourBook, fix_of, plausible, see, whiten
 
 SPEC = MonitorSpec()
 PERIOD_US = 200_000  # ranging at 5 Hz
@@ -126,3 +126,42 @@ def test_the_book_copies_independently():
     twin = book.copy()
     _stream(book, 3, np.full((20, 2), 30.0), rng, start_us=20 * PERIOD_US)
     assert not book.trusts(3) and twin.trusts(3) and len(twin.records[3].fixes) == 20
+
+
+def _claiming(t_us: int, y, claimed_m2: float):
+    """A consistent fix whose neighbour claims a position covariance of ``claimed_m2`` on each axis."""
+    nis = (y[0] ** 2 + y[1] ** 2) / 0.25
+    return fix_of(t_us, UpdateResult(True, nis, nis / 13.8, y, S), np.diag([claimed_m2, claimed_m2]))
+
+
+@pytest.mark.parametrize("shrink, caught", [(1.0, False), (0.3, False), (0.01, True)])
+def test_a_claim_far_below_everyone_elses_is_refused_at_once_and_distrusted_after_min_fixes(shrink, caught):
+    """Vehicles of one swarm, one datasheet: an honest neighbour a few times better than the others
+    is normal; one claiming 100 times less variance (innovations as consistent as the others') is not."""
+    rng = np.random.default_rng(9)
+    book = NeighbourBook(own_best_m2=0.04)  # the observer has been known to 0.2 m
+    verdicts, refused = [], 0
+    for k in range(60):
+        t = k * PERIOD_US
+        for neighbour, claim in ((2, 0.05), (3, 0.05 * shrink)):
+            y = rng.normal(0.0, 0.5, 2)
+            verdict = see(book, SPEC, neighbour, _claiming(t, (float(y[0]), float(y[1])), claim))
+            verdicts += [verdict] if verdict else []
+            refused += neighbour == 3 and not plausible(book, SPEC, 3)
+    if not caught:
+        assert verdicts == [] and refused == 0
+        return
+    assert refused == 60  # not one of its fixes fused, from the first
+    assert [(v.neighbour, v.trusted) for v in verdicts] == [(3, False)] and "less variance" in verdicts[0].reason
+    assert verdicts[0].stamp_us == (SPEC.min_fixes - 1) * PERIOD_US and book.trusts(2)
+
+
+def test_a_vehicle_that_has_not_settled_yet_judges_claims_by_its_neighbours():
+    """Its own best is still its wide prior: a neighbour's claim is compared with the others' too."""
+    book = NeighbourBook(own_best_m2=25.0)
+    for k in range(10):
+        see(book, SPEC, 2, _claiming(k * PERIOD_US, (0.1, 0.1), 0.04))
+        see(book, SPEC, 3, _claiming(k * PERIOD_US, (0.1, 0.1), 0.04))
+    assert plausible(book, SPEC, 2) and plausible(book, SPEC, 3) and book.trusts(2) and book.trusts(3)
+    see(book, SPEC, 3, _claiming(10 * PERIOD_US, (0.1, 0.1), 0.0004))
+    assert not plausible(book, SPEC, 3)
