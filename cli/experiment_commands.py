@@ -20,6 +20,23 @@ VARIANT_NAMES = (
     "plain-ci-ekf",
 )  # experiment_cooperative.VARIANTS
 
+LIVE_HELP = "serve each run's Foxglove WebSocket live view in turn (docs: live view)"
+
+
+def live_view(live: bool, host: str, port: int):
+    """The runs' view with the live view on (its address checked now, a one-line error), or None."""
+    if not live:
+        return None
+    from bus.config import ViewConfig
+    from launch.live import check_live_address
+
+    try:
+        check_live_address(host, port)
+    except SwarmlocError as exc:
+        fail(str(exc))
+    return ViewConfig(live=True, live_host=host, live_port=port)
+
+
 experiment_app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
@@ -33,6 +50,9 @@ def vision_slam(
     seed: int = typer.Option(3, help="seed of trajectories, sensor noise and terrain"),
     duration: float = typer.Option(60.0, help="simulated seconds per flight"),
     quiet: bool = typer.Option(False, help="no progress display"),
+    live: bool = typer.Option(False, help=LIVE_HELP),
+    live_host: str = typer.Option("127.0.0.1", help="the live view's address"),
+    live_port: int = typer.Option(8765, help="the live view's port"),
 ) -> None:
     """The vision EKF-SLAM paper's experiment: a circle and a figure-8 UAV with GNSS jammed all flight,
     flown with ekf-slam on camera frames and again with dead reckoning on the same seed. Writes both
@@ -44,8 +64,9 @@ def vision_slam(
     from groundstation.display import report_and_say
 
     try:
+        view = live_view(live, live_host, live_port)
         folder, runs, failures = run_vision_slam(
-            out, seed=seed, duration_s=duration, stop=stop_on_signals(), show_progress=not quiet
+            out, seed=seed, duration_s=duration, stop=stop_on_signals(), show_progress=not quiet, view=view
         )
     except SwarmlocError as exc:
         fail(str(exc))
@@ -87,6 +108,9 @@ def cooperative(
         "honest", help="honest (a world richer than the filters: world.sensor_truth) or ideal (the filters' own models)"
     ),
     quiet: bool = typer.Option(False, help="no progress display"),
+    live: bool = typer.Option(False, help=LIVE_HELP),
+    live_host: str = typer.Option("127.0.0.1", help="the live view's address"),
+    live_port: int = typer.Option(8765, help="the live view's port"),
 ) -> None:
     """The cooperative-localization paper's experiment: GNSS jammed for most of the swarm; every
     variant (dead reckoning, naive fusion, split CI with EKF / UKF / IAE, plain CI) flies on every seed
@@ -115,6 +139,7 @@ def cooperative(
             setup=setup,
             stop=stop_on_signals(),
             show_progress=not quiet,
+            view=live_view(live, live_host, live_port),
         )
         table, figures = compare(folder, runs, central, setup)
     except SwarmlocError as exc:
@@ -149,6 +174,9 @@ def liar(
         "gross,drift,overconfident,spoofed", help="comma-separated lie profiles: gross, drift, overconfident, spoofed"
     ),
     quiet: bool = typer.Option(False, help="no progress display"),
+    live: bool = typer.Option(False, help=LIVE_HELP),
+    live_host: str = typer.Option("127.0.0.1", help="the live view's address"),
+    live_port: int = typer.Option(8765, help="the live view's port"),
 ) -> None:
     """A vehicle that lies to its neighbours: 8 vehicles in the honest world, vehicle 3 lying from 10 s
     by each profile, flown with the neighbour monitor on and off next to the clean swarm, plus no-liar
@@ -170,6 +198,7 @@ def liar(
             stop=stop_on_signals(),
             show_progress=not quiet,
             profiles=chosen,
+            view=live_view(live, live_host, live_port),
         )
         table = summarize(runs)
     except SwarmlocError as exc:

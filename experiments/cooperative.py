@@ -23,7 +23,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bus import statistics
-from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, build_config
+from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, ViewConfig, build_config
 from groundstation.report.rundata import load_run
 
 SCORE_EVERY_US = 200_000
@@ -83,7 +83,14 @@ def cooperative_config(variant: str, seed: int, setup: Setup) -> SwarmConfig:
 
 
 def run_cooperative(
-    out: Path, *, seeds: list[int], variants: list[str], setup: Setup, stop: threading.Event, show_progress: bool
+    out: Path,
+    *,
+    seeds: list[int],
+    variants: list[str],
+    setup: Setup,
+    stop: threading.Event,
+    show_progress: bool,
+    view: ViewConfig | None = None,
 ) -> tuple[Path, dict[str, dict[int, Path]], dict[str, dict[int, Any]], list[str]]:
     """Fly every variant on every seed (real processes) and the centralized reference (in process).
     Returns the experiment folder, run directories [variant][seed], the centralized tracks
@@ -100,7 +107,7 @@ def run_cooperative(
             if stop.is_set():
                 return folder, runs, central, failures + ["stopped"]
             run_dir, failed, _ = launch(
-                cooperative_config(variant, seed, setup), folder, show_progress=show_progress, stop=stop
+                cooperative_config(variant, seed, setup), folder, show_progress=show_progress, stop=stop, view=view
             )
             runs.setdefault(variant, {})[seed] = run_dir
             failures += [f"{variant} seed {seed}: {f}" for f in failed]

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, build_config
+from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, ViewConfig, build_config
 from groundstation.report.rundata import load_run
 
 LIAR = 3
@@ -118,7 +118,13 @@ def _pad(seed: int, vehicle: int) -> tuple[float, float]:
 
 
 def run_liar(
-    out: Path, *, seeds: list[int], stop: threading.Event, show_progress: bool, profiles: tuple[str, ...] = PROFILES
+    out: Path,
+    *,
+    seeds: list[int],
+    stop: threading.Event,
+    show_progress: bool,
+    profiles: tuple[str, ...] = PROFILES,
+    view: ViewConfig | None = None,
 ) -> tuple[Path, dict[Case, Path], list[str]]:
     """Fly every case (real processes); the experiment folder, each case's run directory, failures."""
     from launch.launcher import launch, unique_run_dir
@@ -129,7 +135,7 @@ def run_liar(
     for case in cases(seeds, profiles):
         if stop.is_set():
             return folder, runs, failures + ["stopped"]
-        run_dir, failed, _ = launch(liar_config(case), folder, show_progress=show_progress, stop=stop)
+        run_dir, failed, _ = launch(liar_config(case), folder, show_progress=show_progress, stop=stop, view=view)
         runs[case] = run_dir
         failures += [f"{case.name}: {f}" for f in failed]
     return folder, runs, failures

@@ -17,7 +17,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bus import statistics
-from bus.config import SwarmConfig, build_config
+from bus.config import SwarmConfig, ViewConfig, build_config
 from groundstation.report.rundata import RunData, load_run
 
 FLIGHTS = (("slam", "ekf-slam", "EKF-SLAM (camera)"), ("dead-reckoning", "ekf", "dead reckoning"))
@@ -44,7 +44,13 @@ def vision_slam_config(estimator: str, *, name: str, seed: int, duration_s: floa
 
 
 def run_vision_slam(
-    out: Path, *, seed: int, duration_s: float, stop: threading.Event, show_progress: bool
+    out: Path,
+    *,
+    seed: int,
+    duration_s: float,
+    stop: threading.Event,
+    show_progress: bool,
+    view: ViewConfig | None = None,
 ) -> tuple[Path, dict[str, Path], list[str]]:
     """Fly both; returns the experiment folder, the run directory of each flight and failures."""
     from launch.launcher import launch, unique_run_dir
@@ -53,7 +59,7 @@ def run_vision_slam(
     runs, failures = {}, []
     for name, estimator, _ in FLIGHTS:
         config = vision_slam_config(estimator, name=name, seed=seed, duration_s=duration_s)
-        run_dir, failed, _ = launch(config, folder, show_progress=show_progress, stop=stop)
+        run_dir, failed, _ = launch(config, folder, show_progress=show_progress, stop=stop, view=view)
         runs[name] = run_dir
         failures += [f"{name}: {f}" for f in failed]
     return folder, runs, failures

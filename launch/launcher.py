@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bus import messages as m
-from bus.config import SwarmConfig
+from bus.config import SwarmConfig, ViewConfig
 from bus.errors import ConfigError, DecodeError, SwarmlocError
 from bus.kill_schedule import KillSchedule
 from bus.plan import FaultPlan, decode_json
@@ -305,10 +305,14 @@ def launch(
     restart: str = "no",
     secure: bool = True,
     security: Security = Security(),
+    view: ViewConfig | None = None,
 ) -> tuple[Path, list[str], list[str]]:
     """Run one swarm to completion; returns the run directory, failure reports and notes (kills, restarts).
 
-    ``secure``: fresh secrets in ``<run>/secrets`` (zenoh logins with access control, MAVLink signing)."""
+    ``secure``: fresh secrets in ``<run>/secrets`` (zenoh logins with access control, MAVLink signing).
+    ``view``: instead of the config's (an experiment's runs served live, one after the other)."""
+    if view is not None:
+        config = config.model_copy(update={"view": view})
     terrain = config.world.terrain
     if config.sensors.camera_rate_hz and terrain and not Path(terrain).is_file():  # before any process starts
         raise ConfigError(f"terrain image {terrain} does not exist (world.terrain)")

@@ -6,6 +6,7 @@ import csv
 import json
 import math
 import os
+import socket
 import subprocess
 import sys
 
@@ -21,8 +22,12 @@ def runs(tmp_path_factory):
     """`swarm experiment vision-slam`: a circle and a figure-8 UAV, GNSS jammed all flight, 60 s,
     flown with ekf-slam and with dead reckoning on the same seed."""
     out = tmp_path_factory.mktemp("experiment")
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    command = [sys.executable, "-m", "cli", "experiment", "vision-slam", "--out", str(out), "--seed", "3", "--quiet"]
     result = subprocess.run(
-        [sys.executable, "-m", "cli", "experiment", "vision-slam", "--out", str(out), "--seed", "3", "--quiet"],
+        [*command, "--live", "--live-port", str(port)],  # each run served live in turn
         capture_output=True,
         text=True,
         timeout=300,
@@ -30,7 +35,7 @@ def runs(tmp_path_factory):
     )
     assert result.returncode == 0, result.stdout + result.stderr
     folder = out / "vision-slam"
-    return {"slam": folder / "slam", "dr": folder / "dead-reckoning", "folder": folder}
+    return {"slam": folder / "slam", "dr": folder / "dead-reckoning", "folder": folder, "port": port}
 
 
 def _sigma_xy(run, vehicle: int) -> dict[float, float]:
@@ -122,3 +127,11 @@ def test_the_recording_lays_the_terrain_the_cameras_saw_under_the_scene(runs):
     (model,) = entity.models
     assert entity.id == "terrain" and model.media_type == "model/gltf-binary" and model.data == glb
     assert glb[:4] == b"glTF"
+
+
+def test_each_run_of_the_experiment_was_served_live_in_turn(runs):
+    for flight in ("slam", "dr"):
+        view = json.loads((runs[flight] / "config.json").read_text())["view"]
+        assert view["live"] and view["live_port"] == runs["port"]
+        log = (runs[flight] / "logs" / "groundstation.log").read_text()
+        assert f"live view: ws://127.0.0.1:{runs['port']}" in log and "did not start" not in log
