@@ -22,6 +22,7 @@ def swarm_layout(vehicles: int = 5) -> str:
                 "/zones": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 "/landmarks": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 "/ranging": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
+                "/trails": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 "/terrain": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 **{
                     pose_topic(v, "truth"): fl.BaseRendererPoseTopicSettings(visible=False, type="arrow")

@@ -14,6 +14,8 @@ Channels (log times are sim time, nanoseconds from the run's start):
   ellipse per landmark;
 - ``/zones`` (foxglove.SceneUpdate): the fault zones (GNSS jamming and spoofing, comm jamming) as
   circles while they are active, deleted when they end;
+- ``/trails`` (foxglove.SceneUpdate): per vehicle, its true (green) and estimated (blue) trail over
+  the last ``TRAIL_S`` seconds, a point a second;
 - ``/ranging`` (foxglove.SceneUpdate): a line between the true positions of every pair of vehicles
   that ranged each other in the world's last tick;
 - ``/terrain`` (foxglove.SceneUpdate): under a camera swarm, the terrain image as a textured model
@@ -38,6 +40,7 @@ import json
 import logging
 import math
 import threading
+from collections import deque
 from pathlib import Path
 from typing import Any
 
@@ -65,6 +68,7 @@ NEES_BAND_3DOF = (0.215795, 9.348404)  # chi-square 3 dof, two-sided 95 % for on
 TERRAIN_MODEL = "terrain.glb"
 SDK_OVERFLOW_LOGGER = "foxglove.websocket.connected_client.send_lossy"  # "outbox for client ... full"
 RANGING_LIFETIME_NS = 1_000_000_000
+TRAIL_S, TRAIL_STEP_US = 30, 1_000_000  # trails: the last 30 s, a point a second
 HEALTH_SCHEMA = {
     "title": "swarmloc.GnssHealth",
     "type": "object",
@@ -156,6 +160,8 @@ class Recording:
         self._terrain_wanted = threading.Event()  # a live viewer subscribed to /terrain (SDK thread)
         self._overflows = _OverflowCounter()
         self._last_ns = 0
+        self.trail_scene = SceneUpdateChannel("/trails", context=self.context)
+        self._trails: dict[int, deque] = {}  # vehicle -> (stamp us, true xy, estimated xy), one a second
 
     def serve(self, host: str, port: int, backlog: int = 1024) -> None:
         """Start the live view (a Foxglove WebSocket server on ``host``:``port``), each viewer's queue
@@ -287,10 +293,44 @@ class Recording:
             self.metrics.log(metrics_record(s), log_time=ns)
         if entities:
             self.scene.log(fm.SceneUpdate(entities=entities), log_time=scores[-1].stamp_us * 1000)
+        self._log_trails(scores)
         for stamp_us, errors in _errors_by_stamp(scores).items():
             rms = math.sqrt(sum(e * e for e in errors) / len(errors))
             record = {"t_s": stamp_us * 1e-6, "rms_error_m": rms, "vehicles": len(errors)}
             self.swarm_channel.log(record, log_time=stamp_us * 1000)
+
+    def _log_trails(self, scores: list[Score]) -> None:
+        """Each vehicle's true and estimated trail (the last TRAIL_S, a point a second), logged when a
+        vehicle's trail gains a point: one entity per vehicle, so a recording scrubs to a full trail."""
+        from foxglove import messages as fm
+
+        grown: dict[int, int] = {}
+        for s in scores:
+            trail = self._trails.setdefault(s.vehicle_id, deque())
+            if trail and s.stamp_us < trail[-1][0] + TRAIL_STEP_US:
+                continue
+            trail.append((s.stamp_us, tuple(s.truth_pose[:2]), tuple(s.estimate.position_m[:2])))
+            while trail[0][0] < s.stamp_us - TRAIL_S * 1_000_000:
+                trail.popleft()
+            grown[s.vehicle_id] = s.stamp_us
+        entities = []
+        for vid, stamp_us in grown.items():
+            trail = self._trails[vid]
+            lines = [
+                fm.LinePrimitive(
+                    type=fm.LinePrimitiveLineType.LineStrip,
+                    thickness=1.5,
+                    scale_invariant=True,
+                    points=[fm.Point3(x=float(p[which][0]), y=float(p[which][1]), z=0.0) for p in trail],
+                    color=fm.Color(r=rgb[0], g=rgb[1], b=rgb[2], a=0.7),
+                )
+                for which, rgb in ((1, (0.1, 0.8, 0.2)), (2, (0.2, 0.4, 1.0)))
+            ]
+            entities.append(
+                fm.SceneEntity(timestamp=_stamp(fm, stamp_us), frame_id="world", id=f"trail-{vid}", lines=lines)
+            )
+        if entities:
+            self.trail_scene.log(fm.SceneUpdate(entities=entities), log_time=max(grown.values()) * 1000)
 
     def landmarks(self, lmap: Any) -> None:
         """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): one line list of 3-sigma ellipses."""

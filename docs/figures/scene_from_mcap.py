@@ -1,6 +1,6 @@
 """Re-draw a run's recorded 3-D scene at one sim time, as seen from above, with matplotlib: what the
 Foxglove/Lichtblick 3-D panel shows from run.mcap (the terrain model's texture, each vehicle's true
-and estimated pose, 3-sigma ellipse and trail, the ranging lines, the SLAM maps and the fault zones).
+and estimated pose, 3-sigma ellipse and trails, the ranging lines, the SLAM maps and the fault zones).
 It reads only run.mcap (and decodes the terrain's GLB), so it also checks that the recorded scene
 lines up. Not a screenshot of the app: no display here.
 
@@ -24,24 +24,20 @@ from mcap.reader import make_reader  # noqa: E402
 from mcap_protobuf.decoder import DecoderFactory  # noqa: E402
 
 
-def latest_before(run_mcap: Path, at_ns: int) -> tuple[dict, dict]:
-    """The last SceneUpdate entities of each topic up to ``at_ns`` (deletions applied), and the
-    trails (topic -> [(x, y)]) of every pose topic."""
+def latest_before(run_mcap: Path, at_ns: int) -> dict:
+    """The last SceneUpdate entities of each topic up to ``at_ns`` (deletions applied)."""
     entities: dict[str, dict] = {}
-    trails: dict[str, list] = {}
     with run_mcap.open("rb") as handle:
         reader = make_reader(handle, decoder_factories=[DecoderFactory()])
         topics = [c.topic for c in reader.get_summary().channels.values() if c.message_encoding == "protobuf"]
         for _, channel, message, decoded in reader.iter_decoded_messages(topics=topics, ending_at=at_ns):
-            if channel.topic.startswith("/vehicle/"):
-                trails.setdefault(channel.topic, []).append((decoded.pose.position.x, decoded.pose.position.y))
-            elif hasattr(decoded, "entities"):
+            if hasattr(decoded, "entities"):
                 scene = entities.setdefault(channel.topic, {})
                 for deletion in decoded.deletions:
                     scene.pop(deletion.id, None)
                 for entity in decoded.entities:
                     scene[entity.id] = (message.log_time, entity)
-    return entities, trails
+    return entities
 
 
 def glb_texture(glb: bytes) -> tuple[np.ndarray, np.ndarray]:
@@ -61,7 +57,7 @@ def glb_texture(glb: bytes) -> tuple[np.ndarray, np.ndarray]:
 
 def draw(run_dir: Path, out: Path, at_s: float, span_m: float) -> None:
     at_ns = round(at_s * 1e9)
-    entities, trails = latest_before(run_dir / "run.mcap", at_ns)
+    entities = latest_before(run_dir / "run.mcap", at_ns)
     fig, ax = plt.subplots(figsize=(8, 8), facecolor="#202020")
     ax.set_facecolor("#303030")
     for _, entity in entities.get("/terrain", {}).values():
@@ -69,11 +65,7 @@ def draw(run_dir: Path, out: Path, at_s: float, span_m: float) -> None:
         x0, x1 = corners[:, 0].min(), corners[:, 0].max()
         y0, y1 = -corners[:, 2].max(), -corners[:, 2].min()  # glTF (x, 0, -y): the panel's Z-up turn
         ax.imshow(image, cmap="gray", extent=(x0, x1, y0, y1), origin="upper", alpha=0.8, zorder=0)
-    for topic, points in trails.items():
-        xy = np.array(points)
-        colour = "#33cc44" if topic.endswith("truth") else "#4477ff"
-        ax.plot(xy[:, 0], xy[:, 1], color=colour, lw=0.8, alpha=0.6, zorder=1)
-    for topic in ("/zones", "/landmarks", "/ranging", "/scene"):
+    for topic in ("/trails", "/zones", "/landmarks", "/ranging", "/scene"):
         for log_time, entity in entities.get(topic, {}).values():
             lifetime = entity.lifetime.seconds * 1e9 + entity.lifetime.nanos if entity.HasField("lifetime") else 0
             if lifetime and log_time + lifetime < at_ns:
@@ -81,7 +73,9 @@ def draw(run_dir: Path, out: Path, at_s: float, span_m: float) -> None:
             for line in entity.lines:
                 xy = np.array([(p.x, p.y) for p in line.points])
                 c = (line.color.r, line.color.g, line.color.b, line.color.a)
-                if line.type == 2:  # LINE_LIST: segments
+                if topic == "/trails":
+                    ax.plot(xy[:, 0], xy[:, 1], color=c, lw=1.0, zorder=1)
+                elif line.type == 2:  # LINE_LIST: segments
                     for a, b in zip(xy[::2], xy[1::2]):
                         ax.plot([a[0], b[0]], [a[1], b[1]], color=c, lw=0.8 if topic != "/ranging" else 1.2, zorder=2)
                 else:

@@ -55,7 +55,7 @@ def test_run_mcap_holds_every_channel_with_one_estimate_per_scored_sample(record
     assert schemas["/scene"] == "foxglove.SceneUpdate" and schemas["/events"] == "foxglove.Log"
     assert schemas["/metrics"] == "swarmloc.Metrics" and schemas["/swarm"] == "swarmloc.SwarmError"
     assert schemas["/ranging"] == "foxglove.SceneUpdate" and schemas["/health"] == "swarmloc.GnssHealth"
-    assert schemas["/loop"] == "swarmloc.LoopStatus"
+    assert schemas["/loop"] == "swarmloc.LoopStatus" and schemas["/trails"] == "foxglove.SceneUpdate"
     counts = {c.topic: summary.statistics.channel_message_counts[c.id] for c in summary.channels.values()}
     rows = _metrics(recorded)
     per_vehicle = defaultdict(int)
@@ -94,6 +94,12 @@ def test_ranging_lines_join_true_positions_and_status_channels_follow_every_vehi
     drawn = [p for points in lines for p in points]
     assert len(drawn) > 0 and all(len(points) % 2 == 0 for points in lines)
     assert all((p.x, p.y) in true_points for p in drawn)  # the world's ranging pairs, at the true positions
+    trails = {e.id: e for topic, _, d in messages if topic == "/trails" for e in d.entities}  # the newest
+    assert set(trails) == {"trail-1", "trail-2", "trail-3"}
+    for entity in trails.values():
+        true_trail, estimated_trail = (line.points for line in entity.lines)
+        assert 2 <= len(true_trail) == len(estimated_trail) <= 31  # the last 30 s, a point a second
+        assert all((p.x, p.y) in true_points for p in true_trail)
     rows = _metrics(recorded)
     swarm = {round(d["t_s"], 6): d for topic, _, d in messages if topic == "/swarm"}
     assert set(swarm) == {round(float(r["t_s"]), 6) for r in rows}
