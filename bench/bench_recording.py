@@ -1,8 +1,8 @@
 """What run.mcap and the live view cost: the 5-vehicle demo (lockstep, 60 s) with nothing, with run.mcap
 (the default) and with run.mcap plus ``--live`` and one WebSocket client subscribed to every channel,
-interleaved over ``ROUNDS`` rounds (5: one round to the next differs by up to 15 %) so the ratios come from one run on one machine; and the MCAP bytes
-per vehicle per simulated minute. Target: run.mcap costs the lockstep run under 5 % of its speed
-(then it is on by default, as it is)."""
+interleaved over ``ROUNDS`` rounds (5: one round to the next differs by up to 15 %) so the ratios
+come from one run on one machine; and the MCAP bytes per vehicle per simulated minute. Target:
+run.mcap costs the lockstep run under 5 % of its speed (then it is on by default, as it is)."""
 
 from __future__ import annotations
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections import Counter
+from collections.abc import Callable
 
 REASONS = (
     "bad_key",  # a key that names nothing of ours (non-decimal id, unknown topic, ...)
@@ -44,6 +45,7 @@ class Rejections:
         self._lock = threading.Lock()
         self.counts: Counter[str] = Counter()
         self._logged: set[tuple[str, str]] = set()
+        self.on_first: Callable[[str, str, str], None] | None = None  # (reason, where, detail) of each logged one
 
     def reject(self, reason: str, where: str, detail: str = "", count: int = 1) -> None:
         if reason not in _INDEX:
@@ -61,6 +63,8 @@ class Rejections:
                 where[:120],
                 detail[:300] or "-",
             )
+            if self.on_first is not None:
+                self.on_first(reason, where[:120], detail[:300])
 
     def as_counts(self) -> tuple[int, ...]:
         with self._lock:

@@ -26,7 +26,7 @@ from bus.link_faults import Arrival
 from bus.mailbox import Mailbox, Oversized
 from bus.mavlink_codec import EstimatorStatus, StateEstimate, StatusText
 from bus.plan import FaultReply, FaultRequest, decode_json, encode_json
-from bus.rejections import Rejections
+from bus.rejections import Rejections, counts_to_dict
 from bus.session import Bus, Envelope, LivelinessEvent, Request
 from groundstation.claims import IdRegister
 from groundstation.fault_control import FaultControl
@@ -76,6 +76,8 @@ class GroundStation:
         self._plan_pub, self._ack_pub = bus.publisher(keys.fault_plan()), bus.publisher(keys.ack("gs"))
         self.run = RunDirectory(run_dir)  # creates the directory the recording goes in
         self.run.recording = open_recording(run_dir, config.view)
+        if self.run.recording is not None:
+            self.rejections.on_first = self._show_rejection
         self.ids = IdRegister(vehicles=config.world.vehicles, path=run_dir / "claims.json", master_key=master_key)
         self.scorer = Scorer()
         self.intake = MavlinkIntake(
@@ -230,6 +232,10 @@ class GroundStation:
         except DecodeError as exc:
             self.rejections.reject("malformed", key, str(exc))
 
+    def _show_rejection(self, reason: str, where: str, detail: str) -> None:
+        """The first rejected input of a kind, in the live view and run.mcap (it is counted in summary.json)."""
+        self.run.recording.message(self.sim_time_us, f"rejected input ({reason}) on {where}: {detail or '-'}")
+
     def _on_status(self, vid: int, payload: bytes) -> None:
         """A vehicle's status report (loop statistics) or SLAM map: kept, and shown when it is new."""
         reports = self.reports
@@ -241,6 +247,15 @@ class GroundStation:
                 self.run.recording.landmarks(landmark_map)
             if status is not None and status is not before[1]:
                 self.run.recording.loop(status)
+                self._show_vehicle_rejections(status, before[1])
+
+    def _show_vehicle_rejections(self, status: m.VehicleStatus, before: m.VehicleStatus | None) -> None:
+        """A vehicle's first rejected input of each kind (its status counts them), in the live view."""
+        was = counts_to_dict(before.rejected) if before is not None else {}
+        for reason, count in counts_to_dict(status.rejected).items():
+            if not was.get(reason):
+                text = f"vehicle {status.vehicle_id} rejected input ({reason}): {count} so far"
+                self.run.recording.message(status.stamp_us, text, name=f"vehicle-{status.vehicle_id}")
 
     def _on_truth(self, batch: feed.TruthBatch) -> None:
         for k, stamp in enumerate(batch.stamps_us.tolist()):

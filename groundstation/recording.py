@@ -9,7 +9,9 @@ Channels (log times are sim time, nanoseconds from the run's start):
   frame ``world``, every scored sample;
 - ``/vehicle/<id>/estimate`` and ``/vehicle/<id>/truth`` (foxglove.PoseInFrame): for trails and plots;
 - ``/metrics`` (JSON): per scored sample the vehicle's position error, NEES and sigmas (plots);
-- ``/events`` (foxglove.Log): the run's events (faults, joins, resets, distrusted neighbours);
+- ``/events`` (foxglove.Log): the run's events (faults, joins, resets, distrusted neighbours, GNSS
+  health changes, restarts) and, as warnings, the first rejected input of each kind (the ground
+  station's own, and each vehicle's as its status counts it);
 - ``/landmarks`` (foxglove.SceneUpdate): each SLAM vehicle's map as it reports it, a 3-sigma
   ellipse per landmark;
 - ``/zones`` (foxglove.SceneUpdate): the fault zones (GNSS jamming and spoofing, comm jamming) as
@@ -398,6 +400,16 @@ class Recording:
         stamp = _stamp(fm, stamp_us)
         self.events.log(
             fm.Log(timestamp=stamp, level=level, message=json.dumps(record, sort_keys=True), name="groundstation"),
+            log_time=max(stamp_us, 0) * 1000,
+        )
+
+    def message(self, stamp_us: int, text: str, warning: bool = True, name: str = "groundstation") -> None:
+        """A log message on /events that is not a run event (rejected input, first of each kind)."""
+        from foxglove import messages as fm
+
+        level = fm.LogLevel.Warning if warning else fm.LogLevel.Info
+        self.events.log(
+            fm.Log(timestamp=_stamp(fm, max(stamp_us, 0)), level=level, message=text, name=name),
             log_time=max(stamp_us, 0) * 1000,
         )
 

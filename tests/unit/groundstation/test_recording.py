@@ -58,3 +58,34 @@ def test_a_recording_that_cannot_be_written_leaves_the_run_going(tmp_path, caplo
     assert open_recording(not_a_directory, ViewConfig()) is None
     assert "run.mcap cannot be written" in caplog.text
     assert open_recording(tmp_path, ViewConfig(record=False)) is None
+
+
+def test_rejected_input_shows_in_the_event_log_once_per_kind(tmp_path):
+    """The ground station's own rejections and a vehicle's (from its status) reach /events as warnings."""
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    from bus import messages as m
+    from bus.config import build_config
+    from bus.memory import MemoryHub
+    from bus.rejections import REASONS
+    from bus.session import Envelope
+    from groundstation.node import GroundStation
+
+    config = build_config({"world": {"vehicles": 3}, "clock": {"duration_s": 10}})
+    gs = GroundStation(MemoryHub().connect("groundstation"), config, tmp_path / "run")
+    for _ in range(3):
+        gs.handle(Envelope(gs.bus.keys.mavlink(2), b"garbage"))
+    counts = tuple(4 if reason == "malformed" else 0 for reason in REASONS)
+    gs.handle(
+        Envelope(
+            gs.bus.keys.status(1), m.encode(m.VehicleStatus(1, 500_000, 1, 0, 0.0, 0.0, 0, 0, 0, 0, rejected=counts))
+        )
+    )
+    gs.finish("complete")
+    with (tmp_path / "run" / "run.mcap").open("rb") as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+        logs = [decoded for _, _, _, decoded in reader.iter_decoded_messages(topics=["/events"])]
+    rejected = [log.message for log in logs if "rejected input" in log.message]
+    assert len(rejected) == 2, rejected  # the three garbage frames once; vehicle 1's count once
+    assert "malformed" in rejected[0] and rejected[1].startswith("vehicle 1 rejected input (malformed): 4")
