@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import threading
 from collections import deque
 from pathlib import Path
@@ -48,63 +47,26 @@ from typing import Any
 
 import numpy as np
 
+from groundstation import scene_primitives as sp
+from groundstation.plot_records import (
+    HEALTH_SCHEMA,
+    LOOP_SCHEMA,
+    METRICS_SCHEMA,
+    SWARM_SCHEMA,
+    health_record,
+    loop_record,
+    metrics_record,
+    nees_band_3dof,
+    swarm_records,
+)
+from groundstation.scene_primitives import ELLIPSE_POINTS, ellipse_xy
 from groundstation.scoring import Score
 
 log = logging.getLogger("swarmloc.groundstation")
-ELLIPSE_POINTS = 36
-METRICS_SCHEMA = {
-    "title": "swarmloc.Metrics",
-    "type": "object",
-    "properties": {
-        "t_s": {"type": "number", "description": "sim time (s)"},
-        "vehicle": {"type": "integer"},
-        "err_pos_m": {"type": "number", "description": "horizontal position error (m)"},
-        "nees": {"type": ["number", "null"], "description": "pose NEES, 3 dof"},
-        "sigma_x_m": {"type": "number"},
-        "sigma_y_m": {"type": "number"},
-        "nees_band_low": {"type": "number", "description": "two-sided 95 % band of one 3-dof NEES"},
-        "nees_band_high": {"type": "number"},
-    },
-}
-NEES_BAND_3DOF = (0.215795, 9.348404)  # chi-square 3 dof, two-sided 95 % for one sample (plots)
 TERRAIN_MODEL = "terrain.glb"
 SDK_OVERFLOW_LOGGER = "foxglove.websocket.connected_client.send_lossy"  # "outbox for client ... full"
 RANGING_LIFETIME_NS = 1_000_000_000
 TRAIL_S, TRAIL_STEP_US = 30, 1_000_000  # trails: the last 30 s, a point a second
-HEALTH_SCHEMA = {
-    "title": "swarmloc.GnssHealth",
-    "type": "object",
-    "properties": {
-        "t_s": {"type": "number", "description": "the vehicle's time (s)"},
-        "vehicle": {"type": "integer"},
-        "gnss_test_ratio": {"type": "number", "description": "GNSS innovation test ratio (> 1 rejects)"},
-        "gnss_glitch": {"type": "boolean", "description": "the vehicle distrusts its receiver"},
-        "horizontal_accuracy_m": {"type": "number", "description": "1-sigma horizontal accuracy (m)"},
-    },
-}
-SWARM_SCHEMA = {
-    "title": "swarmloc.SwarmError",
-    "type": "object",
-    "properties": {
-        "t_s": {"type": "number", "description": "sim time (s)"},
-        "rms_error_m": {"type": "number", "description": "RMS position error of the vehicles scored then (m)"},
-        "vehicles": {"type": "integer"},
-    },
-}
-LOOP_SCHEMA = {
-    "title": "swarmloc.LoopStatus",
-    "type": "object",
-    "properties": {
-        "t_s": {"type": "number", "description": "sim time of the report (s)"},
-        "vehicle": {"type": "integer"},
-        "cycles": {"type": "integer"},
-        "overruns": {"type": "integer", "description": "estimator cycles that overran their period"},
-        "cycle_p99_us": {"type": "number"},
-        "jitter_p99_us": {"type": "number"},
-        "v2v_fused": {"type": "integer"},
-        "v2v_missing": {"type": "integer"},
-    },
-}
 ZONE_COLOURS = {"jam-gnss": (1.0, 0.2, 0.2), "spoof-gnss": (1.0, 0.6, 0.0), "jam-comms": (0.7, 0.3, 1.0)}
 WARNING_EVENTS = ("fault", "neighbour_distrusted", "vehicle_lost", "estimator_reset", "gnss")
 
@@ -121,16 +83,6 @@ def recording_path(run_dir: Path) -> Path:
         n += 1
         path = run_dir / f"run.{n}.mcap"
     return path
-
-
-def ellipse_xy(centre: np.ndarray, covariance: np.ndarray, sigmas: float = 3.0) -> np.ndarray:
-    """Points (ELLIPSE_POINTS, 2) of the ``sigmas`` ellipse of a 2x2 position covariance, rotated by
-    its eigenvectors."""
-    values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
-    axes = sigmas * np.sqrt(np.maximum(values, 0.0))
-    angle = np.linspace(0.0, 2.0 * np.pi, ELLIPSE_POINTS, endpoint=False)
-    unit = np.stack([axes[0] * np.cos(angle), axes[1] * np.sin(angle)], axis=1)
-    return centre + unit @ vectors.T
 
 
 class Recording:
@@ -162,6 +114,7 @@ class Recording:
         self._terrain_wanted = threading.Event()  # a live viewer subscribed to /terrain (SDK thread)
         self._overflows = _OverflowCounter()
         self._last_ns = 0
+        self._nees_band = nees_band_3dof()
         self.trail_scene = SceneUpdateChannel("/trails", context=self.context)
         self._trails: dict[int, deque] = {}  # vehicle -> (stamp us, true xy, estimated xy), one a second
 
@@ -193,13 +146,13 @@ class Recording:
         from foxglove import messages as fm
 
         model = fm.ModelPrimitive(
-            pose=_pose(fm, 0.0, 0.0, 0.0),
+            pose=sp.pose(fm, 0.0, 0.0, 0.0),
             scale=fm.Vector3(x=1.0, y=1.0, z=1.0),
             media_type="model/gltf-binary",
             data=self._terrain,
         )
         entity = fm.SceneEntity(
-            timestamp=_stamp(fm, self._last_ns // 1000), frame_id="world", id="terrain", models=[model]
+            timestamp=sp.stamp(fm, self._last_ns // 1000), frame_id="world", id="terrain", models=[model]
         )
         self.terrain_scene.log(fm.SceneUpdate(entities=[entity]), log_time=self._last_ns)
 
@@ -226,7 +179,7 @@ class Recording:
         )
         lifetime = fm.Duration(sec=RANGING_LIFETIME_NS // 1_000_000_000, nsec=0)
         entity = fm.SceneEntity(
-            timestamp=_stamp(fm, stamp_us), frame_id="world", id="ranging", lifetime=lifetime, lines=[line]
+            timestamp=sp.stamp(fm, stamp_us), frame_id="world", id="ranging", lifetime=lifetime, lines=[line]
         )
         self._last_ns = max(self._last_ns, stamp_us * 1000)
         self.ranging_scene.log(fm.SceneUpdate(entities=[entity]), log_time=stamp_us * 1000)
@@ -234,28 +187,11 @@ class Recording:
 
     def health(self, status: Any) -> None:
         """One vehicle's GNSS health (a bus.mavlink_codec.EstimatorStatus)."""
-        record = {
-            "t_s": status.time_usec * 1e-6,
-            "vehicle": status.vehicle_id,
-            "gnss_test_ratio": float(status.pos_horiz_ratio),
-            "gnss_glitch": bool(status.gps_glitch),
-            "horizontal_accuracy_m": float(status.pos_horiz_accuracy_m),
-        }
-        self.health_channel.log(record, log_time=max(status.time_usec, 0) * 1000)
+        self.health_channel.log(health_record(status), log_time=max(status.time_usec, 0) * 1000)
 
     def loop(self, status: Any) -> None:
         """One vehicle's loop statistics (a bus.messages.VehicleStatus)."""
-        record = {
-            "t_s": status.stamp_us * 1e-6,
-            "vehicle": status.vehicle_id,
-            "cycles": status.cycles,
-            "overruns": status.overruns,
-            "cycle_p99_us": status.cycle_p99_us,
-            "jitter_p99_us": status.jitter_p99_us,
-            "v2v_fused": status.v2v_fused,
-            "v2v_missing": status.v2v_missing,
-        }
-        self.loop_channel.log(record, log_time=max(status.stamp_us, 0) * 1000)
+        self.loop_channel.log(loop_record(status), log_time=max(status.stamp_us, 0) * 1000)
 
     def _pose_channel(self, kind: str, vehicle_id: int):
         from foxglove.channels import PoseInFrameChannel
@@ -271,10 +207,10 @@ class Recording:
         entities = []
         for s in scores:
             ns = s.stamp_us * 1000
-            stamp = _stamp(fm, s.stamp_us)
+            stamp = sp.stamp(fm, s.stamp_us)
             est, truth = s.estimate, s.truth_pose
-            estimate_pose = _pose(fm, est.position_m[0], est.position_m[1], est.yaw_rad)
-            true_pose = _pose(fm, truth[0], truth[1], truth[2])
+            estimate_pose = sp.pose(fm, est.position_m[0], est.position_m[1], est.yaw_rad)
+            true_pose = sp.pose(fm, truth[0], truth[1], truth[2])
             self._pose_channel("estimate", s.vehicle_id).log(
                 fm.PoseInFrame(timestamp=stamp, frame_id="world", pose=estimate_pose), log_time=ns
             )
@@ -287,18 +223,16 @@ class Recording:
                     timestamp=stamp,
                     frame_id="world",
                     id=f"vehicle-{s.vehicle_id}",
-                    arrows=[_arrow(fm, estimate_pose, (0.2, 0.4, 1.0)), _arrow(fm, true_pose, (0.1, 0.8, 0.2))],
-                    lines=[_loop(fm, ring, (0.2, 0.4, 1.0, 0.8), 2.0)],
-                    texts=[_label(fm, estimate_pose, f"v{s.vehicle_id}", (1.0, 1.0, 1.0, 1.0))],
+                    arrows=[sp.arrow(fm, estimate_pose, (0.2, 0.4, 1.0)), sp.arrow(fm, true_pose, (0.1, 0.8, 0.2))],
+                    lines=[sp.loop(fm, ring, (0.2, 0.4, 1.0, 0.8), 2.0)],
+                    texts=[sp.label(fm, estimate_pose, f"v{s.vehicle_id}", (1.0, 1.0, 1.0, 1.0))],
                 )
             )
-            self.metrics.log(metrics_record(s), log_time=ns)
+            self.metrics.log(metrics_record(s, self._nees_band), log_time=ns)
         if entities:
             self.scene.log(fm.SceneUpdate(entities=entities), log_time=scores[-1].stamp_us * 1000)
         self._log_trails(scores)
-        for stamp_us, errors in _errors_by_stamp(scores).items():
-            rms = math.sqrt(sum(e * e for e in errors) / len(errors))
-            record = {"t_s": stamp_us * 1e-6, "rms_error_m": rms, "vehicles": len(errors)}
+        for stamp_us, record in swarm_records(scores):
             self.swarm_channel.log(record, log_time=stamp_us * 1000)
 
     def _log_trails(self, scores: list[Score]) -> None:
@@ -329,7 +263,7 @@ class Recording:
                 for which, rgb in ((1, (0.1, 0.8, 0.2)), (2, (0.2, 0.4, 1.0)))
             ]
             entities.append(
-                fm.SceneEntity(timestamp=_stamp(fm, stamp_us), frame_id="world", id=f"trail-{vid}", lines=lines)
+                fm.SceneEntity(timestamp=sp.stamp(fm, stamp_us), frame_id="world", id=f"trail-{vid}", lines=lines)
             )
         if entities:
             self.trail_scene.log(fm.SceneUpdate(entities=entities), log_time=max(grown.values()) * 1000)
@@ -338,7 +272,7 @@ class Recording:
         """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): one line list of 3-sigma ellipses."""
         from foxglove import messages as fm
 
-        stamp = _stamp(fm, lmap.stamp_us)
+        stamp = sp.stamp(fm, lmap.stamp_us)
         points = []
         for xy, cov in zip(lmap.xy_m, lmap.covariance_m2):
             ring = ellipse_xy(np.asarray(xy), np.asarray(cov))[:: ELLIPSE_POINTS // 12]
@@ -371,7 +305,7 @@ class Recording:
         active = {f.name: f for f in faults if hasattr(f, "radius_m") and f.active(t_s)}
         if set(active) == self._zones:
             return
-        stamp = _stamp(fm, stamp_us)
+        stamp = sp.stamp(fm, stamp_us)
         deletions = [fm.SceneEntityDeletion(timestamp=stamp, id=f"zone-{n}") for n in self._zones - set(active)]
         entities = []
         for name, fault in active.items():
@@ -379,14 +313,14 @@ class Recording:
             x = fault.center_m[0] + fault.radius_m * np.cos(angle)
             y = fault.center_m[1] + fault.radius_m * np.sin(angle)
             rgba = (*ZONE_COLOURS.get(fault.kind, (0.6, 0.6, 0.6)), 0.9)
-            centre = _pose(fm, fault.center_m[0], fault.center_m[1], 0.0)
+            centre = sp.pose(fm, fault.center_m[0], fault.center_m[1], 0.0)
             entities.append(
                 fm.SceneEntity(
                     timestamp=stamp,
                     frame_id="world",
                     id=f"zone-{name}",
-                    lines=[_loop(fm, np.stack([x, y], axis=1), rgba, 3.0)],
-                    texts=[_label(fm, centre, f"{fault.kind} {name}", rgba)],
+                    lines=[sp.loop(fm, np.stack([x, y], axis=1), rgba, 3.0)],
+                    texts=[sp.label(fm, centre, f"{fault.kind} {name}", rgba)],
                 )
             )
         self.zone_scene.log(fm.SceneUpdate(deletions=deletions, entities=entities), log_time=stamp_us * 1000)
@@ -397,7 +331,7 @@ class Recording:
 
         kind = str(record.get("event", ""))
         level = fm.LogLevel.Warning if any(w in kind for w in WARNING_EVENTS) else fm.LogLevel.Info
-        stamp = _stamp(fm, stamp_us)
+        stamp = sp.stamp(fm, stamp_us)
         self.events.log(
             fm.Log(timestamp=stamp, level=level, message=json.dumps(record, sort_keys=True), name="groundstation"),
             log_time=max(stamp_us, 0) * 1000,
@@ -409,7 +343,7 @@ class Recording:
 
         level = fm.LogLevel.Warning if warning else fm.LogLevel.Info
         self.events.log(
-            fm.Log(timestamp=_stamp(fm, max(stamp_us, 0)), level=level, message=text, name=name),
+            fm.Log(timestamp=sp.stamp(fm, max(stamp_us, 0)), level=level, message=text, name=name),
             log_time=max(stamp_us, 0) * 1000,
         )
 
@@ -454,32 +388,6 @@ def _terrain_requests(wanted: threading.Event) -> Any:
     return TerrainRequests()
 
 
-def _errors_by_stamp(scores: list[Score]) -> dict[int, list[float]]:
-    """The position errors of ``scores`` grouped by stamp (in stamp order)."""
-    out: dict[int, list[float]] = {}
-    for s in scores:
-        out.setdefault(s.stamp_us, []).append(s.position_error_m)
-    return dict(sorted(out.items()))
-
-
-def _pose(fm, x: float, y: float, yaw: float):
-    return fm.Pose(
-        position=fm.Vector3(x=float(x), y=float(y), z=0.0),
-        orientation=fm.Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
-    )
-
-
-def _arrow(fm, pose, rgb: tuple[float, float, float]):
-    return fm.ArrowPrimitive(
-        pose=pose,
-        shaft_length=1.0,
-        shaft_diameter=0.15,
-        head_length=0.5,
-        head_diameter=0.4,
-        color=fm.Color(r=rgb[0], g=rgb[1], b=rgb[2], a=1.0),
-    )
-
-
 def open_recording(run_dir: Path, view: Any) -> Recording | None:
     """The recording a run's ``view`` config asks for (None: neither run.mcap nor a live view). A live
     view that cannot start (its port taken since the launcher checked) is logged, not fatal: the run
@@ -501,38 +409,3 @@ def open_recording(run_dir: Path, view: Any) -> Recording | None:
         except Exception as exc:  # the SDK raises its own error types for a bind failure
             log.error("live view on %s:%d did not start: %s", view.live_host, view.live_port, exc)
     return recording
-
-
-def metrics_record(s: Score) -> dict[str, Any]:
-    """One /metrics message (METRICS_SCHEMA) of a score."""
-    return {
-        "t_s": s.stamp_us * 1e-6,
-        "vehicle": s.vehicle_id,
-        "err_pos_m": s.position_error_m,
-        "nees": s.nees if math.isfinite(s.nees) else None,
-        "sigma_x_m": float(s.sigma[0]),
-        "sigma_y_m": float(s.sigma[1]),
-        "nees_band_low": NEES_BAND_3DOF[0],
-        "nees_band_high": NEES_BAND_3DOF[1],
-    }
-
-
-def _label(fm, pose, text: str, rgba: tuple[float, float, float, float]):
-    color = fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
-    return fm.TextPrimitive(pose=pose, billboard=True, font_size=14.0, scale_invariant=True, color=color, text=text)
-
-
-def _stamp(fm, stamp_us: int):
-    """A foxglove Timestamp of sim time ``stamp_us``."""
-    return fm.Timestamp(sec=stamp_us // 1_000_000, nsec=(stamp_us % 1_000_000) * 1000)
-
-
-def _loop(fm, xy: np.ndarray, rgba: tuple[float, float, float, float], thickness: float):
-    """A closed line through the points ``xy`` (k, 2) on the ground."""
-    return fm.LinePrimitive(
-        type=fm.LinePrimitiveLineType.LineLoop,
-        thickness=thickness,
-        scale_invariant=True,
-        points=[fm.Point3(x=float(a), y=float(b), z=0.0) for a, b in xy],
-        color=fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]),
-    )

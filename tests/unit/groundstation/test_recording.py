@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from groundstation.layout import swarm_layout
-from groundstation.recording import ellipse_xy, recording_path
+from groundstation.recording import recording_path
+from groundstation.scene_primitives import ellipse_xy
 
 ROOT = Path(__file__).resolve().parents[3]
 

@@ -1,0 +1,60 @@
+"""The Foxglove scene primitives the recording draws with (``fm`` is ``foxglove.messages``, imported
+by the caller): poses, arrows, labels, closed lines on the ground, timestamps, and the 3-sigma
+ellipse of a position covariance. Pure."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+ELLIPSE_POINTS = 36
+
+
+def ellipse_xy(centre: np.ndarray, covariance: np.ndarray, sigmas: float = 3.0) -> np.ndarray:
+    """Points (ELLIPSE_POINTS, 2) of the ``sigmas`` ellipse of a 2x2 position covariance, rotated by
+    its eigenvectors."""
+    values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
+    axes = sigmas * np.sqrt(np.maximum(values, 0.0))
+    angle = np.linspace(0.0, 2.0 * np.pi, ELLIPSE_POINTS, endpoint=False)
+    unit = np.stack([axes[0] * np.cos(angle), axes[1] * np.sin(angle)], axis=1)
+    return centre + unit @ vectors.T
+
+
+def pose(fm, x: float, y: float, yaw: float):
+    return fm.Pose(
+        position=fm.Vector3(x=float(x), y=float(y), z=0.0),
+        orientation=fm.Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
+    )
+
+
+def arrow(fm, at_pose, rgb: tuple[float, float, float]):
+    return fm.ArrowPrimitive(
+        pose=at_pose,
+        shaft_length=1.0,
+        shaft_diameter=0.15,
+        head_length=0.5,
+        head_diameter=0.4,
+        color=fm.Color(r=rgb[0], g=rgb[1], b=rgb[2], a=1.0),
+    )
+
+
+def label(fm, at_pose, text: str, rgba: tuple[float, float, float, float]):
+    color = fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+    return fm.TextPrimitive(pose=at_pose, billboard=True, font_size=14.0, scale_invariant=True, color=color, text=text)
+
+
+def stamp(fm, stamp_us: int):
+    """A foxglove Timestamp of sim time ``stamp_us``."""
+    return fm.Timestamp(sec=stamp_us // 1_000_000, nsec=(stamp_us % 1_000_000) * 1000)
+
+
+def loop(fm, xy: np.ndarray, rgba: tuple[float, float, float, float], thickness: float):
+    """A closed line through the points ``xy`` (k, 2) on the ground."""
+    return fm.LinePrimitive(
+        type=fm.LinePrimitiveLineType.LineLoop,
+        thickness=thickness,
+        scale_invariant=True,
+        points=[fm.Point3(x=float(a), y=float(b), z=0.0) for a, b in xy],
+        color=fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]),
+    )
