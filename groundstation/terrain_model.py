@@ -45,7 +45,26 @@ def terrain_glb(image: np.ndarray, width_m: float, height_m: float) -> bytes:
         view = {"buffer": 0, "byteOffset": offset, "byteLength": len(blob)}
         views.append(view | ({"target": target} if target else {}))
         offset += _padded(len(blob))
-    document = {
+    document = _document(views, offset, positions)
+    binary = b"".join(blob + b"\0" * (_padded(len(blob)) - len(blob)) for blob in blobs)
+    text = json.dumps(document, separators=(",", ":")).encode()
+    text += b" " * (_padded(len(text)) - len(text))
+    total = 12 + 8 + len(text) + 8 + len(binary)
+    return b"".join(
+        [
+            struct.pack("<III", GLB_MAGIC, GLB_VERSION, total),
+            struct.pack("<II", len(text), CHUNK_JSON),
+            text,
+            struct.pack("<II", len(binary), CHUNK_BIN),
+            binary,
+        ]
+    )
+
+
+def _document(views: list[dict], buffer_bytes: int, positions: np.ndarray) -> dict:
+    """The glTF JSON: one node, one mesh of one textured, unlit, double-sided quad; accessors 0-2 are
+    the positions, texture coordinates and indices, buffer view 3 the PNG."""
+    return {
         "asset": {"version": "2.0", "generator": "swarmloc"},
         "extensionsUsed": ["KHR_materials_unlit"],
         "scene": 0,
@@ -66,7 +85,7 @@ def terrain_glb(image: np.ndarray, width_m: float, height_m: float) -> bytes:
         "textures": [{"source": 0, "sampler": 0}],
         "samplers": [{"magFilter": LINEAR, "minFilter": LINEAR}],
         "images": [{"bufferView": 3, "mimeType": "image/png"}],
-        "buffers": [{"byteLength": offset}],
+        "buffers": [{"byteLength": buffer_bytes}],
         "bufferViews": views,
         "accessors": [
             {
@@ -81,19 +100,6 @@ def terrain_glb(image: np.ndarray, width_m: float, height_m: float) -> bytes:
             {"bufferView": 2, "componentType": UNSIGNED_SHORT, "count": 6, "type": "SCALAR"},
         ],
     }
-    binary = b"".join(blob + b"\0" * (_padded(len(blob)) - len(blob)) for blob in blobs)
-    text = json.dumps(document, separators=(",", ":")).encode()
-    text += b" " * (_padded(len(text)) - len(text))
-    total = 12 + 8 + len(text) + 8 + len(binary)
-    return b"".join(
-        [
-            struct.pack("<III", GLB_MAGIC, GLB_VERSION, total),
-            struct.pack("<II", len(text), CHUNK_JSON),
-            text,
-            struct.pack("<II", len(binary), CHUNK_BIN),
-            binary,
-        ]
-    )
 
 
 def _padded(n: int) -> int:
