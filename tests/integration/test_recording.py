@@ -160,8 +160,11 @@ def test_a_live_client_sees_the_channels_and_every_vehicle_and_ctrl_c_leaves_a_f
 
 
 def test_a_viewer_that_never_reads_loses_messages_counted_and_never_holds_the_run(tmp_path):
-    """A viewer that subscribes to every channel and then reads nothing: its queue (4 messages here)
-    overflows, the run ends normally and summary.json counts the overflows."""
+    """A viewer that subscribes to every channel and then reads nothing (its queue 4 messages here):
+    the run ends normally with every sample scored and a finished run.mcap. Whether the queue
+    overflows depends on how much the kernel buffers on loopback (a 3-vehicle minute is ~3 MB, the
+    send buffer may grow to 4 MB), so the counting of overflows is checked in the unit test that
+    logs many times the kernel's buffers (tests/unit/groundstation/test_recording.py)."""
     from websockets.sync.client import connect
 
     port = _free_port()
@@ -190,7 +193,9 @@ def test_a_viewer_that_never_reads_loses_messages_counted_and_never_holds_the_ru
         output = swarm.communicate(timeout=300)[0]  # the viewer reads nothing more
     assert swarm.returncode == 0, output
     summary = json.loads((tmp_path / "slow" / "summary.json").read_text())
-    assert summary["events"].get("live_view_overflow", 0) >= 1 and summary["swarm"]["samples"] > 0
+    assert summary["swarm"]["samples"] == 3 * 601, summary["swarm"]  # every vehicle at 10 Hz, 0 to 60 s
+    with (tmp_path / "slow" / "run.mcap").open("rb") as handle:
+        assert make_reader(handle).get_summary() is not None  # the file was finished
 
 
 def test_a_live_port_in_use_is_refused_before_anything_starts(tmp_path):

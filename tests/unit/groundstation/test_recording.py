@@ -90,3 +90,49 @@ def test_rejected_input_shows_in_the_event_log_once_per_kind(tmp_path):
     rejected = [log.message for log in logs if "rejected input" in log.message]
     assert len(rejected) == 2, rejected  # the three garbage frames once; vehicle 1's count once
     assert "malformed" in rejected[0] and rejected[1].startswith("vehicle 1 rejected input (malformed): 4")
+
+
+def test_a_viewer_that_never_reads_has_its_queue_overflow_counted_and_never_blocks_the_logger():
+    """The live server with a 4-message queue and a viewer subscribed to /events that reads nothing:
+    logging goes on (the oldest messages dropped) and each overflow the SDK reports is counted. The
+    volume logged is bounded by many times the kernel's TCP buffers, so the queue must overflow."""
+    import socket
+    import time
+
+    from websockets.sync.client import connect
+
+    from groundstation.recording import Recording
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    recording = Recording(None)
+    recording.serve("127.0.0.1", port, backlog=4)
+    try:
+        sock = socket.socket()
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # before connect: a small window
+        sock.connect(("127.0.0.1", port))
+        with connect(f"ws://127.0.0.1:{port}", sock=sock, subprotocols=["foxglove.sdk.v1"], close_timeout=1) as client:
+            channel_id = None
+            while channel_id is None:
+                message = client.recv(timeout=10)
+                if isinstance(message, str) and json.loads(message).get("op") == "advertise":
+                    topics = {c["topic"]: c["id"] for c in json.loads(message)["channels"]}
+                    channel_id = topics.get("/events")
+            client.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel_id}]}))
+            kernel_buffers = sum(
+                int(Path(f"/proc/sys/net/ipv4/tcp_{k}").read_text().split()[2]) for k in ("wmem", "rmem")
+            )
+            text, logged, overflows = "x" * 65536, 0, 0
+            while overflows == 0 and logged < 4 * kernel_buffers:
+                for _ in range(16):
+                    recording.message(1, text)
+                logged += 16 * len(text)
+                overflows += recording.overflows()
+            deadline = time.monotonic() + 10  # the SDK may report from its own thread
+            while overflows == 0 and time.monotonic() < deadline:
+                time.sleep(0.05)
+                overflows += recording.overflows()
+            assert overflows >= 1, f"{logged / 1e6:.0f} MB logged to a viewer that reads nothing, no overflow"
+    finally:
+        recording.close()
