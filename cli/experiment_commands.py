@@ -173,6 +173,11 @@ def liar(
     profiles: str = typer.Option(
         "gross,drift,overconfident,spoofed", help="comma-separated lie profiles: gross, drift, overconfident, spoofed"
     ),
+    silenced: str = typer.Option(
+        "",
+        help="comma-separated delays (s): also fly each profile with the liar's V2V cut that long after "
+        "the lie began, the monitor off (an oracle: the best a detector that fast could do)",
+    ),
     quiet: bool = typer.Option(False, help="no progress display"),
     live: bool = typer.Option(False, help=LIVE_HELP),
     live_host: str = typer.Option("127.0.0.1", help="the live view's address"),
@@ -191,6 +196,7 @@ def liar(
     unknown = [p for p in chosen if p not in PROFILES]
     if unknown or not chosen:
         fail(f"unknown profile(s) {', '.join(unknown) or '(none given)'}; known: {', '.join(PROFILES)}")
+    delays = _delays(silenced)
     try:
         folder, runs, failures = run_liar(
             out,
@@ -198,6 +204,7 @@ def liar(
             stop=stop_on_signals(),
             show_progress=not quiet,
             profiles=chosen,
+            silenced=delays,
             view=live_view(live, live_host, live_port),
         )
         table = summarize(runs)
@@ -219,6 +226,22 @@ def liar(
     console.print(f"experiment: {folder}")
     if failures:
         raise typer.Exit(1)
+
+
+def _delays(text: str) -> tuple[float, ...]:
+    """--silenced's delays (s), each a number from 0 to the lie's length; a one-line error otherwise."""
+    from experiments.liar import DURATION_S, LIE_START_S
+
+    delays = []
+    for item in (t.strip() for t in text.split(",") if t.strip()):
+        try:
+            delay = float(item)
+        except ValueError:
+            fail(f"--silenced: {item!r} is not a number of seconds")
+        if not 0.0 <= delay <= DURATION_S - LIE_START_S:
+            fail(f"--silenced: {item} s is outside 0 to {DURATION_S - LIE_START_S:g} s (the lie's length)")
+        delays.append(delay)
+    return tuple(dict.fromkeys(delays))
 
 
 @experiment_app.command("ar-slam")

@@ -7,7 +7,8 @@ in lockstep. From ``LIE_START_S`` vehicle 3 (the liar) tells its neighbours, by 
 - ``drift``: an offset growing 0.15 m/s (it passes every single-fix gate for seconds);
 - ``overconfident``: its honest position with a covariance 100 times too small;
 - ``spoofed``: nothing false on purpose: its own GNSS is spoofed (0.5 m/s), and it honestly
-  broadcasts the estimate the spoofer drags.
+  broadcasts the estimate the spoofer drags. The spoofer's zone is centred on the liar's start pad,
+  wide enough for the liar's whole path and no other vehicle's (``spoof_zone``).
 
 Each profile flies with the neighbour monitor on and off (``vehicle.neighbour_monitor``), next to the
 clean swarm of the same seed; and the no-liar conditions (clean, GNSS jammed for six vehicles,
@@ -20,6 +21,7 @@ station stamps events with its clock tick: up to one 0.5 s tick late).
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import threading
@@ -56,20 +58,31 @@ class Case:
     condition: str  # a lie profile or a control
     defence: bool
     seed: int
+    silenced_after_s: float | None = None  # the liar's V2V cut this long after the lie began (monitor off)
 
     @property
     def name(self) -> str:
-        return f"{self.condition}-{'defended' if self.defence else 'open'}-seed{self.seed}"
+        return f"{self.group}-seed{self.seed}"
+
+    @property
+    def group(self) -> str:
+        """The row of experiment.json the case belongs to."""
+        if self.silenced_after_s is not None:
+            return f"{self.condition}-silenced-{self.silenced_after_s:g}s"
+        return f"{self.condition}-{'defended' if self.defence else 'open'}"
 
 
-def cases(seeds: list[int], profiles: tuple[str, ...] = PROFILES) -> list[Case]:
+def cases(seeds: list[int], profiles: tuple[str, ...] = PROFILES, silenced: tuple[float, ...] = ()) -> list[Case]:
     """Every run of the experiment: the controls defended (clean also open: the monitor's own cost),
-    each profile defended and open."""
+    each profile defended and open, and each profile silenced after each of ``silenced`` (s): an
+    oracle that knows the liar and cuts it off that long after the lie began, the best a detector
+    that fast could do."""
     out = []
     for seed in seeds:
         out += [Case("clean", True, seed), Case("clean", False, seed), Case("jamming", True, seed)]
         out += [Case("links", True, seed)]
         out += [Case(p, d, seed) for p in profiles for d in (True, False)]
+        out += [Case(p, False, seed, after) for p in profiles for after in silenced]
     return out
 
 
@@ -78,12 +91,13 @@ def liar_config(case: Case) -> SwarmConfig:
     if case.condition in LIES:
         faults.append({"name": "liar", "kind": "lie", "vehicle": LIAR, "start_s": LIE_START_S, **LIES[case.condition]})
     elif case.condition == "spoofed":
+        center_m, radius_m = spoof_zone(case.seed)
         faults.append(
             {
                 "name": "spoofer",
                 "kind": "spoof-gnss",
-                "center_m": list(_pad(case.seed, LIAR)),
-                "radius_m": 60.0,
+                "center_m": list(center_m),
+                "radius_m": radius_m,
                 "drift_mps": 0.5,
                 "heading_deg": 45.0,
                 "start_s": LIE_START_S,
@@ -96,6 +110,11 @@ def liar_config(case: Case) -> SwarmConfig:
         ]
     elif case.condition == "links":
         faults += [{"name": f"link-{k}", **f, "start_s": LIE_START_S} for k, f in enumerate(V2V_LINK_FAULTS)]
+    if case.silenced_after_s is not None:
+        start_s = LIE_START_S + case.silenced_after_s
+        faults.append(
+            {"name": "oracle", "kind": "loss", "src": f"v{LIAR}", "dst": "v*", "percent": 100.0, "start_s": start_s}
+        )
     return build_config(
         {
             "name": case.name,
@@ -108,13 +127,27 @@ def liar_config(case: Case) -> SwarmConfig:
     )
 
 
-def _pad(seed: int, vehicle: int) -> tuple[float, float]:
-    """The vehicle's start pad (the spoofer's zone covers the liar's whole trajectory)."""
+@functools.cache
+def spoof_zone(seed: int) -> tuple[tuple[float, float], float]:
+    """The spoofer's zone for the ``spoofed`` profile: centred on the liar's start pad (m), its radius
+    (m) halfway between the farthest the liar gets from the pad and the nearest any other vehicle
+    comes, over the whole run of the pure world of the same seed: only the liar is ever spoofed."""
     from sim.world import World
 
-    world = World(build_config({"world": {"vehicles": VEHICLES, "seed": seed}}))
-    x, y = world.poses[world.vehicle_ids().index(vehicle)][:2]
-    return round(float(x), 1), round(float(y), 1)
+    world = World(_world_config(seed))
+    liar = world.vehicle_ids().index(LIAR)
+    center = np.round(world.poses[liar][:2], 1)
+    truth = np.stack(world.advance(round(DURATION_S * 1e6)).truth)  # (k, N, 5)
+    distance = np.hypot(*(truth[:, :, :2] - center).transpose(2, 0, 1))  # (k, N)
+    liar_reach, others_nearest = distance[:, liar].max(), np.delete(distance, liar, axis=1).min()
+    if not liar_reach < others_nearest:
+        raise ValueError(f"seed {seed}: another vehicle comes as near the liar's pad as the liar goes")
+    return (float(center[0]), float(center[1])), round(float(liar_reach + others_nearest) / 2.0, 1)
+
+
+def _world_config(seed: int) -> SwarmConfig:
+    """The world every case of ``seed`` flies (the faults aside)."""
+    return liar_config(Case("clean", True, seed))
 
 
 def run_liar(
@@ -124,6 +157,7 @@ def run_liar(
     stop: threading.Event,
     show_progress: bool,
     profiles: tuple[str, ...] = PROFILES,
+    silenced: tuple[float, ...] = (),
     view: ViewConfig | None = None,
 ) -> tuple[Path, dict[Case, Path], list[str]]:
     """Fly every case (real processes); the experiment folder, each case's run directory, failures."""
@@ -132,7 +166,7 @@ def run_liar(
     folder = unique_run_dir(out, "liar")
     runs: dict[Case, Path] = {}
     failures: list[str] = []
-    for case in cases(seeds, profiles):
+    for case in cases(seeds, profiles, silenced):
         if stop.is_set():
             return folder, runs, failures + ["stopped"]
         run_dir, failed, _ = launch(liar_config(case), folder, show_progress=show_progress, stop=stop, view=view)
@@ -166,8 +200,7 @@ def rangers_of_liar(seed: int) -> dict[int, float]:
     from bus.topics import Topic
     from sim.world import World
 
-    config = liar_config(Case("clean", True, seed))
-    world = World(config)
+    world = World(_world_config(seed))
     out = world.advance(round(DURATION_S * 1e6))
     start = round(LIE_START_S * 1e6)
     rangers: dict[int, float] = {}
@@ -185,9 +218,11 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
     clean = {s: honest_rmse(runs[Case("clean", False, s)]) for s in seeds if Case("clean", False, s) in runs}
     rangers = {s: rangers_of_liar(s) for s in seeds}
     table: dict[str, Any] = {"seeds": seeds, "liar": LIAR, "lie_start_s": LIE_START_S, "conditions": {}}
-    conditions = sorted({(c.condition, c.defence) for c in runs}, key=lambda k: (k[0] not in CONTROLS, k))
-    for condition, defence in conditions:
-        rows = [(c, p) for c, p in runs.items() if c.condition == condition and c.defence == defence]
+    groups = {c.group: c for c in runs}
+    order = sorted(groups, key=lambda g: (groups[g].condition not in CONTROLS, groups[g].condition, _rank(groups[g])))
+    for key in order:
+        condition = groups[key].condition
+        rows = [(c, p) for c, p in runs.items() if c.group == key]
         ratios, delays, detected, falsely = [], [], 0, 0
         for case, path in rows:
             rmse = honest_rmse(path)
@@ -202,7 +237,6 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
                 detected += sum(1 for v in expected if v in liar_events)
                 delays += [liar_events[v] - t for v, t in expected.items() if v in liar_events]
                 delays += [math.inf for v in expected if v not in liar_events]
-        key = f"{condition}-{'defended' if defence else 'open'}"
         finite = [d for d in delays if math.isfinite(d)]
         table["conditions"][key] = {
             "runs": len(rows),
@@ -214,3 +248,10 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
             "false_alarms": falsely,
         }
     return table
+
+
+def _rank(case: Case) -> tuple[int, float]:
+    """A condition's rows in order: open, defended, then silenced soonest first."""
+    if case.silenced_after_s is not None:
+        return 2, case.silenced_after_s
+    return (1 if case.defence else 0), 0.0
