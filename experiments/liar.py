@@ -16,7 +16,9 @@ faults on the vehicle-to-vehicle links) fly with the monitor on to count false a
 the honest vehicles (all but the liar) from ``LIE_START_S`` to the end. Detection: for each vehicle
 that ranged the liar after the lie began (read off the pure world of the same seed), the time from
 its first such ranging to its first ``neighbour_distrusted`` event about the liar (the ground
-station stamps events with its clock tick: up to one 0.5 s tick late).
+station stamps events with its clock tick: up to one 0.5 s tick late). A false alarm is any distrust
+of an honest vehicle; those the liar itself raised are counted apart too (a spoofed vehicle that
+distrusts the honest neighbours who could correct it hurts itself, not them).
 """
 
 from __future__ import annotations
@@ -223,7 +225,7 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
     for key in order:
         condition = groups[key].condition
         rows = [(c, p) for c, p in runs.items() if c.group == key]
-        ratios, delays, detected, falsely = [], [], 0, 0
+        ratios, delays, detected, falsely, by_liar = [], [], 0, 0, 0
         for case, path in rows:
             rmse = honest_rmse(path)
             if rmse is not None and clean.get(case.seed):
@@ -231,7 +233,9 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
             events = distrust_events(path)
             liar_events = {e["vehicle"]: e["t_s"] for e in reversed(events) if e.get("neighbour") == LIAR}
             lie = condition in PROFILES
-            falsely += sum(1 for e in events if not lie or e.get("neighbour") != LIAR)
+            false_alarms = [e for e in events if not lie or e.get("neighbour") != LIAR]
+            falsely += len(false_alarms)
+            by_liar += sum(1 for e in false_alarms if e.get("vehicle") == LIAR)
             if lie:
                 expected = {v: t for v, t in rangers[case.seed].items() if v != LIAR}
                 detected += sum(1 for v in expected if v in liar_events)
@@ -246,6 +250,7 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
             "detection_s_median": round(float(np.median(finite)), 2) if finite else None,
             "detection_s_max": round(float(np.max(finite)), 2) if finite else None,
             "false_alarms": falsely,
+            "false_alarms_by_the_liar": by_liar,  # the liar distrusting honest neighbours (its own loss)
         }
     return table
 
