@@ -49,6 +49,7 @@ def measure(vehicles: int, duration_s: float, *, seed: int = 1) -> dict:
             middle = time.thread_time()
             for t_us in node.cycles_due(stamp):
                 node.cycle(t_us)
+                node.report(t_us)
                 node.outbound.flush()
             filing, cycling = filing + middle - start, cycling + time.thread_time() - middle
     per = 1e3 / (vehicles * duration_s)

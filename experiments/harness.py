@@ -286,6 +286,7 @@ def swarm_in_memory(
                 tick = node.take(node.mailbox.get_nowait()) or tick
             for t_us in node.cycles_due(prepared.stamp_us):
                 node.cycle(t_us)
+                node.report(t_us)
             node.outbound.flush()
             v2v_sent[node.vehicle_id] = node.outbound.v2v_sent
     decoder, out = MavlinkDecoder(), {}

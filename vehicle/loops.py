@@ -36,6 +36,7 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
             start = time.perf_counter()
             node.cycle(t_us)
             node.stats.record(jitter_us=0.0, cycle_us=(time.perf_counter() - start) * 1e6, overran=False)
+            node.report(t_us)
         node.finish_tick(tick)
         if tick.final:
             return
@@ -150,6 +151,7 @@ def _realtime_cycle(node: VehicleNode, pacer: Pacer) -> None:
     node.outbound.flush()
     cycle_us = (time.perf_counter() - start) * 1e6
     node.stats.record(jitter_us=jitter_us, cycle_us=cycle_us, overran=pacer.seconds_until(node.next_cycle_us) < 0)
+    node.report(t_us)
 
 
 def run_vehicle(

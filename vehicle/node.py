@@ -275,6 +275,11 @@ class VehicleNode:
             listeners=self.inbound.listeners_at(t_us),
             lies=self.inbound.lies,
         )
+
+    def report(self, t_us: int) -> None:
+        """After the cycle at ``t_us`` and its loop statistics: the periodic status when one is due. It
+        counts that cycle, so the last one of a run says what the final status says (the ground
+        station's summary does not depend on which of the two it had last)."""
         if self.outbound.status_due(t_us):
             self.publish_status(t_us)
 
