@@ -372,3 +372,32 @@ def test_a_lying_vehicle_changes_only_its_v2v_broadcast_and_signs_it_as_itself()
         else:
             np.testing.assert_allclose(offset, [0.0, 0.0], atol=1e-9)
             assert scale == pytest.approx(1.0)
+
+
+def test_lockstep_a_status_counts_the_cycle_it_follows():
+    """The periodic status goes out after its cycle's statistics are recorded, so the last one of a run
+    says what the final status says: a ground station that keeps either writes the same summary."""
+    import threading
+    import time as wall
+
+    from vehicle.loops import run_lockstep
+
+    hub = MemoryHub()
+    node = VehicleNode(hub.connect("vehicle"), build_config({"world": {"vehicles": 1}}).for_vehicle(), 1)
+    keys = node.bus.keys
+    statuses = queue.Queue()
+    hub.add_subscription(keys.status(1), statuses)
+    world = node.mailbox.lanes[0]
+    for item in (
+        Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, wall.time_ns(), False))),
+        Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)),
+        Envelope(keys.feed(1), _batch(1, 1, 20_000, {})),
+        Envelope(keys.clock(), m.encode(m.ClockTick(1, 20_000, wall.time_ns(), False))),
+        Envelope(keys.clock(), m.encode(m.ClockTick(2, 20_000, wall.time_ns(), True))),
+    ):
+        world.put(item)
+    run_lockstep(node, threading.Event())
+    sent = [m.decode(m.VehicleStatus, statuses.get_nowait().payload) for _ in range(statuses.qsize())]
+    periodic, final = [s for s in sent if not s.final], [s for s in sent if s.final]
+    assert [(s.stamp_us, s.cycles) for s in periodic] == [(0, 1)]  # the cycle at 0 s counted
+    assert [(s.stamp_us, s.cycles) for s in final] == [(20_000, 2)] and node.stats.cycles == 2
