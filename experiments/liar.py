@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, ViewConfig, build_config
+from bus.errors import ConfigError
 from groundstation.report.rundata import load_run
 
 LIAR = 3
@@ -143,7 +144,7 @@ def spoof_zone(seed: int) -> tuple[tuple[float, float], float]:
     distance = np.hypot(*(truth[:, :, :2] - center).transpose(2, 0, 1))  # (k, N)
     liar_reach, others_nearest = distance[:, liar].max(), np.delete(distance, liar, axis=1).min()
     if not liar_reach < others_nearest:
-        raise ValueError(f"seed {seed}: another vehicle comes as near the liar's pad as the liar goes")
+        raise ConfigError(f"seed {seed}: no spoofer zone holds the liar's path and no other vehicle's")
     return (float(center[0]), float(center[1])), round(float(liar_reach + others_nearest) / 2.0, 1)
 
 
