@@ -180,7 +180,6 @@ def test_a_viewer_that_never_reads_loses_messages_counted_and_never_holds_the_ru
             sock = socket.create_connection(("127.0.0.1", port))
         except OSError:
             time.sleep(0.2)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 2048)  # a slow link
     protocols = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
     with connect(f"ws://127.0.0.1:{port}", sock=sock, subprotocols=protocols) as client:
         channels: dict[str, int] = {}
