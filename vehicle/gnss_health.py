@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -69,8 +70,17 @@ class GnssHealth:
         twin._window, twin._outage, twin.transitions = deque(self._window), deque(self._outage), list(self.transitions)
         return twin
 
-    def check(self, stamp_us: int, innovation: np.ndarray, S: np.ndarray, R: np.ndarray) -> FixVerdict:
-        """Judge one fix: innovation (2,), its covariance S (2, 2) and the fix's own R (2, 2) (m, m^2)."""
+    def check(
+        self,
+        stamp_us: int,
+        innovation: np.ndarray,
+        S: np.ndarray,
+        R: np.ndarray,
+        may_reset: Callable[[np.ndarray], bool] | None = None,
+    ) -> FixVerdict:
+        """Judge one fix: innovation (2,), its covariance S (2, 2) and the fix's own R (2, 2) (m, m^2).
+        ``may_reset(offset)``: whether a position reset by that offset (2,) is allowed by what else
+        the vehicle knows (its neighbours); refused, GNSS stays unhealthy."""
         self.last_fix_us = stamp_us
         w = _whitened(innovation, S)
         ratio = (w[0] * w[0] + w[1] * w[1]) / gate_threshold(2, self.spec.gate_probability)
@@ -85,7 +95,8 @@ class GnssHealth:
             self._judge_unhealthy(stamp_us, ratio <= 1.0)
             if not self.healthy:
                 offset = self._self_consistent_offset(stamp_us, innovation, R)
-                if offset is not None and self._plausible_jump(offset, S - R, R):
+                plausible = offset is not None and self._plausible_jump(offset, S - R, R)
+                if plausible and (may_reset is None or may_reset(offset)):
                     self._set(stamp_us, True, "reset to consistent fixes")
                     return FixVerdict(
                         False, ratio, mean_ratio, offset, 4.0 * float(np.mean(np.diag(R))) / self.spec.reset_window

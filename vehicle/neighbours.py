@@ -76,6 +76,7 @@ class Fix:
     innovation: tuple[float, float] = (0.0, 0.0)
     claimed_m2: float = math.inf  # the smallest eigenvalue of the neighbour's claimed position covariance
     fused: bool = True  # False: the gate refused it, or the vehicle did not believe it (``refused``)
+    shift: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # G = d w / d(own position), row by row (1/m)
 
 
 @dataclass(frozen=True)
@@ -132,15 +133,23 @@ class Verdict:
     reason: str
 
 
-def fix_of(t_us: int, result: UpdateResult, claimed_cov_m2: np.ndarray | None = None) -> Fix | None:
+def fix_of(
+    t_us: int, result: UpdateResult, claimed_cov_m2: np.ndarray | None = None, own_jacobian: np.ndarray | None = None
+) -> Fix | None:
     """The monitor's record of a fix from its update result (None when it did not say its innovation);
-    ``claimed_cov_m2`` (2, 2): the neighbour's claimed position covariance."""
+    ``claimed_cov_m2`` (2, 2): the neighbour's claimed position covariance; ``own_jacobian`` (2, 2):
+    J = d h / d(own position) of the fix's prediction h, kept whitened (the innovation moves by -J d
+    when the vehicle moves by d: ``disagreement``)."""
     if result.innovation is None or result.innovation_cov is None:
         return None
     whitened = whiten(result.innovation, result.innovation_cov)
     claimed = math.inf if claimed_cov_m2 is None else smallest_variance(claimed_cov_m2)
     innovation = tuple(result.innovation[:2])
-    return Fix(t_us, result.nis, whitened, not result.accepted, innovation, claimed, result.accepted)
+    shift = (0.0, 0.0, 0.0, 0.0)
+    if own_jacobian is not None:
+        (g00, g10), (g01, g11) = (whiten(tuple(column), result.innovation_cov) for column in own_jacobian.T.tolist())
+        shift = (g00, g01, g10, g11)
+    return Fix(t_us, result.nis, whitened, not result.accepted, innovation, claimed, result.accepted, shift)
 
 
 def refused(book: NeighbourBook, neighbour: int) -> None:
@@ -156,6 +165,32 @@ def smallest_variance(covariance_m2: np.ndarray) -> float:
     a, b, d = float(covariance_m2[0, 0]), float(covariance_m2[0, 1]), float(covariance_m2[1, 1])
     value = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
     return value if math.isfinite(value) else 0.0
+
+
+def disagreement(book: NeighbourBook, spec: MonitorSpec, offset_m: np.ndarray, now_us: int) -> float:
+    """How strongly the believed neighbours' recent fixes speak against moving the vehicle by
+    ``offset_m`` (2,): the likelihood ratio of the fixes at the moved position against the present
+    one, sum |w - G d|^2 - sum |w|^2 over the fixes of the last ``window_s`` that the gate passed
+    (chi-square with 2 degrees of freedom when the move is as right as staying), counted with at most
+    one fix per ``decorrelation_s`` per neighbour, as in the bias test. Neighbours that claim to be
+    unsure say little: their G is small."""
+    d0, d1 = float(offset_m[0]), float(offset_m[1])
+    since, total = now_us - round(spec.window_s * 1e6), 0.0
+    for record in book.records.values():
+        if record.distrusted:
+            continue
+        fixes = [f for f in record.fixes if f.stamp_us > since and not f.gated_out and math.isfinite(sum(f.whitened))]
+        if not fixes:
+            continue
+        change = 0.0
+        for f in fixes:
+            g00, g01, g10, g11 = f.shift
+            m0, m1 = f.whitened[0] - (g00 * d0 + g01 * d1), f.whitened[1] - (g10 * d0 + g11 * d1)
+            change += m0 * m0 + m1 * m1 - f.whitened[0] ** 2 - f.whitened[1] ** 2
+        span_s = (fixes[-1].stamp_us - fixes[0].stamp_us) * 1e-6
+        n_eff = min(float(len(fixes)), 1.0 + span_s / spec.decorrelation_s)
+        total += change * n_eff / len(fixes)
+    return total
 
 
 def pull_m2(record: NeighbourRecord, since_us: int, range_m: float) -> float:

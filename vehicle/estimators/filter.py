@@ -47,6 +47,7 @@ from vehicle.models.cooperative import CooperativeFix, CooperativeRule, SeenFix
 from vehicle.neighbours import (
     MonitorSpec,
     Verdict,
+    disagreement,
     fix_of,
     plausible,
     pull_m2,
@@ -320,7 +321,7 @@ class Filter:
         y, HPH = fix.position_m - observed.predicted, H @ s.P @ H.T
         R = observed.R if s.iae is None else s.iae.adapt(Topic.GNSS, y, HPH, observed.R)
         fix = dataclasses.replace(fix, covariance_m2=R)  # from here on: the white part, or IAE's
-        verdict = s.gnss_health.check(fix.stamp_us, y, HPH + R, R)
+        verdict = s.gnss_health.check(fix.stamp_us, y, HPH + R, R, partial(self._neighbours_allow, fix.stamp_us))
         if verdict.reset_offset_m is not None:
             self.reset_position(verdict.reset_offset_m, verdict.reset_variance_m2)
         if not verdict.fuse:
@@ -331,6 +332,16 @@ class Filter:
             s, fix.position_m - observed.predicted, observed.H, fix.covariance_m2, self.gate, observed.idx
         )
         s.counters.gnss_accepted += 1
+
+    def _neighbours_allow(self, stamp_us: int, offset_m: np.ndarray) -> bool:
+        """Whether the believed neighbours' recent fixes allow a GNSS position reset by ``offset_m``
+        (2,): a spoofed receiver's fixes agree with each other and pass the reset's own tests, but
+        not with neighbours that range the vehicle where it is (``vehicle.neighbours.disagreement``
+        below the reset's chi-square bound)."""
+        if self.monitor is None:
+            return True
+        limit = gate_threshold(2, self.state.gnss_health.spec.reset_probability)
+        return disagreement(self.state.neighbours, self.monitor, offset_m, stamp_us) <= limit
 
     def _cooperative_update(self, fix: CooperativeFix | SeenFix) -> bool:
         """One neighbour fix by the vehicle's cooperative rule (vehicle.models.cooperative), its radio
@@ -362,7 +373,8 @@ class Filter:
         does not pass the pull on as certain)."""
         s = self.state
         claimed = fix.neighbour_cov_m2 if isinstance(fix, CooperativeFix) else fix.observer_cov[:2, :2]
-        observed = fix_of(fix.stamp_us, result, claimed)
+        jacobian = np.eye(2) if self.cooperative.fusion == "paper" else fix.own_jacobian(s.x)
+        observed = fix_of(fix.stamp_us, result, claimed, jacobian)
         if observed is None:
             return s.neighbours.trusts(neighbour)
         s.neighbours.own_best_m2 = min(s.neighbours.own_best_m2, smallest_variance(s.P[:2, :2]))
@@ -375,6 +387,8 @@ class Filter:
                 since = fix.stamp_us - round(self.monitor.window_s * 1e6)
                 pull = pull_m2(s.neighbours.records[neighbour], since, fix.range_m)
                 self.store.inflate(s, [0, 1], np.full(2, pull))
+                if s.gnss_health.healthy:
+                    self.gnss.forget(s.x, s.P)
             self._say(verdict)
         return believed
 

@@ -74,6 +74,10 @@ class CooperativeFix:
     def implied(self, x: np.ndarray, P_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         return implied_position(x, P_pp, self)
 
+    def own_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """d h / d(own position) (2, 2) at state x (n,)."""
+        return relative_model(x[:3], self.neighbour_xy_m)[1][:, :2]
+
 
 @dataclass(frozen=True)
 class SeenFix:
@@ -107,6 +111,10 @@ class SeenFix:
         H = np.array([[dx / r, dy / r, 0.0], [-dy / r2, dx / r2, 0.0]])
         H_o = np.array([[-dx / r, -dy / r, 0.0], [dy / r2, -dx / r2, -1.0]])
         return y, H, _sym(self.covariance), _sym(H_o @ self.observer_cov @ H_o.T)
+
+    def own_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """d h / d(own position) (2, 2) at state x (n,)."""
+        return self.linearized(x)[1][:, :2]
 
     def implied(self, x: np.ndarray, P_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The paper's form: own position as the sighting implies it, p = p_o + r [cos, sin](theta_o +

@@ -57,6 +57,30 @@ def test_loss_of_fix_and_recovery_timing():
     assert [tr[1] for tr in health.transitions] == [False, True]
 
 
+@pytest.mark.parametrize("allowed", [True, False])
+def test_a_reset_the_neighbours_speak_against_is_not_made(allowed):
+    """After loss of fix the fixes return 2 m off the dead-reckoned position and agree with each other:
+    the monitor resets to them, unless ``may_reset`` (the neighbours) refuses the offset; then GNSS
+    stays unhealthy and nothing is fused."""
+    health = GnssHealth()
+    S, R = np.eye(2) * 0.14, np.eye(2) * 0.04  # own position sigma 0.32 m: 2 m fails every gate
+    health.check(0, np.zeros(2), S, R)
+    health.tick(2_000_000)
+    asked = []
+
+    def may_reset(offset):
+        asked.append(offset)
+        return allowed
+
+    verdicts = [health.check(3_000_000 + k * 200_000, np.array([2.0, 0.0]), S, R, may_reset) for k in range(30)]
+    resets = [v.reset_offset_m for v in verdicts if v.reset_offset_m is not None]
+    assert asked and np.allclose(asked[0], [2.0, 0.0])
+    if allowed:
+        assert len(resets) == 1 and health.healthy
+    else:
+        assert resets == [] and not health.healthy and not any(v.fuse for v in verdicts)
+
+
 @pytest.mark.parametrize("innovation", [np.array([np.nan, 0.0]), np.array([1e9, 0.0])])
 def test_absurd_fixes_are_never_fused(innovation):
     verdict = GnssHealth().check(0, innovation, np.eye(2), np.eye(2))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from vehicle.kalman import UpdateResult
-from vehicle.neighbours import MonitorSpec, NeighbourBook, fix_of, plausible, see, whiten
+from vehicle.neighbours import MonitorSpec, NeighbourBook, disagreement, fix_of, plausible, see, whiten
 
 SPEC = MonitorSpec()
 PERIOD_US = 200_000  # ranging at 5 Hz
@@ -165,3 +165,41 @@ def test_a_vehicle_that_has_not_settled_yet_judges_claims_by_its_neighbours():
     assert plausible(book, SPEC, 2) and plausible(book, SPEC, 3) and book.trusts(2) and book.trusts(3)
     see(book, SPEC, 3, _claiming(10 * PERIOD_US, (0.1, 0.1), 0.0004))
     assert not plausible(book, SPEC, 3)
+
+
+def _ranged(t_us: int, y, sigma_m: float, toward: np.ndarray):
+    """A fix whose range innovation y (m, 2,) has sigma ``sigma_m`` on each axis and moves by -toward . d
+    when the vehicle moves by d (a neighbour in direction -toward; the bearing's row left at zero)."""
+    S_fix = (sigma_m**2, 0.0, sigma_m**2)
+    nis = (y[0] ** 2 + y[1] ** 2) / sigma_m**2
+    J = np.array([toward, [0.0, 0.0]])
+    return fix_of(t_us, UpdateResult(True, nis, nis / 13.8, y, S_fix), None, J)
+
+
+@pytest.mark.parametrize("sigma_m, refused", [(0.5, True), (20.0, False)])
+def test_neighbours_that_range_the_vehicle_where_it_is_speak_against_a_jump(sigma_m, refused):
+    """A GNSS reset asks the believed neighbours (GnssHealth.check's may_reset): two of them, in
+    different directions, whose fixes are consistent with the present position, speak against a 3 m
+    jump by far more than the reset's chi-square bound (13.8), and not against staying; neighbours
+    that claim to be unsure (20 m) say little either way. Evidence is counted one fix a second."""
+    rng = np.random.default_rng(11)
+    book = NeighbourBook()
+    for k in range(25):
+        for neighbour, toward in ((2, np.array([1.0, 0.0])), (4, np.array([0.0, 1.0]))):
+            y = rng.normal(0.0, sigma_m, 2)
+            see(book, SPEC, neighbour, _ranged(k * PERIOD_US, (float(y[0]), 0.0), sigma_m, toward))
+    now = 24 * PERIOD_US
+    jump = disagreement(book, SPEC, np.array([3.0, -2.0]), now)
+    assert (jump > 13.8) == refused and abs(disagreement(book, SPEC, np.zeros(2), now)) < 1e-9
+    assert disagreement(book, SPEC, np.array([3.0, -2.0]), now + round(SPEC.window_s * 1e6)) == 0.0  # all old
+
+
+def test_neighbours_that_saw_the_vehicle_off_support_the_jump_back():
+    """Fixes offset by the jump itself (the vehicle is 2 m off where they range it) favour it."""
+    rng = np.random.default_rng(12)
+    book = NeighbourBook()
+    toward = np.array([1.0, 0.0])
+    for k in range(25):
+        y = rng.normal(0.0, 0.5) + 2.0  # the range says 2 m more than predicted: move 2 m along toward
+        see(book, SPEC, 2, _ranged(k * PERIOD_US, (float(y), 0.0), 0.5, toward))
+    assert disagreement(book, SPEC, np.array([2.0, 0.0]), 24 * PERIOD_US) < -13.8
