@@ -31,10 +31,12 @@ fail at once. A neighbour that fails is distrusted only if the vehicle has groun
 over it: another believed neighbour passing every test over the same window (when every neighbour
 disagrees with a vehicle, the vehicle is the likelier one to be wrong, and it accuses nobody; its
 own GNSS is no such ground, since a spoofed receiver agrees with the filter it drags). A distrusted
-neighbour's fixes are still judged but not fused; it is trusted again after ``retrust_s`` of passing every test. The
-thresholds are set from clean runs (no liar: the honest world, jamming, link faults; docs/liars.md),
-well above what those reach. Pure; the record lives in the filter's state, so a fusion-horizon
-replay restores it with everything else.
+neighbour's fixes are still judged but not fused; it is trusted again after ``retrust_s`` of passing
+every test. The believed neighbours' recent fixes also have a say on the vehicle's own GNSS: a
+position reset that they speak against is refused (``disagreement``). The thresholds are set from
+clean runs (no liar: the honest world, jamming, link faults; docs/liars.md), well above what those
+reach. Pure; the record lives in the filter's state, so a fusion-horizon replay restores it with
+everything else.
 """
 
 from __future__ import annotations

@@ -16,8 +16,10 @@ shape: a state, process and measurement models, a filter that takes them).
 
 The common flow, the same for every estimator: a prior (or, after a restart in flight, the GNSS
 track) initialises the state; inputs are held and integrated between propagations (one per loop
-cycle or measurement); GNSS fixes pass the GNSS health monitor before they are fused; neighbours'
-fixes are fused by the vehicle's cooperative rule (Covariance Intersection); each cycle propagates,
+cycle or measurement); GNSS fixes pass the GNSS health monitor before they are fused (a position
+reset to them is first put to the believed neighbours); neighbours' fixes are judged by the
+neighbour monitor (vehicle.neighbours) and fused by the vehicle's cooperative rule (Covariance
+Intersection), and a verdict against one undoes what it may have pulled; each cycle propagates,
 notices GNSS health changes and recovers from divergence. Pure: no bus, no clock. The wire format
 is not the filter's: ``estimate`` and ``health`` return plain records (bus.estimate).
 """
