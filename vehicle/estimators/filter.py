@@ -19,9 +19,9 @@ track) initialises the state; inputs are held and integrated between propagation
 cycle or measurement); GNSS fixes pass the GNSS health monitor before they are fused (a position
 reset to them is first put to the believed neighbours); neighbours' fixes are judged by the
 neighbour monitor (vehicle.neighbours) and fused by the vehicle's cooperative rule (Covariance
-Intersection), and a verdict against one undoes what it may have pulled; each cycle propagates,
-notices GNSS health changes and recovers from divergence. Pure: no bus, no clock. The wire format
-is not the filter's: ``estimate`` and ``health`` return plain records (bus.estimate).
+Intersection); each cycle propagates, notices GNSS health changes and recovers from divergence.
+Pure: no bus, no clock. The wire format is not the filter's: ``estimate`` and ``health`` return
+plain records (bus.estimate).
 """
 
 from __future__ import annotations
@@ -389,8 +389,6 @@ class Filter:
                 since = fix.stamp_us - round(self.monitor.window_s * 1e6)
                 pull = pull_m2(s.neighbours.records[neighbour], since, fix.range_m)
                 self.store.inflate(s, [0, 1], np.full(2, pull))
-                if s.gnss_health.healthy:
-                    self.gnss.forget(s.x, s.P)
             self._say(verdict)
         return believed
 

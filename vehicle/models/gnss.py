@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vehicle.models.gnss_error import GnssErrorModel, aligned_covariance, forget_errors
+from vehicle.models.gnss_error import GnssErrorModel, aligned_covariance
 
 GNSS_STATES_H = np.array([[1.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 1.0]])  # d fix / d [x, y, e_x, e_y]
 
@@ -49,9 +49,6 @@ class WhiteGnss:
     def observe(self, x: np.ndarray, reported_cov_m2: np.ndarray) -> Observed:
         return Observed(x[:2], [0, 1], np.eye(2), reported_cov_m2)
 
-    def forget(self, x: np.ndarray, P: np.ndarray) -> None:
-        """Nothing beyond the position to forget: a white receiver holds no learnt error."""
-
 
 class GnssWithErrorStates:
     """fix = [x, y] + e + white, e the two Gauss-Markov states at 4 and 5 (vehicle.models.gnss_error);
@@ -75,10 +72,6 @@ class GnssWithErrorStates:
 
     def observe(self, x: np.ndarray, reported_cov_m2: np.ndarray) -> Observed:
         return Observed(x[:2] + x[4:6], [0, 1, 4, 5], GNSS_STATES_H, self.error.white(reported_cov_m2))
-
-    def forget(self, x: np.ndarray, P: np.ndarray) -> None:
-        """In place: forget the error states' estimate, keep what the fixes say (gnss_error.forget_errors)."""
-        forget_errors(x, P, self.error)
 
 
 def gnss_model(error: GnssErrorModel | None) -> WhiteGnss | GnssWithErrorStates:

@@ -75,29 +75,6 @@ def observation(n: int) -> np.ndarray:
     return H
 
 
-def forget_errors(x: np.ndarray, P: np.ndarray, model: GnssErrorModel) -> None:
-    """In place: the error states' estimate is forgotten and only what GNSS says is kept. The fixes
-    observe u = position + e; u and its correlations with the rest of the state are kept, e goes back
-    to 0 at its stationary spread and the position becomes u - e:
-
-        x' = T x,  P' = T P T^T + G sigma_c^2 G^T,  T: [p; e] -> [p + e; 0],  G = [-I; I]
-
-    What the filter learnt about e came from outside GNSS (neighbours' fixes, a known map); a vehicle
-    that finds such a source lying must not keep what it taught the error states, since the fixes
-    then hold the position where the lie put it. x (n,), P (n, n), n >= 6."""
-    p, e = [0, 1], list(range(FIRST, FIRST + STATES))
-    x[p] += x[e]
-    x[e] = 0.0
-    P[p, :] += P[e, :]
-    P[:, p] += P[:, e]
-    P[e, :] = 0.0
-    P[:, e] = 0.0
-    s2 = model.variance_m2
-    P[p, p] += s2
-    P[e, e] = s2
-    P[p, e] = P[e, p] = -s2
-
-
 def aligned_covariance(pose_cov: np.ndarray, model: GnssErrorModel) -> np.ndarray:
     """Covariance (6, 6) of a state aligned from fixes (pose covariance (3, 3) from the alignment):
     the position then carries the error the fixes shared, e = 0 is as uncertain as e itself and the

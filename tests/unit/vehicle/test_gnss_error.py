@@ -8,7 +8,7 @@ from pydantic import ValidationError
 
 from bus.config import SensorSpec
 from experiments.harness import nees_series_of_filters, pose_nees_series
-from vehicle.models.gnss_error import GnssErrorModel, aligned_covariance, augment_motion, forget_errors, observation
+from vehicle.models.gnss_error import GnssErrorModel, aligned_covariance, augment_motion, observation
 
 pytestmark = pytest.mark.monte_carlo
 
@@ -33,26 +33,6 @@ def test_the_model_decays_to_its_stationary_spread_and_splits_the_reported_noise
     assert np.all(np.linalg.eigvalsh(P[np.ix_([0, 1, 4, 5], [0, 1, 4, 5])]) > 0)
     assert P[0, 4] == pytest.approx(-0.81)  # position error = e + white average, error state error = -e
     assert GnssErrorModel.from_spec(SensorSpec()) is None  # the default datasheet calls GNSS white
-
-
-def test_forgetting_the_error_states_keeps_what_the_fixes_say_and_nothing_else():
-    """A vehicle dragged by a lying neighbour holds the drag in its error states (the fixes then keep
-    the position where the lie put it): forgetting them keeps u = position + e, its covariance and its
-    correlations with the heading, and puts e back to 0 at its stationary spread."""
-    model = GnssErrorModel(0.9, 60.0, 1.5)
-    rng = np.random.default_rng(3)
-    A = rng.normal(size=(7, 7))
-    P, x = A @ A.T * 0.1, np.array([10.0, 20.0, 0.3, 0.01, 2.5, -1.5, 4.0])  # dragged: e = (2.5, -1.5)
-    H = observation(7)
-    u, P_u, cov_u_heading = H @ x, H @ P @ H.T, H @ P[:, 2]
-    forget_errors(x, P, model)
-    np.testing.assert_allclose(H @ x, u)
-    np.testing.assert_allclose(H @ P @ H.T, P_u, atol=1e-12)
-    np.testing.assert_allclose(H @ P[:, 2], cov_u_heading, atol=1e-12)
-    np.testing.assert_allclose(x[[0, 1, 4, 5]], [12.5, 18.5, 0.0, 0.0])  # the position where the fixes say
-    np.testing.assert_allclose(P[4:6, 4:6], 0.81 * np.eye(2))
-    np.testing.assert_allclose(P[4:6, [2, 3, 6]], 0.0)  # e knows nothing of the rest any more
-    assert np.allclose(P, P.T) and np.linalg.eigvalsh(P).min() > 0.0
 
 
 def test_the_datasheet_refuses_a_correlated_part_larger_than_the_total():
