@@ -180,10 +180,19 @@ def run_liar(
 
 def honest_rmse(run_dir: Path) -> float | None:
     """Position RMSE (m) of every vehicle but the liar, from LIE_START_S on."""
+    return _rmse_from_lie(run_dir, liar=False)
+
+
+def liar_rmse(run_dir: Path) -> float | None:
+    """Position RMSE (m) of the liar's own estimate (its MAVLink stays honest), from LIE_START_S on."""
+    return _rmse_from_lie(run_dir, liar=True)
+
+
+def _rmse_from_lie(run_dir: Path, *, liar: bool) -> float | None:
     metrics = load_run(run_dir).metrics
     if not metrics:
         return None
-    keep = (metrics["vehicle"] != LIAR) & (metrics["t_s"] >= LIE_START_S)
+    keep = ((metrics["vehicle"] == LIAR) == liar) & (metrics["t_s"] >= LIE_START_S)
     return float(np.sqrt(np.mean(metrics["err_pos_m"][keep] ** 2))) if keep.any() else None
 
 
@@ -226,11 +235,12 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
     for key in order:
         condition = groups[key].condition
         rows = [(c, p) for c, p in runs.items() if c.group == key]
-        ratios, delays, detected, falsely, by_liar = [], [], 0, 0, 0
+        ratios, delays, detected, falsely, by_liar, own = [], [], 0, 0, 0, []
         for case, path in rows:
             rmse = honest_rmse(path)
             if rmse is not None and clean.get(case.seed):
                 ratios.append(rmse / clean[case.seed])
+            own += [r for r in [liar_rmse(path)] if r is not None]
             events = distrust_events(path)
             liar_events = {e["vehicle"]: e["t_s"] for e in reversed(events) if e.get("neighbour") == LIAR}
             lie = condition in PROFILES
@@ -252,6 +262,7 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
             "detection_s_max": round(float(np.max(finite)), 2) if finite else None,
             "false_alarms": falsely,
             "false_alarms_by_the_liar": by_liar,  # the liar distrusting honest neighbours (its own loss)
+            "liar_own_rmse_m_mean": round(float(np.mean(own)), 3) if own else None,  # its honest estimate's error
         }
     return table
 

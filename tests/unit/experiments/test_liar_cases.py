@@ -1,12 +1,15 @@
 """The liar experiment's cases: the spoofer of the ``spoofed`` profile spoofs the liar and nobody
-else, and the oracle rows cut the liar's V2V at the delay asked for."""
+else, and the oracle rows cut the liar's V2V at the delay asked for; the summary scores what the
+runs wrote."""
+
+import json
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from cli.main import app
-from experiments.liar import DURATION_S, LIAR, LIE_START_S, Case, cases, liar_config
+from experiments.liar import DURATION_S, LIAR, LIE_START_S, Case, cases, liar_config, rangers_of_liar, summarize
 from sim.world import World
 
 
@@ -45,3 +48,30 @@ def test_a_bad_oracle_delay_is_refused_in_one_line(tmp_path, value, said):
     result = CliRunner().invoke(app, ["experiment", "liar", "--out", str(tmp_path), "--silenced", value])
     assert result.exit_code == 1 and said in result.output and len(result.output.strip().splitlines()) == 1
     assert not any(tmp_path.iterdir())  # refused before anything flew
+
+
+def _run(path, errors: dict[int, float], events: list[dict]):
+    """A run directory with a constant position error per vehicle every second and these events."""
+    path.mkdir()
+    rows = ["t_s,vehicle,err_pos_m"] + [f"{t}.0,{v},{e}" for t in range(60) for v, e in errors.items()]
+    (path / "metrics.csv").write_text("\n".join(rows) + "\n")
+    (path / "events.jsonl").write_text("".join(json.dumps(e) + "\n" for e in events))
+    return path
+
+
+def test_the_summary_scores_honest_vehicles_the_liar_and_false_alarms_apart(tmp_path):
+    honest, rangers = dict.fromkeys(range(1, 9), 0.2), [v for v in rangers_of_liar(1) if v != LIAR]
+    distrust = [{"event": "neighbour_distrusted", "t_s": 12.0, "vehicle": v, "neighbour": LIAR} for v in rangers]
+    distrust += [
+        {"event": "neighbour_distrusted", "t_s": 20.0, "vehicle": 4, "neighbour": 5},  # an honest one accused
+        {"event": "neighbour_distrusted", "t_s": 21.0, "vehicle": LIAR, "neighbour": 2},  # by the liar itself
+    ]
+    runs = {
+        Case("clean", False, 1): _run(tmp_path / "clean", honest, []),
+        Case("gross", True, 1): _run(tmp_path / "gross", {**dict.fromkeys(range(1, 9), 0.3), LIAR: 0.5}, distrust),
+    }
+    row = summarize(runs)["conditions"]["gross-defended"]
+    assert row["honest_rmse_vs_clean_mean"] == pytest.approx(1.5)  # the liar's own error left out
+    assert row["liar_own_rmse_m_mean"] == pytest.approx(0.5)
+    assert row["false_alarms"] == 2 and row["false_alarms_by_the_liar"] == 1
+    assert row["rangers_that_distrusted_the_liar"] == f"{len(rangers)} of {len(rangers)}"
