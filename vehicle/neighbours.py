@@ -44,6 +44,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -136,12 +137,12 @@ class Verdict:
 
 
 def fix_of(
-    t_us: int, result: UpdateResult, claimed_cov_m2: np.ndarray | None = None, own_jacobian: np.ndarray | None = None
+    t_us: int, result: UpdateResult, claimed_cov_m2: np.ndarray | None = None, own_jacobian: Sequence | None = None
 ) -> Fix | None:
     """The monitor's record of a fix from its update result (None when it did not say its innovation);
-    ``claimed_cov_m2`` (2, 2): the neighbour's claimed position covariance; ``own_jacobian`` (2, 2):
-    J = d h / d(own position) of the fix's prediction h, kept whitened (the innovation moves by -J d
-    when the vehicle moves by d: ``disagreement``)."""
+    ``claimed_cov_m2`` (2, 2): the neighbour's claimed position covariance; ``own_jacobian`` (2 x 2,
+    indexed [row][column]): J = d h / d(own position) of the fix's prediction h, kept whitened (the
+    innovation moves by -J d when the vehicle moves by d: ``disagreement``)."""
     if result.innovation is None or result.innovation_cov is None:
         return None
     whitened = whiten(result.innovation, result.innovation_cov)
@@ -149,7 +150,9 @@ def fix_of(
     innovation = tuple(result.innovation[:2])
     shift = (0.0, 0.0, 0.0, 0.0)
     if own_jacobian is not None:
-        (g00, g10), (g01, g11) = (whiten(tuple(column), result.innovation_cov) for column in own_jacobian.T.tolist())
+        (j00, j01), (j10, j11) = own_jacobian
+        g00, g10 = whiten((j00, j10), result.innovation_cov)
+        g01, g11 = whiten((j01, j11), result.innovation_cov)
         shift = (g00, g01, g10, g11)
     return Fix(t_us, result.nis, whitened, not result.accepted, innovation, claimed, result.accepted, shift)
 

@@ -375,7 +375,7 @@ class Filter:
         does not pass the pull on as certain)."""
         s = self.state
         claimed = fix.neighbour_cov_m2 if isinstance(fix, CooperativeFix) else fix.observer_cov[:2, :2]
-        jacobian = np.eye(2) if self.cooperative.fusion == "paper" else fix.own_jacobian(s.x)
+        jacobian = ((1.0, 0.0), (0.0, 1.0)) if self.cooperative.fusion == "paper" else fix.own_jacobian(s.x)
         observed = fix_of(fix.stamp_us, result, claimed, jacobian)
         if observed is None:
             return s.neighbours.trusts(neighbour)

@@ -74,9 +74,13 @@ class CooperativeFix:
     def implied(self, x: np.ndarray, P_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         return implied_position(x, P_pp, self)
 
-    def own_jacobian(self, x: np.ndarray) -> np.ndarray:
-        """d h / d(own position) (2, 2) at state x (n,)."""
-        return relative_model(x[:3], self.neighbour_xy_m)[1][:, :2]
+    def own_jacobian(self, x: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]]:
+        """d h / d(own position), 2 x 2 by rows, at state x (n,) (relative_model's H[:, :2], on floats)."""
+        (nx, ny), (px, py) = self.neighbour_xy_m.tolist(), x[:2].tolist()
+        dx, dy = nx - px, ny - py
+        r2 = max(dx * dx + dy * dy, 1e-6)
+        r = math.sqrt(r2)
+        return (-dx / r, -dy / r), (dy / r2, -dx / r2)
 
 
 @dataclass(frozen=True)
@@ -112,9 +116,13 @@ class SeenFix:
         H_o = np.array([[-dx / r, -dy / r, 0.0], [dy / r2, -dx / r2, -1.0]])
         return y, H, _sym(self.covariance), _sym(H_o @ self.observer_cov @ H_o.T)
 
-    def own_jacobian(self, x: np.ndarray) -> np.ndarray:
-        """d h / d(own position) (2, 2) at state x (n,)."""
-        return self.linearized(x)[1][:, :2]
+    def own_jacobian(self, x: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]]:
+        """d h / d(own position), 2 x 2 by rows, at state x (n,) (``linearized``'s H[:, :2], on floats)."""
+        (ox, oy), (px, py) = self.observer_pose[:2].tolist(), x[:2].tolist()
+        dx, dy = px - ox, py - oy
+        r2 = max(dx * dx + dy * dy, 1e-6)
+        r = math.sqrt(r2)
+        return (dx / r, dy / r), (-dy / r2, dx / r2)
 
     def implied(self, x: np.ndarray, P_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The paper's form: own position as the sighting implies it, p = p_o + r [cos, sin](theta_o +
