@@ -12,7 +12,9 @@ shape: a state, process and measurement models, a filter that takes them).
 - ``errors``: the sighting's persisting errors as states (vehicle.models.sighting_errors), if any;
 - ``sightings``: what the filter does with landmark sightings and camera frames (none, a surveyed
   map: ``known_map``, a SLAM map: ``ekf_slam``);
-- ``divergence``: how a diverged state is detected and recovered from.
+- ``divergence``: how a diverged state is detected and recovered from;
+- ``trust``: what the filter does with its neighbour monitor (vehicle.estimators.trust), None with
+  the monitor off.
 
 The common flow, the same for every estimator: a prior (or, after a restart in flight, the GNSS
 track) initialises the state; inputs are held and integrated between propagations (one per loop
@@ -40,41 +42,19 @@ from bus.statistics import gate_threshold
 from bus.topics import Topic
 from vehicle.adaptive import NoiseAdaptation
 from vehicle.alignment import GnssAlignment
-from vehicle.estimators.state import EstimatorCounters, FilterState
+from vehicle.estimators.state import SEVERITY_INFO, SEVERITY_WARNING, EstimatorCounters, FilterState, Notice
+from vehicle.estimators.trust import NeighbourTrust
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 from vehicle.inputs import HeldInput, VisualMotion, swept
-from vehicle.kalman import UpdateResult
 from vehicle.models import unicycle
 from vehicle.models.cooperative import CooperativeFix, CooperativeRule, SeenFix
-from vehicle.neighbours import (
-    MonitorSpec,
-    Verdict,
-    disagreement,
-    fix_of,
-    plausible,
-    pull_m2,
-    refused,
-    see,
-    smallest_variance,
-)
+from vehicle.neighbours import MonitorSpec
 from vehicle.wheel_slip import SlipGuard
 
 GYRO_STALE_PERIODS = 5
 VISUAL_STALE_US = 500_000  # visual odometry this old no longer gives the yaw rate (the gyro does)
-SEVERITY_WARNING, SEVERITY_INFO = 4, 6  # MAV_SEVERITY of a notice
 
 Reject = Callable[[str, str, str], None]
-
-
-@dataclasses.dataclass(frozen=True)
-class Notice:
-    """Something the vehicle should say (STATUSTEXT), stamped in sim time; ``status_changed`` asks
-    for an ESTIMATOR_STATUS at once (GNSS health)."""
-
-    stamp_us: int
-    severity: int
-    text: str
-    status_changed: bool = False
 
 
 class Filter:
@@ -102,7 +82,7 @@ class Filter:
         self.name, self.vehicle_id, self.spec = name, vehicle_id, spec
         self.gnss, self.motion, self.update, self.store = gnss, motion, update, store
         self.divergence, self.errors, self.sightings = divergence, errors, sightings
-        self.cooperative, self.monitor = cooperative, monitor
+        self.cooperative, self.trust = cooperative, None if monitor is None else NeighbourTrust(monitor)
         self.gate = gate_threshold(2, gate_probability)
         self.gate_probability = gate_probability
         self._adaptive_window = adaptive_window
@@ -323,7 +303,8 @@ class Filter:
         y, HPH = fix.position_m - observed.predicted, H @ s.P @ H.T
         R = observed.R if s.iae is None else s.iae.adapt(Topic.GNSS, y, HPH, observed.R)
         fix = dataclasses.replace(fix, covariance_m2=R)  # from here on: the white part, or IAE's
-        verdict = s.gnss_health.check(fix.stamp_us, y, HPH + R, R, partial(self._neighbours_allow, fix.stamp_us))
+        may_reset = None if self.trust is None else partial(self.trust.allows_reset, self, fix.stamp_us)
+        verdict = s.gnss_health.check(fix.stamp_us, y, HPH + R, R, may_reset)
         if verdict.reset_offset_m is not None:
             self.reset_position(verdict.reset_offset_m, verdict.reset_variance_m2)
         if not verdict.fuse:
@@ -334,16 +315,6 @@ class Filter:
             s, fix.position_m - observed.predicted, observed.H, fix.covariance_m2, self.gate, observed.idx
         )
         s.counters.gnss_accepted += 1
-
-    def _neighbours_allow(self, stamp_us: int, offset_m: np.ndarray) -> bool:
-        """Whether the believed neighbours' recent fixes allow a GNSS position reset by ``offset_m``
-        (2,): a spoofed receiver's fixes agree with each other and pass the reset's own tests, but
-        not with neighbours that range the vehicle where it is (``vehicle.neighbours.disagreement``
-        below the reset's chi-square bound)."""
-        if self.monitor is None:
-            return True
-        limit = gate_threshold(2, self.state.gnss_health.spec.reset_probability)
-        return disagreement(self.state.neighbours, self.monitor, offset_m, stamp_us) <= limit
 
     def _cooperative_update(self, fix: CooperativeFix | SeenFix) -> bool:
         """One neighbour fix by the vehicle's cooperative rule (vehicle.models.cooperative), its radio
@@ -357,45 +328,14 @@ class Filter:
         errors = None if self.errors is None else self.errors.of_fix(self, fix)  # may grow the state: first
         unscented = self.update.unscented_fixes
         correction, result = self.cooperative.fuse(s.x, s.P, fix, self.gate, unscented, adapt, errors)
-        if self.monitor is not None:
-            believed = self._judge(neighbour, fix, result)
+        if self.trust is not None:
+            believed = self.trust.judge(self, neighbour, fix, result)
         if not believed:
             s.counters.v2v_distrusted += 1
             return False
         if correction is not None:
             self.store.correct(s, correction)
         return result.accepted
-
-    def _judge(self, neighbour: int, fix: CooperativeFix | SeenFix, result: UpdateResult) -> bool:
-        """Hand the fix to the neighbour monitor (vehicle.neighbours); True when it may be fused (the
-        neighbour believed and the fix's claimed covariance plausible). A neighbour found lying has
-        been pulling this vehicle while it was believed: the position's variance grows by as much as
-        the innovations of its fused fixes say the pull may be (as process noise: the correlations
-        are kept), so that GNSS and the honest neighbours can pull it back (and its own broadcast
-        does not pass the pull on as certain)."""
-        s = self.state
-        claimed = fix.neighbour_cov_m2 if isinstance(fix, CooperativeFix) else fix.observer_cov[:2, :2]
-        jacobian = ((1.0, 0.0), (0.0, 1.0)) if self.cooperative.fusion == "paper" else fix.own_jacobian(s.x)
-        observed = fix_of(fix.stamp_us, result, claimed, jacobian)
-        if observed is None:
-            return s.neighbours.trusts(neighbour)
-        s.neighbours.own_best_m2 = min(s.neighbours.own_best_m2, smallest_variance(s.P[:2, :2]))
-        verdict = see(s.neighbours, self.monitor, neighbour, observed)
-        believed = s.neighbours.trusts(neighbour) and plausible(s.neighbours, self.monitor, neighbour)
-        if not believed:
-            refused(s.neighbours, neighbour)
-        if verdict is not None:
-            if not verdict.trusted:
-                since = fix.stamp_us - round(self.monitor.window_s * 1e6)
-                pull = pull_m2(s.neighbours.records[neighbour], since, fix.range_m)
-                self.store.inflate(s, [0, 1], np.full(2, pull))
-            self._say(verdict)
-        return believed
-
-    def _say(self, verdict: Verdict) -> None:
-        """A neighbour's trust changed: a STATUSTEXT (the ground station makes it an event)."""
-        word, severity = ("trust", SEVERITY_INFO) if verdict.trusted else ("distrust", SEVERITY_WARNING)
-        self.notice(Notice(verdict.stamp_us, severity, f"{word} v{verdict.neighbour}: {verdict.reason}"))
 
     def reset_position(self, offset_m: np.ndarray, variance_m2: float) -> None:
         """Jump the position by ``offset_m`` (2,) with per-axis variance ``variance_m2``; decorrelate it."""

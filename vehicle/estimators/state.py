@@ -34,6 +34,19 @@ from vehicle.wheel_slip import SlipGuard
 
 T = TypeVar("T")
 _IMMUTABLE = (int, float, complex, str, bytes, bool, tuple, frozenset, type(None))
+SEVERITY_WARNING, SEVERITY_INFO = 4, 6  # MAV_SEVERITY of a notice
+
+
+@dataclass(frozen=True)
+class Notice:
+    """Something the vehicle should say (STATUSTEXT), stamped in sim time; ``status_changed`` asks
+    for an ESTIMATOR_STATUS at once (GNSS health). Given once, on the estimator: a replay does not
+    undo it."""
+
+    stamp_us: int
+    severity: int
+    text: str
+    status_changed: bool = False
 
 
 @dataclass

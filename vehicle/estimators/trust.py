@@ -1,0 +1,77 @@
+"""What the filter does with its neighbour monitor (the pure tests are vehicle.neighbours): each
+neighbour fix is judged before it is fused, a verdict against a neighbour undoes what it may have
+pulled and is said in a notice, and the believed neighbours have a say on the vehicle's own GNSS
+position resets. A part of ``Filter`` (``Filter.trust``; None with the monitor off); the record it
+keeps lives in ``FilterState.neighbours``, so a fusion-horizon replay restores it."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from bus.statistics import gate_threshold
+from vehicle.estimators.state import SEVERITY_INFO, SEVERITY_WARNING, Notice
+from vehicle.kalman import UpdateResult
+from vehicle.models.cooperative import CooperativeFix, SeenFix
+from vehicle.neighbours import (
+    MonitorSpec,
+    Verdict,
+    disagreement,
+    fix_of,
+    plausible,
+    pull_m2,
+    refused,
+    see,
+    smallest_variance,
+)
+
+if TYPE_CHECKING:
+    from vehicle.estimators.filter import Filter
+
+IDENTITY = ((1.0, 0.0), (0.0, 1.0))
+
+
+class NeighbourTrust:
+    def __init__(self, spec: MonitorSpec) -> None:
+        self.spec = spec
+
+    def judge(self, f: Filter, neighbour: int, fix: CooperativeFix | SeenFix, result: UpdateResult) -> bool:
+        """Hand the fix to the neighbour monitor; True when it may be fused (the neighbour believed and
+        the fix's claimed covariance plausible). A neighbour found lying has been pulling this vehicle
+        while it was believed: the position's variance grows by as much as the innovations of its
+        fused fixes say the pull may be (as process noise: the correlations are kept), so that GNSS
+        and the honest neighbours can pull it back (and its own broadcast does not pass the pull on
+        as certain)."""
+        s = f.state
+        claimed = fix.neighbour_cov_m2 if isinstance(fix, CooperativeFix) else fix.observer_cov[:2, :2]
+        jacobian = IDENTITY if f.cooperative.fusion == "paper" else fix.own_jacobian(s.x)
+        observed = fix_of(fix.stamp_us, result, claimed, jacobian)
+        if observed is None:
+            return s.neighbours.trusts(neighbour)
+        s.neighbours.own_best_m2 = min(s.neighbours.own_best_m2, smallest_variance(s.P[:2, :2]))
+        verdict = see(s.neighbours, self.spec, neighbour, observed)
+        believed = s.neighbours.trusts(neighbour) and plausible(s.neighbours, self.spec, neighbour)
+        if not believed:
+            refused(s.neighbours, neighbour)
+        if verdict is not None:
+            if not verdict.trusted:
+                since = fix.stamp_us - round(self.spec.window_s * 1e6)
+                pull = pull_m2(s.neighbours.records[neighbour], since, fix.range_m)
+                f.store.inflate(s, [0, 1], np.full(2, pull))
+            f.notice(notice_of(verdict))
+        return believed
+
+    def allows_reset(self, f: Filter, stamp_us: int, offset_m: np.ndarray) -> bool:
+        """Whether the believed neighbours' recent fixes allow a GNSS position reset by ``offset_m``
+        (2,): a spoofed receiver's fixes agree with each other and pass the reset's own tests, but
+        not with neighbours that range the vehicle where it is (``vehicle.neighbours.disagreement``
+        within the reset's chi-square bound)."""
+        limit = gate_threshold(2, f.state.gnss_health.spec.reset_probability)
+        return disagreement(f.state.neighbours, self.spec, offset_m, stamp_us) <= limit
+
+
+def notice_of(verdict: Verdict) -> Notice:
+    """A neighbour's trust changed: a STATUSTEXT (the ground station makes it an event)."""
+    word, severity = ("trust", SEVERITY_INFO) if verdict.trusted else ("distrust", SEVERITY_WARNING)
+    return Notice(verdict.stamp_us, severity, f"{word} v{verdict.neighbour}: {verdict.reason}")
