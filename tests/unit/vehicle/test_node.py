@@ -20,9 +20,14 @@ from bus.session import Envelope, LivelinessEvent
 from vehicle.node import VehicleNode
 
 
-def _node(vid: int = 1) -> tuple[VehicleNode, MemoryHub]:
+def _node(vid: int = 1, config: dict | None = None) -> tuple[VehicleNode, MemoryHub]:
+    """A vehicle node on an in-memory bus, of the default swarm or of ``config`` (build_config's input)."""
     hub = MemoryHub()
-    return VehicleNode(hub.connect("vehicle"), SwarmConfig().for_vehicle(), vid), hub
+    swarm = SwarmConfig() if config is None else build_config(config)
+    return VehicleNode(hub.connect("vehicle"), swarm.for_vehicle(), vid), hub
+
+
+REALTIME = {"clock": {"mode": "realtime"}}
 
 
 def _batch(vid: int, tick: int, stamp_us: int, blocks: dict) -> bytes:
@@ -264,8 +269,7 @@ def test_realtime_a_flood_of_messages_delays_filing_never_a_cycle():
 
     from vehicle.loops import run_realtime
 
-    hub = MemoryHub()
-    node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": "realtime"}}).for_vehicle(), 1)
+    node, hub = _node(1, REALTIME)
     keys = node.bus.keys
     world, neighbours = node.mailbox.lanes
     world.put(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, wall.time_ns() - 10**9, False))))  # cycle 0 is long due
@@ -292,8 +296,7 @@ def test_realtime_the_final_tick_ends_the_loop_after_the_cycles_up_to_its_stamp(
 
     from vehicle.loops import run_realtime
 
-    hub = MemoryHub()
-    node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": "realtime"}}).for_vehicle(), 1)
+    node, hub = _node(1, REALTIME)
     keys = node.bus.keys
     acks = queue.Queue()
     hub.add_subscription(keys.ack(1), acks)
@@ -318,8 +321,7 @@ def test_realtime_a_late_loop_files_the_queued_batches_before_cycling():
 
     from vehicle.loops import run_realtime
 
-    hub = MemoryHub()
-    node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": "realtime"}}).for_vehicle(), 1)
+    node, hub = _node(1, REALTIME)
     keys = node.bus.keys
     long_ago = wall.time_ns() - 10**9  # every deadline of this run is past
     for item in (
@@ -382,8 +384,7 @@ def test_lockstep_a_status_counts_the_cycle_it_follows():
 
     from vehicle.loops import run_lockstep
 
-    hub = MemoryHub()
-    node = VehicleNode(hub.connect("vehicle"), build_config({"world": {"vehicles": 1}}).for_vehicle(), 1)
+    node, hub = _node(1, {"world": {"vehicles": 1}})
     keys = node.bus.keys
     statuses = queue.Queue()
     hub.add_subscription(keys.status(1), statuses)
