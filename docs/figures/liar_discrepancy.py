@@ -23,7 +23,7 @@ import numpy as np
 from bus.config import build_config
 from experiments.harness import swarm_in_memory
 from experiments.liar import LIAR, LIE_START_S, Case, liar_config
-from vehicle.estimators import filter as filters
+from vehicle.estimators.trust import NeighbourTrust
 from vehicle.neighbours import Fix
 
 WINDOW_S = 5.0
@@ -44,21 +44,21 @@ def recorded_fixes(condition: str, seed: int) -> dict[tuple[int, int], dict[int,
     horizon replay judges a fix again: the last judgement counts)."""
     out: dict[tuple[int, int], dict[int, tuple[float, float]]] = {}
     nodes: list = []
-    judge = filters.Filter._judge
+    judge = NeighbourTrust.judge
 
-    def recording(self, neighbour, fix, result):
-        believed = judge(self, neighbour, fix, result)
-        observer = next(n.vehicle_id for n in nodes if n.estimator is self)
-        record = self.state.neighbours.records.get(neighbour)
+    def recording(self, f, neighbour, fix, result):
+        believed = judge(self, f, neighbour, fix, result)
+        observer = next(n.vehicle_id for n in nodes if n.estimator is f)
+        record = f.state.neighbours.records.get(neighbour)
         if record is not None and record.fixes and (offset := world_offset(record.fixes[-1])) is not None:
             out.setdefault((observer, neighbour), {})[record.fixes[-1].stamp_us] = offset
         return believed
 
-    filters.Filter._judge = recording
+    NeighbourTrust.judge = recording
     try:
         swarm_in_memory(build_config(liar_config(Case(condition, True, seed))), nodes_out=nodes)
     finally:
-        filters.Filter._judge = judge
+        NeighbourTrust.judge = judge
     return out
 
 
