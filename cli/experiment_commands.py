@@ -185,7 +185,7 @@ def liar(
 ) -> None:
     """A vehicle that lies to its neighbours: 8 vehicles in the honest world, vehicle 3 lying from 10 s
     by each profile, flown with the neighbour monitor on and off next to the clean swarm, plus no-liar
-    runs (clean, GNSS jamming, V2V link faults) to count false alarms. Writes every run and
+    runs (clean, GNSS jamming, jamming that ends, V2V link faults) to count false alarms. Writes every run and
     experiment.json (honest RMSE against clean, detections, false alarms)."""
     from rich.console import Console
 

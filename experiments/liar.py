@@ -12,7 +12,9 @@ in lockstep. From ``LIE_START_S`` vehicle 3 (the liar) tells its neighbours, by 
 
 Each profile flies with the neighbour monitor on and off (``vehicle.neighbour_monitor``), next to the
 clean swarm of the same seed; and the no-liar conditions (clean, GNSS jammed for six vehicles,
-faults on the vehicle-to-vehicle links) fly with the monitor on to count false alarms. Scored on
+faults on the vehicle-to-vehicle links) fly with the monitor on to count false alarms; the same
+jamming ending after ``JAMMING_ENDS_AFTER_S`` flies with the monitor on and off (with no liar there is
+no verdict, so the difference is the neighbours' say on the GNSS resets as the receivers come back). Scored on
 the honest vehicles (all but the liar) from ``LIE_START_S`` to the end. Detection: for each vehicle
 that ranged the liar after the lie began (read off the pure world of the same seed), the time from
 its first such ranging to its first ``neighbour_distrusted`` event about the liar (the ground
@@ -53,7 +55,8 @@ V2V_LINK_FAULTS = [
     {"kind": "reorder", "dst": "v*", "topic": "mavlink", "percent": 10.0, "gap_s": 0.05},
 ]
 PROFILES = ("gross", "drift", "overconfident", "spoofed")
-CONTROLS = ("clean", "jamming", "links")
+CONTROLS = ("clean", "jamming", "jamming-ends", "links")
+JAMMING_ENDS_AFTER_S = 20.0
 
 
 @dataclass(frozen=True)
@@ -83,6 +86,7 @@ def cases(seeds: list[int], profiles: tuple[str, ...] = PROFILES, silenced: tupl
     out = []
     for seed in seeds:
         out += [Case("clean", True, seed), Case("clean", False, seed), Case("jamming", True, seed)]
+        out += [Case("jamming-ends", True, seed), Case("jamming-ends", False, seed)]
         out += [Case("links", True, seed)]
         out += [Case(p, d, seed) for p in profiles for d in (True, False)]
         out += [Case(p, False, seed, after) for p in profiles for after in silenced]
@@ -106,9 +110,10 @@ def liar_config(case: Case) -> SwarmConfig:
                 "start_s": LIE_START_S,
             }
         )
-    elif case.condition == "jamming":
+    elif case.condition in ("jamming", "jamming-ends"):
+        length = {"for_s": JAMMING_ENDS_AFTER_S} if case.condition == "jamming-ends" else {}
         faults += [
-            {"name": f"jam-v{v}", "kind": "blackout", "vehicle": v, "sensor": "gnss", "start_s": LIE_START_S}
+            {"name": f"jam-v{v}", "kind": "blackout", "vehicle": v, "sensor": "gnss", "start_s": LIE_START_S, **length}
             for v in range(1, 7)
         ]
     elif case.condition == "links":

@@ -9,7 +9,17 @@ import pytest
 from typer.testing import CliRunner
 
 from cli.main import app
-from experiments.liar import DURATION_S, LIAR, LIE_START_S, Case, cases, liar_config, rangers_of_liar, summarize
+from experiments.liar import (
+    DURATION_S,
+    JAMMING_ENDS_AFTER_S,
+    LIAR,
+    LIE_START_S,
+    Case,
+    cases,
+    liar_config,
+    rangers_of_liar,
+    summarize,
+)
 from sim.world import World
 
 
@@ -41,6 +51,17 @@ def test_the_oracle_cuts_the_liars_broadcasts_at_the_delay_asked_for():
     assert len(cut) == 1 and cut[0].src == f"v{LIAR}" and cut[0].dst == "v*" and cut[0].percent == 100.0
     assert cut[0].start_s == LIE_START_S + 5.0 and not liar_config(silenced[1]).vehicle.neighbour_monitor
     assert any(f.kind == "lie" for f in faults)
+
+
+def test_the_jamming_that_ends_flies_with_the_monitor_on_and_off_and_ends():
+    """The control for the neighbours' say on GNSS resets: the same six blackouts as the jamming
+    control, ended, with the monitor on and off (no liar: no verdict, only the say differs)."""
+    ended = [c for c in cases([1]) if c.condition == "jamming-ends"]
+    assert sorted(c.defence for c in ended) == [False, True]
+    jammed, ending = (liar_config(Case(k, True, 1)).faults for k in ("jamming", "jamming-ends"))
+    assert [(f.vehicle, f.start_s) for f in ending] == [(f.vehicle, f.start_s) for f in jammed]
+    assert all(f.for_s is None for f in jammed) and all(f.for_s == JAMMING_ENDS_AFTER_S for f in ending)
+    assert LIE_START_S + JAMMING_ENDS_AFTER_S < DURATION_S  # the receivers come back inside the run
 
 
 @pytest.mark.parametrize(("value", "said"), [("soon", "not a number"), ("-1", "outside"), ("51", "outside")])
