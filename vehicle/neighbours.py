@@ -192,9 +192,7 @@ def disagreement(book: NeighbourBook, spec: MonitorSpec, offset_m: np.ndarray, n
             g00, g01, g10, g11 = f.shift
             m0, m1 = f.whitened[0] - (g00 * d0 + g01 * d1), f.whitened[1] - (g10 * d0 + g11 * d1)
             change += m0 * m0 + m1 * m1 - f.whitened[0] ** 2 - f.whitened[1] ** 2
-        span_s = (fixes[-1].stamp_us - fixes[0].stamp_us) * 1e-6
-        n_eff = min(float(len(fixes)), 1.0 + span_s / spec.decorrelation_s)
-        total += change * n_eff / len(fixes)
+        total += change * effective_count(fixes, spec.decorrelation_s) / len(fixes)
     return total
 
 
@@ -237,11 +235,18 @@ def window_stats(record: NeighbourRecord, since_us: int, decorrelation_s: float 
     clipped = [_clip(f.whitened) for f in finite]
     m0 = sum(w0 for w0, _ in clipped) / len(clipped)
     m1 = sum(w1 for _, w1 in clipped) / len(clipped)
-    n_eff = float(len(clipped))
-    if decorrelation_s > 0.0:
-        span_s = (finite[-1].stamp_us - finite[0].stamp_us) * 1e-6
-        n_eff = min(n_eff, 1.0 + span_s / decorrelation_s)
+    n_eff = effective_count(finite, decorrelation_s)
     return WindowStats(len(fixes), len(fixes) - len(passed), mean_nis, n_eff * (m0 * m0 + m1 * m1))
+
+
+def effective_count(fixes: list[Fix], decorrelation_s: float) -> float:
+    """How many independent fixes ``fixes`` (in stamp order, at least one) are worth: at most one per
+    ``decorrelation_s`` of the span they cover (each one when it is 0)."""
+    n = float(len(fixes))
+    if decorrelation_s <= 0.0:
+        return n
+    span_s = (fixes[-1].stamp_us - fixes[0].stamp_us) * 1e-6
+    return min(n, 1.0 + span_s / decorrelation_s)
 
 
 def _clip(w: tuple[float, float]) -> tuple[float, float]:

@@ -33,6 +33,8 @@ IDENTITY = ((1.0, 0.0), (0.0, 1.0))
 
 
 class NeighbourTrust:
+    """The filter's neighbour-monitor part, for the monitor's thresholds ``spec``."""
+
     def __init__(self, spec: MonitorSpec) -> None:
         self.spec = spec
 

@@ -77,10 +77,8 @@ class CooperativeFix:
     def own_jacobian(self, x: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]]:
         """d h / d(own position), 2 x 2 by rows, at state x (n,) (relative_model's H[:, :2], on floats)."""
         (nx, ny), (px, py) = self.neighbour_xy_m.tolist(), x[:2].tolist()
-        dx, dy = nx - px, ny - py
-        r2 = max(dx * dx + dy * dy, 1e-6)
-        r = math.sqrt(r2)
-        return (-dx / r, -dy / r), (dy / r2, -dx / r2)
+        (a, b), (c, d) = _along(nx - px, ny - py)
+        return (-a, -b), (-c, -d)  # own position enters the offset with a minus sign
 
 
 @dataclass(frozen=True)
@@ -119,10 +117,7 @@ class SeenFix:
     def own_jacobian(self, x: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]]:
         """d h / d(own position), 2 x 2 by rows, at state x (n,) (``linearized``'s H[:, :2], on floats)."""
         (ox, oy), (px, py) = self.observer_pose[:2].tolist(), x[:2].tolist()
-        dx, dy = px - ox, py - oy
-        r2 = max(dx * dx + dy * dy, 1e-6)
-        r = math.sqrt(r2)
-        return (dx / r, dy / r), (-dy / r2, dx / r2)
+        return _along(px - ox, py - oy)
 
     def implied(self, x: np.ndarray, P_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The paper's form: own position as the sighting implies it, p = p_o + r [cos, sin](theta_o +
@@ -147,6 +142,13 @@ class Correction:
     C: np.ndarray
     w: float
     cov_xz: np.ndarray | None = None
+
+
+def _along(dx: float, dy: float) -> tuple[tuple[float, float], tuple[float, float]]:
+    """d [range, bearing] / d [dx, dy] of the offset (dx, dy) from observer to target, 2 x 2 by rows."""
+    r2 = max(dx * dx + dy * dy, 1e-6)
+    r = math.sqrt(r2)
+    return (dx / r, dy / r), (-dy / r2, dx / r2)
 
 
 def _sym(A: np.ndarray) -> Sym2:

@@ -279,3 +279,13 @@ def test_neighbours_keep_a_gnss_jammed_vehicle_localized_unless_the_radio_is_jam
     assert helped < 0.5 and helped < alone / 4
     assert cut_off > 2 * helped
     assert anees < 3.0  # CI is conservative: never over-confident
+
+
+def test_the_sensitivity_to_the_own_position_is_the_linearizations():
+    """own_jacobian (floats, for the neighbour monitor) equals the position columns of the H the
+    update linearizes with, for a fix of a neighbour and a neighbour's sighting of this vehicle."""
+    x = np.array([1.0, 2.0, 0.3, 0.0])
+    ranged = CooperativeFix(1, 0, 0, 2, 5.0, 0.1, np.eye(2), np.array([10.0, -5.0]), np.eye(2))
+    seen = SeenFix(1, 0, 0, 2, 5.0, 0.1, np.eye(2), np.array([10.0, -5.0, 0.2]), np.eye(3))
+    np.testing.assert_allclose(ranged.own_jacobian(x), relative_model(x, ranged.neighbour_xy_m)[1][:, :2])
+    np.testing.assert_allclose(seen.own_jacobian(x), seen.linearized(x)[1][:, :2])
