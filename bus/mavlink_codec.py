@@ -1,5 +1,7 @@
-"""MAVLink 2 codec for vehicle state: ODOMETRY (#331), HEARTBEAT (#0), ESTIMATOR_STATUS (#230) and
-STATUSTEXT (#253), with message signing.
+"""MAVLink 2 codec for vehicle state: ODOMETRY (#331), HEARTBEAT (#0), ESTIMATOR_STATUS (#230),
+STATUSTEXT (#253) and a vehicle's accusations (NAMED_VALUE_INT #252 named "distrust", the value a
+neighbour's id: what the vehicle's neighbour monitor distrusts, sent after its V2V ODOMETRY), with
+message signing.
 
 This is the one module that knows MAVLink's layout of a planar estimate: an estimator's
 ``bus.estimate.PoseEstimate`` [x, y, yaw] with its 3 x 3 covariance sits at rows and columns
@@ -41,6 +43,10 @@ FUTURE_TOLERANCE = 6_000_000  # 60 s in 10-us units
 MAX_POSITION_M = 1e7
 MAX_VARIANCE = 1e8  # m^2, rad^2: beyond this an estimate carries no information
 MAX_FRAME_BYTES = 280  # MAVLink 2: 10 header + 255 payload + 2 CRC + 13 signature
+MAX_ACCUSED = 8  # neighbours one V2V broadcast may say its sender distrusts
+ACCUSATION_FRAME_BYTES = 43  # a signed NAMED_VALUE_INT: 10 header + 18 payload + 2 CRC + 13 signature
+MAX_V2V_BYTES = MAX_FRAME_BYTES + MAX_ACCUSED * ACCUSATION_FRAME_BYTES  # ODOMETRY and its accusations
+DISTRUST = "distrust"  # the NAMED_VALUE_INT name of an accusation
 _POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw in ODOMETRY's pose covariance
 NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch (constant altitude, level flight) and the lateral velocities
 _UPPER = np.triu_indices(6)
@@ -96,6 +102,16 @@ class NoEstimate:
 
     vehicle_id: int
     time_usec: int
+
+
+@dataclass(frozen=True)
+class Accusation:
+    """NAMED_VALUE_INT "distrust": vehicle ``vehicle_id`` distrusts ``neighbour`` (its neighbour monitor's
+    own verdict) as of ``time_boot_ms`` (the V2V epoch in ms, modulo 2^32)."""
+
+    vehicle_id: int
+    time_boot_ms: int
+    neighbour: int
 
 
 @dataclass(frozen=True)
@@ -275,6 +291,11 @@ class MavlinkEncoder:
     def statustext(self, severity: int, text: str) -> bytes:
         return self._pack(self._mav.statustext_encode(severity, text.encode()[:50]))
 
+    def accusation(self, time_usec: int, neighbour: int) -> bytes:
+        """NAMED_VALUE_INT "distrust" = ``neighbour`` at the epoch ``time_usec`` (ms, modulo 2^32)."""
+        msg = self._mav.named_value_int_encode((time_usec // 1000) % 2**32, DISTRUST.encode(), neighbour)
+        return self._pack(msg)
+
     def heartbeat(self) -> bytes:
         msg = self._mav.heartbeat_encode(
             mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_GENERIC, 0, 0, mavlink2.MAV_STATE_ACTIVE
@@ -317,9 +338,12 @@ class MavlinkDecoder:
         self._stream_timestamps: dict[tuple[int, int, int], int] = {}
         self.rejected: Counter[str] = Counter()
 
-    def decode(self, frame: bytes) -> StateEstimate | NoEstimate | Heartbeat | EstimatorStatus | StatusText | None:
+    def decode(
+        self, frame: bytes
+    ) -> StateEstimate | NoEstimate | Heartbeat | EstimatorStatus | StatusText | Accusation | None:
         """One frame -> StateEstimate (NoEstimate for an ODOMETRY of unknown covariance), Heartbeat,
-        EstimatorStatus, StatusText, or None for other types.
+        EstimatorStatus, StatusText, Accusation (a NAMED_VALUE_INT named "distrust"), or None for
+        other types.
 
         Raises DecodeError for malformed frames, MavlinkRejected for failed authentication.
         """
@@ -345,8 +369,9 @@ class MavlinkDecoder:
                 msg.get_srcSystem(), msg.time_usec, msg.flags, msg.pos_horiz_ratio, msg.pos_horiz_accuracy
             )
         if isinstance(msg, mavlink2.MAVLink_statustext_message):
-            text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode("utf-8", "replace")
-            return StatusText(msg.get_srcSystem(), msg.severity, text.rstrip("\x00"))
+            return StatusText(msg.get_srcSystem(), msg.severity, _text(msg.text))
+        if isinstance(msg, mavlink2.MAVLink_named_value_int_message) and _text(msg.name) == DISTRUST:
+            return Accusation(msg.get_srcSystem(), msg.time_boot_ms, msg.value)
         return None
 
     def _authenticate(self, frame: bytes, sysid: int, compid: int) -> None:
@@ -418,6 +443,12 @@ def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate | NoEs
         reset_counter=msg.reset_counter,
         estimator_type=msg.estimator_type,
     )
+
+
+def _text(field: str | bytes) -> str:
+    """A MAVLink char array as text, without its NUL padding."""
+    raw = field if isinstance(field, str) else bytes(field).decode("utf-8", "replace")
+    return raw.rstrip("\x00")
 
 
 def _usable_covariance(C: np.ndarray) -> bool:

@@ -18,7 +18,8 @@ no verdict, so the difference is the neighbours' say on the GNSS resets as the r
 the honest vehicles (all but the liar) from ``LIE_START_S`` to the end. Detection: for each vehicle
 that ranged the liar after the lie began (read off the pure world of the same seed), the time from
 its first such ranging to its first ``neighbour_distrusted`` event about the liar (the ground
-station stamps events with its clock tick: up to one 0.5 s tick late). A false alarm is any distrust
+station stamps events with its clock tick: up to one 0.5 s tick late), 0 when it distrusted the liar
+on the word of others before it ranged it. A false alarm is any distrust
 of an honest vehicle; those the liar itself raised are counted apart too (a spoofed vehicle that
 distrusts the honest neighbours who could correct it hurts itself, not them).
 """
@@ -240,7 +241,7 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
     for key in order:
         condition = groups[key].condition
         rows = [(c, p) for c, p in runs.items() if c.group == key]
-        ratios, delays, detected, falsely, by_liar, own = [], [], 0, 0, 0, []
+        ratios, delays, detected, falsely, by_liar, own, before = [], [], 0, 0, 0, [], 0
         for case, path in rows:
             rmse = honest_rmse(path)
             if rmse is not None and clean.get(case.seed):
@@ -255,7 +256,8 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
             if lie:
                 expected = {v: t for v, t in rangers[case.seed].items() if v != LIAR}
                 detected += sum(1 for v in expected if v in liar_events)
-                delays += [liar_events[v] - t for v, t in expected.items() if v in liar_events]
+                delays += [max(0.0, liar_events[v] - t) for v, t in expected.items() if v in liar_events]
+                before += sum(1 for v, t in expected.items() if liar_events.get(v, math.inf) < t)
                 delays += [math.inf for v in expected if v not in liar_events]
         finite = [d for d in delays if math.isfinite(d)]
         table["conditions"][key] = {
@@ -263,6 +265,7 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
             "honest_rmse_vs_clean_mean": round(float(np.mean(ratios)), 4) if ratios else None,
             "honest_rmse_vs_clean_max": round(float(np.max(ratios)), 4) if ratios else None,
             "rangers_that_distrusted_the_liar": f"{len(finite)} of {len(delays)}" if delays else None,
+            "distrusted_before_ranging_it": before,  # on the others' word: detection 0
             "detection_s_median": round(float(np.median(finite)), 2) if finite else None,
             "detection_s_max": round(float(np.max(finite)), 2) if finite else None,
             "false_alarms": falsely,

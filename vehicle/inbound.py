@@ -19,7 +19,7 @@ from bus.faults import Lie
 from bus.keys import KeySpace
 from bus.link_faults import Arrival, LinkFaultStage
 from bus.mailbox import Oversized
-from bus.mavlink_codec import MAX_FRAME_BYTES, frame_header
+from bus.mavlink_codec import MAX_V2V_BYTES, frame_header
 from bus.plan import FaultPlan, decode_json
 from bus.rejections import Rejections
 from bus.session import Envelope
@@ -176,7 +176,7 @@ class Inbound:
     def _v2v(self, item: Envelope, sender: int) -> list[Delivery]:
         """A neighbour's ODOMETRY frame: counted as heard, then through link faults."""
         frame = item.payload
-        header = frame_header(frame) if len(frame) <= MAX_FRAME_BYTES else None
+        header = frame_header(frame) if len(frame) <= MAX_V2V_BYTES else None
         if header is None or header[2] != ODOMETRY_ID or header[3] is None:
             self.rejections.reject("malformed" if header is None else "unexpected", item.key, "not an ODOMETRY frame")
             return []

@@ -65,6 +65,7 @@ class MonitorSpec:
     decorrelation_s: float = 1.0  # fixes closer than this count as one in the bias test (n_eff)
     retrust_s: float = 10.0
     implausible_ratio: float = 0.1  # a claimed position variance below this times the best of the others'
+    quorum: int = 2  # believed vehicles whose broadcasts must accuse a neighbour to distrust it on their word
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,7 @@ class Fix:
     claimed_m2: float = math.inf  # the smallest eigenvalue of the neighbour's claimed position covariance
     fused: bool = True  # False: the gate refused it, or the vehicle did not believe it (``refused``)
     shift: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # G = d w / d(own position), row by row (1/m)
+    range_m: float = 0.0  # the measured range
 
 
 @dataclass(frozen=True)
@@ -100,20 +102,27 @@ class NeighbourRecord:
     distrusted: bool = False
     passing_since_us: int | None = None  # while distrusted: every test has passed since then
     reason: str = ""
+    hearsay: str = ""  # not "": distrusted on the word of others (who accuse it)
 
     def copy(self) -> NeighbourRecord:
-        return NeighbourRecord(deque(self.fixes), self.distrusted, self.passing_since_us, self.reason)
+        return NeighbourRecord(deque(self.fixes), self.distrusted, self.passing_since_us, self.reason, self.hearsay)
+
+    @property
+    def believed(self) -> bool:
+        return not self.distrusted and not self.hearsay
 
 
 @dataclass
 class NeighbourBook:
-    """Every neighbour's record, and the smallest position variance the vehicle has had itself."""
+    """Every neighbour's record, the smallest position variance the vehicle has had itself, and whom
+    each neighbour's latest broadcast accused: {accuser: (stamp us, accused)}."""
 
     records: dict[int, NeighbourRecord] = field(default_factory=dict)
     own_best_m2: float = math.inf
+    accusations: dict[int, tuple[int, frozenset[int]]] = field(default_factory=dict)
 
     def copy(self) -> NeighbourBook:
-        return NeighbourBook({j: r.copy() for j, r in self.records.items()}, self.own_best_m2)
+        return NeighbourBook({j: r.copy() for j, r in self.records.items()}, self.own_best_m2, dict(self.accusations))
 
     def best_claim_m2(self, besides: int) -> float:
         """The smallest position variance this vehicle has had, or any neighbour but ``besides`` has
@@ -123,7 +132,11 @@ class NeighbourBook:
 
     def trusts(self, neighbour: int) -> bool:
         record = self.records.get(neighbour)
-        return record is None or not record.distrusted
+        return record is None or record.believed
+
+    def accused(self) -> tuple[int, ...]:
+        """The neighbours distrusted on the vehicle's own evidence (what its broadcasts say)."""
+        return tuple(sorted(j for j, r in self.records.items() if r.distrusted))
 
 
 @dataclass(frozen=True)
@@ -137,7 +150,11 @@ class Verdict:
 
 
 def fix_of(
-    t_us: int, result: UpdateResult, claimed_cov_m2: np.ndarray | None = None, own_jacobian: Sequence | None = None
+    t_us: int,
+    result: UpdateResult,
+    claimed_cov_m2: np.ndarray | None = None,
+    own_jacobian: Sequence | None = None,
+    range_m: float = 0.0,
 ) -> Fix | None:
     """The monitor's record of a fix from its update result (None when it did not say its innovation);
     ``claimed_cov_m2`` (2, 2): the neighbour's claimed position covariance; ``own_jacobian`` (2 x 2,
@@ -154,7 +171,7 @@ def fix_of(
         g00, g10 = whiten((j00, j10), result.innovation_cov)
         g01, g11 = whiten((j01, j11), result.innovation_cov)
         shift = (g00, g01, g10, g11)
-    return Fix(t_us, result.nis, whitened, not result.accepted, innovation, claimed, result.accepted, shift)
+    return Fix(t_us, result.nis, whitened, not result.accepted, innovation, claimed, result.accepted, shift, range_m)
 
 
 def refused(book: NeighbourBook, neighbour: int) -> None:
@@ -182,7 +199,7 @@ def disagreement(book: NeighbourBook, spec: MonitorSpec, offset_m: np.ndarray, n
     d0, d1 = float(offset_m[0]), float(offset_m[1])
     since, total = now_us - round(spec.window_s * 1e6), 0.0
     for record in book.records.values():
-        if record.distrusted:
+        if not record.believed:
             continue
         fixes = [f for f in record.fixes if f.stamp_us > since and not f.gated_out and math.isfinite(sum(f.whitened))]
         if not fixes:
@@ -196,12 +213,13 @@ def disagreement(book: NeighbourBook, spec: MonitorSpec, offset_m: np.ndarray, n
     return total
 
 
-def pull_m2(record: NeighbourRecord, since_us: int, range_m: float) -> float:
+def pull_m2(record: NeighbourRecord, since_us: int) -> float:
     """How far (squared, m^2) the neighbour's fixes fused since ``since_us`` may have pulled the
-    observer: the squared mean innovation, the bearing's at ``range_m``."""
+    observer: the squared mean innovation, the bearing's at the latest fix's range."""
     fixes = [f for f in record.fixes if f.stamp_us > since_us and f.fused]
     if not fixes:
         return 0.0
+    range_m = record.fixes[-1].range_m
     mean_range = sum(f.innovation[0] for f in fixes) / len(fixes)
     mean_bearing = sum(f.innovation[1] for f in fixes) / len(fixes)
     return mean_range**2 + (mean_bearing * range_m) ** 2
@@ -303,6 +321,36 @@ def see(book: NeighbourBook, spec: MonitorSpec, neighbour: int, fix: Fix) -> Ver
     return None
 
 
+def hear(
+    book: NeighbourBook, spec: MonitorSpec, accuser: int, accused: frozenset[int], t_us: int, me: int
+) -> list[Verdict]:
+    """Record whom ``accuser``'s broadcast at ``t_us`` says its monitor distrusts on its own evidence;
+    a Verdict for each neighbour whose belief changes. A neighbour accused in the latest broadcasts
+    (of the last ``long_window_s``) of at least ``quorum`` vehicles this one believes is distrusted
+    on their word, and trusted again when fewer accuse it (one liar cannot accuse alone; accusations
+    of this vehicle itself, or by the accused, do not count). Only first-hand verdicts are passed
+    on, so a rumour cannot keep itself alive."""
+    if accused:
+        book.accusations[accuser] = (t_us, accused)
+    else:
+        book.accusations.pop(accuser, None)
+    since = t_us - round(spec.long_window_s * 1e6)
+    for j in [j for j, (stamp, _) in book.accusations.items() if stamp <= since]:
+        del book.accusations[j]
+    named = {k for _, who in book.accusations.values() for k in who}
+    verdicts = []
+    for k in sorted((named | {k for k, r in book.records.items() if r.hearsay}) - {me}):
+        accusers = sorted(
+            j for j, (_, who) in book.accusations.items() if k in who and j not in (k, me) and book.trusts(j)
+        )
+        record = book.records.setdefault(k, NeighbourRecord())
+        before = record.believed
+        record.hearsay = "accused by " + ", ".join(f"v{j}" for j in accusers) if len(accusers) >= spec.quorum else ""
+        if record.believed != before:
+            verdicts.append(Verdict(t_us, k, record.believed, record.hearsay or "no longer accused"))
+    return verdicts
+
+
 def plausible(book: NeighbourBook, spec: MonitorSpec, neighbour: int) -> bool:
     """Whether the neighbour's latest fix claims a plausible covariance (the implausibility test on
     one fix): a fix that claims less is not fused, whether or not the neighbour is distrusted yet."""
@@ -328,9 +376,6 @@ def _credible(book: NeighbourBook, spec: MonitorSpec, accused: int, t_us: int) -
     it drags)."""
     since = t_us - round(spec.window_s * 1e6)
     return any(
-        j != accused
-        and not r.distrusted
-        and window_stats(r, since).fixes >= spec.min_fixes
-        and not failure(r, spec, t_us)
+        j != accused and r.believed and window_stats(r, since).fixes >= spec.min_fixes and not failure(r, spec, t_us)
         for j, r in book.records.items()
     )

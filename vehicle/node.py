@@ -23,7 +23,7 @@ from bus.session import Bus, LivelinessEvent, await_subscribers
 from bus.topics import Topic
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
-from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_FRAME_BYTES, MAX_PLAN_BYTES, Delivery, Inbound, Kind
+from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_PLAN_BYTES, MAX_V2V_BYTES, Delivery, Inbound, Kind
 from vehicle.loop_stats import LoopStats
 from vehicle.models.cooperative import SeenFix
 from vehicle.outbound import Outbound
@@ -87,8 +87,8 @@ class VehicleNode:
         bus.subscribe(keys.fault_plan(), world, MAX_PLAN_BYTES)
         bus.subscribe(keys.feed(vehicle_id), world, MAX_BATCH_BYTES)
         if vc.cooperative:  # broadcasts, and (realtime simulation) frames addressed to this vehicle alone
-            bus.subscribe(keys.v2v("*"), neighbours, MAX_FRAME_BYTES)
-            bus.subscribe(keys.v2v_to("*", vehicle_id), neighbours, MAX_FRAME_BYTES)
+            bus.subscribe(keys.v2v("*"), neighbours, MAX_V2V_BYTES)
+            bus.subscribe(keys.v2v_to("*", vehicle_id), neighbours, MAX_V2V_BYTES)
         bus.watch_liveliness(keys.alive("world", "*"), world)
         bus.watch_liveliness(keys.alive("groundstation", "*"), world)
         if vc.cooperative:

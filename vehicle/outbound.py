@@ -1,6 +1,7 @@
 """What a vehicle sends: its signed MAVLink stream (ODOMETRY at ``mavlink_rate_hz``, HEARTBEAT and
 ESTIMATOR_STATUS at 1 Hz, STATUSTEXT for notices), the V2V broadcast at every ranging epoch (its
-estimate, or a NoEstimate ODOMETRY before it has one), its loop statistics and its lockstep
+estimate, or a NoEstimate ODOMETRY before it has one; then an accusation frame per neighbour its
+monitor distrusts on its own evidence), its loop statistics and its lockstep
 acknowledgements. A vehicle told to lie (the ``lie`` fault, bus.lies) changes only its V2V
 broadcast, signed with its own key on a second link: its MAVLink to the ground station stays honest.
 
@@ -16,7 +17,7 @@ from bus.estimate import PoseEstimate
 from bus.faults import Lie
 from bus.landmark_map import LandmarkMap, encode_map
 from bus.lies import active_lies, told
-from bus.mavlink_codec import MavlinkEncoder, odometry_of, status_of
+from bus.mavlink_codec import MAX_ACCUSED, MavlinkEncoder, odometry_of, status_of
 from bus.session import Bus
 from vehicle.estimators.filter import Filter
 
@@ -27,6 +28,7 @@ class Outbound:
         self.vehicle_id, self.altitude_m = vehicle_id, config.altitude_m
         self.encoder = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key)
         self._lie_encoder = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key, link_id=1)
+        self._accuser = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key, link_id=2)
         self.mavlink_publisher = self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
         self.v2v_publisher = self._v2v = bus.publisher(keys.v2v(vehicle_id))
         # the addressed publishers (realtime: every neighbour's, declared up front: a declaration is a
@@ -70,8 +72,9 @@ class Outbound:
             odometry = self.encoder.odometry(odometry_of(pose, altitude_m=self.altitude_m, reset_counter=reset_counter))
             if on_mavlink:
                 self._frames.append(odometry)
-            if on_v2v:  # the V2V packet {id, x_hat, P, t}
-                self._send_v2v(self._v2v_frame(odometry, pose, t_us, reset_counter, lies), listeners)
+            if on_v2v:  # the V2V packet {id, x_hat, P, t}, and whom its monitor distrusts
+                accusations = b"".join(self._accuser.accusation(t_us, j) for j in estimator.accused()[:MAX_ACCUSED])
+                self._send_v2v(self._v2v_frame(odometry, pose, t_us, reset_counter, lies) + accusations, listeners)
         if t_us >= self._next_heartbeat_us:
             self._frames += [self.encoder.heartbeat(), self.encoder.estimator_status(status_of(estimator.health(t_us)))]
             self._next_heartbeat_us = t_us + self._heartbeat_us

@@ -35,7 +35,16 @@ import numpy as np
 from bus import messages as m
 from bus.angles import wrap_angle
 from bus.errors import DecodeError
-from bus.mavlink_codec import MavlinkDecoder, MavlinkRejected, NoEstimate, StateEstimate, pose_of
+from bus.mavlink_codec import (
+    MAX_ACCUSED,
+    Accusation,
+    MavlinkDecoder,
+    MavlinkRejected,
+    NoEstimate,
+    StateEstimate,
+    pose_of,
+    split_frames,
+)
 from bus.rejections import Rejections
 from vehicle.models.cooperative import CooperativeFix, SeenFix
 
@@ -55,6 +64,7 @@ class Broadcast:
     speed_var: float
     yaw_rate_radps: float = 0.0
     yaw_rate_var: float = 0.0
+    accuses: frozenset[int] = frozenset()  # the neighbours its sender's monitor distrusts
 
     def carried(self, dt_us: int) -> tuple[np.ndarray, np.ndarray]:
         """Position (2,) and covariance (2, 2) ``dt_us`` after the broadcast (module docstring);
@@ -128,10 +138,15 @@ class V2V:
         epoch.decoded = len(epoch.frames)
         return epoch.broadcast
 
-    def _decoded(self, sender: int, stamp_us: int, frame: bytes) -> Broadcast | None:
-        """One frame checked: None (counted) if it is not a usable estimate of ``sender`` at ``stamp_us``."""
+    def _decoded(self, sender: int, stamp_us: int, payload: bytes) -> Broadcast | None:
+        """One broadcast checked: None (counted) if it is not a usable estimate of ``sender`` at
+        ``stamp_us`` followed by at most ``MAX_ACCUSED`` accusations of that sender and epoch."""
+        frames, trailing = split_frames(payload)
         try:
-            est = self._decoder.decode(frame)
+            if not frames or trailing or len(frames) > 1 + MAX_ACCUSED:
+                raise DecodeError(f"{len(frames)} MAVLink frames and {trailing} trailing bytes")
+            est = self._decoder.decode(frames[0])
+            accusations = [self._decoder.decode(frame) for frame in frames[1:]]
         except MavlinkRejected as exc:
             self.rejections.reject(exc.reason, f"v2v from {sender}", str(exc))
             return None
@@ -143,9 +158,13 @@ class V2V:
         if not isinstance(est, StateEstimate) or est.vehicle_id != sender or est.time_usec != stamp_us:
             self.rejections.reject("impersonation", f"v2v from {sender}", "sender or stamp differs from the frame's")
             return None
+        accused = _accused(accusations, sender, stamp_us)
+        if accused is None:
+            self.rejections.reject("unexpected", f"v2v from {sender}", "not an accusation by the sender at its epoch")
+            return None
         pose = pose_of(est)
         return Broadcast(
-            pose.pose, pose.pose_cov, pose.speed_mps, pose.speed_var, pose.yaw_rate_radps, pose.yaw_rate_var
+            pose.pose, pose.pose_cov, pose.speed_mps, pose.speed_var, pose.yaw_rate_radps, pose.yaw_rate_var, accused
         )
 
     def hold(self, measurement: m.RangeBearing | m.SeenBy) -> bool:
@@ -187,6 +206,7 @@ class V2V:
                         msg.bearing_rad,
                         msg.covariance,
                         *found.carried_pose(msg.stamp_us - epoch),
+                        found.accuses,
                     )
                 )
             else:
@@ -200,9 +220,22 @@ class V2V:
                         msg.bearing_rad,
                         msg.covariance,
                         *found.carried(msg.stamp_us - epoch),
+                        found.accuses,
                     )
                 )
         return out
+
+
+def _accused(accusations: list, sender: int, stamp_us: int) -> frozenset[int] | None:
+    """The neighbours ``sender``'s accusations at the epoch ``stamp_us`` name (other vehicles, ids
+    1-255); None when one is not such an accusation."""
+    accused = set()
+    for a in accusations:
+        valid = isinstance(a, Accusation) and a.vehicle_id == sender and a.time_boot_ms == (stamp_us // 1000) % 2**32
+        if not (valid and 1 <= a.neighbour <= 255 and a.neighbour != sender):
+            return None
+        accused.add(a.neighbour)
+    return frozenset(accused)
 
 
 def _peer(msg: m.RangeBearing | m.SeenBy) -> int:

@@ -180,6 +180,10 @@ class Filter:
             yaw_rate_var=spec.gyro_sigma_radps**2 + s.P[3, 3],
         )
 
+    def accused(self) -> tuple[int, ...]:
+        """The neighbours the monitor distrusts on the vehicle's own evidence (its broadcasts say so)."""
+        return self.state.neighbours.accused()
+
     def health(self, t_us: int) -> Health:
         """GNSS trusted or not, the larger GNSS test ratio, the 1-sigma horizontal accuracy."""
         h, P = self.state.gnss_health, self.state.P

@@ -1,6 +1,7 @@
 """What the filter does with its neighbour monitor (the pure tests are vehicle.neighbours): each
-neighbour fix is judged before it is fused, a verdict against a neighbour undoes what it may have
-pulled and is said in a notice, and the believed neighbours have a say on the vehicle's own GNSS
+neighbour fix is judged before it is fused, with whom the neighbour's broadcast accuses; a verdict
+against a neighbour (the vehicle's own, or on the word of a quorum of others) undoes what it may
+have pulled and is said in a notice, and the believed neighbours have a say on the vehicle's own GNSS
 position resets. A part of ``Filter`` (``Filter.trust``; None with the monitor off); the record it
 keeps lives in ``FilterState.neighbours``, so a fusion-horizon replay restores it."""
 
@@ -19,6 +20,7 @@ from vehicle.neighbours import (
     Verdict,
     disagreement,
     fix_of,
+    hear,
     plausible,
     pull_m2,
     refused,
@@ -39,29 +41,33 @@ class NeighbourTrust:
         self.spec = spec
 
     def judge(self, f: Filter, neighbour: int, fix: CooperativeFix | SeenFix, result: UpdateResult) -> bool:
-        """Hand the fix to the neighbour monitor; True when it may be fused (the neighbour believed and
-        the fix's claimed covariance plausible). A neighbour found lying has been pulling this vehicle
+        """Hand the fix to the neighbour monitor, with whom the neighbour's broadcast accuses; True when
+        it may be fused (the neighbour believed and the fix's claimed covariance plausible). A
+        neighbour found lying, by this vehicle or on the word of others, has been pulling this vehicle
         while it was believed: the position's variance grows by as much as the innovations of its
         fused fixes say the pull may be (as process noise: the correlations are kept), so that GNSS
         and the honest neighbours can pull it back (and its own broadcast does not pass the pull on
         as certain)."""
         s = f.state
+        book = s.neighbours
+        changes = hear(book, self.spec, neighbour, fix.neighbour_accuses, fix.stamp_us, f.vehicle_id)
         claimed = fix.neighbour_cov_m2 if isinstance(fix, CooperativeFix) else fix.observer_cov[:2, :2]
         jacobian = IDENTITY if f.cooperative.fusion == "paper" else fix.own_jacobian(s.x)
-        observed = fix_of(fix.stamp_us, result, claimed, jacobian)
-        if observed is None:
-            return s.neighbours.trusts(neighbour)
-        s.neighbours.own_best_m2 = min(s.neighbours.own_best_m2, smallest_variance(s.P[:2, :2]))
-        verdict = see(s.neighbours, self.spec, neighbour, observed)
-        believed = s.neighbours.trusts(neighbour) and plausible(s.neighbours, self.spec, neighbour)
-        if not believed:
-            refused(s.neighbours, neighbour)
-        if verdict is not None:
-            if not verdict.trusted:
-                since = fix.stamp_us - round(self.spec.window_s * 1e6)
-                pull = pull_m2(s.neighbours.records[neighbour], since, fix.range_m)
-                f.store.inflate(s, [0, 1], np.full(2, pull))
-            f.notice(notice_of(verdict))
+        observed = fix_of(fix.stamp_us, result, claimed, jacobian, fix.range_m)
+        believed = book.trusts(neighbour)
+        if observed is not None:
+            book.own_best_m2 = min(book.own_best_m2, smallest_variance(s.P[:2, :2]))
+            verdict = see(book, self.spec, neighbour, observed)
+            if verdict is not None and book.trusts(neighbour) != believed:  # else others' word decides
+                changes.append(verdict)
+            believed = book.trusts(neighbour) and plausible(book, self.spec, neighbour)
+            if not believed:
+                refused(book, neighbour)
+        for change in changes:
+            if not change.trusted:
+                since = change.stamp_us - round(self.spec.window_s * 1e6)
+                f.store.inflate(s, [0, 1], np.full(2, pull_m2(book.records[change.neighbour], since)))
+            f.notice(notice_of(change))
         return believed
 
     def allows_reset(self, f: Filter, stamp_us: int, offset_m: np.ndarray) -> bool:

@@ -63,6 +63,7 @@ class CooperativeFix:
     covariance: np.ndarray  # (2, 2) over [range m, bearing rad]
     neighbour_xy_m: np.ndarray  # (2,)
     neighbour_cov_m2: np.ndarray  # (2, 2)
+    neighbour_accuses: frozenset[int] = frozenset()  # whom the neighbour's broadcast says it distrusts
 
     def predicted(self, pose: np.ndarray) -> np.ndarray:
         """[range, bearing] (2,) expected from own pose (3,)."""
@@ -96,6 +97,7 @@ class SeenFix:
     covariance: np.ndarray  # (2, 2) over [range m, bearing rad]
     observer_pose: np.ndarray  # (3,) [x m, y m, yaw rad]
     observer_cov: np.ndarray  # (3, 3)
+    neighbour_accuses: frozenset[int] = frozenset()  # whom the observer's broadcast says it distrusts
 
     def predicted(self, pose: np.ndarray) -> np.ndarray:
         """[range, bearing] (2,) the observer should have seen with this vehicle at ``pose`` (3,)."""

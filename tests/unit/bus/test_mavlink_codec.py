@@ -8,7 +8,9 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from bus.errors import DecodeError
 from bus.mavlink_codec import (
+    ACCUSATION_FRAME_BYTES,
     COMPONENT_ID,
+    Accusation,
     EstimatorStatus,
     Heartbeat,
     MavlinkDecoder,
@@ -228,3 +230,13 @@ def test_the_written_out_covariance_check_agrees_with_lapack(entries, scale):
         d = np.sort(np.linalg.eigvalsh(C))
         if abs(d[0]) > 1e-9 * max(abs(d[-1]), 1e-300):  # away from the boundary the two must agree
             assert _usable_covariance(C) == expected
+
+
+def test_an_accusation_round_trips_signed_and_other_named_values_are_not_one():
+    key = bytes(range(32))
+    encoder, decoder = MavlinkEncoder(vehicle_id=4, signing_key=key, link_id=2), MavlinkDecoder(signing_key=key)
+    frame = encoder.accusation(5_000_200_000, 3)
+    assert len(frame) <= ACCUSATION_FRAME_BYTES
+    assert decoder.decode(frame) == Accusation(4, 5_000_200, 3)
+    mav = mavlink2.MAVLink(None, srcSystem=4, srcComponent=191)
+    assert MavlinkDecoder().decode(bytes(mav.named_value_int_encode(0, b"rpm", 3).pack(mav))) is None

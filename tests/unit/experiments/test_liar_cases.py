@@ -82,7 +82,17 @@ def _run(path, errors: dict[int, float], events: list[dict]):
 
 def test_the_summary_scores_honest_vehicles_the_liar_and_false_alarms_apart(tmp_path):
     honest, rangers = dict.fromkeys(range(1, 9), 0.2), [v for v in rangers_of_liar(1) if v != LIAR]
-    distrust = [{"event": "neighbour_distrusted", "t_s": 12.0, "vehicle": v, "neighbour": LIAR} for v in rangers]
+    first = rangers_of_liar(1)
+    late = max(rangers, key=first.get)  # told by the others before it ranged the liar
+    distrust = [
+        {
+            "event": "neighbour_distrusted",
+            "t_s": first[v] + (-3.0 if v == late else 1.5),
+            "vehicle": v,
+            "neighbour": LIAR,
+        }
+        for v in rangers
+    ]
     distrust += [
         {"event": "neighbour_distrusted", "t_s": 20.0, "vehicle": 4, "neighbour": 5},  # an honest one accused
         {"event": "neighbour_distrusted", "t_s": 21.0, "vehicle": LIAR, "neighbour": 2},  # by the liar itself
@@ -96,3 +106,5 @@ def test_the_summary_scores_honest_vehicles_the_liar_and_false_alarms_apart(tmp_
     assert row["liar_own_rmse_m_mean"] == pytest.approx(0.5)
     assert row["false_alarms"] == 2 and row["false_alarms_by_the_liar"] == 1
     assert row["rangers_that_distrusted_the_liar"] == f"{len(rangers)} of {len(rangers)}"
+    assert row["distrusted_before_ranging_it"] == 1
+    assert row["detection_s_median"] == pytest.approx(1.5) and row["detection_s_max"] == pytest.approx(1.5)

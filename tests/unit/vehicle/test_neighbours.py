@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from vehicle.kalman import UpdateResult
-from vehicle.neighbours import MonitorSpec, NeighbourBook, disagreement, fix_of, plausible, see, whiten
+from vehicle.neighbours import MonitorSpec, NeighbourBook, disagreement, fix_of, hear, plausible, see, whiten
 
 SPEC = MonitorSpec()
 PERIOD_US = 200_000  # ranging at 5 Hz
@@ -203,3 +203,68 @@ def test_neighbours_that_saw_the_vehicle_off_support_the_jump_back():
         y = rng.normal(0.0, 0.5) + 2.0  # the range says 2 m more than predicted: move 2 m along toward
         see(book, SPEC, 2, _ranged(k * PERIOD_US, (float(y), 0.0), 0.5, toward))
     assert disagreement(book, SPEC, np.array([2.0, 0.0]), 24 * PERIOD_US) < -13.8
+
+
+# -- what the others say: a quorum of believed accusers ----------------------------------------------------------
+
+ME, LIAR = 1, 3
+
+
+def test_one_accuser_alone_changes_nothing():
+    book = NeighbourBook()
+    assert hear(book, SPEC, 2, frozenset({LIAR}), 0, ME) == []
+    assert book.trusts(LIAR)
+
+
+def test_two_believed_accusers_distrust_a_neighbour_never_ranged_and_their_retraction_trusts_it_again():
+    book = NeighbourBook()
+    hear(book, SPEC, 2, frozenset({LIAR}), 0, ME)
+    (verdict,) = hear(book, SPEC, 4, frozenset({LIAR}), 200_000, ME)
+    assert (verdict.neighbour, verdict.trusted, verdict.reason) == (LIAR, False, "accused by v2, v4")
+    assert not book.trusts(LIAR) and book.accused() == ()  # on others' word: not passed on
+    assert hear(book, SPEC, 2, frozenset({LIAR}), 400_000, ME) == []  # said again: no new verdict
+    (again,) = hear(book, SPEC, 4, frozenset(), 600_000, ME)  # one retracts
+    assert (again.neighbour, again.trusted, again.reason) == (LIAR, True, "no longer accused")
+    assert book.trusts(LIAR)
+
+
+def test_an_accusation_not_heard_again_for_the_long_window_lapses():
+    book = NeighbourBook()
+    hear(book, SPEC, 2, frozenset({LIAR}), 0, ME)
+    hear(book, SPEC, 4, frozenset({LIAR}), 0, ME)
+    later = round(SPEC.long_window_s * 1e6)
+    assert hear(book, SPEC, 2, frozenset({LIAR}), later - 1, ME) == []
+    (verdict,) = hear(book, SPEC, 2, frozenset({LIAR}), later, ME)  # v4's accusation is 20 s old
+    assert verdict.trusted and book.trusts(LIAR)
+
+
+def test_accusers_this_vehicle_does_not_believe_do_not_count_nor_do_accusations_of_itself():
+    rng = np.random.default_rng(12)
+    book = NeighbourBook()
+    assert _stream(book, 4, np.full((20, 2), 30.0), rng)[0].trusted is False  # v4 distrusted first-hand
+    hear(book, SPEC, 2, frozenset({LIAR, ME}), 0, ME)
+    assert hear(book, SPEC, 4, frozenset({LIAR, ME}), 0, ME) == []  # v4's word is worth nothing here
+    assert book.trusts(LIAR) and ME not in book.records
+    (verdict,) = hear(book, SPEC, 5, frozenset({LIAR}), 0, ME)
+    assert verdict.neighbour == LIAR and verdict.reason == "accused by v2, v5"
+
+
+def test_two_liars_accusing_each_others_accusers_cannot_both_be_believed():
+    """v2 and v4 accuse v3; v3 accuses v2 (alone): only v3 is distrusted, and v3's word then counts for
+    nothing."""
+    book = NeighbourBook()
+    hear(book, SPEC, 3, frozenset({2}), 0, ME)
+    hear(book, SPEC, 2, frozenset({LIAR}), 0, ME)
+    hear(book, SPEC, 4, frozenset({LIAR}), 0, ME)
+    assert not book.trusts(LIAR) and book.trusts(2) and book.trusts(4)
+
+
+def test_a_first_hand_verdict_outlives_the_others_word_and_is_what_the_vehicle_says():
+    rng = np.random.default_rng(13)
+    book = NeighbourBook()
+    hear(book, SPEC, 2, frozenset({LIAR}), 0, ME)
+    hear(book, SPEC, 4, frozenset({LIAR}), 0, ME)
+    _stream(book, LIAR, np.full((20, 2), 30.0), rng)  # its own fixes fail too
+    assert book.accused() == (LIAR,)
+    assert hear(book, SPEC, 2, frozenset(), 4_000_000, ME) == []  # the others retract: still distrusted
+    assert not book.trusts(LIAR)

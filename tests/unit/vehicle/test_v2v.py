@@ -5,9 +5,12 @@ replayed camera sights robots between the broadcast epochs; the simulated world 
 import logging
 
 import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bus import messages as m
-from bus.mavlink_codec import MavlinkEncoder, StateEstimate
+from bus.mavlink_codec import MAX_ACCUSED, MAX_V2V_BYTES, MavlinkEncoder, StateEstimate
 from bus.rejections import Rejections
 from vehicle.models.cooperative import SeenFix
 from vehicle.v2v import V2V
@@ -95,3 +98,59 @@ def test_a_relayed_sighting_pairs_with_the_observers_whole_pose_carried_to_its_i
         ]
     )  # yaw-rate variance on the heading
     assert np.allclose(fix.observer_cov, expected, atol=1e-12)
+
+
+def _broadcast_with(tail: bytes, sender: int = 2, stamp_us: int = PERIOD_US) -> V2V:
+    """Vehicle 1's V2V having heard ``sender``'s ODOMETRY of epoch 0.2 s followed by ``tail``, and
+    a ranging of ``sender`` that pairs with it."""
+    v2v = _heard(0.0)
+    odometry = v2v._heard[2][PERIOD_US].frames.pop()
+    v2v.hear(sender, stamp_us, odometry + tail)
+    v2v.hold(_ranging(PERIOD_US))
+    return v2v
+
+
+def test_whom_a_neighbour_accuses_comes_with_its_fix():
+    accuser = MavlinkEncoder(vehicle_id=2, link_id=2)
+    v2v = _broadcast_with(accuser.accusation(PERIOD_US, 3) + accuser.accusation(PERIOD_US, 5))
+    (fix,) = v2v.mature(PERIOD_US + 100_000)
+    assert fix.neighbour_accuses == frozenset({3, 5}) and v2v.rejections.total == 0
+
+
+@pytest.mark.parametrize(
+    "tail, why",
+    [
+        (MavlinkEncoder(vehicle_id=4).accusation(PERIOD_US, 3), "in another's name"),
+        (MavlinkEncoder(vehicle_id=2).accusation(2 * PERIOD_US, 3), "for another epoch"),
+        (MavlinkEncoder(vehicle_id=2).accusation(PERIOD_US, 2), "of itself"),
+        (MavlinkEncoder(vehicle_id=2).accusation(PERIOD_US, 256), "of no vehicle"),
+        (MavlinkEncoder(vehicle_id=2).heartbeat(), "not an accusation"),
+        (MavlinkEncoder(vehicle_id=2).accusation(PERIOD_US, 3) * (MAX_ACCUSED + 1), "too many"),
+        (b"\x00", "a trailing byte"),
+    ],
+)
+def test_a_broadcast_with_anything_but_its_senders_accusations_after_it_is_refused_whole(tail, why):
+    v2v = _broadcast_with(tail)
+    assert v2v.mature(PERIOD_US + 100_000) == [] and v2v.missing == 1, why
+    assert v2v.rejections.total == 1
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=MAX_V2V_BYTES))
+def test_any_bytes_after_an_odometry_frame_give_a_fix_or_a_counted_refusal(tail):
+    v2v = _broadcast_with(tail)
+    fixes = v2v.mature(PERIOD_US + 100_000)
+    assert len(fixes) + v2v.rejections.total == 1
+    assert all(0 < j <= 255 and j != 2 for fix in fixes for j in fix.neighbour_accuses)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.integers(1, 6), st.integers(-3, 300)), max_size=MAX_ACCUSED + 2), st.data())
+def test_accusations_of_any_sender_and_value_mutated_anywhere_give_a_fix_or_a_counted_refusal(accusations, data):
+    tail = bytearray(b"".join(MavlinkEncoder(vehicle_id=s).accusation(PERIOD_US, j) for s, j in accusations))
+    if tail and data.draw(st.booleans()):
+        tail[data.draw(st.integers(0, len(tail) - 1))] = data.draw(st.integers(0, 255))
+    v2v = _broadcast_with(bytes(tail))
+    fixes = v2v.mature(PERIOD_US + 100_000)
+    assert len(fixes) + v2v.rejections.total == 1
+    assert all(0 < j <= 255 and j != 2 for fix in fixes for j in fix.neighbour_accuses)
