@@ -248,7 +248,9 @@ def swarm_in_memory(
     config, *, sample_every_us: int = 200_000, nodes_out: list | None = None
 ) -> dict[int, dict[str, np.ndarray]]:
     """The real vehicle nodes (V2V, link faults, fusion horizon) and the world in one process over
-    the in-memory bus, in lockstep. Returns per vehicle: t_s, position error (m), pose NEES and its
+    the in-memory bus, in lockstep, stepped cycle by cycle across the nodes (a vehicle process waits
+    for the broadcasts its cycle pairs with; one node run through a whole tick first would miss the
+    others' broadcasts of that tick). Returns per vehicle: t_s, position error (m), pose NEES and its
     position (2 dof) and heading (1 dof) parts of the published estimates, sampled every
     ``sample_every_us``; ``nodes_out`` receives the vehicle nodes."""
     from bus.mavlink_codec import MavlinkDecoder, StateEstimate, split_frames
@@ -280,13 +282,15 @@ def swarm_in_memory(
         for vid, sent in v2v_sent.items():
             world.members.on_v2v_count(vid, sent)
         world.send(prepared, final=False)
+        due = [node.cycles_due(prepared.stamp_us) for node in nodes]
+        for t_us in sorted(set().union(*due)):  # cycle by cycle, as the processes' V2V wait makes them
+            for node, cycles in zip(nodes, due, strict=True):
+                while not node.mailbox.empty():
+                    node.take(node.mailbox.get_nowait())
+                if t_us in cycles:
+                    node.cycle(t_us)
+                    node.report(t_us)
         for node in nodes:
-            tick = None
-            while not node.mailbox.empty():
-                tick = node.take(node.mailbox.get_nowait()) or tick
-            for t_us in node.cycles_due(prepared.stamp_us):
-                node.cycle(t_us)
-                node.report(t_us)
             node.outbound.flush()
             v2v_sent[node.vehicle_id] = node.outbound.v2v_sent
     decoder, out = MavlinkDecoder(), {}
