@@ -1,10 +1,12 @@
 """A vehicle that lies, through real processes: vehicle 3 of 4 broadcasts its position drifting away
 at 0.3 m/s from 5 s (validly signed: it speaks only for itself). With the neighbour monitor the
-others distrust it (events in the run directory and summary.json, nobody else distrusted) and stay
-near the clean run; the control, the same lie with the monitor off, shows them dragged along, so
-the test can fail."""
+others distrust it (events in the run directory and summary.json, nobody else distrusted; one on
+the word of two others, whose verdicts travel in their V2V broadcasts) and stay near the clean
+run; the control, the same lie with the monitor off, shows them dragged along, so the test can
+fail."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -69,3 +71,15 @@ def test_the_defence_stops_the_drag_that_goes_on_in_the_control(runs):
     assert defended < dragged, (clean, defended, dragged)
     late = {k: _honest_rmse(runs[k], since_s=25.0) for k in ("clean", "defended", "open")}
     assert late["defended"] < 0.75 * late["open"], late
+
+
+def test_a_vehicle_is_warned_by_two_that_found_the_liar_themselves(runs):
+    """The verdicts travel in the V2V broadcasts: a vehicle distrusts the liar on the word of two
+    vehicles whose own tests had failed it by then (here vehicle 2, told by 1 and 4)."""
+    distrusted = _events(runs["defended"], "neighbour_distrusted")
+    first_hand = {e["vehicle"]: e["t_s"] for e in distrusted if not e["reason"].startswith("accused by")}
+    told = [e for e in distrusted if e["reason"].startswith("accused by")]
+    assert told, distrusted
+    for e in told:
+        accusers = [int(v) for v in e["reason"].removeprefix("accused by v").split(", v")]
+        assert len(accusers) >= 2 and all(first_hand.get(j, math.inf) <= e["t_s"] for j in accusers), e
