@@ -213,16 +213,23 @@ def disagreement(book: NeighbourBook, spec: MonitorSpec, offset_m: np.ndarray, n
     return total
 
 
-def pull_m2(record: NeighbourRecord, since_us: int) -> float:
+def pull_m2(record: NeighbourRecord, since_us: int, decorrelation_s: float = 1.0) -> float:
     """How far (squared, m^2) the neighbour's fixes fused since ``since_us`` may have pulled the
-    observer: the squared mean innovation, the bearing's at the latest fix's range."""
-    fixes = [f for f in record.fixes if f.stamp_us > since_us and f.fused]
+    observer: the squared mean innovation (the bearing's at the latest fix's range), less what
+    noise alone would give it: scaled by max(0, 1 - 2 / b), b = n_eff |mean w|^2 the fixes' bias
+    statistic (2 expected of consistent fixes, as in the bias test), so that fixes as consistent
+    as an honest neighbour's pulled nothing."""
+    fixes = [f for f in record.fixes if f.stamp_us > since_us and f.fused and math.isfinite(sum(f.whitened))]
     if not fixes:
         return 0.0
     range_m = record.fixes[-1].range_m
     mean_range = sum(f.innovation[0] for f in fixes) / len(fixes)
     mean_bearing = sum(f.innovation[1] for f in fixes) / len(fixes)
-    return mean_range**2 + (mean_bearing * range_m) ** 2
+    w0 = sum(f.whitened[0] for f in fixes) / len(fixes)
+    w1 = sum(f.whitened[1] for f in fixes) / len(fixes)
+    bias = effective_count(fixes, decorrelation_s) * (w0 * w0 + w1 * w1)
+    beyond_noise = max(0.0, 1.0 - 2.0 / bias) if bias > 0.0 else 0.0
+    return (mean_range**2 + (mean_bearing * range_m) ** 2) * beyond_noise
 
 
 def whiten(y: tuple[float, ...], S: tuple[float, ...]) -> tuple[float, float]:

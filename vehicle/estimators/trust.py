@@ -66,7 +66,9 @@ class NeighbourTrust:
         for change in changes:
             if not change.trusted:
                 since = change.stamp_us - round(self.spec.window_s * 1e6)
-                f.store.inflate(s, [0, 1], np.full(2, pull_m2(book.records[change.neighbour], since)))
+                f.store.inflate(
+                    s, [0, 1], np.full(2, pull_m2(book.records[change.neighbour], since, self.spec.decorrelation_s))
+                )
             f.notice(notice_of(change))
         return believed
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from vehicle.kalman import UpdateResult
-from vehicle.neighbours import MonitorSpec, NeighbourBook, disagreement, fix_of, hear, plausible, see, whiten
+from vehicle.neighbours import MonitorSpec, NeighbourBook, disagreement, fix_of, hear, plausible, pull_m2, see, whiten
 
 SPEC = MonitorSpec()
 PERIOD_US = 200_000  # ranging at 5 Hz
@@ -268,3 +268,20 @@ def test_a_first_hand_verdict_outlives_the_others_word_and_is_what_the_vehicle_s
     assert book.accused() == (LIAR,)
     assert hear(book, SPEC, 2, frozenset(), 4_000_000, ME) == []  # the others retract: still distrusted
     assert not book.trusts(LIAR)
+
+
+def test_the_pull_undone_at_a_verdict_is_what_the_fixes_show_beyond_their_noise():
+    """Consistent fixes pulled nothing as a rule (their mean innovation is noise: the bias statistic
+    is 2 on average, and a pull is counted only beyond that); fixes 1 m off on the range pulled
+    about 1 m^2."""
+    rng = np.random.default_rng(14)
+
+    def pull(offset_m: float) -> float:
+        book = NeighbourBook()
+        _stream(book, 3, np.column_stack([np.full(25, offset_m), np.zeros(25)]), rng)
+        return pull_m2(book.records[3], -1, SPEC.decorrelation_s)
+
+    honest = [pull(0.0) for _ in range(40)]
+    assert sum(p == 0.0 for p in honest) >= 20 and max(honest) < 0.1, honest
+    biased = [pull(1.0) for _ in range(10)]
+    assert all(0.5 <= p <= 1.5 for p in biased), biased  # (1 +- 0.1 m)^2, the noise of a 25-fix mean
