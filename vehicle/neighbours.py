@@ -32,7 +32,9 @@ over it: another believed neighbour passing every test over the same window (whe
 disagrees with a vehicle, the vehicle is the likelier one to be wrong, and it accuses nobody; its
 own GNSS is no such ground, since a spoofed receiver agrees with the filter it drags). A distrusted
 neighbour's fixes are still judged but not fused; it is trusted again after ``retrust_s`` of passing
-every test. The believed neighbours' recent fixes also have a say on the vehicle's own GNSS: a
+every test. What the others say counts too (``hear``): each broadcast names whom its sender
+distrusts on its own evidence, and a neighbour that ``quorum`` believed vehicles accuse is
+distrusted on their word. The believed neighbours' recent fixes also have a say on the vehicle's own GNSS: a
 position reset that they speak against is refused (``disagreement``). The thresholds are set from
 clean runs (no liar: the honest world, jamming, link faults; docs/liars.md), well above what those
 reach. Pure; the record lives in the filter's state, so a fusion-horizon replay restores it with
