@@ -34,11 +34,11 @@ own GNSS is no such ground, since a spoofed receiver agrees with the filter it d
 neighbour's fixes are still judged but not fused; it is trusted again after ``retrust_s`` of passing
 every test. What the others say counts too (``hear``): each broadcast names whom its sender
 distrusts on its own evidence, and a neighbour that ``quorum`` believed vehicles accuse is
-distrusted on their word. The believed neighbours' recent fixes also have a say on the vehicle's own GNSS: a
-position reset that they speak against is refused (``disagreement``). The thresholds are set from
-clean runs (no liar: the honest world, jamming, link faults; docs/liars.md), well above what those
-reach. Pure; the record lives in the filter's state, so a fusion-horizon replay restores it with
-everything else.
+distrusted on their word. The believed neighbours' recent fixes also have a say on the vehicle's own
+GNSS: a position reset that they speak against is refused (``disagreement``). The thresholds are set
+from clean runs (no liar: the honest world, jamming, link faults; docs/liars.md), well above what
+those reach. The statistics of one neighbour's fixes live in vehicle.neighbour_fixes. Pure; the
+record lives in the filter's state, so a fusion-horizon replay restores it with everything else.
 """
 
 from __future__ import annotations
@@ -46,14 +46,11 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import deque
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from vehicle.kalman import UpdateResult
-
-BIAS_CLIP = 4.0  # whitened innovations longer than this count as this long in the bias test
+from vehicle.neighbour_fixes import Fix, effective_count, window_stats
 
 
 @dataclass(frozen=True)
@@ -68,32 +65,6 @@ class MonitorSpec:
     retrust_s: float = 10.0
     implausible_ratio: float = 0.1  # a claimed position variance below this times the best of the others'
     quorum: int = 2  # believed vehicles whose broadcasts must accuse a neighbour to distrust it on their word
-
-
-@dataclass(frozen=True)
-class Fix:
-    """One fix as the monitor keeps it: stamp, NIS, whitened innovation (2 floats), gated out, and
-    the innovation itself ([range m, bearing rad])."""
-
-    stamp_us: int
-    nis: float
-    whitened: tuple[float, float]
-    gated_out: bool
-    innovation: tuple[float, float] = (0.0, 0.0)
-    claimed_m2: float = math.inf  # the smallest eigenvalue of the neighbour's claimed position covariance
-    fused: bool = True  # False: the gate refused it, or the vehicle did not believe it (``refused``)
-    shift: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # G = d w / d(own position), row by row (1/m)
-    range_m: float = 0.0  # the measured range
-
-
-@dataclass(frozen=True)
-class WindowStats:
-    """A neighbour's fixes over a window: how many, how many failed the gate, mean NIS, bias."""
-
-    fixes: int
-    gated_out: int
-    mean_nis: float
-    bias: float
 
 
 @dataclass
@@ -151,44 +122,11 @@ class Verdict:
     reason: str
 
 
-def fix_of(
-    t_us: int,
-    result: UpdateResult,
-    claimed_cov_m2: np.ndarray | None = None,
-    own_jacobian: Sequence | None = None,
-    range_m: float = 0.0,
-) -> Fix | None:
-    """The monitor's record of a fix from its update result (None when it did not say its innovation);
-    ``claimed_cov_m2`` (2, 2): the neighbour's claimed position covariance; ``own_jacobian`` (2 x 2,
-    indexed [row][column]): J = d h / d(own position) of the fix's prediction h, kept whitened (the
-    innovation moves by -J d when the vehicle moves by d: ``disagreement``)."""
-    if result.innovation is None or result.innovation_cov is None:
-        return None
-    whitened = whiten(result.innovation, result.innovation_cov)
-    claimed = math.inf if claimed_cov_m2 is None else smallest_variance(claimed_cov_m2)
-    innovation = tuple(result.innovation[:2])
-    shift = (0.0, 0.0, 0.0, 0.0)
-    if own_jacobian is not None:
-        (j00, j01), (j10, j11) = own_jacobian
-        g00, g10 = whiten((j00, j10), result.innovation_cov)
-        g01, g11 = whiten((j01, j11), result.innovation_cov)
-        shift = (g00, g01, g10, g11)
-    return Fix(t_us, result.nis, whitened, not result.accepted, innovation, claimed, result.accepted, shift, range_m)
-
-
 def refused(book: NeighbourBook, neighbour: int) -> None:
     """The neighbour's latest fix was not fused (distrusted, or an implausible claim): it pulled nothing."""
     record = book.records.get(neighbour)
     if record is not None and record.fixes:
         record.fixes[-1] = dataclasses.replace(record.fixes[-1], fused=False)
-
-
-def smallest_variance(covariance_m2: np.ndarray) -> float:
-    """The smallest eigenvalue (m^2) of a symmetric 2 x 2 position covariance (NaN: 0, a claim of
-    certainty)."""
-    a, b, d = float(covariance_m2[0, 0]), float(covariance_m2[0, 1]), float(covariance_m2[1, 1])
-    value = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
-    return value if math.isfinite(value) else 0.0
 
 
 def disagreement(book: NeighbourBook, spec: MonitorSpec, offset_m: np.ndarray, now_us: int) -> float:
@@ -215,73 +153,6 @@ def disagreement(book: NeighbourBook, spec: MonitorSpec, offset_m: np.ndarray, n
     return total
 
 
-def pull_m2(record: NeighbourRecord, since_us: int, decorrelation_s: float = 1.0) -> float:
-    """How far (squared, m^2) the neighbour's fixes fused since ``since_us`` may have pulled the
-    observer: the squared mean innovation (the bearing's at the latest fix's range), less what
-    noise alone would give it: scaled by max(0, 1 - 2 / b), b = n_eff |mean w|^2 the fixes' bias
-    statistic (2 expected of consistent fixes, as in the bias test), so that fixes as consistent
-    as an honest neighbour's pulled nothing."""
-    fixes = [f for f in record.fixes if f.stamp_us > since_us and f.fused and math.isfinite(sum(f.whitened))]
-    if not fixes:
-        return 0.0
-    range_m = record.fixes[-1].range_m
-    mean_range = sum(f.innovation[0] for f in fixes) / len(fixes)
-    mean_bearing = sum(f.innovation[1] for f in fixes) / len(fixes)
-    w0 = sum(f.whitened[0] for f in fixes) / len(fixes)
-    w1 = sum(f.whitened[1] for f in fixes) / len(fixes)
-    bias = effective_count(fixes, decorrelation_s) * (w0 * w0 + w1 * w1)
-    beyond_noise = max(0.0, 1.0 - 2.0 / bias) if bias > 0.0 else 0.0
-    return (mean_range**2 + (mean_bearing * range_m) ** 2) * beyond_noise
-
-
-def whiten(y: tuple[float, ...], S: tuple[float, ...]) -> tuple[float, float]:
-    """L^-1 y for S = L L^T, S (a, b, d) a symmetric 2 x 2; infinite when S is not positive definite."""
-    a, b, d = S
-    if not a > 0.0:
-        return math.inf, math.inf
-    l11 = math.sqrt(a)
-    l21 = b / l11
-    rest = d - l21 * l21
-    if not rest > 0.0:
-        return math.inf, math.inf
-    w0 = y[0] / l11
-    return w0, (y[1] - l21 * w0) / math.sqrt(rest)
-
-
-def window_stats(record: NeighbourRecord, since_us: int, decorrelation_s: float = 0.0) -> WindowStats:
-    """The record's fixes stamped after ``since_us``. The mean NIS is over the fixes the gate passed;
-    the bias over all of them, each whitened innovation shortened to at most ``BIAS_CLIP`` (a fix the
-    gate refused is evidence of an offset, but one wild fix must not make a bias alone), counting at
-    most one fix per ``decorrelation_s`` over the span they cover."""
-    fixes = [f for f in record.fixes if f.stamp_us > since_us]
-    finite = [f for f in fixes if all(map(math.isfinite, f.whitened))]
-    passed = [f for f in finite if not f.gated_out]
-    if not passed:
-        return WindowStats(len(fixes), len(fixes) - len(passed), math.inf, math.inf)
-    mean_nis = sum(f.whitened[0] ** 2 + f.whitened[1] ** 2 for f in passed) / len(passed)
-    clipped = [_clip(f.whitened) for f in finite]
-    m0 = sum(w0 for w0, _ in clipped) / len(clipped)
-    m1 = sum(w1 for _, w1 in clipped) / len(clipped)
-    n_eff = effective_count(finite, decorrelation_s)
-    return WindowStats(len(fixes), len(fixes) - len(passed), mean_nis, n_eff * (m0 * m0 + m1 * m1))
-
-
-def effective_count(fixes: list[Fix], decorrelation_s: float) -> float:
-    """How many independent fixes ``fixes`` (in stamp order, at least one) are worth: at most one per
-    ``decorrelation_s`` of the span they cover (each one when it is 0)."""
-    n = float(len(fixes))
-    if decorrelation_s <= 0.0:
-        return n
-    span_s = (fixes[-1].stamp_us - fixes[0].stamp_us) * 1e-6
-    return min(n, 1.0 + span_s / decorrelation_s)
-
-
-def _clip(w: tuple[float, float]) -> tuple[float, float]:
-    norm = math.hypot(*w)
-    scale = BIAS_CLIP / norm if norm > BIAS_CLIP else 1.0
-    return w[0] * scale, w[1] * scale
-
-
 def failure(record: NeighbourRecord, spec: MonitorSpec, now_us: int, best_m2: float = 0.0) -> str:
     """Why the neighbour's recent fixes are inconsistent ("" when they pass, or are too few to tell);
     ``best_m2``: the smallest position variance had or claimed by anyone else (the implausibility
@@ -293,7 +164,7 @@ def failure(record: NeighbourRecord, spec: MonitorSpec, now_us: int, best_m2: fl
     if len(latest) == spec.min_fixes and all(f.claimed_m2 < plausible for f in latest):
         ratio = best_m2 / max(max(f.claimed_m2 for f in latest), 1e-300)
         return f"claims {min(ratio, 999):.0f}x less variance than others"
-    short = window_stats(record, now_us - round(spec.window_s * 1e6), spec.decorrelation_s)
+    short = window_stats(record.fixes, now_us - round(spec.window_s * 1e6), spec.decorrelation_s)
     if short.fixes >= spec.min_fixes:
         if short.gated_out > spec.gate_fail_share * short.fixes:
             return f"{short.gated_out} of {short.fixes} fixes fail the gate"
@@ -301,7 +172,7 @@ def failure(record: NeighbourRecord, spec: MonitorSpec, now_us: int, best_m2: fl
             return f"mean NIS {short.mean_nis:.1f} over {short.fixes} fixes"
         if short.bias > spec.bias:
             return f"biased by {short.bias:.0f} over {short.fixes} fixes"
-    long = window_stats(record, now_us - round(spec.long_window_s * 1e6), spec.decorrelation_s)
+    long = window_stats(record.fixes, now_us - round(spec.long_window_s * 1e6), spec.decorrelation_s)
     if long.fixes >= spec.min_fixes and long.bias > spec.bias and math.isfinite(long.bias):
         return f"biased by {long.bias:.0f} over {long.fixes} fixes"
     return ""
@@ -320,7 +191,7 @@ def see(book: NeighbourBook, spec: MonitorSpec, neighbour: int, fix: Fix) -> Ver
             record.distrusted, record.passing_since_us, record.reason = True, None, reason
             return Verdict(fix.stamp_us, neighbour, False, reason)
         return None
-    if reason or window_stats(record, fix.stamp_us - round(spec.window_s * 1e6)).fixes < spec.min_fixes:
+    if reason or window_stats(record.fixes, fix.stamp_us - round(spec.window_s * 1e6)).fixes < spec.min_fixes:
         record.passing_since_us = None
         return None
     record.passing_since_us = fix.stamp_us if record.passing_since_us is None else record.passing_since_us
@@ -385,6 +256,9 @@ def _credible(book: NeighbourBook, spec: MonitorSpec, accused: int, t_us: int) -
     it drags)."""
     since = t_us - round(spec.window_s * 1e6)
     return any(
-        j != accused and r.believed and window_stats(r, since).fixes >= spec.min_fixes and not failure(r, spec, t_us)
+        j != accused
+        and r.believed
+        and window_stats(r.fixes, since).fixes >= spec.min_fixes
+        and not failure(r, spec, t_us)
         for j, r in book.records.items()
     )

@@ -1,9 +1,10 @@
-"""What the filter does with its neighbour monitor (the pure tests are vehicle.neighbours): each
-neighbour fix is judged before it is fused, with whom the neighbour's broadcast accuses; a verdict
-against a neighbour (the vehicle's own, or on the word of a quorum of others) undoes what it may
-have pulled and is said in a notice, and the believed neighbours have a say on the vehicle's own GNSS
-position resets. A part of ``Filter`` (``Filter.trust``; None with the monitor off); the record it
-keeps lives in ``FilterState.neighbours``, so a fusion-horizon replay restores it."""
+"""What the filter does with its neighbour monitor (the pure tests are vehicle.neighbours, the
+fixes' statistics vehicle.neighbour_fixes): each neighbour fix is judged before it is fused, with
+whom the neighbour's broadcast accuses; a verdict against a neighbour (the vehicle's own, or on the
+word of a quorum of others) undoes what it may have pulled and is said in a notice, and the believed
+neighbours have a say on the vehicle's own GNSS position resets. A part of ``Filter``
+(``Filter.trust``; None with the monitor off); the record it keeps lives in
+``FilterState.neighbours``, so a fusion-horizon replay restores it."""
 
 from __future__ import annotations
 
@@ -15,18 +16,8 @@ from bus.statistics import gate_threshold
 from vehicle.estimators.state import SEVERITY_INFO, SEVERITY_WARNING, Notice
 from vehicle.kalman import UpdateResult
 from vehicle.models.cooperative import CooperativeFix, SeenFix
-from vehicle.neighbours import (
-    MonitorSpec,
-    Verdict,
-    disagreement,
-    fix_of,
-    hear,
-    plausible,
-    pull_m2,
-    refused,
-    see,
-    smallest_variance,
-)
+from vehicle.neighbour_fixes import fix_of, pull_m2, smallest_variance
+from vehicle.neighbours import MonitorSpec, Verdict, disagreement, hear, plausible, refused, see
 
 if TYPE_CHECKING:
     from vehicle.estimators.filter import Filter
@@ -67,7 +58,9 @@ class NeighbourTrust:
             if not change.trusted:
                 since = change.stamp_us - round(self.spec.window_s * 1e6)
                 f.store.inflate(
-                    s, [0, 1], np.full(2, pull_m2(book.records[change.neighbour], since, self.spec.decorrelation_s))
+                    s,
+                    [0, 1],
+                    np.full(2, pull_m2(book.records[change.neighbour].fixes, since, self.spec.decorrelation_s)),
                 )
             f.notice(notice_of(change))
         return believed

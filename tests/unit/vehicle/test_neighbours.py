@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from vehicle.kalman import UpdateResult
-from vehicle.neighbours import MonitorSpec, NeighbourBook, disagreement, fix_of, hear, plausible, pull_m2, see, whiten
+from vehicle.neighbour_fixes import fix_of, pull_m2, whiten
+from vehicle.neighbours import MonitorSpec, NeighbourBook, disagreement, hear, plausible, see
 
 SPEC = MonitorSpec()
 PERIOD_US = 200_000  # ranging at 5 Hz
@@ -279,7 +280,7 @@ def test_the_pull_undone_at_a_verdict_is_what_the_fixes_show_beyond_their_noise(
     def pull(offset_m: float) -> float:
         book = NeighbourBook()
         _stream(book, 3, np.column_stack([np.full(25, offset_m), np.zeros(25)]), rng)
-        return pull_m2(book.records[3], -1, SPEC.decorrelation_s)
+        return pull_m2(book.records[3].fixes, -1, SPEC.decorrelation_s)
 
     honest = [pull(0.0) for _ in range(40)]
     assert sum(p == 0.0 for p in honest) >= 20 and max(honest) < 0.1, honest

@@ -18,8 +18,9 @@ from vehicle.v2v import V2V
 PERIOD_US = 200_000
 
 
-def _heard(yaw: float) -> V2V:
-    """Vehicle 1's V2V, having heard vehicle 2 at epoch 0.2 s: at (3, 4) m, heading ``yaw``, 0.5 m/s."""
+def _heard(yaw: float, tail: bytes = b"") -> V2V:
+    """Vehicle 1's V2V, having heard vehicle 2 at epoch 0.2 s: at (3, 4) m, heading ``yaw``, 0.5 m/s
+    (its ODOMETRY followed by ``tail``)."""
     v2v = V2V(1, latency_us=100_000, rejections=Rejections(logging.getLogger("test"), "test"), period_us=PERIOD_US)
     pose_cov = np.diag([0.04, 0.04, 1e-6, 1e-6, 1e-6, 0.01])
     est = StateEstimate(
@@ -32,7 +33,7 @@ def _heard(yaw: float) -> V2V:
         pose_cov,
         np.diag([0.0025, 1e-6, 1e-6, 1e-6, 1e-6, 1e-4]),
     )
-    v2v.hear(2, PERIOD_US, MavlinkEncoder(vehicle_id=2).odometry(est))
+    v2v.hear(2, PERIOD_US, MavlinkEncoder(vehicle_id=2).odometry(est) + tail)
     return v2v
 
 
@@ -100,12 +101,10 @@ def test_a_relayed_sighting_pairs_with_the_observers_whole_pose_carried_to_its_i
     assert np.allclose(fix.observer_cov, expected, atol=1e-12)
 
 
-def _broadcast_with(tail: bytes, sender: int = 2, stamp_us: int = PERIOD_US) -> V2V:
-    """Vehicle 1's V2V having heard ``sender``'s ODOMETRY of epoch 0.2 s followed by ``tail``, and
-    a ranging of ``sender`` that pairs with it."""
-    v2v = _heard(0.0)
-    odometry = v2v._heard[2][PERIOD_US].frames.pop()
-    v2v.hear(sender, stamp_us, odometry + tail)
+def _broadcast_with(tail: bytes) -> V2V:
+    """Vehicle 1's V2V having heard vehicle 2's ODOMETRY of epoch 0.2 s followed by ``tail``, and a
+    ranging of vehicle 2 that pairs with it."""
+    v2v = _heard(0.0, tail)
     v2v.hold(_ranging(PERIOD_US))
     return v2v
 

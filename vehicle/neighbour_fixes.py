@@ -1,0 +1,144 @@
+"""One neighbour's fixes as its monitor keeps them (vehicle.neighbours), and what they say over a
+window: each fix's innovation y (2,) whitened by its covariance S (w = L^-1 y, S = L L^T: a standard
+normal pair for a consistent neighbour), the window's gate failures, mean NIS and bias (n_eff
+|mean w|^2, chi-square with 2 degrees of freedom, counting at most one fix per decorrelation time),
+and how far the fused ones may have pulled the observer. Pure; on floats (a fix a cycle per
+neighbour: no numpy on the hot path)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from vehicle.kalman import UpdateResult
+
+BIAS_CLIP = 4.0  # whitened innovations longer than this count as this long in the bias test
+
+
+@dataclass(frozen=True)
+class Fix:
+    """One fix as the monitor keeps it: stamp, NIS, whitened innovation (2 floats), gated out, and
+    the innovation itself ([range m, bearing rad])."""
+
+    stamp_us: int
+    nis: float
+    whitened: tuple[float, float]
+    gated_out: bool
+    innovation: tuple[float, float] = (0.0, 0.0)
+    claimed_m2: float = math.inf  # the smallest eigenvalue of the neighbour's claimed position covariance
+    fused: bool = True  # False: the gate refused it, or the vehicle did not believe it (``refused``)
+    shift: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # G = d w / d(own position), row by row (1/m)
+    range_m: float = 0.0  # the measured range
+
+
+@dataclass(frozen=True)
+class WindowStats:
+    """A neighbour's fixes over a window: how many, how many failed the gate, mean NIS, bias."""
+
+    fixes: int
+    gated_out: int
+    mean_nis: float
+    bias: float
+
+
+def fix_of(
+    t_us: int,
+    result: UpdateResult,
+    claimed_cov_m2: np.ndarray | None = None,
+    own_jacobian: Sequence | None = None,
+    range_m: float = 0.0,
+) -> Fix | None:
+    """The monitor's record of a fix from its update result (None when it did not say its innovation);
+    ``claimed_cov_m2`` (2, 2): the neighbour's claimed position covariance; ``own_jacobian`` (2 x 2,
+    indexed [row][column]): J = d h / d(own position) of the fix's prediction h, kept whitened (the
+    innovation moves by -J d when the vehicle moves by d: ``disagreement``)."""
+    if result.innovation is None or result.innovation_cov is None:
+        return None
+    whitened = whiten(result.innovation, result.innovation_cov)
+    claimed = math.inf if claimed_cov_m2 is None else smallest_variance(claimed_cov_m2)
+    innovation = tuple(result.innovation[:2])
+    shift = (0.0, 0.0, 0.0, 0.0)
+    if own_jacobian is not None:
+        (j00, j01), (j10, j11) = own_jacobian
+        g00, g10 = whiten((j00, j10), result.innovation_cov)
+        g01, g11 = whiten((j01, j11), result.innovation_cov)
+        shift = (g00, g01, g10, g11)
+    return Fix(t_us, result.nis, whitened, not result.accepted, innovation, claimed, result.accepted, shift, range_m)
+
+
+def smallest_variance(covariance_m2: np.ndarray) -> float:
+    """The smallest eigenvalue (m^2) of a symmetric 2 x 2 position covariance (NaN: 0, a claim of
+    certainty)."""
+    a, b, d = float(covariance_m2[0, 0]), float(covariance_m2[0, 1]), float(covariance_m2[1, 1])
+    value = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
+    return value if math.isfinite(value) else 0.0
+
+
+def pull_m2(record: Sequence[Fix], since_us: int, decorrelation_s: float) -> float:
+    """How far (squared, m^2) a neighbour's fixes ``record`` fused since ``since_us`` may have pulled the
+    observer: the squared mean innovation (the bearing's at the latest fix's range), less what
+    noise alone would give it: scaled by max(0, 1 - 2 / b), b = n_eff |mean w|^2 the fixes' bias
+    statistic (2 expected of consistent fixes, as in the bias test), so that fixes as consistent
+    as an honest neighbour's pulled nothing."""
+    fixes = [f for f in record if f.stamp_us > since_us and f.fused and math.isfinite(sum(f.whitened))]
+    if not fixes:
+        return 0.0
+    range_m = record[-1].range_m
+    mean_range = sum(f.innovation[0] for f in fixes) / len(fixes)
+    mean_bearing = sum(f.innovation[1] for f in fixes) / len(fixes)
+    w0 = sum(f.whitened[0] for f in fixes) / len(fixes)
+    w1 = sum(f.whitened[1] for f in fixes) / len(fixes)
+    bias = effective_count(fixes, decorrelation_s) * (w0 * w0 + w1 * w1)
+    beyond_noise = max(0.0, 1.0 - 2.0 / bias) if bias > 0.0 else 0.0
+    return (mean_range**2 + (mean_bearing * range_m) ** 2) * beyond_noise
+
+
+def whiten(y: tuple[float, ...], S: tuple[float, ...]) -> tuple[float, float]:
+    """L^-1 y for S = L L^T, S (a, b, d) a symmetric 2 x 2; infinite when S is not positive definite."""
+    a, b, d = S
+    if not a > 0.0:
+        return math.inf, math.inf
+    l11 = math.sqrt(a)
+    l21 = b / l11
+    rest = d - l21 * l21
+    if not rest > 0.0:
+        return math.inf, math.inf
+    w0 = y[0] / l11
+    return w0, (y[1] - l21 * w0) / math.sqrt(rest)
+
+
+def window_stats(record: Sequence[Fix], since_us: int, decorrelation_s: float = 0.0) -> WindowStats:
+    """A neighbour's fixes ``record`` stamped after ``since_us``. The mean NIS is over the fixes the gate passed;
+    the bias over all of them, each whitened innovation shortened to at most ``BIAS_CLIP`` (a fix the
+    gate refused is evidence of an offset, but one wild fix must not make a bias alone), counting at
+    most one fix per ``decorrelation_s`` over the span they cover."""
+    fixes = [f for f in record if f.stamp_us > since_us]
+    finite = [f for f in fixes if all(map(math.isfinite, f.whitened))]
+    passed = [f for f in finite if not f.gated_out]
+    if not passed:
+        return WindowStats(len(fixes), len(fixes) - len(passed), math.inf, math.inf)
+    mean_nis = sum(f.whitened[0] ** 2 + f.whitened[1] ** 2 for f in passed) / len(passed)
+    clipped = [_clip(f.whitened) for f in finite]
+    m0 = sum(w0 for w0, _ in clipped) / len(clipped)
+    m1 = sum(w1 for _, w1 in clipped) / len(clipped)
+    n_eff = effective_count(finite, decorrelation_s)
+    return WindowStats(len(fixes), len(fixes) - len(passed), mean_nis, n_eff * (m0 * m0 + m1 * m1))
+
+
+def effective_count(fixes: list[Fix], decorrelation_s: float) -> float:
+    """How many independent fixes ``fixes`` (in stamp order, at least one) are worth: at most one per
+    ``decorrelation_s`` of the span they cover (each one when it is 0)."""
+    n = float(len(fixes))
+    if decorrelation_s <= 0.0:
+        return n
+    span_s = (fixes[-1].stamp_us - fixes[0].stamp_us) * 1e-6
+    return min(n, 1.0 + span_s / decorrelation_s)
+
+
+def _clip(w: tuple[float, float]) -> tuple[float, float]:
+    norm = math.hypot(*w)
+    scale = BIAS_CLIP / norm if norm > BIAS_CLIP else 1.0
+    return w[0] * scale, w[1] * scale
