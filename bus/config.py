@@ -354,6 +354,18 @@ class VehicleConfig(_Strict):
         description="judge each neighbour's fixes for consistency and stop fusing a neighbour that lies "
         "(vehicle.neighbours; docs: liars)",
     )
+    max_compromised: int = Field(
+        2,
+        ge=0,
+        le=250,
+        description="f: how many vehicles may be compromised (their own keys, any lie or accusation); a "
+        "neighbour a vehicle cannot judge itself is distrusted on the word of more than f (docs: security)",
+    )
+    trust_rule: Literal["evidence", "quorum-only"] = Field(
+        "evidence",
+        description="evidence: the others' word never outweighs a vehicle's own evidence and accusers are "
+        "judged; quorum-only: the rule before, a quorum's word decides (a control; docs: security)",
+    )
 
     def visual_odometry(self, vehicle_id: int) -> bool:
         """Does this vehicle take its speed from visual odometry?"""

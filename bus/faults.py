@@ -10,7 +10,10 @@ until the end of the run). Zones are circles in the world's x-y plane (metres).
   again by the supervisor (``swarm up``);
 - ``lie``: a vehicle that lies to its neighbours, applied by the liar's own outbound bus layer to
   the V2V broadcasts it sends (its estimator and its MAVLink stream to the ground station stay
-  honest, so the ground station scores what the lie does to the others).
+  honest, so the ground station scores what the lie does to the others);
+- ``accuse``: a vehicle whose V2V broadcasts accuse the named vehicles, validly signed, whatever its
+  own evidence (an insider turning the swarm against honest vehicles; docs/security.md), applied by
+  its own outbound bus layer too.
 
 Endpoints are named ``v<id>`` (vehicles), ``gs`` (ground station) and ``world``.
 """
@@ -98,9 +101,10 @@ class Kill(_Fault):
 
 
 class Lie(_Fault):
-    """Vehicle ``vehicle`` broadcasts its estimate moved by ``offset_m`` plus an offset growing at
-    ``drift_mps`` along ``heading_deg`` (0 = +x) since ``start_s``, with its covariance times
-    ``cov_scale`` (0.01: a hundred times too sure). Validly signed: it speaks only for itself."""
+    """Vehicle ``vehicle`` broadcasts its estimate of ``stale_s`` before (a replay of its own past,
+    stamped now; 0: its present one), moved by ``offset_m`` plus an offset growing at ``drift_mps``
+    along ``heading_deg`` (0 = +x) since ``start_s``, with its covariance times ``cov_scale`` (0.01:
+    a hundred times too sure). Validly signed: it speaks only for itself."""
 
     kind: Literal["lie"] = "lie"
     vehicle: int = Field(ge=1, le=250)
@@ -108,11 +112,12 @@ class Lie(_Fault):
     drift_mps: float = Field(0.0, ge=0, le=100)
     heading_deg: float = Field(0.0, ge=-360, le=360)
     cov_scale: float = Field(1.0, gt=0, le=1e6)
+    stale_s: float = Field(0.0, ge=0, le=60, description="broadcast the estimate of this long before")
 
     @model_validator(mode="after")
     def _says_something_false(self) -> Lie:
-        if not (any(self.offset_m) or self.drift_mps or self.cov_scale != 1.0):
-            raise ValueError("a lie needs --offset, --drift or --cov-scale: this one would tell the truth")
+        if not (any(self.offset_m) or self.drift_mps or self.cov_scale != 1.0 or self.stale_s):
+            raise ValueError("a lie needs --offset, --drift, --cov-scale or --stale: this one would tell the truth")
         if not all(abs(v) <= 1e6 for v in self.offset_m):
             raise ValueError("--offset: each coordinate must be within +-1e6 m")
         return self
@@ -122,6 +127,23 @@ class Lie(_Fault):
         heading = np.radians(self.heading_deg)
         grown = self.drift_mps * max(0.0, t_s - self.start_s)
         return np.array(self.offset_m) + grown * np.array([np.cos(heading), np.sin(heading)])
+
+
+class Accuse(_Fault):
+    """Vehicle ``vehicle`` accuses ``names`` in every V2V broadcast (after whom its own monitor
+    distrusts, at most 8 in all: bus.mavlink_codec.MAX_ACCUSED), validly signed."""
+
+    kind: Literal["accuse"] = "accuse"
+    vehicle: int = Field(ge=1, le=250)
+    names: tuple[Annotated[int, Field(ge=1, le=250)], ...] = Field(
+        min_length=1, max_length=8, description="the vehicles it accuses"
+    )
+
+    @model_validator(mode="after")
+    def _accuses_others(self) -> Accuse:
+        if self.vehicle in self.names:
+            raise ValueError(f"--names: v{self.vehicle} would accuse itself")
+        return self
 
 
 class _LinkFault(_Fault):
@@ -174,10 +196,10 @@ class Reorder(_LinkFault):
 
 
 PHYSICAL_KINDS = ("jam-gnss", "spoof-gnss", "jam-comms", "blackout")
-BEHAVIOUR_KINDS = ("lie",)
+BEHAVIOUR_KINDS = ("lie", "accuse")
 LINK_KINDS = ("delay", "loss", "duplicate", "reorder")
 Fault = Annotated[
-    JamGnss | SpoofGnss | JamComms | Blackout | Kill | Lie | Delay | Loss | Duplicate | Reorder,
+    JamGnss | SpoofGnss | JamComms | Blackout | Kill | Lie | Accuse | Delay | Loss | Duplicate | Reorder,
     Field(discriminator="kind"),
 ]
 
@@ -192,6 +214,11 @@ def check_fault(fault: _Fault, vehicles: int) -> None:
     vehicle = getattr(fault, "vehicle", None)
     if vehicle is not None and vehicle > vehicles:
         raise ValueError(f"fault {fault.name or fault.kind}: vehicle {vehicle} does not exist ({vehicles} vehicles)")
+    missing = [n for n in getattr(fault, "names", ()) if n > vehicles]
+    if missing:
+        raise ValueError(
+            f"fault {fault.name or fault.kind}: --names v{missing[0]} does not exist ({vehicles} vehicles)"
+        )
     if isinstance(fault, _LinkFault):
         names = endpoints(vehicles)
         for label, glob in (("--from", fault.src), ("--to", fault.dst)):

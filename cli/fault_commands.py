@@ -9,6 +9,8 @@ The grammar is close to netem and toxiproxy::
     swarm fault add jam-gnss --center 40,10 --radius 25m --for 60s
     swarm fault kill v2 --restart-after 10s
     swarm fault add lie --vehicle v3 --offset 30,-30 --cov-scale 0.01 --for 60s
+    swarm fault add lie --vehicle v3 --stale 5s
+    swarm fault add accuse --vehicle v3 --names v1,v2
 """
 
 from __future__ import annotations
@@ -22,10 +24,11 @@ from typing import Optional
 import typer
 
 from bus.errors import ConfigError, SwarmlocError
+from bus.faults import BEHAVIOUR_KINDS, LINK_KINDS, PHYSICAL_KINDS
 from cli.errors import fail
 
 fault_app = typer.Typer(no_args_is_help=True, help="Inspect and change the fault plan of a running swarm.")
-KINDS = ("delay", "loss", "duplicate", "reorder", "jam-gnss", "spoof-gnss", "jam-comms", "blackout", "lie")
+KINDS = (*LINK_KINDS, *PHYSICAL_KINDS, *BEHAVIOUR_KINDS)
 _UNITS_S = {"us": 1e-6, "ms": 1e-3, "s": 1.0, "min": 60.0, "": 1.0}
 _UNITS_M = {"m": 1.0, "km": 1000.0, "": 1.0}
 REPLY_TIMEOUT_S = 5.0
@@ -47,6 +50,8 @@ FLAGS = {
     "offset_m": "--offset",
     "cov_scale": "--cov-scale",
     "vehicle": "--vehicle",
+    "names": "--names",
+    "stale_s": "--stale",
 }
 
 
@@ -85,6 +90,14 @@ def vehicle_number(text: str) -> int:
     if not match:
         raise ConfigError(f"not a vehicle: {text!r} (use v<id> or <id>)")
     return int(match.group(1))
+
+
+def vehicle_numbers(text: str, flag: str) -> list[int]:
+    """'v1,v2' or '1,2' -> [1, 2]."""
+    try:
+        return [vehicle_number(part) for part in text.split(",")]
+    except ConfigError as exc:
+        raise ConfigError(f"{flag}: {exc}") from None
 
 
 def find_swarm(out: Path, run: Optional[Path], connect: Optional[str]) -> tuple[tuple[str, ...], str, dict[str, str]]:
@@ -196,7 +209,9 @@ def add(
     heading: Optional[float] = typer.Option(None, help="spoof-gnss, lie: direction of the growth in degrees (0 = +x)"),
     offset: Optional[str] = typer.Option(None, help="lie: constant offset X,Y in metres of the broadcast position"),
     cov_scale: Optional[float] = typer.Option(None, help="lie: broadcast covariance times this (0.01: 100x too sure)"),
-    vehicle: Optional[str] = typer.Option(None, help="blackout, lie: the vehicle (v3 or 3)"),
+    stale: Optional[str] = typer.Option(None, help="lie: broadcast the estimate of this long before, e.g. 5s"),
+    vehicle: Optional[str] = typer.Option(None, help="blackout, lie, accuse: the vehicle (v3 or 3)"),
+    names: Optional[str] = typer.Option(None, help="accuse: the vehicles it accuses, e.g. v1,v2"),
     sensor: Optional[str] = typer.Option(None, help="blackout: imu, odom, gnss or ranging"),
     name: Optional[str] = typer.Option(None, help="a unique name (default: <kind>-<n>)"),
     in_: Optional[str] = typer.Option(None, "--in", help="start this long from now (default: now)"),
@@ -228,7 +243,9 @@ def add(
             "offset_m": centre(offset, "--offset"),
             "cov_scale": cov_scale,
             "sensor": sensor,
+            "stale_s": seconds(stale, "--stale"),
             "vehicle": vehicle_number(vehicle) if vehicle else None,
+            "names": vehicle_numbers(names, "--names") if names else None,
             "start_s": seconds(in_, "--in"),
             "for_s": seconds(for_, "--for"),
         }

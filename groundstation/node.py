@@ -297,6 +297,10 @@ class GroundStation:
             if verdict is not None:
                 kind, neighbour, reason = verdict
                 self.event(kind, vehicle=decoded.vehicle_id, neighbour=neighbour, reason=reason)
+            contradicted = contradiction(decoded.text)
+            if contradicted is not None:
+                accuser, accused = contradicted
+                self.event("accusation_contradicted", vehicle=decoded.vehicle_id, accuser=accuser, accused=accused)
 
     def _on_estimator_status(self, status: EstimatorStatus) -> None:
         """GNSS health changes (the GPS glitch flag) become events, stamped with the vehicle's time."""
@@ -415,6 +419,7 @@ class GroundStation:
 
 
 _VERDICT = re.compile(r"(distrust|trust) v([1-9][0-9]{0,2}): (.{0,60})")
+_CONTRADICTION = re.compile(r"discredit v([1-9][0-9]{0,2}): accuses v([1-9][0-9]{0,2}), .{0,40}")
 
 
 def trust_verdict(text: str) -> tuple[str, int, str] | None:
@@ -425,3 +430,11 @@ def trust_verdict(text: str) -> tuple[str, int, str] | None:
         return None
     kind = "neighbour_distrusted" if match.group(1) == "distrust" else "neighbour_trusted"
     return kind, int(match.group(2)), match.group(3)
+
+
+def contradiction(text: str) -> tuple[int, int] | None:
+    """(accuser, accused) from a vehicle's STATUSTEXT saying its own evidence contradicted an
+    accusation (vehicle.estimators.trust says "discredit v4: accuses v1, consistent here"), None
+    for any other text (total)."""
+    match = _CONTRADICTION.fullmatch(text) if isinstance(text, str) else None
+    return None if match is None else (int(match.group(1)), int(match.group(2)))

@@ -68,7 +68,7 @@ SDK_OVERFLOW_LOGGER = "foxglove.websocket.connected_client.send_lossy"  # "outbo
 RANGING_LIFETIME_NS = 1_000_000_000
 TRAIL_S, TRAIL_STEP_US = 30, 1_000_000  # trails: the last 30 s, a point a second
 ZONE_COLOURS = {"jam-gnss": (1.0, 0.2, 0.2), "spoof-gnss": (1.0, 0.6, 0.0), "jam-comms": (0.7, 0.3, 1.0)}
-WARNING_EVENTS = ("fault", "neighbour_distrusted", "vehicle_lost", "estimator_reset", "gnss")
+WARNING_EVENTS = ("fault", "neighbour_distrusted", "accusation_contradicted", "vehicle_lost", "estimator_reset", "gnss")
 
 
 def pose_topic(vehicle_id: int, kind: str) -> str:

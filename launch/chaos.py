@@ -1,7 +1,8 @@
 """A seeded random fault timeline with every kind of fault, for chaos runs (`swarm up --chaos SEED`).
 
-Each kind appears at least once; faults start between 10% and 70% of the run and end by 95% of it
-(a kill's restart comes 3-15 s after it), so every fault starts and ends while the swarm runs.
+Each kind appears at least once (``accuse`` in swarms of two or more); faults start between 10% and
+70% of the run and end by 95% of it (a kill's restart comes 3-15 s after it), so every fault starts
+and ends while the swarm runs.
 Zones are placed over the square of start pads (``spacing_m`` apart on ceil(sqrt(N)) columns).
 """
 
@@ -13,7 +14,7 @@ import numpy as np
 
 LINK_KINDS = ("delay", "loss", "duplicate", "reorder")
 ZONE_KINDS = ("jam-gnss", "spoof-gnss", "jam-comms")
-ALL_KINDS = (*LINK_KINDS, *ZONE_KINDS, "blackout", "kill", "lie")
+ALL_KINDS = (*LINK_KINDS, *ZONE_KINDS, "blackout", "kill", "lie", "accuse")
 
 
 def _link(kind: str, rng: np.random.Generator, vehicles: int) -> dict:
@@ -54,6 +55,10 @@ def _fault(kind: str, rng: np.random.Generator, vehicles: int, extent_m: float) 
     vehicle = int(rng.integers(1, vehicles + 1))
     if kind == "blackout":
         return {"vehicle": vehicle, "sensor": str(rng.choice(["imu", "odom", "gnss", "ranging"]))}
+    if kind == "accuse":
+        others = [v for v in range(1, vehicles + 1) if v != vehicle]
+        names = rng.choice(others, size=min(len(others), int(rng.integers(1, 4))), replace=False)
+        return {"vehicle": vehicle, "names": sorted(int(n) for n in names)}
     if kind == "lie":
         return {
             "vehicle": vehicle,
@@ -67,7 +72,8 @@ def _fault(kind: str, rng: np.random.Generator, vehicles: int, extent_m: float) 
 def chaos_faults(seed: int, *, vehicles: int, duration_s: float, spacing_m: float, extra: int = 6) -> list[dict]:
     """Every kind once plus ``extra`` random ones, each with a start and duration inside the run."""
     rng = np.random.default_rng([seed, 0xC4A05])
-    kinds = list(ALL_KINDS) + [str(k) for k in rng.choice([k for k in ALL_KINDS if k != "kill"], extra)]
+    possible = [k for k in ALL_KINDS if k != "accuse" or vehicles > 1]  # one vehicle has nobody to accuse
+    kinds = possible + [str(k) for k in rng.choice([k for k in possible if k != "kill"], extra)]
     extent_m = (math.ceil(math.sqrt(vehicles)) - 1) * spacing_m + 1.0
     faults = []
     for n, kind in enumerate(kinds, start=1):

@@ -15,7 +15,7 @@ from typing import Any
 from bus import feed
 from bus import messages as m
 from bus.errors import DecodeError
-from bus.faults import Lie
+from bus.faults import Accuse, Lie
 from bus.keys import KeySpace
 from bus.link_faults import Arrival, LinkFaultStage
 from bus.mailbox import Oversized
@@ -61,7 +61,7 @@ class Inbound:
     ) -> None:
         self.keys, self.vehicle_id, self.vehicles, self.rejections = keys, vehicle_id, vehicles, rejections
         self.links = LinkFaultStage(f"v{vehicle_id}", seed=fault_seed, faults=faults)
-        self.lies = _own_lies(faults, vehicle_id)  # the plan's lies this vehicle tells (bus.lies)
+        self.behaviour = _own_behaviour(faults, vehicle_id)  # the plan's lies and accusations of it (bus.lies)
         self.plan_version = -1
         self.received_tick = -1  # the newest sensor batch that arrived
         self.received_stamp_us = -1  # and the end of the time it covers
@@ -131,7 +131,7 @@ class Inbound:
         if plan.version > self.plan_version:
             self.plan_version = plan.version
             self.links.set_plan(plan.faults)
-            self.lies = _own_lies(plan.faults, self.vehicle_id)
+            self.behaviour = _own_behaviour(plan.faults, self.vehicle_id)
         return []
 
     def _batch(self, item: Envelope) -> list[Delivery]:
@@ -196,5 +196,5 @@ class Inbound:
         return [self._delivery(p) for p in self.links.release(now_us)]
 
 
-def _own_lies(faults: tuple, vehicle_id: int) -> tuple[Lie, ...]:
-    return tuple(f for f in faults if isinstance(f, Lie) and f.vehicle == vehicle_id)
+def _own_behaviour(faults: tuple, vehicle_id: int) -> tuple[Lie | Accuse, ...]:
+    return tuple(f for f in faults if isinstance(f, (Lie, Accuse)) and f.vehicle == vehicle_id)

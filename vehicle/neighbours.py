@@ -31,14 +31,18 @@ fail at once. A neighbour that fails is distrusted only if the vehicle has groun
 over it: another believed neighbour passing every test over the same window (when every neighbour
 disagrees with a vehicle, the vehicle is the likelier one to be wrong, and it accuses nobody; its
 own GNSS is no such ground, since a spoofed receiver agrees with the filter it drags). A distrusted
-neighbour's fixes are still judged but not fused; it is trusted again after ``retrust_s`` of passing
-every test. What the others say counts too (``hear``): each broadcast names whom its sender
-distrusts on its own evidence, and a neighbour that ``quorum`` believed vehicles accuse is
-distrusted on their word. The believed neighbours' recent fixes also have a say on the vehicle's own
-GNSS: a position reset that they speak against is refused (``disagreement``). The thresholds are set
-from clean runs (no liar: the honest world, jamming, link faults; docs/liars.md), well above what
-those reach. The statistics of one neighbour's fixes live in vehicle.neighbour_fixes. Pure; the
-record lives in the filter's state, so a fusion-horizon replay restores it with everything else.
+neighbour's fixes are still judged but not fused; it is trusted again after passing every test for
+a probation that grows with its record (``retrust_s`` at the first verdict, doubled at
+each relapse, one relapse forgiven per ``forgive_s`` believed). What the others say (``vehicle.hearsay``)
+never outweighs what the vehicle finds itself: a neighbour it judges (``judges``: fresh fixes of its
+own) is judged by its own tests, made more watchful (``watchful_bias``) while more than
+``max_compromised`` believed vehicles accuse it; only a neighbour it cannot judge is distrusted on
+the word of more than ``max_compromised`` of them. The believed neighbours' recent fixes also have a
+say on the vehicle's own GNSS: a position reset that they speak against is refused (``disagreement``).
+The thresholds are set from clean runs (no liar: the honest world, jamming, link faults;
+docs/liars.md), well above what those reach. The statistics of one neighbour's fixes live in
+vehicle.neighbour_fixes. Pure; the record lives in the filter's state, so a fusion-horizon replay
+restores it with everything else.
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bus.config import VehicleConfig
 from vehicle.neighbour_fixes import Fix, effective_count, window_stats
 
 
@@ -61,41 +66,69 @@ class MonitorSpec:
     gate_fail_share: float = 0.5  # more than this share of the window's fixes rejected by the gate
     mean_nis: float = 12.0  # window mean NIS (2 expected)
     bias: float = 40.0  # n_eff |mean whitened innovation|^2 (chi-square, 2 dof: P(> 40) = 2e-9)
+    watchful_bias: float = 20.0  # the bias test's bound while more than f believed vehicles accuse (P = 5e-5)
     decorrelation_s: float = 1.0  # fixes closer than this count as one in the bias test (n_eff)
-    retrust_s: float = 10.0
+    retrust_s: float = 10.0  # probation after a first verdict; each relapse doubles it
+    forgive_s: float = 120.0  # one past verdict is forgiven per this long believed
+    min_hold_s: float = 10.0  # a verdict on others' word holds at least this long
+    discredit_s: float = 60.0  # an accuser contradicted by the vehicle's own evidence is not heard for this long
     implausible_ratio: float = 0.1  # a claimed position variance below this times the best of the others'
-    quorum: int = 2  # believed vehicles whose broadcasts must accuse a neighbour to distrust it on their word
+    max_compromised: int = 2  # f: hearsay needs more than f believed accusers (docs/security.md)
+    hearsay_over_evidence: bool = False  # the rule before issue 43 (a control): a quorum's word decides
+
+    @property
+    def quorum(self) -> int:
+        """Believed accusers it takes to distrust a neighbour on their word: more than f."""
+        return self.max_compromised + 1
 
 
 @dataclass
 class NeighbourRecord:
-    """One neighbour's fixes of the long window, and whether it is believed."""
+    """One neighbour's fixes of the long window, and whether it is believed: ``distrusted`` on the
+    vehicle's own evidence, ``hearsay`` (not "") on the word of others; ``verdicts``: its record
+    (first-hand verdicts against it, less those forgiven), ``changed_us``: when the vehicle's
+    belief in it last changed; ``accusers``: the believed vehicles that accuse it now."""
 
     fixes: deque = field(default_factory=deque)
     distrusted: bool = False
     passing_since_us: int | None = None  # while distrusted: every test has passed since then
     reason: str = ""
-    hearsay: str = ""  # not "": distrusted on the word of others (who accuse it)
+    hearsay: str = ""
+    verdicts: int = 0
+    changed_us: int | None = None
+    accusers: tuple[int, ...] = ()
 
     def copy(self) -> NeighbourRecord:
-        return NeighbourRecord(deque(self.fixes), self.distrusted, self.passing_since_us, self.reason, self.hearsay)
+        return dataclasses.replace(self, fixes=deque(self.fixes))
 
     @property
     def believed(self) -> bool:
         return not self.distrusted and not self.hearsay
 
+    def probation_us(self, spec: MonitorSpec) -> int:
+        """How long a distrusted neighbour must pass every test to be trusted again: ``retrust_s``
+        doubled for every verdict on its record before the present one."""
+        return round(spec.retrust_s * 2.0 ** max(0, self.verdicts - 1) * 1e6)
+
 
 @dataclass
 class NeighbourBook:
-    """Every neighbour's record, the smallest position variance the vehicle has had itself, and whom
-    each neighbour's latest broadcast accused: {accuser: (stamp us, accused)}."""
+    """Every neighbour's record, the smallest position variance the vehicle has had itself, whom
+    each neighbour's latest broadcast accused: {accuser: (stamp us, accused)}, and the accusers
+    its own evidence contradicted: {accuser: stamp us of the latest such accusation}."""
 
     records: dict[int, NeighbourRecord] = field(default_factory=dict)
     own_best_m2: float = math.inf
     accusations: dict[int, tuple[int, frozenset[int]]] = field(default_factory=dict)
+    contradicted: dict[int, int] = field(default_factory=dict)
 
     def copy(self) -> NeighbourBook:
-        return NeighbourBook({j: r.copy() for j, r in self.records.items()}, self.own_best_m2, dict(self.accusations))
+        return NeighbourBook(
+            {j: r.copy() for j, r in self.records.items()},
+            self.own_best_m2,
+            dict(self.accusations),
+            dict(self.contradicted),
+        )
 
     def best_claim_m2(self, besides: int) -> float:
         """The smallest position variance this vehicle has had, or any neighbour but ``besides`` has
@@ -120,6 +153,15 @@ class Verdict:
     neighbour: int
     trusted: bool
     reason: str
+
+
+def monitor_spec(vehicle: VehicleConfig) -> MonitorSpec | None:
+    """The monitor a vehicle's configuration asks for (None: the monitor off)."""
+    if not vehicle.neighbour_monitor:
+        return None
+    return MonitorSpec(
+        max_compromised=vehicle.max_compromised, hearsay_over_evidence=vehicle.trust_rule == "quorum-only"
+    )
 
 
 def refused(book: NeighbourBook, neighbour: int) -> None:
@@ -153,10 +195,13 @@ def disagreement(book: NeighbourBook, spec: MonitorSpec, offset_m: np.ndarray, n
     return total
 
 
-def failure(record: NeighbourRecord, spec: MonitorSpec, now_us: int, best_m2: float = 0.0) -> str:
+def failure(
+    record: NeighbourRecord, spec: MonitorSpec, now_us: int, best_m2: float = 0.0, watchful: bool | None = None
+) -> str:
     """Why the neighbour's recent fixes are inconsistent ("" when they pass, or are too few to tell);
     ``best_m2``: the smallest position variance had or claimed by anyone else (the implausibility
-    test; 0 or infinite: none)."""
+    test; 0 or infinite: none). The bias bound is ``watchful_bias`` when ``watchful`` (None: while
+    more than f believed vehicles accuse the neighbour)."""
     latest = list(record.fixes)[-spec.min_fixes :]
     if len(latest) == spec.min_fixes and all(f.gated_out for f in latest):
         return f"its last {spec.min_fixes} fixes fail the gate"
@@ -164,71 +209,80 @@ def failure(record: NeighbourRecord, spec: MonitorSpec, now_us: int, best_m2: fl
     if len(latest) == spec.min_fixes and all(f.claimed_m2 < plausible for f in latest):
         ratio = best_m2 / max(max(f.claimed_m2 for f in latest), 1e-300)
         return f"claims {min(ratio, 999):.0f}x less variance than others"
+    watchful = len(record.accusers) >= spec.quorum if watchful is None else watchful
+    bias = spec.watchful_bias if watchful else spec.bias
     short = window_stats(record.fixes, now_us - round(spec.window_s * 1e6), spec.decorrelation_s)
     if short.fixes >= spec.min_fixes:
         if short.gated_out > spec.gate_fail_share * short.fixes:
             return f"{short.gated_out} of {short.fixes} fixes fail the gate"
         if short.mean_nis > spec.mean_nis:
             return f"mean NIS {short.mean_nis:.1f} over {short.fixes} fixes"
-        if short.bias > spec.bias:
+        if short.bias > bias:
             return f"biased by {short.bias:.0f} over {short.fixes} fixes"
     long = window_stats(record.fixes, now_us - round(spec.long_window_s * 1e6), spec.decorrelation_s)
-    if long.fixes >= spec.min_fixes and long.bias > spec.bias and math.isfinite(long.bias):
+    if long.fixes >= spec.min_fixes and long.bias > bias and math.isfinite(long.bias):
         return f"biased by {long.bias:.0f} over {long.fixes} fixes"
     return ""
 
 
+def judges(record: NeighbourRecord | None, spec: MonitorSpec, now_us: int, span_s: float | None = None) -> bool:
+    """Whether the vehicle can judge the neighbour on its own evidence at ``now_us``: it has ranged it
+    over the last ``span_s`` (``window_s`` when None): ``min_fixes`` fixes in it, the first within
+    ``decorrelation_s`` of its start and the latest within ``decorrelation_s`` of now (a vehicle that
+    ranged it before a lie began has no evidence of the lie, and a second of fixes shows no bias)."""
+    fresh_us = round(spec.decorrelation_s * 1e6)
+    if record is None or not record.fixes or now_us - record.fixes[-1].stamp_us > fresh_us:
+        return False
+    since = now_us - round((spec.window_s if span_s is None else span_s) * 1e6)
+    recent = [f for f in record.fixes if f.stamp_us > since]
+    return len(recent) >= spec.min_fixes and recent[0].stamp_us <= since + fresh_us
+
+
+def consistent_here(book: NeighbourBook, spec: MonitorSpec, neighbour: int, now_us: int) -> bool:
+    """Whether the vehicle's own evidence clears the neighbour at ``now_us``, strongly enough to hold
+    an accusation of it against its accuser: it has ranged it over the whole long window, its fixes
+    pass every test watchfully (``watchful_bias``) and the vehicle has not distrusted it itself."""
+    record = book.records.get(neighbour)
+    return (
+        record is not None
+        and not record.distrusted
+        and judges(record, spec, now_us, spec.long_window_s)
+        and not failure(record, spec, now_us, _best_claim(book, spec, neighbour, record), watchful=True)
+    )
+
+
 def see(book: NeighbourBook, spec: MonitorSpec, neighbour: int, fix: Fix) -> Verdict | None:
-    """Record one fix of ``neighbour``; a Verdict when its trust changes."""
+    """Record one fix of ``neighbour``; a Verdict when the vehicle's own verdict on it changes, or
+    when its own evidence clears a neighbour distrusted on the word of others."""
     record = book.records.setdefault(neighbour, NeighbourRecord())
     record.fixes.append(fix)
-    horizon = fix.stamp_us - round(max(spec.window_s, spec.long_window_s) * 1e6)
+    now = fix.stamp_us
+    horizon = now - round(max(spec.window_s, spec.long_window_s) * 1e6)
     while record.fixes and record.fixes[0].stamp_us <= horizon:
         record.fixes.popleft()
-    reason = failure(record, spec, fix.stamp_us, _best_claim(book, spec, neighbour, record))
+    reason = failure(record, spec, now, _best_claim(book, spec, neighbour, record))
     if not record.distrusted:
-        if reason and _credible(book, spec, neighbour, fix.stamp_us):
+        if reason and _credible(book, spec, neighbour, now):
+            if record.changed_us is not None:  # believed since then: forgiven one verdict per forgive_s
+                forgiven = (now - record.changed_us) // round(spec.forgive_s * 1e6)
+                record.verdicts = max(0, record.verdicts - forgiven)
             record.distrusted, record.passing_since_us, record.reason = True, None, reason
-            return Verdict(fix.stamp_us, neighbour, False, reason)
+            record.verdicts += 1
+            record.changed_us = now
+            return Verdict(now, neighbour, False, reason)
+        if record.hearsay and not spec.hearsay_over_evidence and not reason and judges(record, spec, now):
+            record.hearsay, record.changed_us = "", now
+            return Verdict(now, neighbour, True, "consistent here")
         return None
-    if reason or window_stats(record.fixes, fix.stamp_us - round(spec.window_s * 1e6)).fixes < spec.min_fixes:
+    if reason or window_stats(record.fixes, now - round(spec.window_s * 1e6)).fixes < spec.min_fixes:
         record.passing_since_us = None
         return None
-    record.passing_since_us = fix.stamp_us if record.passing_since_us is None else record.passing_since_us
-    if fix.stamp_us - record.passing_since_us >= round(spec.retrust_s * 1e6):
+    record.passing_since_us = now if record.passing_since_us is None else record.passing_since_us
+    if now - record.passing_since_us >= record.probation_us(spec):
         record.distrusted, record.passing_since_us, record.reason = False, None, ""
-        return Verdict(fix.stamp_us, neighbour, True, "consistent again")
+        record.changed_us = now
+        return Verdict(now, neighbour, True, "consistent again")
     return None
-
-
-def hear(
-    book: NeighbourBook, spec: MonitorSpec, accuser: int, accused: frozenset[int], t_us: int, me: int
-) -> list[Verdict]:
-    """Record whom ``accuser``'s broadcast at ``t_us`` says its monitor distrusts on its own evidence;
-    a Verdict for each neighbour whose belief changes. A neighbour accused in the latest broadcasts
-    (of the last ``long_window_s``) of at least ``quorum`` vehicles this one believes is distrusted
-    on their word, and trusted again when fewer accuse it (one liar cannot accuse alone; accusations
-    of this vehicle itself, or by the accused, do not count). Only first-hand verdicts are passed
-    on, so a rumour cannot keep itself alive."""
-    if accused:
-        book.accusations[accuser] = (t_us, accused)
-    else:
-        book.accusations.pop(accuser, None)
-    since = t_us - round(spec.long_window_s * 1e6)
-    for j in [j for j, (stamp, _) in book.accusations.items() if stamp <= since]:
-        del book.accusations[j]
-    named = {k for _, who in book.accusations.values() for k in who}
-    verdicts = []
-    for k in sorted((named | {k for k, r in book.records.items() if r.hearsay}) - {me}):
-        accusers = sorted(
-            j for j, (_, who) in book.accusations.items() if k in who and j not in (k, me) and book.trusts(j)
-        )
-        record = book.records.setdefault(k, NeighbourRecord())
-        before = record.believed
-        record.hearsay = "accused by " + ", ".join(f"v{j}" for j in accusers) if len(accusers) >= spec.quorum else ""
-        if record.believed != before:
-            verdicts.append(Verdict(t_us, k, record.believed, record.hearsay or "no longer accused"))
-    return verdicts
 
 
 def plausible(book: NeighbourBook, spec: MonitorSpec, neighbour: int) -> bool:

@@ -273,7 +273,7 @@ class VehicleNode:
             self.estimator,
             self.reset_counter,
             listeners=self.inbound.listeners_at(t_us),
-            lies=self.inbound.lies,
+            behaviour=self.inbound.behaviour,
         )
 
     def report(self, t_us: int) -> None:

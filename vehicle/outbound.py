@@ -2,8 +2,9 @@
 ESTIMATOR_STATUS at 1 Hz, STATUSTEXT for notices), the V2V broadcast at every ranging epoch (its
 estimate, or a NoEstimate ODOMETRY before it has one; then an accusation frame per neighbour its
 monitor distrusts on its own evidence), its loop statistics and its lockstep
-acknowledgements. A vehicle told to lie (the ``lie`` fault, bus.lies) changes only its V2V
-broadcast, signed with its own key on a second link: its MAVLink to the ground station stays honest.
+acknowledgements. A vehicle told to lie or to accuse (the ``lie`` and ``accuse`` faults, bus.lies)
+changes only its V2V broadcast, signed with its own key on a second link (its accusations on the
+third, as its honest ones): its MAVLink to the ground station stays honest.
 
 MAVLink is a byte stream: the frames of one lockstep tick travel as one message (as several frames
 share one UDP datagram); in realtime each cycle's frames go out at once.
@@ -11,12 +12,14 @@ share one UDP datagram); in realtime each cycle's frames go out at once.
 
 from __future__ import annotations
 
+from collections import deque
+
 from bus import messages as m
 from bus.config import VehicleProcessConfig
 from bus.estimate import PoseEstimate
-from bus.faults import Lie
+from bus.faults import Accuse, Lie
 from bus.landmark_map import LandmarkMap, encode_map
-from bus.lies import active_lies, told
+from bus.lies import active_lies, false_accusations, longest_stale_s, told
 from bus.mavlink_codec import MAX_ACCUSED, MavlinkEncoder, odometry_of, status_of
 from bus.session import Bus
 from vehicle.estimators.filter import Filter
@@ -45,6 +48,7 @@ class Outbound:
         self._next_heartbeat_us = 0
         self._next_status_us = 0
         self._frames: list[bytes] = []
+        self._past: deque[PoseEstimate] = deque()  # the broadcast epochs' estimates a stale lie replays
         self.v2v_sent = 0
 
     def cycle(
@@ -53,10 +57,11 @@ class Outbound:
         estimator: Filter,
         reset_counter: int,
         listeners: tuple[int, ...] | None = None,
-        lies: tuple[Lie, ...] = (),
+        behaviour: tuple[Lie | Accuse, ...] = (),
     ) -> None:
         """Encode this cycle's frames (kept until ``flush``); at the ranging epochs send the V2V frame to
-        ``listeners`` (the vehicles that range with this one now), or to every vehicle (None)."""
+        ``listeners`` (the vehicles that range with this one now), or to every vehicle (None), as the
+        plan's lies and accusations of this vehicle (``behaviour``) have it."""
         notices = estimator.take_notices()
         for notice in notices:
             self._frames.append(self.encoder.statustext(notice.severity, notice.text[:50]))
@@ -73,21 +78,29 @@ class Outbound:
             if on_mavlink:
                 self._frames.append(odometry)
             if on_v2v:  # the V2V packet {id, x_hat, P, t}, and whom its monitor distrusts
-                accusations = b"".join(self._accuser.accusation(t_us, j) for j in estimator.accused()[:MAX_ACCUSED])
-                self._send_v2v(self._v2v_frame(odometry, pose, t_us, reset_counter, lies) + accusations, listeners)
+                accused = sorted(set(estimator.accused()) | false_accusations(behaviour, self.vehicle_id, t_us / 1e6))
+                accusations = b"".join(self._accuser.accusation(t_us, j) for j in accused[:MAX_ACCUSED])
+                self._send_v2v(self._v2v_frame(odometry, pose, t_us, reset_counter, behaviour) + accusations, listeners)
         if t_us >= self._next_heartbeat_us:
             self._frames += [self.encoder.heartbeat(), self.encoder.estimator_status(status_of(estimator.health(t_us)))]
             self._next_heartbeat_us = t_us + self._heartbeat_us
 
     def _v2v_frame(
-        self, honest: bytes, estimate: PoseEstimate, t_us: int, reset_counter: int, lies: tuple[Lie, ...]
+        self, honest: bytes, estimate: PoseEstimate, t_us: int, reset_counter: int, behaviour: tuple
     ) -> bytes:
         """The honest frame, or the estimate as the plan's active lies tell it."""
-        active = active_lies(lies, self.vehicle_id, t_us / 1e6)
+        stale_s = longest_stale_s(behaviour, self.vehicle_id)
+        if stale_s:
+            self._past.append(estimate)
+            while self._past[0].stamp_us < t_us - round((stale_s + 1.0) * 1e6):
+                self._past.popleft()
+        active = active_lies(behaviour, self.vehicle_id, t_us / 1e6)
         if not active:
             return honest
-        told_estimate = odometry_of(told(estimate, active), altitude_m=self.altitude_m, reset_counter=reset_counter)
-        return self._lie_encoder.odometry(told_estimate)
+        told_estimate = told(estimate, active, self._past)
+        return self._lie_encoder.odometry(
+            odometry_of(told_estimate, altitude_m=self.altitude_m, reset_counter=reset_counter)
+        )
 
     def _send_v2v(self, frame: bytes, listeners: tuple[int, ...] | None) -> None:
         """Broadcast (``listeners`` None: counted for lockstep's V2V barrier) or one copy per listener."""

@@ -48,7 +48,7 @@ from vehicle.models import landmarks as slam
 from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.gnss import WhiteGnss
 from vehicle.models.motion import POSE_DIM, UnicycleMotion
-from vehicle.neighbours import MonitorSpec
+from vehicle.neighbours import MonitorSpec, monitor_spec
 from vehicle.vision import association, features
 
 CELL_PX = 30  # paper's thinning cell
@@ -443,7 +443,7 @@ def config_arguments(config: VehicleProcessConfig, vehicle_id: int, reject: Reje
         "reject": reject,
         "cooperative": CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
         "adaptive_window": vc.adaptive_window if vc.adaptive_noise else 0,
-        "monitor": MonitorSpec() if vc.neighbour_monitor else None,
+        "monitor": monitor_spec(vc),
         "association": vc.association,
     }
 

@@ -1,8 +1,10 @@
-"""What the filter does with its neighbour monitor (the pure tests are vehicle.neighbours, the
-fixes' statistics vehicle.neighbour_fixes): each neighbour fix is judged before it is fused, with
-whom the neighbour's broadcast accuses; a verdict against a neighbour (the vehicle's own, or on the
-word of a quorum of others) undoes what it may have pulled and is said in a notice, and the believed
-neighbours have a say on the vehicle's own GNSS position resets. A part of ``Filter``
+"""What the filter does with its neighbour monitor (the pure tests are vehicle.neighbours, what the
+others' word is worth vehicle.hearsay, the fixes' statistics vehicle.neighbour_fixes): each
+neighbour fix is judged before it is fused, with whom the neighbour's broadcast accuses; a verdict
+against a neighbour (the vehicle's own, or on the word of a quorum of others where it cannot judge)
+undoes what it may have pulled and is said in a notice, as is an accusation the vehicle's own
+evidence contradicts; and the believed neighbours have a say on the vehicle's own GNSS position
+resets. A part of ``Filter``
 (``Filter.trust``; None with the monitor off); the record it keeps lives in
 ``FilterState.neighbours``, so a fusion-horizon replay restores it."""
 
@@ -14,10 +16,11 @@ import numpy as np
 
 from bus.statistics import gate_threshold
 from vehicle.estimators.state import SEVERITY_INFO, SEVERITY_WARNING, Notice
+from vehicle.hearsay import Contradiction, hear
 from vehicle.kalman import UpdateResult
 from vehicle.models.cooperative import CooperativeFix, SeenFix
 from vehicle.neighbour_fixes import fix_of, pull_m2, smallest_variance
-from vehicle.neighbours import MonitorSpec, Verdict, disagreement, hear, plausible, refused, see
+from vehicle.neighbours import MonitorSpec, Verdict, disagreement, plausible, refused, see
 
 if TYPE_CHECKING:
     from vehicle.estimators.filter import Filter
@@ -55,7 +58,7 @@ class NeighbourTrust:
             if not believed:
                 refused(book, neighbour)
         for change in changes:
-            if not change.trusted:
+            if isinstance(change, Verdict) and not change.trusted:
                 since = change.stamp_us - round(self.spec.window_s * 1e6)
                 f.store.inflate(
                     s,
@@ -74,7 +77,11 @@ class NeighbourTrust:
         return disagreement(f.state.neighbours, self.spec, offset_m, stamp_us) <= limit
 
 
-def notice_of(verdict: Verdict) -> Notice:
-    """A neighbour's trust changed: a STATUSTEXT (the ground station makes it an event)."""
-    word, severity = ("trust", SEVERITY_INFO) if verdict.trusted else ("distrust", SEVERITY_WARNING)
-    return Notice(verdict.stamp_us, severity, f"{word} v{verdict.neighbour}: {verdict.reason}")
+def notice_of(change: Verdict | Contradiction) -> Notice:
+    """A neighbour's trust changed, or an accuser was contradicted: a STATUSTEXT (the ground station
+    makes it an event: groundstation.node.trust_verdict reads it)."""
+    if isinstance(change, Contradiction):
+        text = f"discredit v{change.accuser}: accuses v{change.accused}, consistent here"
+        return Notice(change.stamp_us, SEVERITY_WARNING, text)
+    word, severity = ("trust", SEVERITY_INFO) if change.trusted else ("distrust", SEVERITY_WARNING)
+    return Notice(change.stamp_us, severity, f"{word} v{change.neighbour}: {change.reason}")

@@ -15,7 +15,7 @@ from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.gnss import gnss_model
 from vehicle.models.gnss_error import GnssErrorModel
 from vehicle.models.motion import UnicycleMotion
-from vehicle.neighbours import MonitorSpec
+from vehicle.neighbours import MonitorSpec, monitor_spec
 
 
 def build(
@@ -54,5 +54,5 @@ def from_config(config: VehicleProcessConfig, vehicle_id: int, *, reject=None) -
         gate_probability=vc.gate_probability,
         cooperative=CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
         adaptive_window=vc.adaptive_window if vc.adaptive_noise else 0,
-        monitor=MonitorSpec() if vc.neighbour_monitor else None,
+        monitor=monitor_spec(vc),
     )

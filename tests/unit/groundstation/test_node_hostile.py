@@ -115,12 +115,14 @@ def test_the_realtime_live_table_shows_a_running_ground_station(tmp_path):
         on_progress(gs)
 
 
-@given(st.text(max_size=80))
+@given(st.one_of(st.text(max_size=80), st.from_regex(r"discredit v[0-9]{1,4}: accuses v[0-9]{1,4}, .{0,45}")))
 def test_trust_verdicts_are_read_from_any_statustext_or_none(text):
-    from groundstation.node import trust_verdict
+    from groundstation.node import contradiction, trust_verdict
 
     verdict = trust_verdict(text)
     assert verdict is None or (verdict[0] in ("neighbour_distrusted", "neighbour_trusted") and 1 <= verdict[1] <= 999)
+    contradicted = contradiction(text)
+    assert contradicted is None or all(1 <= v <= 999 for v in contradicted)
 
 
 def test_trust_verdicts_name_the_neighbour_and_the_reason():
@@ -133,3 +135,11 @@ def test_trust_verdicts_name_the_neighbour_and_the_reason():
     )
     assert trust_verdict("trust v12: consistent again") == ("neighbour_trusted", 12, "consistent again")
     assert trust_verdict("GNSS unhealthy: no fix") is None and trust_verdict("distrust v0: x") is None
+
+
+def test_contradicted_accusations_name_the_accuser_and_the_accused():
+    from groundstation.node import contradiction, trust_verdict
+
+    assert contradiction("discredit v4: accuses v1, consistent here") == (4, 1)
+    assert trust_verdict("discredit v4: accuses v1, consistent here") is None
+    assert contradiction("discredit v0: accuses v1, x") is None and contradiction("distrust v3: x") is None

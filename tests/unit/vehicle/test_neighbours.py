@@ -1,47 +1,18 @@
 """The neighbour monitor: a consistent neighbour is never distrusted; one whose fixes all fail the
 gate is distrusted within a second or two; a slow drift that passes every gate is caught by the bias
 of its innovations; an over-confident one by its NIS; a vehicle with no grounds to trust itself
-accuses nobody; a distrusted neighbour is trusted again once it has been consistent for a while."""
+accuses nobody; a distrusted neighbour is trusted again once it has been consistent for a while
+(what the others say: test_hearsay)."""
 
 import math
 
 import numpy as np
 import pytest
 
+from tests.unit.vehicle.neighbour_streams import PERIOD_US, SPEC, S, fix, stream, witness
 from vehicle.kalman import UpdateResult
 from vehicle.neighbour_fixes import fix_of, pull_m2, whiten
-from vehicle.neighbours import MonitorSpec, NeighbourBook, disagreement, hear, plausible, see
-
-SPEC = MonitorSpec()
-PERIOD_US = 200_000  # ranging at 5 Hz
-S = (0.25, 0.0, 0.25)  # innovation covariance of every fix (0.5 m sigma on each axis)
-
-
-def _fix(t_us: int, y: tuple[float, float], gate: float = 13.8):
-    nis = (y[0] ** 2 + y[1] ** 2) / 0.25
-    return fix_of(t_us, UpdateResult(nis <= gate, nis, nis / gate, y, S))
-
-
-WITNESS = 9  # a consistent neighbour: the observer's grounds to trust itself
-
-
-def _witness(book, rng, t_us):
-    y = rng.normal(0.0, 0.5, 2)
-    assert see(book, SPEC, WITNESS, _fix(t_us, (float(y[0]), float(y[1])))) is None
-
-
-def _stream(book, neighbour, offsets, rng, start_us=0):
-    """Fixes of ``neighbour`` with innovation noise N(0, S) plus ``offsets`` (k, 2), next to a
-    consistent witness; the verdicts about ``neighbour``."""
-    verdicts = []
-    for k, offset in enumerate(offsets):
-        t = start_us + k * PERIOD_US
-        _witness(book, rng, t)
-        y = rng.normal(0.0, 0.5, 2) + offset
-        verdict = see(book, SPEC, neighbour, _fix(t, (float(y[0]), float(y[1]))))
-        if verdict is not None:
-            verdicts.append(verdict)
-    return verdicts
+from vehicle.neighbours import NeighbourBook, disagreement, plausible, see
 
 
 def test_whitening_makes_a_standard_pair():
@@ -53,14 +24,14 @@ def test_whitening_makes_a_standard_pair():
 def test_a_consistent_neighbour_is_never_distrusted():
     rng = np.random.default_rng(1)
     book = NeighbourBook()
-    assert _stream(book, 3, np.zeros((3000, 2)), rng) == []  # 10 minutes of fixes
+    assert stream(book, 3, np.zeros((3000, 2)), rng) == []  # 10 minutes of fixes
     assert book.trusts(3)
 
 
 def test_a_gross_liar_is_distrusted_once_its_last_min_fixes_fail_the_gate():
     rng = np.random.default_rng(2)
     book = NeighbourBook()
-    verdicts = _stream(book, 3, np.full((50, 2), 30.0), rng)
+    verdicts = stream(book, 3, np.full((50, 2), 30.0), rng)
     assert verdicts and not verdicts[0].trusted and "fail the gate" in verdicts[0].reason
     assert verdicts[0].stamp_us <= SPEC.min_fixes * PERIOD_US and not book.trusts(3)
 
@@ -69,7 +40,7 @@ def test_a_slow_drift_that_passes_every_gate_is_caught_by_its_bias():
     rng = np.random.default_rng(3)
     book = NeighbourBook()
     drift = np.outer(np.arange(300) * PERIOD_US * 1e-6, [0.1, 0.0])  # 0.1 m/s: 0.02 m per fix
-    verdicts = _stream(book, 3, drift, rng)
+    verdicts = stream(book, 3, drift, rng)
     assert verdicts and "biased" in verdicts[0].reason
     offset_when_caught = 0.1 * verdicts[0].stamp_us * 1e-6
     assert offset_when_caught < 1.8  # below the single-fix gate (3.7 sigmas, 1.86 m): the fixes still pass it
@@ -80,9 +51,9 @@ def test_an_overconfident_neighbour_is_caught_by_its_nis():
     book = NeighbourBook()
     verdicts = []
     for k in range(100):  # its real scatter is 3 m where it claims 0.5 m
-        _witness(book, rng, k * PERIOD_US)
+        witness(book, rng, k * PERIOD_US)
         y = rng.normal(0.0, 1.5, 2)
-        verdict = see(book, SPEC, 3, _fix(k * PERIOD_US, (float(y[0]), float(y[1])), gate=1e9))
+        verdict = see(book, SPEC, 3, fix(k * PERIOD_US, (float(y[0]), float(y[1])), gate=1e9))
         verdicts += [verdict] if verdict else []
     assert verdicts and "mean NIS" in verdicts[0].reason
 
@@ -94,7 +65,7 @@ def test_a_vehicle_without_grounds_to_trust_itself_accuses_nobody():
     for k in range(100):
         for neighbour in (2, 3):
             y = rng.normal(0.0, 0.5, 2) + 5.0
-            assert see(book, SPEC, neighbour, _fix(k * PERIOD_US, (float(y[0]), float(y[1])))) is None
+            assert see(book, SPEC, neighbour, fix(k * PERIOD_US, (float(y[0]), float(y[1])))) is None
     assert book.trusts(2) and book.trusts(3)
 
 
@@ -104,9 +75,9 @@ def test_another_consistent_neighbour_is_grounds_enough():
     verdicts = []
     for k in range(100):
         y2 = rng.normal(0.0, 0.5, 2)
-        see(book, SPEC, 2, _fix(k * PERIOD_US, (float(y2[0]), float(y2[1]))))
+        see(book, SPEC, 2, fix(k * PERIOD_US, (float(y2[0]), float(y2[1]))))
         y3 = rng.normal(0.0, 0.5, 2) + 30.0
-        verdict = see(book, SPEC, 3, _fix(k * PERIOD_US, (float(y3[0]), float(y3[1]))))
+        verdict = see(book, SPEC, 3, fix(k * PERIOD_US, (float(y3[0]), float(y3[1]))))
         verdicts += [verdict] if verdict else []
     assert [v.neighbour for v in verdicts] == [3] and book.trusts(2)
 
@@ -115,7 +86,7 @@ def test_a_distrusted_neighbour_is_trusted_again_after_being_consistent_for_a_wh
     rng = np.random.default_rng(7)
     book = NeighbourBook()
     offsets = np.concatenate([np.full((50, 2), 30.0), np.zeros((200, 2))])
-    verdicts = _stream(book, 3, offsets, rng)
+    verdicts = stream(book, 3, offsets, rng)
     assert [v.trusted for v in verdicts] == [False, True]
     assert verdicts[1].stamp_us - 50 * PERIOD_US >= SPEC.retrust_s * 1e6 and book.trusts(3)
 
@@ -123,9 +94,9 @@ def test_a_distrusted_neighbour_is_trusted_again_after_being_consistent_for_a_wh
 def test_the_book_copies_independently():
     rng = np.random.default_rng(8)
     book = NeighbourBook()
-    _stream(book, 3, np.zeros((20, 2)), rng)
+    stream(book, 3, np.zeros((20, 2)), rng)
     twin = book.copy()
-    _stream(book, 3, np.full((20, 2), 30.0), rng, start_us=20 * PERIOD_US)
+    stream(book, 3, np.full((20, 2), 30.0), rng, start_us=20 * PERIOD_US)
     assert not book.trusts(3) and twin.trusts(3) and len(twin.records[3].fixes) == 20
 
 
@@ -206,71 +177,6 @@ def test_neighbours_that_saw_the_vehicle_off_support_the_jump_back():
     assert disagreement(book, SPEC, np.array([2.0, 0.0]), 24 * PERIOD_US) < -13.8
 
 
-# -- what the others say: a quorum of believed accusers ----------------------------------------------------------
-
-ME, LIAR = 1, 3
-
-
-def test_one_accuser_alone_changes_nothing():
-    book = NeighbourBook()
-    assert hear(book, SPEC, 2, frozenset({LIAR}), 0, ME) == []
-    assert book.trusts(LIAR)
-
-
-def test_two_believed_accusers_distrust_a_neighbour_never_ranged_and_their_retraction_trusts_it_again():
-    book = NeighbourBook()
-    hear(book, SPEC, 2, frozenset({LIAR}), 0, ME)
-    (verdict,) = hear(book, SPEC, 4, frozenset({LIAR}), 200_000, ME)
-    assert (verdict.neighbour, verdict.trusted, verdict.reason) == (LIAR, False, "accused by v2, v4")
-    assert not book.trusts(LIAR) and book.accused() == ()  # on others' word: not passed on
-    assert hear(book, SPEC, 2, frozenset({LIAR}), 400_000, ME) == []  # said again: no new verdict
-    (again,) = hear(book, SPEC, 4, frozenset(), 600_000, ME)  # one retracts
-    assert (again.neighbour, again.trusted, again.reason) == (LIAR, True, "no longer accused")
-    assert book.trusts(LIAR)
-
-
-def test_an_accusation_not_heard_again_for_the_long_window_lapses():
-    book = NeighbourBook()
-    hear(book, SPEC, 2, frozenset({LIAR}), 0, ME)
-    hear(book, SPEC, 4, frozenset({LIAR}), 0, ME)
-    later = round(SPEC.long_window_s * 1e6)
-    assert hear(book, SPEC, 2, frozenset({LIAR}), later - 1, ME) == []
-    (verdict,) = hear(book, SPEC, 2, frozenset({LIAR}), later, ME)  # v4's accusation is 20 s old
-    assert verdict.trusted and book.trusts(LIAR)
-
-
-def test_accusers_this_vehicle_does_not_believe_do_not_count_nor_do_accusations_of_itself():
-    rng = np.random.default_rng(12)
-    book = NeighbourBook()
-    assert _stream(book, 4, np.full((20, 2), 30.0), rng)[0].trusted is False  # v4 distrusted first-hand
-    hear(book, SPEC, 2, frozenset({LIAR, ME}), 0, ME)
-    assert hear(book, SPEC, 4, frozenset({LIAR, ME}), 0, ME) == []  # v4's word is worth nothing here
-    assert book.trusts(LIAR) and ME not in book.records
-    (verdict,) = hear(book, SPEC, 5, frozenset({LIAR}), 0, ME)
-    assert verdict.neighbour == LIAR and verdict.reason == "accused by v2, v5"
-
-
-def test_two_liars_accusing_each_others_accusers_cannot_both_be_believed():
-    """v2 and v4 accuse v3; v3 accuses v2 (alone): only v3 is distrusted, and v3's word then counts for
-    nothing."""
-    book = NeighbourBook()
-    hear(book, SPEC, 3, frozenset({2}), 0, ME)
-    hear(book, SPEC, 2, frozenset({LIAR}), 0, ME)
-    hear(book, SPEC, 4, frozenset({LIAR}), 0, ME)
-    assert not book.trusts(LIAR) and book.trusts(2) and book.trusts(4)
-
-
-def test_a_first_hand_verdict_outlives_the_others_word_and_is_what_the_vehicle_says():
-    rng = np.random.default_rng(13)
-    book = NeighbourBook()
-    hear(book, SPEC, 2, frozenset({LIAR}), 0, ME)
-    hear(book, SPEC, 4, frozenset({LIAR}), 0, ME)
-    _stream(book, LIAR, np.full((20, 2), 30.0), rng)  # its own fixes fail too
-    assert book.accused() == (LIAR,)
-    assert hear(book, SPEC, 2, frozenset(), 4_000_000, ME) == []  # the others retract: still distrusted
-    assert not book.trusts(LIAR)
-
-
 def test_the_pull_undone_at_a_verdict_is_what_the_fixes_show_beyond_their_noise():
     """Consistent fixes pulled nothing as a rule (their mean innovation is noise: the bias statistic
     is 2 on average, and a pull is counted only beyond that); fixes 1 m off on the range pulled
@@ -279,7 +185,7 @@ def test_the_pull_undone_at_a_verdict_is_what_the_fixes_show_beyond_their_noise(
 
     def pull(offset_m: float) -> float:
         book = NeighbourBook()
-        _stream(book, 3, np.column_stack([np.full(25, offset_m), np.zeros(25)]), rng)
+        stream(book, 3, np.column_stack([np.full(25, offset_m), np.zeros(25)]), rng)
         return pull_m2(book.records[3].fixes, -1, SPEC.decorrelation_s)
 
     honest = [pull(0.0) for _ in range(40)]
