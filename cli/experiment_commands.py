@@ -228,6 +228,63 @@ def liar(
         raise typer.Exit(1)
 
 
+@experiment_app.command("insiders")
+def insiders(
+    out: Path = typer.Option(Path("runs"), help="parent folder of the experiment folder"),
+    seeds: int = typer.Option(10, min=1, max=1000, help="how many seeds (each flies every case)"),
+    first_seed: int = typer.Option(1, min=0, help="the first seed; the others follow"),
+    conditions: str = typer.Option(
+        "clean,accusers,accomplice,drift,relapse,stale",
+        help="comma-separated conditions: clean, accusers, accomplice, drift, relapse, stale",
+    ),
+    quiet: bool = typer.Option(False, help="no progress display"),
+    live: bool = typer.Option(False, help=LIVE_HELP),
+    live_host: str = typer.Option("127.0.0.1", help="the live view's address"),
+    live_port: int = typer.Option(8765, help="the live view's port"),
+) -> None:
+    """Compromised vehicles with valid keys against the trust rules: two insiders accusing every honest
+    vehicle (5 and 8 vehicles), a drifting liar with an accomplice accusing its rangers, a liar that
+    relapses after being caught and one that replays its own past (3 and 8 vehicles), each next to the
+    clean swarm. Writes every run and experiment.json (honest RMSE against clean, trust events)."""
+    from rich.console import Console
+
+    from bus.process import stop_on_signals
+    from experiments.insiders import CONDITIONS, run_insiders, summarize
+
+    chosen = tuple(c.strip() for c in conditions.split(",") if c.strip())
+    unknown = [c for c in chosen if c not in CONDITIONS]
+    if unknown or not chosen:
+        fail(f"unknown condition(s) {', '.join(unknown) or '(none given)'}; known: {', '.join(CONDITIONS)}")
+    try:
+        folder, runs, failures = run_insiders(
+            out,
+            seeds=list(range(first_seed, first_seed + seeds)),
+            stop=stop_on_signals(),
+            show_progress=not quiet,
+            conditions=tuple(dict.fromkeys(("clean", *chosen))),
+            view=live_view(live, live_host, live_port),
+        )
+        table = summarize(runs)
+    except SwarmlocError as exc:
+        fail(str(exc))
+    (folder / "experiment.json").write_text(json.dumps(table, indent=2, sort_keys=True) + "\n")
+    console = Console()
+    for name, row in table["conditions"].items():
+        console.print(
+            f"  {name:<24} honest RMSE / clean {row['honest_rmse_vs_clean_mean']}"
+            f" (max {row['honest_rmse_vs_clean_max']})"
+            f"  honest distrusting honest {row['honest_distrusting_honest']}  distrust/trust events"
+            f" {row['distrust_events']}/{row['trust_events']}  contradicted insiders {row['contradicted_insiders']}"
+            f" honest {row['contradicted_honest']}",
+            highlight=False,
+        )
+    for failure in failures:
+        console.print(f"[red]swarm: {failure}[/red]")
+    console.print(f"experiment: {folder}")
+    if failures:
+        raise typer.Exit(1)
+
+
 def _delays(text: str) -> tuple[float, ...]:
     """--silenced's delays (s), each a number from 0 to the lie's length; a one-line error otherwise."""
     from experiments.liar import DURATION_S, LIE_START_S

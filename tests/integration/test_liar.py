@@ -1,7 +1,8 @@
 """A vehicle that lies, through real processes: vehicle 3 of 4 broadcasts its position drifting away
 at 0.3 m/s from 5 s (validly signed: it speaks only for itself). With the neighbour monitor the
 others distrust it (events in the run directory and summary.json, nobody else distrusted; one on
-the word of two others, whose verdicts travel in their V2V broadcasts) and stay near the clean
+the word of two others, whose verdicts travel in their V2V broadcasts: flown for f = 1, a quorum
+of two, since four vehicles hold no quorum of three) and stay near the clean
 run; the control, the same lie with the monitor off, shows them dragged along, so the test can
 fail."""
 
@@ -20,7 +21,7 @@ LIE = {"kind": "lie", "name": "liar", "vehicle": 3, "drift_mps": 0.3, "heading_d
 def _scenario(tmp_path, name: str, monitor: bool, lie: bool) -> str:
     path = tmp_path / f"{name}.toml"
     text = f'name = "{name}"\n[world]\nvehicles = 4\nseed = 21\n[clock]\nduration_s = 30\n'
-    text += f"[vehicle]\nneighbour_monitor = {'true' if monitor else 'false'}\n"
+    text += f"[vehicle]\nneighbour_monitor = {'true' if monitor else 'false'}\nmax_compromised = 1\n"
     if lie:
         text += "[[faults]]\n" + "".join(
             f"{k} = {json.dumps(v) if isinstance(v, str) else v}\n" for k, v in LIE.items()
