@@ -15,8 +15,9 @@ Vehicles of the honest world (``HONEST_WORLD``, ``HONEST_DATASHEET``), real proc
 
 Each flies under the trust rule (``evidence``), and for comparison the accusers under the rule it
 replaced (``quorum-only`` with f = 1: a quorum of two decides) and the liars with the monitor off
-(``off``), next to the clean swarm of the same seed and size. Scored on the honest vehicles (the
-insiders left out) from ``START_S`` to the end, against the clean run's same vehicles.
+(``off``), next to the clean swarm of the same seed and size. Scored from ``START_S`` to the end on every vehicle but 3
+and 4 (``SCORED_OUT``: the insiders of every condition, so that the liar alone and the liar with an
+accomplice are scored on the same vehicles), against the clean run's same vehicles.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, ViewConfig, 
 from groundstation.report.rundata import load_run
 
 LIAR, ACCOMPLICE = 3, 4
+SCORED_OUT = (LIAR, ACCOMPLICE)
 START_S = 10.0
 DURATION_S = 180.0
 GROSS_S = 8.0
@@ -159,12 +161,12 @@ def run_insiders(
     return folder, runs, failures
 
 
-def honest_rmse(run_dir: Path, insiders: tuple[int, ...]) -> float | None:
-    """Position RMSE (m) of every vehicle but ``insiders``, from START_S on."""
+def honest_rmse(run_dir: Path) -> float | None:
+    """Position RMSE (m) of every vehicle but ``SCORED_OUT``, from START_S on."""
     metrics = load_run(run_dir).metrics
     if not metrics:
         return None
-    keep = ~np.isin(metrics["vehicle"], insiders) & (metrics["t_s"] >= START_S)
+    keep = ~np.isin(metrics["vehicle"], SCORED_OUT) & (metrics["t_s"] >= START_S)
     return float(np.sqrt(np.mean(metrics["err_pos_m"][keep] ** 2))) if keep.any() else None
 
 
@@ -178,7 +180,7 @@ def trust_events(run_dir: Path) -> list[dict]:
 
 def score(case: Case, run_dir: Path, clean_rmse: float | None) -> dict[str, Any]:
     """One run's row: honest RMSE against clean, and what the trust book did."""
-    rmse = honest_rmse(run_dir, case.insiders)
+    rmse = honest_rmse(run_dir)
     events = trust_events(run_dir)
     honest = lambda v: v not in case.insiders  # noqa: E731
     distrust = [e for e in events if e["event"] == "neighbour_distrusted"]
@@ -203,7 +205,7 @@ def summarize(runs: dict[Case, Path]) -> dict[str, Any]:
     rows: dict[str, list[dict[str, Any]]] = {}
     for case, path in sorted(runs.items(), key=lambda item: (item[0].group, item[0].seed)):
         clean_path = clean.get((case.seed, case.vehicles))
-        base = honest_rmse(clean_path, case.insiders) if clean_path is not None else None
+        base = honest_rmse(clean_path) if clean_path is not None else None
         rows.setdefault(case.group, []).append(score(case, path, base))
     table: dict[str, Any] = {"seeds": sorted({c.seed for c in runs}), "duration_s": DURATION_S, "conditions": {}}
     for group, scored in rows.items():

@@ -15,7 +15,8 @@ may accuse anyone, withhold accusations or fall silent. So what others say count
   ``discredit_s`` after its latest contradicted accusation (a Contradiction when it starts: a
   notice, an event at the ground station);
 - accusations by the accused, of the vehicle itself, or by a neighbour the vehicle does not believe
-  do not count; an accusation not repeated within ``long_window_s`` lapses.
+  do not count; an accusation not heard again within ``hearsay_memory_s`` lapses (a vehicle hears
+  an accuser only while it ranges it, so an accusation out of earshot is not a retraction).
 
 ``MonitorSpec.hearsay_over_evidence`` keeps the rule this replaced (a quorum's word decides, the
 vehicle's own evidence notwithstanding, and accusers are not judged) as a control. Pure.
@@ -48,7 +49,7 @@ def hear(
         book.accusations[accuser] = (t_us, accused)
     else:
         book.accusations.pop(accuser, None)
-    since = t_us - round(spec.long_window_s * 1e6)
+    since = t_us - round(spec.hearsay_memory_s * 1e6)
     for j in [j for j, (stamp, _) in book.accusations.items() if stamp <= since]:
         del book.accusations[j]
     changes: list[Verdict | Contradiction] = []

@@ -32,17 +32,17 @@ over it: another believed neighbour passing every test over the same window (whe
 disagrees with a vehicle, the vehicle is the likelier one to be wrong, and it accuses nobody; its
 own GNSS is no such ground, since a spoofed receiver agrees with the filter it drags). A distrusted
 neighbour's fixes are still judged but not fused; it is trusted again after passing every test for
-a probation that grows with its record (``retrust_s`` at the first verdict, doubled at
-each relapse, one relapse forgiven per ``forgive_s`` believed). What the others say (``vehicle.hearsay``)
-never outweighs what the vehicle finds itself: a neighbour it judges (``judges``: fresh fixes of its
-own) is judged by its own tests, made more watchful (``watchful_bias``) while more than
-``max_compromised`` believed vehicles accuse it; only a neighbour it cannot judge is distrusted on
-the word of more than ``max_compromised`` of them. The believed neighbours' recent fixes also have a
-say on the vehicle's own GNSS: a position reset that they speak against is refused (``disagreement``).
-The thresholds are set from clean runs (no liar: the honest world, jamming, link faults;
-docs/liars.md), well above what those reach. The statistics of one neighbour's fixes live in
-vehicle.neighbour_fixes. Pure; the record lives in the filter's state, so a fusion-horizon replay
-restores it with everything else.
+a probation that grows with its record (``retrust_s`` at the first verdict, doubled at each
+relapse, one relapse forgiven per ``forgive_s`` believed), and while it has a record its tests are
+watchful (``watchful_bias``). What the others say (``vehicle.hearsay``) never outweighs what the
+vehicle finds itself: a neighbour it judges (``judges``: fresh fixes of its own) is judged by its
+own tests, watchful while more than ``max_compromised`` believed vehicles accuse it; only a
+neighbour it cannot judge is distrusted on the word of more than ``max_compromised`` of them. The
+believed neighbours' recent fixes also have a say on the vehicle's own GNSS: a position reset that
+they speak against is refused (``disagreement``). The thresholds are set from clean runs (no liar:
+the honest world, jamming, link faults; docs/liars.md), well above what those reach. The statistics
+of one neighbour's fixes live in vehicle.neighbour_fixes. Pure; the record lives in the filter's
+state, so a fusion-horizon replay restores it with everything else.
 """
 
 from __future__ import annotations
@@ -66,11 +66,13 @@ class MonitorSpec:
     gate_fail_share: float = 0.5  # more than this share of the window's fixes rejected by the gate
     mean_nis: float = 12.0  # window mean NIS (2 expected)
     bias: float = 40.0  # n_eff |mean whitened innovation|^2 (chi-square, 2 dof: P(> 40) = 2e-9)
-    watchful_bias: float = 20.0  # the bias test's bound while more than f believed vehicles accuse (P = 5e-5)
+    watchful_bias: float = 25.0  # the bias bound for a neighbour with a record or accused by more than f (P = 4e-6)
+    clear_bias: float = 12.0  # own evidence clears an accused neighbour only with its bias below this
     decorrelation_s: float = 1.0  # fixes closer than this count as one in the bias test (n_eff)
     retrust_s: float = 10.0  # probation after a first verdict; each relapse doubles it
     forgive_s: float = 120.0  # one past verdict is forgiven per this long believed
     min_hold_s: float = 10.0  # a verdict on others' word holds at least this long
+    hearsay_memory_s: float = 60.0  # an accusation not heard again for this long lapses
     discredit_s: float = 60.0  # an accuser contradicted by the vehicle's own evidence is not heard for this long
     implausible_ratio: float = 0.1  # a claimed position variance below this times the best of the others'
     max_compromised: int = 2  # f: hearsay needs more than f believed accusers (docs/security.md)
@@ -104,6 +106,13 @@ class NeighbourRecord:
     @property
     def believed(self) -> bool:
         return not self.distrusted and not self.hearsay
+
+    def standing(self, spec: MonitorSpec, now_us: int) -> int:
+        """Its record at ``now_us``: the verdicts against it, less one per ``forgive_s`` it has been
+        believed since the vehicle's belief in it last changed."""
+        if self.distrusted or self.changed_us is None or not self.verdicts:
+            return self.verdicts
+        return max(0, self.verdicts - (now_us - self.changed_us) // round(spec.forgive_s * 1e6))
 
     def probation_us(self, spec: MonitorSpec) -> int:
         """How long a distrusted neighbour must pass every test to be trusted again: ``retrust_s``
@@ -196,12 +205,12 @@ def disagreement(book: NeighbourBook, spec: MonitorSpec, offset_m: np.ndarray, n
 
 
 def failure(
-    record: NeighbourRecord, spec: MonitorSpec, now_us: int, best_m2: float = 0.0, watchful: bool | None = None
+    record: NeighbourRecord, spec: MonitorSpec, now_us: int, best_m2: float = 0.0, bias: float | None = None
 ) -> str:
     """Why the neighbour's recent fixes are inconsistent ("" when they pass, or are too few to tell);
     ``best_m2``: the smallest position variance had or claimed by anyone else (the implausibility
-    test; 0 or infinite: none). The bias bound is ``watchful_bias`` when ``watchful`` (None: while
-    more than f believed vehicles accuse the neighbour)."""
+    test; 0 or infinite: none). The bias bound is ``bias``; None: ``watchful_bias`` while the
+    neighbour has a record or more than f believed vehicles accuse it, else ``bias``."""
     latest = list(record.fixes)[-spec.min_fixes :]
     if len(latest) == spec.min_fixes and all(f.gated_out for f in latest):
         return f"its last {spec.min_fixes} fixes fail the gate"
@@ -209,8 +218,9 @@ def failure(
     if len(latest) == spec.min_fixes and all(f.claimed_m2 < plausible for f in latest):
         ratio = best_m2 / max(max(f.claimed_m2 for f in latest), 1e-300)
         return f"claims {min(ratio, 999):.0f}x less variance than others"
-    watchful = len(record.accusers) >= spec.quorum if watchful is None else watchful
-    bias = spec.watchful_bias if watchful else spec.bias
+    if bias is None:
+        watchful = record.standing(spec, now_us) > 0 or len(record.accusers) >= spec.quorum
+        bias = spec.watchful_bias if watchful else spec.bias
     short = window_stats(record.fixes, now_us - round(spec.window_s * 1e6), spec.decorrelation_s)
     if short.fixes >= spec.min_fixes:
         if short.gated_out > spec.gate_fail_share * short.fixes:
@@ -241,13 +251,14 @@ def judges(record: NeighbourRecord | None, spec: MonitorSpec, now_us: int, span_
 def consistent_here(book: NeighbourBook, spec: MonitorSpec, neighbour: int, now_us: int) -> bool:
     """Whether the vehicle's own evidence clears the neighbour at ``now_us``, strongly enough to hold
     an accusation of it against its accuser: it has ranged it over the whole long window, its fixes
-    pass every test watchfully (``watchful_bias``) and the vehicle has not distrusted it itself."""
+    pass every test with a bias below ``clear_bias`` (well inside the watchful bound, so that a lie
+    the evidence is still growing on is not cleared) and the vehicle has not distrusted it itself."""
     record = book.records.get(neighbour)
     return (
         record is not None
         and not record.distrusted
         and judges(record, spec, now_us, spec.long_window_s)
-        and not failure(record, spec, now_us, _best_claim(book, spec, neighbour, record), watchful=True)
+        and not failure(record, spec, now_us, _best_claim(book, spec, neighbour, record), bias=spec.clear_bias)
     )
 
 
@@ -263,11 +274,8 @@ def see(book: NeighbourBook, spec: MonitorSpec, neighbour: int, fix: Fix) -> Ver
     reason = failure(record, spec, now, _best_claim(book, spec, neighbour, record))
     if not record.distrusted:
         if reason and _credible(book, spec, neighbour, now):
-            if record.changed_us is not None:  # believed since then: forgiven one verdict per forgive_s
-                forgiven = (now - record.changed_us) // round(spec.forgive_s * 1e6)
-                record.verdicts = max(0, record.verdicts - forgiven)
+            record.verdicts = record.standing(spec, now) + 1
             record.distrusted, record.passing_since_us, record.reason = True, None, reason
-            record.verdicts += 1
             record.changed_us = now
             return Verdict(now, neighbour, False, reason)
         if record.hearsay and not spec.hearsay_over_evidence and not reason and judges(record, spec, now):

@@ -73,11 +73,17 @@ def test_fault_commands_against_a_running_swarm(tmp_path):
             (["add", "lie", "--vehicle", "v9", "--offset", "30,0"], "vehicle 9 does not exist"),
             (["add", "lie", "--vehicle", "v2", "--offset", "30"], "--offset"),
             (["add", "lie", "--vehicle", "v2", "--cov-scale", "0"], "--cov-scale"),
+            (["add", "lie", "--vehicle", "v2", "--stale", "-5s"], "--stale"),
+            (["add", "accuse", "--vehicle", "v2", "--names", "v1,v2"], "would accuse itself"),
+            (["add", "accuse", "--vehicle", "v2", "--names", "v1,v9"], "--names v9 does not exist"),
+            (["add", "accuse", "--vehicle", "v2", "--names", "one"], "--names"),
+            (["add", "accuse", "--vehicle", "v2"], "--names"),
         ]:
             result = fault(tmp_path, *args)
             assert result.returncode == 1 and message in result.stderr, (args, result.stderr)
             assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
         assert "plan v2" in fault(tmp_path, "list").stdout  # unchanged by the bad requests
+        assert fault(tmp_path, "add", "accuse", "--vehicle", "v3", "--names", "v1,v2").returncode == 0
         assert fault(tmp_path, "kill", "v2", "--restart-after", "3s").returncode == 0
         _wait_for(
             lambda: sum(e["event"] == "vehicle_joined" and e["vehicle"] == 2 for e in _events(run)) == 2,
@@ -94,7 +100,7 @@ def test_fault_commands_against_a_running_swarm(tmp_path):
     assert summary["vehicles"]["2"]["reset_counter"] >= 1
     assert summary["vehicles"]["3"]["sensor_samples_lost"] > 0
     kinds = [e["event"] for e in _events(run)]
-    assert kinds.count("fault_added") == 3 and kinds.count("fault_removed") == 3  # imu-loss, then clear: 2 more
+    assert kinds.count("fault_added") == 4 and kinds.count("fault_removed") == 4  # imu-loss, then clear: 3 more
     assert "vehicle_lost" in kinds
     resets = [
         line.split(",")[10] for line in (run / "metrics.csv").read_text().splitlines()[1:] if line.split(",")[1] == "2"

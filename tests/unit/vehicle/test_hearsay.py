@@ -70,12 +70,12 @@ def test_a_contradicted_accuser_is_heard_again_after_discredit_s():
 
 
 def test_accusers_make_the_vehicles_own_tests_watchful_and_a_neighbour_it_cannot_clear_is_not_contradicted():
-    """A neighbour 0.6 m off along one axis: its bias statistic over the long window (about 28) lies
-    between the watchful bound (20) and the usual one (40). Unaccused it stays believed; accused by
+    """A neighbour 0.62 m off along one axis: its bias statistic over the long window (about 32) lies
+    between the watchful bound (25) and the usual one (40). Unaccused it stays believed; accused by
     f + 1 from the start it is distrusted on their word until the vehicle has ranged it for a window,
     cleared by that evidence (not yet enough to contradict the accusers), then distrusted on the
     vehicle's own evidence, watchfully judged (a first-hand verdict). Nobody is contradicted."""
-    offsets = np.tile([0.6, 0.0], (150, 1))
+    offsets = np.tile([0.62, 0.0], (150, 1))
     quiet = NeighbourBook()
     assert stream(quiet, 2, offsets, np.random.default_rng(23)) == []
     book = NeighbourBook()
