@@ -1,6 +1,9 @@
-"""The docs build with no broken link or missing page (``mkdocs build --strict``), and the tutorial's
-estimator does what the tutorial says it does (as navlie runs its examples)."""
+"""The docs build with no broken link or missing page (``mkdocs build --strict``), every page shows
+what it includes (no raw snippet marker: a formatter once turned one into text that mkdocs cannot
+notice), and the tutorial's estimator does what the tutorial says it does (as navlie runs its
+examples)."""
 
+import re
 import shutil
 import subprocess
 import sys
@@ -31,6 +34,11 @@ def test_the_docs_build_strictly(tmp_path):
     assert "swarm up" in cli and "--vehicles" in cli  # generated from the typer app
     config = (tmp_path / "site" / "reference" / "config" / "index.html").read_text()
     assert all(name in config for name in ESTIMATORS)  # generated from the registry and the models
+    raw = [p for p in (tmp_path / "site").rglob("*.html") if re.search(r"--8\s*(&lt;|<)\s*--", p.read_text())]
+    assert raw == [], f"pages showing a snippet marker instead of the file: {raw}"
+    tutorial = (tmp_path / "site" / "tutorial" / "adding-an-estimator" / "index.html").read_text()
+    for code in ("class DeratedGnss", "def from_config", "def compare"):  # the estimator and its runner, included
+        assert code in re.sub(r"<[^>]+>", "", tutorial), code
 
 
 def test_the_tutorial_estimator_is_consistent_where_the_plain_ekf_is_not():
@@ -45,7 +53,8 @@ def test_one_registry_line_makes_the_tutorial_estimator_selectable(monkeypatch):
     from bus.config import build_config
     from vehicle.estimators import get_estimator
 
-    monkeypatch.setitem(ESTIMATORS, "ekf-derated", EstimatorEntry("examples.derated_gnss", "the tutorial's"))
+    line = "vehicle.estimators.derated_gnss"  # where the tutorial puts the module, the line it adds
+    monkeypatch.setitem(ESTIMATORS, "ekf-derated", EstimatorEntry(line, "the tutorial's"))
     config = build_config({}).for_vehicle()
     config = config.model_copy(update={"vehicle": config.vehicle.model_copy(update={"estimator": "ekf-derated"})})
     assert get_estimator(config, 1).name == "ekf-derated"

@@ -39,7 +39,7 @@ vehicle finds itself: a neighbour it judges (``judges``: fresh fixes of its own)
 own tests, watchful while more than ``max_compromised`` believed vehicles accuse it; only a
 neighbour it cannot judge is distrusted on the word of more than ``max_compromised`` of them. The
 believed neighbours' recent fixes also have a say on the vehicle's own GNSS: a position reset that
-they speak against is refused (``disagreement``). The thresholds are set from clean runs (no liar:
+they speak against is refused (``vehicle.reset_say``). The thresholds are set from clean runs (no liar:
 the honest world, jamming, link faults; docs/liars.md), well above what those reach. The statistics
 of one neighbour's fixes live in vehicle.neighbour_fixes. Pure; the record lives in the filter's
 state, so a fusion-horizon replay restores it with everything else.
@@ -52,10 +52,8 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from bus.config import VehicleConfig
-from vehicle.neighbour_fixes import Fix, effective_count, window_stats
+from vehicle.neighbour_fixes import Fix, window_stats
 
 
 @dataclass(frozen=True)
@@ -178,30 +176,6 @@ def refused(book: NeighbourBook, neighbour: int) -> None:
     record = book.records.get(neighbour)
     if record is not None and record.fixes:
         record.fixes[-1] = dataclasses.replace(record.fixes[-1], fused=False)
-
-
-def disagreement(book: NeighbourBook, spec: MonitorSpec, offset_m: np.ndarray, now_us: int) -> float:
-    """How strongly the believed neighbours' recent fixes speak against moving the vehicle by
-    ``offset_m`` (2,): the likelihood ratio of the fixes at the moved position against the present
-    one, sum |w - G d|^2 - sum |w|^2 over the fixes of the last ``window_s`` that the gate passed
-    (chi-square with 2 degrees of freedom when the move is as right as staying), counted with at most
-    one fix per ``decorrelation_s`` per neighbour, as in the bias test. Neighbours that claim to be
-    unsure say little: their G is small."""
-    d0, d1 = float(offset_m[0]), float(offset_m[1])
-    since, total = now_us - round(spec.window_s * 1e6), 0.0
-    for record in book.records.values():
-        if not record.believed:
-            continue
-        fixes = [f for f in record.fixes if f.stamp_us > since and not f.gated_out and math.isfinite(sum(f.whitened))]
-        if not fixes:
-            continue
-        change = 0.0
-        for f in fixes:
-            g00, g01, g10, g11 = f.shift
-            m0, m1 = f.whitened[0] - (g00 * d0 + g01 * d1), f.whitened[1] - (g10 * d0 + g11 * d1)
-            change += m0 * m0 + m1 * m1 - f.whitened[0] ** 2 - f.whitened[1] ** 2
-        total += change * effective_count(fixes, spec.decorrelation_s) / len(fixes)
-    return total
 
 
 def failure(

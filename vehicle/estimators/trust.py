@@ -20,7 +20,8 @@ from vehicle.hearsay import Contradiction, hear
 from vehicle.kalman import UpdateResult
 from vehicle.models.cooperative import CooperativeFix, SeenFix
 from vehicle.neighbour_fixes import fix_of, pull_m2, smallest_variance
-from vehicle.neighbours import MonitorSpec, Verdict, disagreement, plausible, refused, see
+from vehicle.neighbours import MonitorSpec, Verdict, plausible, refused, see
+from vehicle.reset_say import disagreement
 
 if TYPE_CHECKING:
     from vehicle.estimators.filter import Filter
@@ -71,7 +72,7 @@ class NeighbourTrust:
     def allows_reset(self, f: Filter, stamp_us: int, offset_m: np.ndarray) -> bool:
         """Whether the believed neighbours' recent fixes allow a GNSS position reset by ``offset_m``
         (2,): a spoofed receiver's fixes agree with each other and pass the reset's own tests, but
-        not with neighbours that range the vehicle where it is (``vehicle.neighbours.disagreement``
+        not with neighbours that range the vehicle where it is (``vehicle.reset_say.disagreement``
         within the reset's chi-square bound)."""
         limit = gate_threshold(2, f.state.gnss_health.spec.reset_probability)
         return disagreement(f.state.neighbours, self.spec, offset_m, stamp_us) <= limit

@@ -12,7 +12,8 @@ import pytest
 from tests.unit.vehicle.neighbour_streams import PERIOD_US, SPEC, S, fix, stream, witness
 from vehicle.kalman import UpdateResult
 from vehicle.neighbour_fixes import fix_of, pull_m2, whiten
-from vehicle.neighbours import NeighbourBook, disagreement, plausible, see
+from vehicle.neighbours import NeighbourBook, plausible, see
+from vehicle.reset_say import disagreement
 
 
 def test_whitening_makes_a_standard_pair():
