@@ -395,6 +395,13 @@ class ViewConfig(_Strict):
     live_backlog: int = Field(
         1024, ge=1, le=1_000_000, description="messages queued per live viewer; a slow viewer loses the oldest"
     )
+    live_speed: float | None = Field(
+        None,
+        gt=0,
+        le=10_000,
+        description="lockstep with the live view on: run at most this many times real time, so that a viewer "
+        "can watch (the ground station holds its tick acknowledgements; None: as fast as the swarm goes)",
+    )
 
 
 class SwarmConfig(_Strict):

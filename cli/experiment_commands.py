@@ -20,11 +20,13 @@ VARIANT_NAMES = (
     "plain-ci-ekf",
 )  # experiment_cooperative.VARIANTS
 
-LIVE_HELP = "serve each run's Foxglove WebSocket live view in turn (docs: live view)"
+LIVE_HELP = "serve each run's Foxglove WebSocket live view in turn, at real time (docs: live view)"
 
 
 def live_view(live: bool, host: str, port: int):
-    """The runs' view with the live view on (its address checked now, a one-line error), or None."""
+    """The runs' view with the live view on (its address checked now, a one-line error), or None. A
+    lockstep run with a viewer is paced at real time (``view.live_speed``), so that each run of an
+    experiment can be watched rather than flash by in seconds."""
     if not live:
         return None
     from bus.config import ViewConfig
@@ -34,7 +36,7 @@ def live_view(live: bool, host: str, port: int):
         check_live_address(host, port)
     except SwarmlocError as exc:
         fail(str(exc))
-    return ViewConfig(live=True, live_host=host, live_port=port)
+    return ViewConfig(live=True, live_host=host, live_port=port, live_speed=1.0)
 
 
 experiment_app = typer.Typer(

@@ -66,6 +66,9 @@ def up(
     live: bool = typer.Option(False, help="serve a Foxglove WebSocket live view (docs: live view)"),
     live_host: Optional[str] = typer.Option(None, help="the live view's address [default: 127.0.0.1]"),
     live_port: Optional[int] = typer.Option(None, help="the live view's port [default: 8765]"),
+    live_speed: Optional[float] = typer.Option(
+        None, help="lockstep with --live: at most this many times real time, so a viewer can watch"
+    ),
 ) -> None:
     """Start a zenoh router, the world, the ground station and N vehicles; print the RMSE table and write the report."""
     from bus.config import build_config
@@ -92,7 +95,13 @@ def up(
                     "world": {"vehicles": vehicles, "seed": seed},
                     "fault_seed": fault_seed,
                     "clock": {"mode": mode, "speed": speed, "duration_s": duration, "tick_s": tick},
-                    "view": {"record": record, "live": live or None, "live_host": live_host, "live_port": live_port},
+                    "view": {
+                        "record": record,
+                        "live": live or None,
+                        "live_host": live_host,
+                        "live_port": live_port,
+                        "live_speed": live_speed,
+                    },
                 },
             )
         )

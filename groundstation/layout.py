@@ -1,60 +1,212 @@
-"""The Foxglove layout that opens a swarmloc run (live or run.mcap) in one step: the scene (true and
-estimated poses, 3-sigma ellipses) beside the position error and NEES of every vehicle and the event
-log, the GNSS health and loop overruns, the ranging pairs and, under a camera swarm, the terrain.
-Built with the Foxglove SDK's layout classes; ``deploy/foxglove-layout.json`` is its output
-for five vehicles (a test keeps the two equal)."""
+"""The layouts that open a swarmloc run (live or run.mcap) in one step, for Foxglove and for Lichtblick:
+the scene (true and estimated poses, 3-sigma ellipses, trails, ranging lines, zones, landmarks and,
+under a camera swarm, the terrain) framed on the swarm's area, beside the position error and NEES of
+every vehicle, the GNSS health, the loop overruns and the event log. One description, two shapes:
+Foxglove's (``{version, content}``, built with the Foxglove SDK's layout classes) and Lichtblick's
+(``{configById, layout, globalVariables, userNodes, playbackConfig}``, panel ids ``3D!...``,
+``Plot!...``, ``RosOut!...``: what its layout import accepts). Every plot series reads its x axis
+from the receive time, which is the run's sim time (the live server broadcasts it; a recording's log
+times are it). ``deploy/foxglove-layout.json`` and ``deploy/lichtblick-layout.json`` are the output for
+the default five-vehicle world (a test keeps them equal); each run directory with run.mcap gets its
+own pair (``layout-foxglove.json``, ``layout-lichtblick.json``)."""
 
 from __future__ import annotations
 
+import json
+import math
+from dataclasses import dataclass
 
-def swarm_layout(vehicles: int = 5) -> str:
-    """The layout as JSON (Foxglove or Lichtblick: Layouts, Import from file)."""
+import numpy as np
+
+from bus.config import WorldConfig
+from bus.pads import start_pads
+from bus.statistics import chi2_band
+
+FOXGLOVE_FILE, LICHTBLICK_FILE = "layout-foxglove.json", "layout-lichtblick.json"
+SCENE_TOPICS = ("/scene", "/zones", "/landmarks", "/ranging", "/trails", "/terrain")
+FOVY_DEG, PHI_DEG, THETA_DEG = 45.0, 30.0, 0.0
+
+
+@dataclass(frozen=True)
+class Framing:
+    """Where the 3-D panel looks: the swarm area's centre (m) and the radius (m) to show around it."""
+
+    centre_m: tuple[float, float]
+    radius_m: float
+
+    def camera(self) -> dict[str, object]:
+        """The 3-D panel's camera state (both viewers' keys): the area's circle fills the view."""
+        distance = 1.15 * self.radius_m / math.tan(math.radians(FOVY_DEG) / 2.0)
+        return {
+            "distance": round(distance, 1),
+            "perspective": True,
+            "phi": PHI_DEG,
+            "target": [0.0, 0.0, 0.0],
+            "targetOffset": [round(self.centre_m[0], 1), round(self.centre_m[1], 1), 0.0],
+            "targetOrientation": [0.0, 0.0, 0.0, 1.0],
+            "thetaOffset": THETA_DEG,
+            "fovy": FOVY_DEG,
+            "near": 0.5,
+            "far": round(max(5000.0, 4.0 * distance), 1),
+        }
+
+
+def framing(world: WorldConfig) -> Framing:
+    """The area the world's vehicles fly over: its start pads (bus.pads) and a trajectory's reach
+    around each (a figure-8 spans two circles of ``radius_m``)."""
+    pads = start_pads(world.vehicles, world.spacing_m)
+    low, high = pads.min(axis=0), pads.max(axis=0)
+    centre = (low + high) / 2.0
+    return Framing((float(centre[0]), float(centre[1])), float(np.hypot(*(high - low))) / 2.0 + 2.0 * world.radius_m)
+
+
+@dataclass(frozen=True)
+class _Plot:
+    key: str
+    title: str
+    series: tuple[tuple[str, str], ...]  # (label, message path or a number: a reference line)
+
+
+def _plots(vehicles: int) -> tuple[_Plot, ...]:
+    low, high = chi2_band(3)
+    ids = range(1, vehicles + 1)
+    return (
+        _Plot(
+            "error",
+            "position error [m]",
+            tuple((f"v{v}", f"/vehicle/{v}/metrics.err_pos_m") for v in ids) + (("swarm RMS", "/swarm.rms_error_m"),),
+        ),
+        _Plot(
+            "nees",
+            "pose NEES (3 dof)",
+            tuple((f"v{v}", f"/vehicle/{v}/metrics.nees") for v in ids)
+            + (("95 % low", f"{low:.4f}"), ("95 % high", f"{high:.4f}")),
+        ),
+        _Plot("gnss", "GNSS test ratio", tuple((f"v{v}", f"/health{{vehicle=={v}}}.gnss_test_ratio") for v in ids)),
+        _Plot("loop", "loop overruns", tuple((f"v{v}", f"/loop{{vehicle=={v}}}.overruns") for v in ids)),
+    )
+
+
+def _scene_topics(vehicles: int) -> dict[str, dict[str, object]]:
+    hidden = {f"/vehicle/{v}/truth": {"visible": False, "type": "arrow"} for v in range(1, vehicles + 1)}
+    return {**{t: {"visible": True} for t in SCENE_TOPICS}, **hidden}
+
+
+def foxglove_layout(vehicles: int, view: Framing) -> str:
+    """The layout as Foxglove reads it (Layouts, Import from file), built with the SDK's classes."""
     from foxglove import layouts as fl
 
-    from groundstation.recording import pose_topic
-
+    topics = {
+        topic: (
+            fl.BaseRendererPoseTopicSettings(visible=False, type="arrow")
+            if topic.endswith("/truth")
+            else fl.BaseRendererSceneUpdateTopicSettings(visible=True)
+        )
+        for topic in _scene_topics(vehicles)
+    }
+    camera = view.camera()
     scene = fl.ThreeDeePanel(
         title="swarm",
         config=fl.ThreeDeeConfig(
             follow_tf="world",
-            topics={
-                "/scene": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
-                "/zones": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
-                "/landmarks": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
-                "/ranging": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
-                "/trails": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
-                "/terrain": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
-                **{
-                    pose_topic(v, "truth"): fl.BaseRendererPoseTopicSettings(visible=False, type="arrow")
-                    for v in range(1, vehicles + 1)
-                },
-            },
+            follow_mode="follow-none",
+            topics=topics,
+            camera_state=fl.ThreeDeeCameraState(
+                distance=camera["distance"],
+                perspective=True,
+                phi=PHI_DEG,
+                target=(0.0, 0.0, 0.0),
+                target_offset=tuple(camera["targetOffset"]),
+                target_orientation=(0.0, 0.0, 0.0, 1.0),
+                theta_offset=THETA_DEG,
+                fovy=FOVY_DEG,
+                near=0.5,
+                far=camera["far"],
+            ),
         ),
     )
-
-    def per_vehicle(topic: str, field: str, label: str, extra: tuple[tuple[str, str], ...] = ()) -> fl.PlotPanel:
-        series = [
-            fl.PlotSeries(value=f"{topic}{{vehicle=={v}}}.{field}", label=f"v{v}", enabled=True)
-            for v in range(1, vehicles + 1)
-        ]
-        series += [fl.PlotSeries(value=value, label=name, enabled=True) for name, value in extra]
-        return fl.PlotPanel(title=label, config=fl.PlotConfig(paths=series, show_legend=True, y_axis_label=label))
-
-    band = (("95 % low", "/metrics{vehicle==1}.nees_band_low"), ("95 % high", "/metrics{vehicle==1}.nees_band_high"))
-    swarm = (("swarm RMS", "/swarm.rms_error_m"),)
-    plots = fl.SplitContainer(
-        direction="column",
-        items=[
-            fl.SplitItem(content=per_vehicle("/metrics", "err_pos_m", "position error [m]", swarm)),
-            fl.SplitItem(content=per_vehicle("/metrics", "nees", "pose NEES (3 dof)", band)),
-            fl.SplitItem(content=per_vehicle("/health", "gnss_test_ratio", "GNSS test ratio")),
-            fl.SplitItem(content=per_vehicle("/loop", "overruns", "loop overruns")),
-            fl.SplitItem(content=fl.LogPanel(title="events", config=fl.LogConfig(topic_to_render="/events"))),
-        ],
-    )
+    plots = [
+        fl.PlotPanel(
+            title=plot.title,
+            config=fl.PlotConfig(
+                paths=[
+                    fl.PlotSeries(value=value, label=label, enabled=True, timestamp_method="receiveTime")
+                    for label, value in plot.series
+                ],
+                show_legend=True,
+                y_axis_label=plot.title,
+            ),
+        )
+        for plot in _plots(vehicles)
+    ]
+    events = fl.LogPanel(title="events", config=fl.LogConfig(topic_to_render="/events"))
+    column = fl.SplitContainer(direction="column", items=[fl.SplitItem(content=p) for p in [*plots, events]])
     layout = fl.Layout(
         content=fl.SplitContainer(
-            direction="row", items=[fl.SplitItem(proportion=1.4, content=scene), fl.SplitItem(content=plots)]
+            direction="row", items=[fl.SplitItem(proportion=1.4, content=scene), fl.SplitItem(content=column)]
         )
     )
     return layout.to_json()
+
+
+def lichtblick_layout(vehicles: int, view: Framing) -> str:
+    """The layout as Lichtblick reads it (Layouts, Import, or ``?layoutUrl=``)."""
+    config: dict[str, dict] = {
+        "3D!swarm": {
+            "lichtblickPanelTitle": "swarm",
+            "cameraState": view.camera(),
+            "followTf": "world",
+            "followMode": "follow-none",
+            "scene": {},
+            "transforms": {},
+            "topics": _scene_topics(vehicles),
+            "layers": {},
+            "publish": {"type": "point", "poseTopic": "/move_base_simple/goal", "pointTopic": "/clicked_point"},
+            "imageMode": {},
+        }
+    }
+    for plot in _plots(vehicles):
+        config[f"Plot!{plot.key}"] = {
+            "lichtblickPanelTitle": plot.title,
+            "paths": [
+                {"value": value, "label": label, "enabled": True, "timestampMethod": "receiveTime"}
+                for label, value in plot.series
+            ],
+            "showLegend": True,
+            "legendDisplay": "floating",
+            "showPlotValuesInLegend": False,
+            "showXAxisLabels": True,
+            "showYAxisLabels": True,
+            "isSynced": True,
+            "xAxisVal": "timestamp",
+            "yAxisLabel": plot.title,
+            "sidebarDimension": 240,
+        }
+    config["RosOut!events"] = {
+        "lichtblickPanelTitle": "events",
+        "searchTerms": [],
+        "minLogLevel": 1,
+        "topicToRender": "/events",
+    }
+    column: object = "RosOut!events"
+    panels = [f"Plot!{p.key}" for p in _plots(vehicles)]
+    for count, panel in enumerate(reversed(panels), start=1):  # each split gives its first an equal share
+        column = {"direction": "column", "first": panel, "second": column, "splitPercentage": 100.0 / (count + 1)}
+    layout = {"direction": "row", "first": "3D!swarm", "second": column, "splitPercentage": 58.0}
+    data = {
+        "configById": config,
+        "globalVariables": {},
+        "userNodes": {},
+        "playbackConfig": {"speed": 1.0},
+        "layout": layout,
+    }
+    return json.dumps(data, indent=2) + "\n"
+
+
+def swarm_layouts(world: WorldConfig) -> dict[str, str]:
+    """The run's layouts by file name (``FOXGLOVE_FILE``, ``LICHTBLICK_FILE``), framed on its world."""
+    view = framing(world)
+    return {
+        FOXGLOVE_FILE: foxglove_layout(world.vehicles, view),
+        LICHTBLICK_FILE: lichtblick_layout(world.vehicles, view),
+    }

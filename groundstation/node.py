@@ -30,6 +30,7 @@ from bus.rejections import Rejections, counts_to_dict
 from bus.session import Bus, Envelope, LivelinessEvent, Request
 from groundstation.claims import IdRegister
 from groundstation.fault_control import FaultControl
+from groundstation.layout import swarm_layouts
 from groundstation.mavlink_in import MAX_STREAM_BYTES, MavlinkIntake
 from groundstation.mavlink_out import MavlinkForwarder
 from groundstation.membership import MembershipLog
@@ -76,6 +77,8 @@ class GroundStation:
         self._plan_pub, self._ack_pub = bus.publisher(keys.fault_plan()), bus.publisher(keys.ack("gs"))
         self.run = RunDirectory(run_dir)  # creates the directory the recording goes in
         self.run.recording = open_recording(run_dir, config.view)
+        if self.run.recording is not None:
+            self.run.write_layouts(swarm_layouts(config.world))
         if self.run.recording is not None:
             self.rejections.on_first = self._show_rejection
         self.ids = IdRegister(vehicles=config.world.vehicles, path=run_dir / "claims.json", master_key=master_key)
@@ -347,10 +350,18 @@ class GroundStation:
         """Acknowledge the newest clock tick once nothing is waiting in the mailbox: the clock's lane
         is served first, so acknowledging on receipt would let a backlog of estimates grow without
         bound behind it (lockstep backpressure, and what a killed ground station loses)."""
-        if self._ack_due is not None and self.mailbox.empty():
+        if self._ack_due is not None and self.mailbox.empty() and not self._pacing():
             self.run.flush()  # what is scored is on disk before the world may move on: a crash loses only what is not
             self._ack_pub.put(m.encode(m.GroundStationAck(self._ack_due)))
             self._ack_due = None
+
+    def _pacing(self) -> bool:
+        """Lockstep with a paced live view (``view.live_speed``): whether the run is ahead of that many
+        times real time, so the tick's acknowledgement waits (the loop comes back within 0.2 s)."""
+        view = self.config.view
+        if not (view.live and view.live_speed and self.config.clock.mode == "lockstep" and self.wall_start):
+            return False
+        return time.perf_counter() - self.wall_start < self.sim_time_us * 1e-6 / view.live_speed
 
     def _stream_passed(self, arrival: Arrival, due_us: int) -> bool:
         """A held frame comes out once its stream has delivered a frame stamped at or after its due

@@ -1,5 +1,7 @@
 """The JSON channels a Foxglove or Lichtblick plot reads (groundstation.recording): each one's JSON
-schema and the record written for it. Pure."""
+schema and the record written for it. The schemas use only what both viewers parse (Lichtblick's
+packages/mcap-support parseJsonSchema: an object of boolean, string, number, integer, object and
+array properties, one type each): a value that is missing is a field left out, never a null. Pure."""
 
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ METRICS_SCHEMA = _schema(
     t_s={"type": "number", "description": "sim time (s)"},
     vehicle=INTEGER,
     err_pos_m={"type": "number", "description": "horizontal position error (m)"},
-    nees={"type": ["number", "null"], "description": "pose NEES, 3 dof"},
+    nees={"type": "number", "description": "pose NEES, 3 dof (left out when it is not finite)"},
     sigma_x_m=NUMBER,
     sigma_y_m=NUMBER,
     nees_band_low={"type": "number", "description": "two-sided 95 % band of one 3-dof NEES"},
@@ -54,17 +56,20 @@ LOOP_SCHEMA = _schema(
 
 
 def metrics_record(s: Score, nees_band: tuple[float, float]) -> dict[str, Any]:
-    """One /metrics message of a score; ``nees_band``: chi2_band(3) (the plots draw it)."""
-    return {
+    """One metrics message of a score (the vehicle's /vehicle/<id>/metrics); ``nees_band``:
+    chi2_band(3) (the plots draw it). A NEES that is not finite is left out."""
+    record = {
         "t_s": s.stamp_us * 1e-6,
         "vehicle": s.vehicle_id,
         "err_pos_m": s.position_error_m,
-        "nees": s.nees if math.isfinite(s.nees) else None,
         "sigma_x_m": float(s.sigma[0]),
         "sigma_y_m": float(s.sigma[1]),
         "nees_band_low": nees_band[0],
         "nees_band_high": nees_band[1],
     }
+    if math.isfinite(s.nees):
+        record["nees"] = s.nees
+    return record
 
 
 def nees_band_3dof() -> tuple[float, float]:

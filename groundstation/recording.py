@@ -6,9 +6,10 @@ Channels (log times are sim time, nanoseconds from the run's start):
 
 - ``/scene`` (foxglove.SceneUpdate): per vehicle, the estimated pose (blue arrow), the true pose
   (green arrow) and the 3-sigma position ellipse (rotated by the covariance's eigenvectors), in
-  frame ``world``, every scored sample;
+  frame ``world``, each vehicle's latest scored sample every ``SCENE_STEP_US`` of sim time;
 - ``/vehicle/<id>/estimate`` and ``/vehicle/<id>/truth`` (foxglove.PoseInFrame): for trails and plots;
-- ``/metrics`` (JSON): per scored sample the vehicle's position error, NEES and sigmas (plots);
+- ``/vehicle/<id>/metrics`` (JSON): per scored sample the vehicle's position error, NEES and sigmas
+  (plots; a topic per vehicle, so that no topic passes the viewers' 60 Hz warning in a large swarm);
 - ``/events`` (foxglove.Log): the run's events (faults, joins, resets, distrusted neighbours, GNSS
   health changes, restarts) and, as warnings, the first rejected input of each kind (the ground
   station's own, and each vehicle's as its status counts it);
@@ -19,7 +20,7 @@ Channels (log times are sim time, nanoseconds from the run's start):
 - ``/trails`` (foxglove.SceneUpdate): per vehicle, its true (green) and estimated (blue) trail over
   the last ``TRAIL_S`` seconds, a point a second;
 - ``/ranging`` (foxglove.SceneUpdate): a line between the true positions of every pair of vehicles
-  that ranged each other in the world's last tick;
+  that ranged each other in the world's last tick, at most every ``RANGING_STEP_US`` of sim time;
 - ``/terrain`` (foxglove.SceneUpdate): under a camera swarm, the terrain image as a textured model
   (``terrain.glb`` in the run directory, written by the launcher; groundstation.terrain_model),
   logged at the start and again whenever a live viewer subscribes to it;
@@ -27,6 +28,11 @@ Channels (log times are sim time, nanoseconds from the run's start):
 - ``/swarm`` (JSON): the swarm's RMS position error over the vehicles scored at each stamp;
 - ``/loop`` (JSON): each vehicle's loop statistics as its status reports them (cycles, overruns,
   cycle time and jitter p99, fused and missing neighbour broadcasts).
+
+Every channel stays under 60 messages per second of sim time for swarms of up to 60 vehicles (the
+viewers warn of "high frequency topics" above that). The live server has the WebSocket protocol's
+time capability and broadcasts the sim time, so a viewer's clock and its plots' receive times are
+the run's.
 
 A live viewer gets its own bounded queue (``view.live_backlog`` messages, the SDK's): when a slow
 viewer lets it fill, the oldest messages are dropped, never the run stalled; the SDK reports each
@@ -66,6 +72,7 @@ log = logging.getLogger("swarmloc.groundstation")
 TERRAIN_MODEL = "terrain.glb"
 SDK_OVERFLOW_LOGGER = "foxglove.websocket.connected_client.send_lossy"  # "outbox for client ... full"
 RANGING_LIFETIME_NS = 1_000_000_000
+RANGING_STEP_US, SCENE_STEP_US, CLOCK_STEP_US = 200_000, 100_000, 100_000
 TRAIL_S, TRAIL_STEP_US = 30, 1_000_000  # trails: the last 30 s, a point a second
 ZONE_COLOURS = {"jam-gnss": (1.0, 0.2, 0.2), "spoof-gnss": (1.0, 0.6, 0.0), "jam-comms": (0.7, 0.3, 1.0)}
 WARNING_EVENTS = ("fault", "neighbour_distrusted", "accusation_contradicted", "vehicle_lost", "estimator_reset", "gnss")
@@ -99,7 +106,6 @@ class Recording:
         self.writer = foxglove.open_mcap(path, context=self.context) if path is not None else None
         self.server = None
         self.scene = SceneUpdateChannel("/scene", context=self.context)
-        self.metrics = foxglove.Channel("/metrics", schema=METRICS_SCHEMA, context=self.context)
         self.events = LogChannel("/events", context=self.context)
         self.zone_scene = SceneUpdateChannel("/zones", context=self.context)
         self.landmark_scene = SceneUpdateChannel("/landmarks", context=self.context)
@@ -109,6 +115,8 @@ class Recording:
         self.loop_channel = foxglove.Channel("/loop", schema=LOOP_SCHEMA, context=self.context)
         self.swarm_channel = foxglove.Channel("/swarm", schema=SWARM_SCHEMA, context=self.context)
         self._poses: dict[tuple[str, int], Any] = {}
+        self._scene: dict[int, Any] = {}  # vehicle -> its latest scene entity, not logged yet
+        self._scene_us = self._ranging_us = self._clock_us = -(2**62)  # when each was last logged
         self._zones: set[str] = set()
         self._terrain: bytes | None = None
         self._terrain_wanted = threading.Event()  # a live viewer subscribed to /terrain (SDK thread)
@@ -124,11 +132,14 @@ class Recording:
         sdk_log = logging.getLogger(SDK_OVERFLOW_LOGGER)
         sdk_log.setLevel(logging.INFO)  # the SDK reports an overflow at INFO
         sdk_log.addHandler(self._overflows)
+        from foxglove.websocket import Capability
+
         self.server = self._foxglove.start_server(
             name="swarmloc",
             host=host,
             port=port,
             context=self.context,
+            capabilities=[Capability.Time],
             message_backlog_size=backlog,
             server_listener=_terrain_requests(self._terrain_wanted),
         )
@@ -162,9 +173,23 @@ class Recording:
             self._terrain_wanted.clear()
             self._log_terrain()
 
+    def _clock(self, stamp_us: int) -> None:
+        """The run has reached ``stamp_us``: a live viewer's clock follows, every CLOCK_STEP_US."""
+        self._last_ns = max(self._last_ns, stamp_us * 1000)
+        if self.server is not None and stamp_us >= self._clock_us + CLOCK_STEP_US:
+            self._clock_us = stamp_us
+            self.server.broadcast_time(stamp_us * 1000)
+
     def ranging(self, stamp_us: int, pairs: np.ndarray, positions: dict[int, np.ndarray]) -> None:
-        """Lines between the ``positions`` (vehicle id -> (2,) m) of each ranging pair (m, 2) of a tick."""
+        """Lines between the ``positions`` (vehicle id -> (2,) m) of each ranging pair (m, 2) of a
+        tick, at most every RANGING_STEP_US."""
         from foxglove import messages as fm
+
+        self._clock(stamp_us)
+        if stamp_us < self._ranging_us + RANGING_STEP_US:
+            self._serve_requests()
+            return
+        self._ranging_us = stamp_us
 
         points = []
         for a, b in {tuple(sorted(p)) for p in pairs.tolist()}:
@@ -181,7 +206,6 @@ class Recording:
         entity = fm.SceneEntity(
             timestamp=sp.stamp(fm, stamp_us), frame_id="world", id="ranging", lifetime=lifetime, lines=[line]
         )
-        self._last_ns = max(self._last_ns, stamp_us * 1000)
         self.ranging_scene.log(fm.SceneUpdate(entities=[entity]), log_time=stamp_us * 1000)
         self._serve_requests()
 
@@ -194,17 +218,21 @@ class Recording:
         self.loop_channel.log(loop_record(status), log_time=max(status.stamp_us, 0) * 1000)
 
     def _pose_channel(self, kind: str, vehicle_id: int):
+        """A vehicle's channel: its ``estimate`` or ``truth`` poses, or its ``metrics``."""
         from foxglove.channels import PoseInFrameChannel
 
         key = (kind, vehicle_id)
         if key not in self._poses:
-            self._poses[key] = PoseInFrameChannel(pose_topic(vehicle_id, kind), context=self.context)
+            topic = pose_topic(vehicle_id, kind)
+            if kind == "metrics":
+                self._poses[key] = self._foxglove.Channel(topic, schema=METRICS_SCHEMA, context=self.context)
+            else:
+                self._poses[key] = PoseInFrameChannel(topic, context=self.context)
         return self._poses[key]
 
     def scores(self, scores: list[Score]) -> None:
         from foxglove import messages as fm
 
-        entities = []
         for s in scores:
             ns = s.stamp_us * 1000
             stamp = sp.stamp(fm, s.stamp_us)
@@ -218,22 +246,30 @@ class Recording:
                 fm.PoseInFrame(timestamp=stamp, frame_id="world", pose=true_pose), log_time=ns
             )
             ring = ellipse_xy(np.asarray(est.position_m[:2]), s.pose_covariance[:2, :2])
-            entities.append(
-                fm.SceneEntity(
-                    timestamp=stamp,
-                    frame_id="world",
-                    id=f"vehicle-{s.vehicle_id}",
-                    arrows=[sp.arrow(fm, estimate_pose, (0.2, 0.4, 1.0)), sp.arrow(fm, true_pose, (0.1, 0.8, 0.2))],
-                    lines=[sp.loop(fm, ring, (0.2, 0.4, 1.0, 0.8), 2.0)],
-                    texts=[sp.label(fm, estimate_pose, f"v{s.vehicle_id}", (1.0, 1.0, 1.0, 1.0))],
-                )
+            self._scene[s.vehicle_id] = fm.SceneEntity(
+                timestamp=stamp,
+                frame_id="world",
+                id=f"vehicle-{s.vehicle_id}",
+                arrows=[sp.arrow(fm, estimate_pose, (0.2, 0.4, 1.0)), sp.arrow(fm, true_pose, (0.1, 0.8, 0.2))],
+                lines=[sp.loop(fm, ring, (0.2, 0.4, 1.0, 0.8), 2.0)],
+                texts=[sp.label(fm, estimate_pose, f"v{s.vehicle_id}", (1.0, 1.0, 1.0, 1.0))],
             )
-            self.metrics.log(metrics_record(s, self._nees_band), log_time=ns)
-        if entities:
-            self.scene.log(fm.SceneUpdate(entities=entities), log_time=scores[-1].stamp_us * 1000)
+            self._pose_channel("metrics", s.vehicle_id).log(metrics_record(s, self._nees_band), log_time=ns)
+        if scores:
+            self._clock(scores[-1].stamp_us)
+            if scores[-1].stamp_us >= self._scene_us + SCENE_STEP_US:
+                self._log_scene(scores[-1].stamp_us)
         self._log_trails(scores)
         for stamp_us, record in swarm_records(scores):
             self.swarm_channel.log(record, log_time=stamp_us * 1000)
+
+    def _log_scene(self, stamp_us: int) -> None:
+        """Each vehicle's latest pose arrows and ellipse, in one update."""
+        from foxglove import messages as fm
+
+        if self._scene:
+            self.scene.log(fm.SceneUpdate(entities=list(self._scene.values())), log_time=stamp_us * 1000)
+            self._scene, self._scene_us = {}, stamp_us
 
     def _log_trails(self, scores: list[Score]) -> None:
         """Each vehicle's true and estimated trail (the last TRAIL_S, a point a second), logged when a
@@ -349,6 +385,7 @@ class Recording:
 
     def close(self) -> None:
         """Finish the MCAP file (its index and footer) and stop the server."""
+        self._log_scene(self._last_ns // 1000)
         if self.writer is not None:
             self.writer.close()
             self.writer = None

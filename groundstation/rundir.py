@@ -90,6 +90,13 @@ class RunDirectory:
         tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
         tmp.replace(self.path / name)
 
+    def write_layouts(self, layouts: dict[str, str]) -> None:
+        """The viewers' layouts for this run (groundstation.layout), by file name."""
+        for name, text in layouts.items():
+            tmp = self.path / f".{name}.tmp"
+            tmp.write_text(text)
+            tmp.replace(self.path / name)
+
     def maybe_flush(self, sim_us: int | None = None) -> None:
         """Flush when ``flush_period_s`` of wall time, or of sim time (``sim_us``: newest row), passed."""
         sim_due = sim_us is not None and sim_us - self._flushed_sim_us >= self._flush_period_s * 1e6

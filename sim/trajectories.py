@@ -61,13 +61,6 @@ class Waypoints:
         return (nearest + 1) % len(distances) if distances[nearest] < 4 * self.reach_m else nearest
 
 
-def start_pads(count: int, spacing_m: float) -> np.ndarray:
-    """Pad centres on a square grid, ``spacing_m`` apart: (count, 2) in m."""
-    side = int(np.ceil(np.sqrt(count)))
-    index = np.arange(count)
-    return np.stack([(index // side) * spacing_m, (index % side) * spacing_m], axis=1).astype(float)
-
-
 def make_trajectory(
     kind: str, *, centre_m: np.ndarray, speed_mps: float, radius_m: float, rng: np.random.Generator
 ) -> tuple[object, np.ndarray]:

@@ -16,13 +16,14 @@ import numpy as np
 
 from bus.config import SwarmConfig
 from bus.feed import CameraBlock
+from bus.pads import start_pads
 from bus.topics import Topic
 from sim import sensors
 from sim.camera import camera_frame
 from sim.kinematics import unicycle_arcs
 from sim.physical_faults import PhysicalFaults
 from sim.terrain import Terrain, load_terrain, procedural_terrain, repetitive_terrain
-from sim.trajectories import make_trajectory, start_pads
+from sim.trajectories import make_trajectory
 from sim.true_errors import TrueErrors, wobble, wobble_tones
 
 BLOCK_STEPS = 100

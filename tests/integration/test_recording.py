@@ -18,6 +18,7 @@ from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
 from tests.integration.conftest import run_swarm, swarm_command
+from tests.viewer_rules import FREQUENCY_LIMIT_HZ, json_schema_errors, lichtblick_layout_errors
 
 pytestmark = pytest.mark.integration
 
@@ -53,7 +54,8 @@ def test_run_mcap_holds_every_channel_with_one_estimate_per_scored_sample(record
     for vid in (1, 2, 3):
         assert schemas[f"/vehicle/{vid}/estimate"] == schemas[f"/vehicle/{vid}/truth"] == "foxglove.PoseInFrame"
     assert schemas["/scene"] == "foxglove.SceneUpdate" and schemas["/events"] == "foxglove.Log"
-    assert schemas["/metrics"] == "swarmloc.Metrics" and schemas["/swarm"] == "swarmloc.SwarmError"
+    assert all(schemas[f"/vehicle/{v}/metrics"] == "swarmloc.Metrics" for v in (1, 2, 3))
+    assert schemas["/swarm"] == "swarmloc.SwarmError"
     assert schemas["/ranging"] == "foxglove.SceneUpdate" and schemas["/health"] == "swarmloc.GnssHealth"
     assert schemas["/loop"] == "swarmloc.LoopStatus" and schemas["/trails"] == "foxglove.SceneUpdate"
     counts = {c.topic: summary.statistics.channel_message_counts[c.id] for c in summary.channels.values()}
@@ -63,7 +65,7 @@ def test_run_mcap_holds_every_channel_with_one_estimate_per_scored_sample(record
         per_vehicle[int(row["vehicle"])] += 1
     for vid, n in per_vehicle.items():
         assert counts[f"/vehicle/{vid}/estimate"] == counts[f"/vehicle/{vid}/truth"] == n
-    assert counts["/metrics"] == len(rows)
+        assert counts[f"/vehicle/{vid}/metrics"] == n
     events = (recorded / "events.jsonl").read_text().splitlines()
     assert counts["/events"] == len(events)
 
@@ -75,7 +77,9 @@ def test_times_are_sim_time_and_monotonic_and_the_poses_give_the_scored_error(re
         assert log_time >= last.get(topic, 0), topic
         last[topic] = log_time
         assert log_time <= 10_000_000_000  # nanoseconds of sim time: the run lasted 10 s
-    poses = {(topic, t): d.pose.position for topic, t, d in messages if topic.startswith("/vehicle/2/")}
+    poses = {
+        (topic, t): d.pose.position for topic, t, d in messages if topic in ("/vehicle/2/estimate", "/vehicle/2/truth")
+    }
     row = next(r for r in _metrics(recorded) if r["vehicle"] == "2" and float(r["t_s"]) == 5.0)
     t = 5_000_000_000
     est, truth = poses[("/vehicle/2/estimate", t)], poses[("/vehicle/2/truth", t)]
@@ -86,9 +90,36 @@ def test_times_are_sim_time_and_monotonic_and_the_poses_give_the_scored_error(re
     assert all(len(e.lines[0].points) == 36 for update in scene for e in update.entities)
 
 
+def test_every_json_schema_is_one_the_viewers_parse_and_no_topic_passes_their_frequency_warning(recorded):
+    """Lichtblick refuses a channel whose JSON schema it cannot parse (a type array once dropped all
+    the plots' data) and warns above 60 messages a second on a topic; the run's layouts are what its
+    import accepts."""
+    with (recorded / "run.mcap").open("rb") as handle:
+        summary = make_reader(handle).get_summary()
+    stats = summary.statistics
+    duration_s = (stats.message_end_time - stats.message_start_time) * 1e-9
+    checked = 0
+    for channel in summary.channels.values():
+        schema = summary.schemas[channel.schema_id]
+        if schema.encoding == "jsonschema":
+            assert json_schema_errors(json.loads(schema.data)) == [], channel.topic
+            checked += 1
+        if schema.name != "foxglove.Log":  # the viewers exempt log topics
+            rate = stats.channel_message_counts[channel.id] / duration_s
+            assert rate <= FREQUENCY_LIMIT_HZ, (channel.topic, rate)
+    assert checked >= 4  # metrics, swarm, health, loop
+    assert lichtblick_layout_errors(json.loads((recorded / "layout-lichtblick.json").read_text())) == []
+    assert json.loads((recorded / "layout-foxglove.json").read_text())["version"] == 1
+    no_nees = [d for t, _, d in _decoded(recorded / "run.mcap") if t.endswith("/metrics") and "nees" not in d]
+    assert all(
+        v is not None for t, _, d in _decoded(recorded / "run.mcap") if t.endswith("/metrics") for v in d.values()
+    )
+    assert len(no_nees) < 10  # a NEES is left out only where it is not finite
+
+
 def test_ranging_lines_join_true_positions_and_status_channels_follow_every_vehicle(recorded):
     messages = _decoded(recorded / "run.mcap")
-    truth = {(topic, t): (d.pose.position.x, d.pose.position.y) for topic, t, d in messages if "/truth" in topic}
+    truth = {(topic, t): (d.pose.position.x, d.pose.position.y) for topic, t, d in messages if topic.endswith("/truth")}
     true_points = {xy for xy in truth.values()}
     lines = [e.lines[0].points for topic, _, d in messages if topic == "/ranging" for e in d.entities]
     drawn = [p for points in lines for p in points]
@@ -137,11 +168,12 @@ def test_a_live_client_sees_the_channels_and_every_vehicle_and_ctrl_c_leaves_a_f
             except OSError:
                 time.sleep(0.2)
         with client:
-            channels, seen = {}, set()
-            while time.monotonic() < deadline and seen != {b"vehicle-1", b"vehicle-2"}:
+            channels, seen, capabilities, clock = {}, set(), [], []
+            while time.monotonic() < deadline and (seen != {b"vehicle-1", b"vehicle-2"} or not clock):
                 frame = client.recv(timeout=30)
                 if isinstance(frame, str):
                     message = json.loads(frame)
+                    capabilities += message.get("capabilities", []) if message.get("op") == "serverInfo" else []
                     if message.get("op") == "advertise":
                         channels.update({c["topic"]: c["id"] for c in message["channels"]})
                         if "/scene" in channels and not seen:
@@ -149,7 +181,10 @@ def test_a_live_client_sees_the_channels_and_every_vehicle_and_ctrl_c_leaves_a_f
                             client.send(json.dumps(request))
                 elif frame[0] == 1:  # message data: opcode, subscription id, timestamp, payload
                     seen |= {v for v in (b"vehicle-1", b"vehicle-2") if v in frame[13:]}
-            assert {"/scene", "/metrics", "/events", "/vehicle/1/estimate"} <= set(channels)
+                elif frame[0] == 2:  # time: opcode, nanoseconds
+                    clock.append(int.from_bytes(frame[1:9], "little"))
+            assert {"/scene", "/vehicle/1/metrics", "/events", "/vehicle/1/estimate"} <= set(channels)
+            assert "time" in capabilities and clock and max(clock) < 3600e9  # the run's sim time, not wall time
             assert seen == {b"vehicle-1", b"vehicle-2"}
     finally:
         swarm.send_signal(signal.SIGINT)
@@ -183,7 +218,7 @@ def test_a_viewer_that_never_reads_loses_messages_counted_and_never_holds_the_ru
     protocols = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
     with connect(f"ws://127.0.0.1:{port}", sock=sock, subprotocols=protocols) as client:
         channels: dict[str, int] = {}
-        while "/metrics" not in channels:
+        while "/vehicle/1/metrics" not in channels:
             message = client.recv(timeout=30)
             if isinstance(message, str) and json.loads(message).get("op") == "advertise":
                 channels.update({c["topic"]: c["id"] for c in json.loads(message)["channels"]})
@@ -233,3 +268,22 @@ def test_fault_zones_are_drawn_while_active_and_deleted_when_they_end(tmp_path):
     deleted = [t for t, d in zones if any(x.id == "zone-jammer" for x in d.deletions)]
     assert len(drawn) == 1 and 2e9 <= drawn[0] <= 2.5e9, zones
     assert len(deleted) == 1 and 4e9 <= deleted[0] <= 4.5e9, zones
+
+
+def test_a_paced_live_view_holds_a_lockstep_run_to_its_speed(tmp_path):
+    """`--live-speed 2`: the ground station holds its tick acknowledgements, so 6 s of sim time take
+    at least 3 s of wall time, less the ticks the world may run ahead of it (``gs_lag_ticks``). Unpaced,
+    such a run takes about a second here. A lower bound on time only: a slow machine cannot fail it."""
+    from bus.config import ClockConfig
+
+    clock = ClockConfig()
+    lead_s = clock.gs_lag_ticks * clock.tick_s
+    scenario = tmp_path / "paced.toml"
+    scenario.write_text(f"[view]\nlive = true\nlive_port = {_free_port()}\n")
+    result = run_swarm(
+        tmp_path, str(scenario), "--vehicles", "2", "--duration", "6", "--mode", "lockstep", "--name", "paced",
+        "--live-speed", "2",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stdout + result.stderr
+    timing = json.loads((tmp_path / "paced" / "timing.json").read_text())
+    assert timing["wall_s"] >= (6.0 - lead_s) / 2.0, timing

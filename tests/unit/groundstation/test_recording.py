@@ -1,14 +1,18 @@
 """The recording's pure parts: the 3-sigma ellipse, the file name a restarted ground station takes,
-and the Foxglove layout in deploy/ kept equal to its generator."""
+the Foxglove and Lichtblick layouts in deploy/ kept equal to their generator, accepted by
+Lichtblick's import (tests.viewer_rules) and framing the swarm."""
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
-from groundstation.layout import swarm_layout
+from groundstation.layout import FOXGLOVE_FILE, LICHTBLICK_FILE, framing, swarm_layouts
 from groundstation.recording import recording_path
 from groundstation.scene_primitives import ellipse_xy
+from tests.viewer_rules import lichtblick_layout_errors
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -30,14 +34,51 @@ def test_a_restarted_ground_station_records_to_a_new_file(tmp_path):
     assert recording_path(tmp_path).name == "run.1.mcap"
 
 
-def test_the_layout_in_the_repository_is_the_generated_one_and_names_our_channels():
-    text = (ROOT / "deploy" / "foxglove-layout.json").read_text()
-    assert text == swarm_layout(5)
-    layout = json.dumps(json.loads(text))
-    topics = ("/scene", "/metrics{vehicle==5}.err_pos_m", "/metrics{vehicle==1}.nees", "/events", "/ranging")
-    topics += ("/terrain", "/health{vehicle==3}.gnss_test_ratio", "/loop{vehicle==2}.overruns", "/swarm.rms_error_m")
-    for topic in topics:
-        assert topic in layout
+def test_the_layouts_in_the_repository_are_the_generated_ones_and_name_our_channels():
+    from bus.config import WorldConfig
+
+    generated = swarm_layouts(WorldConfig())
+    for name, app in ((FOXGLOVE_FILE, "foxglove"), (LICHTBLICK_FILE, "lichtblick")):
+        text = (ROOT / "deploy" / f"{app}-layout.json").read_text()
+        assert text == generated[name], name
+        layout = json.dumps(json.loads(text))
+        topics = ("/scene", "/vehicle/5/metrics.err_pos_m", "/vehicle/1/metrics.nees", "/events", "/ranging")
+        topics += (
+            "/terrain",
+            "/health{vehicle==3}.gnss_test_ratio",
+            "/loop{vehicle==2}.overruns",
+            "/swarm.rms_error_m",
+        )
+        for topic in topics:
+            assert topic in layout, (name, topic)
+
+
+def test_the_lichtblick_layout_is_what_its_import_accepts_and_every_series_reads_receive_time():
+    from bus.config import WorldConfig
+
+    data = json.loads(swarm_layouts(WorldConfig(vehicles=8))[LICHTBLICK_FILE])
+    assert lichtblick_layout_errors(data) == []
+    assert lichtblick_layout_errors(json.loads((ROOT / "deploy" / "foxglove-layout.json").read_text()))  # the control
+    plots = [c for key, c in data["configById"].items() if key.startswith("Plot!")]
+    assert plots and all(p["timestampMethod"] == "receiveTime" for c in plots for p in c["paths"])
+    assert {p["label"] for p in plots[0]["paths"]} >= {f"v{v}" for v in range(1, 9)}
+    foxglove = json.loads(swarm_layouts(WorldConfig(vehicles=8))[FOXGLOVE_FILE])
+    assert '"timestampMethod": "receiveTime"' in json.dumps(foxglove) and "receiveTime" in json.dumps(foxglove)
+
+
+@pytest.mark.parametrize("vehicles", [1, 5, 20, 50])
+def test_the_camera_frames_every_start_pad_and_the_trajectories_around_them(vehicles):
+    """Looking down the camera's axis from its distance with its field of view, every point within a
+    trajectory's reach (two radii) of a start pad is in view."""
+    from bus.config import WorldConfig
+    from bus.pads import start_pads
+
+    world = WorldConfig(vehicles=vehicles)
+    camera = framing(world).camera()
+    half_view_m = camera["distance"] * math.tan(math.radians(camera["fovy"]) / 2.0)
+    centre = np.array(camera["targetOffset"][:2])
+    reach = np.linalg.norm(start_pads(vehicles, world.spacing_m) - centre, axis=1) + 2.0 * world.radius_m
+    assert reach.max() <= half_view_m, (reach.max(), half_view_m)
 
 
 def test_the_compose_live_config_is_the_compose_config_with_the_live_view_on():
