@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 # in collection order: the long files first (tests/conftest.py); PARALLEL= runs it in one process
 PARALLEL ?= -n 2 --dist loadfile --no-loadscope-reorder
 
-.PHONY: demo test unit integration fuzz test-docker bench soak docs clean
+.PHONY: demo test unit integration fuzz test-docker bench soak docs viewer-check clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -38,6 +38,11 @@ bench: $(STAMP)
 
 soak: $(STAMP)
 	$(BIN)/python -m bench.soak
+
+# opens the live view and run.mcap in a Lichtblick web build (LICHTBLICK=.../web/.webpack) in headless
+# Chromium and fails on any alert or empty plot series (docs/live-view.md); not part of make test
+viewer-check: $(STAMP)
+	$(BIN)/python tools/viewer_check.py --lichtblick "$(LICHTBLICK)"
 
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict

@@ -134,6 +134,7 @@ def foxglove_layout(vehicles: int, view: Framing) -> str:
                     for label, value in plot.series
                 ],
                 show_legend=True,
+                show_plot_values_in_legend=True,
                 y_axis_label=plot.title,
             ),
         )
@@ -174,7 +175,7 @@ def lichtblick_layout(vehicles: int, view: Framing) -> str:
             ],
             "showLegend": True,
             "legendDisplay": "floating",
-            "showPlotValuesInLegend": False,
+            "showPlotValuesInLegend": True,
             "showXAxisLabels": True,
             "showYAxisLabels": True,
             "isSynced": True,
