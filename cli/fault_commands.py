@@ -24,11 +24,12 @@ from typing import Optional
 import typer
 
 from bus.errors import ConfigError, SwarmlocError
-from bus.faults import BEHAVIOUR_KINDS, LINK_KINDS, PHYSICAL_KINDS
 from cli.errors import fail
 
 fault_app = typer.Typer(no_args_is_help=True, help="Inspect and change the fault plan of a running swarm.")
-KINDS = (*LINK_KINDS, *PHYSICAL_KINDS, *BEHAVIOUR_KINDS)
+# bus.faults' LINK_KINDS, PHYSICAL_KINDS and BEHAVIOUR_KINDS (a test keeps them equal; importing bus.faults
+# here would load pydantic and numpy into every process that starts the CLI)
+KINDS = ("delay", "loss", "duplicate", "reorder", "jam-gnss", "spoof-gnss", "jam-comms", "blackout", "lie", "accuse")
 _UNITS_S = {"us": 1e-6, "ms": 1e-3, "s": 1.0, "min": 60.0, "": 1.0}
 _UNITS_M = {"m": 1.0, "km": 1000.0, "": 1.0}
 REPLY_TIMEOUT_S = 5.0

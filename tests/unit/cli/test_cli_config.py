@@ -23,3 +23,10 @@ def test_config_refuses_bad_input_in_one_line(tmp_path):
     result = CliRunner().invoke(app, ["config", "--out", str(tmp_path), "--vehicles", "300"])
     assert result.exit_code == 1 and "world.vehicles" in result.output and "Traceback" not in result.output
     assert not (tmp_path / "config.json").exists()
+
+
+def test_the_fault_commands_know_every_fault_kind_the_plan_has():
+    from bus.faults import BEHAVIOUR_KINDS, LINK_KINDS, PHYSICAL_KINDS
+    from cli.fault_commands import KINDS
+
+    assert set(KINDS) == {*LINK_KINDS, *PHYSICAL_KINDS, *BEHAVIOUR_KINDS}
