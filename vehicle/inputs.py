@@ -82,6 +82,9 @@ def swept(segments: list[tuple[int, float]]) -> float:
     return sum(abs(value) * held_us for held_us, value in segments) * 1e-6
 
 
+ANNOUNCE_OFFSET_US = 1  # a visual motion's stamp: just after its first frame (vehicle.visual_odometry)
+
+
 @dataclass(frozen=True)
 class VisualMotion:
     """Mean forward speed (m/s) and yaw rate (rad/s) between two frames, with their variances from the

@@ -24,12 +24,12 @@ from bus.topics import Topic
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
 from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_PLAN_BYTES, MAX_V2V_BYTES, Delivery, Inbound, Kind
+from vehicle.inputs import ANNOUNCE_OFFSET_US
 from vehicle.loop_stats import LoopStats
 from vehicle.models.cooperative import SeenFix
 from vehicle.outbound import Outbound
 from vehicle.sequence import SequenceTracker
 from vehicle.v2v import V2V
-from vehicle.visual_odometry import ANNOUNCE_OFFSET_US, VisualOdometry
 
 log = logging.getLogger("swarmloc.vehicle")
 GS_LISTEN_WAIT_S = 2.0
@@ -115,11 +115,11 @@ class VehicleNode:
             rejections=self.rejections,
             period_us=round(1e6 / config.sensors.ranging_rate_hz),
         )
-        self.visual_odometry = (
-            VisualOdometry(vehicle_id, detector=vc.features, reject=self.rejections.reject)
-            if vc.visual_odometry(vehicle_id)
-            else None
-        )
+        self.visual_odometry = None
+        if vc.visual_odometry(vehicle_id):  # OpenCV only in a vehicle that needs it
+            from vehicle.visual_odometry import VisualOdometry
+
+            self.visual_odometry = VisualOdometry(vehicle_id, detector=vc.features, reject=self.rejections.reject)
         self.sequences = SequenceTracker()
         self.stats = LoopStats()
         self.period_us = round(1e6 / vc.loop_rate_hz)

@@ -14,11 +14,9 @@ import numpy as np
 
 from bus import messages as m
 from vehicle.estimators.filter import Reject
-from vehicle.inputs import VisualMotion
+from vehicle.inputs import ANNOUNCE_OFFSET_US, VisualMotion
 from vehicle.vision import features
 from vehicle.vision.odometry import NoMotion, VoSpec, frame_motion
-
-ANNOUNCE_OFFSET_US = 1  # the motion's stamp: just after its first frame
 
 
 class VisualOdometry:

@@ -27,7 +27,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg.blas import dger
 
 from bus.angles import wrap_angle
 from vehicle.kalman import UpdateResult
@@ -135,6 +134,8 @@ def update_in_place(
     row1 = (PHt[:, 1] - l21 * row0) / l22
     x += w0 * row0 + w1 * row1
     x[2] = wrap_angle(x[2])
+    from scipy.linalg.blas import dger  # BLAS rank-1 update in place (imported here: SLAM vehicles only)
+
     for row in (row0, row1):
         dger(-1.0, row, row, a=P.T, overwrite_a=True)
     return UpdateResult(True, nis, nis / gate)
@@ -158,6 +159,8 @@ def apply_correction_in_place(x: np.ndarray, P: np.ndarray, correction: Correcti
     x += A @ correction.dz
     x[2] = wrap_angle(x[2])
     values, vectors = np.linalg.eigh(correction.M_new - correction.M)
+    from scipy.linalg.blas import dger  # BLAS rank-1 update in place (imported here: SLAM vehicles only)
+
     for value, u in zip(values, (A @ vectors).T):
         dger(float(value), u, u, a=P.T, overwrite_a=True)
 
