@@ -10,8 +10,8 @@ output never depends on how time is cut into ticks, and faults never shift the n
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 from bus.config import SwarmConfig
@@ -19,12 +19,13 @@ from bus.feed import CameraBlock
 from bus.pads import start_pads
 from bus.topics import Topic
 from sim import sensors
-from sim.camera import camera_frame
 from sim.kinematics import unicycle_arcs
 from sim.physical_faults import PhysicalFaults
-from sim.terrain import Terrain, load_terrain, procedural_terrain, repetitive_terrain
 from sim.trajectories import make_trajectory
 from sim.true_errors import TrueErrors, wobble, wobble_tones
+
+if TYPE_CHECKING:
+    from sim.terrain import Terrain
 
 BLOCK_STEPS = 100
 
@@ -96,7 +97,10 @@ def _period_us(rate_hz: float) -> int:
 
 def make_terrain(config: SwarmConfig) -> Terrain:
     """The ground the cameras see: ``world.terrain`` (an orthophoto) or a procedural one from the
-    world's seed (ConfigError, one line, for an unreadable file)."""
+    world's seed (ConfigError, one line, for an unreadable file). OpenCV and the terrain are loaded
+    only for a camera swarm."""
+    from sim.terrain import load_terrain, procedural_terrain, repetitive_terrain
+
     wc = config.world
     if wc.terrain:
         return load_terrain(wc.terrain, wc.terrain_metres_per_pixel)
@@ -165,6 +169,8 @@ class World:
         }
         self.terrain = make_terrain(config) if spec.camera_rate_hz else None
         if self.terrain is not None:
+            import cv2
+
             cv2.setNumThreads(1)  # frames are small: OpenCV's thread pool costs more than it brings
         if self.terrain is not None:
             self._periods[Topic.CAMERA] = _period_us(spec.camera_rate_hz)
@@ -273,6 +279,8 @@ class World:
             and t_us % self._periods[Topic.CAMERA] == 0
             and not silenced(vid, Topic.CAMERA, t_us, pose)
         ):
+            from sim.camera import camera_frame
+
             frame = camera_frame(
                 self.terrain, pose, v.camera_rng, size_px=spec.camera_size_px, noise_sigma=spec.camera_noise_grey
             )
