@@ -1,0 +1,31 @@
+"""An older commit of this repository, checked out beside it and installed in a virtual environment
+of its own, so that a benchmark can run it and today's code side by side in one sitting (issue 44:
+"measured in one run against a0fccee built from the repository's history"). Cached under
+``bench/.baseline/<commit>`` (ignored by git); built once, in a minute or two."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CACHE = ROOT / "bench" / ".baseline"
+A0FCCEE = "a0fccee"  # before the redesign and the three issues that followed it (issue 44's yardstick)
+
+
+def baseline_python(commit: str = A0FCCEE) -> Path:
+    """The Python of a virtual environment with ``commit`` of this repository installed (built here
+    on first use)."""
+    full = subprocess.run(["git", "rev-parse", commit], cwd=ROOT, capture_output=True, text=True, check=True)
+    work = CACHE / full.stdout.strip()[:12]
+    python = work / ".venv" / "bin" / "python"
+    if python.exists() and (work / ".venv" / ".installed").exists():
+        return python
+    if not work.exists():
+        CACHE.mkdir(parents=True, exist_ok=True)
+        subprocess.run(["git", "worktree", "add", "--detach", "--force", str(work), commit], cwd=ROOT, check=True)
+    subprocess.run([sys.executable, "-m", "venv", str(work / ".venv")], check=True)
+    subprocess.run([str(python), "-m", "pip", "install", "--quiet", "-e", str(work)], check=True)
+    (work / ".venv" / ".installed").touch()
+    return python

@@ -1,0 +1,72 @@
+"""Start-up benchmarks (issue 44): what each process role loads and costs before its loop
+(bench/startup.py), and the CPU a whole 10-vehicle swarm spends to start and stop, against the code
+the issue was filed on (``BEFORE``, built from the repository's history by bench/baseline.py), the
+two interleaved in one sitting (medians of ``ROUNDS``)."""
+
+from __future__ import annotations
+
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from bench.baseline import baseline_python
+from bench.common import Row
+from bench.startup import ROLES, probe
+
+BEFORE = "4abe413"  # main when issue 44 was filed
+ROUNDS = 3
+VEHICLE_RSS_MB = 65.0
+
+
+def swarm_cpu_s(python: Path | str, vehicles: int, duration_s: float, out: Path, name: str) -> float:
+    """CPU seconds (user + system, every process) of one lockstep `swarm up` run with ``python``."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run(
+        [str(python), "-m", "cli", "up", "--vehicles", str(vehicles), "--duration", str(duration_s), "--mode",
+         "lockstep", "--seed", "5", "--quiet", "--no-report", "--out", str(out), "--name", name],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def run(quick: bool) -> list[Row]:
+    rows = []
+    for name in ROLES:
+        found = min((probe(name) for _ in range(1 if quick else 3)), key=lambda s: s.cpu_s)
+        is_vehicle = name == "vehicle"
+        rows.append(
+            Row(
+                "startup",
+                f"process start: {name}",
+                "resident memory after start-up",
+                round(found.rss_mb, 1),
+                "MB",
+                f"<= {VEHICLE_RSS_MB:g} MB" if is_vehicle else "-",
+                found.rss_mb <= VEHICLE_RSS_MB if is_vehicle else None,
+                {"cpu_s": round(found.cpu_s, 3), "loads": list(found.modules)},
+            )
+        )
+    before = baseline_python(BEFORE)
+    cpu: dict[str, list[float]] = {"now": [], "before": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(1 if quick else ROUNDS):
+            cpu["now"].append(swarm_cpu_s(sys.executable, 10, 1.0, Path(tmp), f"now-{k}"))
+            cpu["before"].append(swarm_cpu_s(before, 10, 1.0, Path(tmp), f"before-{k}"))
+    now, then = statistics.median(cpu["now"]), statistics.median(cpu["before"])
+    rows.append(
+        Row(
+            "startup",
+            "10-vehicle swarm, lockstep, 1 s: start, 1 s, stop",
+            f"CPU against {BEFORE}",
+            round(now / then, 3),
+            "x",
+            "<= 0.5x",
+            now / then <= 0.5,
+            {"cpu_s": round(now, 2), "cpu_s_before": round(then, 2), "rounds": len(cpu["now"])},
+        )
+    )
+    return rows
