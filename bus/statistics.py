@@ -73,11 +73,14 @@ def gate_threshold(dof: int, probability: float) -> float:
 def chi2_band(dof: int, *, runs: int = 1, probability: float = 0.95) -> tuple[float, float]:
     """Two-sided ``probability`` band of the average of ``runs`` independent NEES (or NIS) samples of
     ``dof`` dimensions each: runs * average ~ chi2(runs * dof) (Bar-Shalom, Li, Kirubarajan 2001,
-    sec. 5.4.2). ``runs`` = 1 is the band of one sample. Imports scipy (not for vehicles)."""
+    sec. 5.4.2). ``runs`` = 1 is the band of one sample. Up to MAX_DOF degrees of freedom in all from
+    the closed form (no scipy: the ground station starts without it); beyond, scipy's."""
+    tail, total = _tail(probability), dof * runs
+    if total <= MAX_DOF:
+        return upper_quantile(total, 1.0 - tail) / runs, upper_quantile(total, tail) / runs
     from scipy.stats import chi2
 
-    tail = _tail(probability)
-    low, high = chi2.ppf([tail, 1.0 - tail], dof * runs) / runs
+    low, high = chi2.ppf([tail, 1.0 - tail], total) / runs
     return float(low), float(high)
 
 

@@ -12,7 +12,7 @@ FORBIDDEN = {
     "vehicle": {"cv2", "scipy", "matplotlib", "foxglove", "rich"},
     "vehicle with a camera": {"matplotlib", "foxglove", "rich"},
     "world": {"cv2", "scipy", "matplotlib", "foxglove", "rich"},  # a world without cameras
-    "ground station": {"matplotlib", "cv2"},  # its live display is rich's; run.mcap is foxglove's
+    "ground station": {"matplotlib", "cv2", "scipy"},  # its live display is rich's; run.mcap is foxglove's
 }
 
 

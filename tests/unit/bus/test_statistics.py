@@ -23,3 +23,14 @@ def test_the_survival_function_matches_scipy(dof, x):
 def test_impossible_dofs_and_tails_are_refused(dof, tail):
     with pytest.raises(ValueError):
         upper_quantile(dof, tail)
+
+
+@pytest.mark.parametrize("dof, runs", [(3, 1), (3, 10), (2, 50), (3, 66), (3, 67), (3, 500)])
+def test_the_nees_band_matches_scipy_with_and_without_it(dof, runs):
+    from scipy.stats import chi2
+
+    from bus.statistics import chi2_band
+
+    low, high = chi2_band(dof, runs=runs)
+    assert low == pytest.approx(chi2.ppf(0.025, dof * runs) / runs, rel=1e-12)
+    assert high == pytest.approx(chi2.ppf(0.975, dof * runs) / runs, rel=1e-12)
