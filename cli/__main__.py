@@ -2,4 +2,5 @@
 
 from cli.main import app
 
-app()
+if __name__ == "__main__":  # imported again, not run, in every child the forkserver starts (launch.children)
+    app()

@@ -1,5 +1,6 @@
-"""`swarm up`: start a router, the ground station, the world and N vehicles as subprocesses,
-watch them, and shut everything down cleanly on Ctrl-C/SIGTERM or when the run ends.
+"""`swarm up`: start a router, the ground station, the world and N vehicles as child processes
+(launch.children: forked from a pre-loaded forkserver), watch them, and shut everything down cleanly
+on Ctrl-C/SIGTERM or when the run ends.
 """
 
 from __future__ import annotations
@@ -11,7 +12,6 @@ import queue
 import signal
 import socket
 import subprocess
-import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -24,6 +24,7 @@ from bus.kill_schedule import KillSchedule
 from bus.plan import FaultPlan, decode_json
 from bus.secrets import role_env, write_secrets
 from bus.session import Envelope
+from launch import children
 
 SHUTDOWN_GRACE_S = 4.0
 # one BLAS thread per process (each child limits itself with threadpoolctl too): told before numpy is
@@ -66,7 +67,7 @@ class Security:
 @dataclass
 class Child:
     name: str
-    process: subprocess.Popen
+    process: children.Forked | subprocess.Popen
     log_path: Path
     essential: bool
 
@@ -149,15 +150,7 @@ class Swarm:
         log_path = self.run_dir / "logs" / f"{name}.log"
         secrets = self.security.env(name) if name != "router" else {}
         env = {**CHILD_ENV, **os.environ, "PYTHONUNBUFFERED": "1", **secrets}
-        with log_path.open("ab") as log:
-            process = subprocess.Popen(
-                [sys.executable, "-m", "cli", *args],
-                env=env,
-                stdout=None if inherit_stdout else log,
-                stderr=log,
-                stdin=subprocess.DEVNULL,
-                start_new_session=True,
-            )
+        process = children.start(args, env, log_path, inherit_stdout=inherit_stdout)
         child = Child(name, process, log_path, essential)
         self.children = [c for c in self.children if c.name != name] + [child]
         return child
