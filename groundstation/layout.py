@@ -82,8 +82,8 @@ def _plots(vehicles: int) -> tuple[_Plot, ...]:
             tuple((f"v{v}", f"/vehicle/{v}/metrics.nees") for v in ids)
             + (("95 % low", f"{low:.4f}"), ("95 % high", f"{high:.4f}")),
         ),
-        _Plot("gnss", "GNSS test ratio", tuple((f"v{v}", f"/health{{vehicle=={v}}}.gnss_test_ratio") for v in ids)),
-        _Plot("loop", "loop overruns", tuple((f"v{v}", f"/loop{{vehicle=={v}}}.overruns") for v in ids)),
+        _Plot("gnss", "GNSS test ratio", tuple((f"v{v}", f"/vehicle/{v}/health.gnss_test_ratio") for v in ids)),
+        _Plot("loop", "loop overruns", tuple((f"v{v}", f"/vehicle/{v}/loop.overruns") for v in ids)),
     )
 
 
@@ -134,6 +134,7 @@ def foxglove_layout(vehicles: int, view: Framing) -> str:
                     for label, value in plot.series
                 ],
                 show_legend=True,
+                legend_display="left",
                 show_plot_values_in_legend=True,
                 y_axis_label=plot.title,
             ),
@@ -174,7 +175,7 @@ def lichtblick_layout(vehicles: int, view: Framing) -> str:
                 for label, value in plot.series
             ],
             "showLegend": True,
-            "legendDisplay": "floating",
+            "legendDisplay": "left",
             "showPlotValuesInLegend": True,
             "showXAxisLabels": True,
             "showYAxisLabels": True,

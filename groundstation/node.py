@@ -76,7 +76,7 @@ class GroundStation:
         bus.queryable(keys.claim(), control)
         self._plan_pub, self._ack_pub = bus.publisher(keys.fault_plan()), bus.publisher(keys.ack("gs"))
         self.run = RunDirectory(run_dir)  # creates the directory the recording goes in
-        self.run.recording = open_recording(run_dir, config.view)
+        self.run.recording = open_recording(run_dir, config.view, config.world.vehicles)
         if self.run.recording is not None:
             self.run.write_layouts(swarm_layouts(config.world))
         if self.run.recording is not None:

@@ -24,10 +24,16 @@ Channels (log times are sim time, nanoseconds from the run's start):
 - ``/terrain`` (foxglove.SceneUpdate): under a camera swarm, the terrain image as a textured model
   (``terrain.glb`` in the run directory, written by the launcher; groundstation.terrain_model),
   logged at the start and again whenever a live viewer subscribes to it;
-- ``/health`` (JSON): each vehicle's GNSS health as its ESTIMATOR_STATUS says (test ratio, glitch);
+- ``/vehicle/<id>/health`` (JSON): the vehicle's GNSS health as its ESTIMATOR_STATUS says (test ratio,
+  glitch);
 - ``/swarm`` (JSON): the swarm's RMS position error over the vehicles scored at each stamp;
-- ``/loop`` (JSON): each vehicle's loop statistics as its status reports them (cycles, overruns,
-  cycle time and jitter p99, fused and missing neighbour broadcasts).
+- ``/vehicle/<id>/loop`` (JSON): the vehicle's loop statistics as its status reports them (cycles,
+  overruns, cycle time and jitter p99, fused and missing neighbour broadcasts).
+
+The per-vehicle JSON channels are topics of their own rather than one topic with a vehicle field:
+a plot's legend shows a series' current value from the latest message of its topic, so a series
+filtered out of a shared topic (``/health{vehicle==2}``) shows none whenever another vehicle spoke
+last.
 
 Every channel stays under 60 messages per second of sim time for swarms of up to 60 vehicles (the
 viewers warn of "high frequency topics" above that). The live server has the WebSocket protocol's
@@ -78,8 +84,12 @@ ZONE_COLOURS = {"jam-gnss": (1.0, 0.2, 0.2), "spoof-gnss": (1.0, 0.6, 0.0), "jam
 WARNING_EVENTS = ("fault", "neighbour_distrusted", "accusation_contradicted", "vehicle_lost", "estimator_reset", "gnss")
 
 
+VEHICLE_TOPICS = ("estimate", "truth", "metrics", "health", "loop")
+
+
 def pose_topic(vehicle_id: int, kind: str) -> str:
-    """The Foxglove topic of a vehicle's poses: ``kind`` is estimate or truth (not a zenoh key)."""
+    """The Foxglove topic of a vehicle's ``kind`` (estimate, truth, metrics, health, loop; not a
+    zenoh key)."""
     return f"/vehicle/{vehicle_id}/{kind}"
 
 
@@ -96,7 +106,7 @@ class Recording:
     """Writes the channels (module docstring) to an MCAP file and, once ``serve`` is called, to a
     WebSocket server too."""
 
-    def __init__(self, path: Path | None) -> None:
+    def __init__(self, path: Path | None, vehicles: int = 0) -> None:
         import foxglove
         from foxglove.channels import LogChannel, SceneUpdateChannel
 
@@ -111,8 +121,6 @@ class Recording:
         self.landmark_scene = SceneUpdateChannel("/landmarks", context=self.context)
         self.ranging_scene = SceneUpdateChannel("/ranging", context=self.context)
         self.terrain_scene = SceneUpdateChannel("/terrain", context=self.context)
-        self.health_channel = foxglove.Channel("/health", schema=HEALTH_SCHEMA, context=self.context)
-        self.loop_channel = foxglove.Channel("/loop", schema=LOOP_SCHEMA, context=self.context)
         self.swarm_channel = foxglove.Channel("/swarm", schema=SWARM_SCHEMA, context=self.context)
         self._poses: dict[tuple[str, int], Any] = {}
         self._scene: dict[int, Any] = {}  # vehicle -> its latest scene entity, not logged yet
@@ -125,6 +133,9 @@ class Recording:
         self._nees_band = nees_band_3dof()
         self.trail_scene = SceneUpdateChannel("/trails", context=self.context)
         self._trails: dict[int, deque] = {}  # vehicle -> (stamp us, true xy, estimated xy), one a second
+        for vid in range(1, vehicles + 1):  # advertised at once: a viewer sees every topic from the start
+            for kind in VEHICLE_TOPICS:
+                self._pose_channel(kind, vid)
 
     def serve(self, host: str, port: int, backlog: int = 1024) -> None:
         """Start the live view (a Foxglove WebSocket server on ``host``:``port``), each viewer's queue
@@ -211,23 +222,27 @@ class Recording:
 
     def health(self, status: Any) -> None:
         """One vehicle's GNSS health (a bus.mavlink_codec.EstimatorStatus)."""
-        self.health_channel.log(health_record(status), log_time=max(status.time_usec, 0) * 1000)
+        channel = self._pose_channel("health", status.vehicle_id)
+        channel.log(health_record(status), log_time=max(status.time_usec, 0) * 1000)
 
     def loop(self, status: Any) -> None:
         """One vehicle's loop statistics (a bus.messages.VehicleStatus)."""
-        self.loop_channel.log(loop_record(status), log_time=max(status.stamp_us, 0) * 1000)
+        self._pose_channel("loop", status.vehicle_id).log(loop_record(status), log_time=max(status.stamp_us, 0) * 1000)
 
     def _pose_channel(self, kind: str, vehicle_id: int):
-        """A vehicle's channel: its ``estimate`` or ``truth`` poses, or its ``metrics``."""
+        """A vehicle's channel: its ``estimate`` or ``truth`` poses, or its ``metrics``, ``health`` or
+        ``loop`` records."""
         from foxglove.channels import PoseInFrameChannel
 
         key = (kind, vehicle_id)
         if key not in self._poses:
             topic = pose_topic(vehicle_id, kind)
-            if kind == "metrics":
-                self._poses[key] = self._foxglove.Channel(topic, schema=METRICS_SCHEMA, context=self.context)
-            else:
-                self._poses[key] = PoseInFrameChannel(topic, context=self.context)
+            schema = {"metrics": METRICS_SCHEMA, "health": HEALTH_SCHEMA, "loop": LOOP_SCHEMA}.get(kind)
+            self._poses[key] = (
+                PoseInFrameChannel(topic, context=self.context)
+                if schema is None
+                else self._foxglove.Channel(topic, schema=schema, context=self.context)
+            )
         return self._poses[key]
 
     def scores(self, scores: list[Score]) -> None:
@@ -425,14 +440,14 @@ def _terrain_requests(wanted: threading.Event) -> Any:
     return TerrainRequests()
 
 
-def open_recording(run_dir: Path, view: Any) -> Recording | None:
-    """The recording a run's ``view`` config asks for (None: neither run.mcap nor a live view). A live
-    view that cannot start (its port taken since the launcher checked) is logged, not fatal: the run
-    and its recording go on."""
+def open_recording(run_dir: Path, view: Any, vehicles: int = 0) -> Recording | None:
+    """The recording a run's ``view`` config asks for (None: neither run.mcap nor a live view), with
+    the channels of ``vehicles`` vehicles made at once. A live view that cannot start (its port taken
+    since the launcher checked) is logged, not fatal: the run and its recording go on."""
     if not (view.record or view.live):
         return None
     try:
-        recording = Recording(recording_path(run_dir) if view.record else None)
+        recording = Recording(recording_path(run_dir) if view.record else None, vehicles)
     except OSError as exc:  # a read-only or vanished run directory: the run goes on without run.mcap
         log.error("run.mcap cannot be written in %s: %s; the run goes on without it", run_dir, exc)
         return None

@@ -44,8 +44,8 @@ ALERTS_JS = """(async () => {
   return document.querySelector('[role=tabpanel]:not([hidden])')?.innerText ?? '';
 })()"""
 LEGENDS_JS = """(() => [...document.querySelectorAll('[data-testid=plot-legend-row-path-label]')].map(label => {
-  const row = label.closest('div').parentElement;
-  const value = row.querySelector('p[class*=MuiTypography-alignRight]');
+  const row = label.closest('[class*=PlotLegendRow_tsx-root]');
+  const value = row && row.querySelector('[class*=MuiTypography-alignRight]');
   return [label.innerText, value ? value.innerText : null];
 }))()"""
 
@@ -204,7 +204,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"viewer-check: no Lichtblick web build in {args.lichtblick} (index.html)", file=sys.stderr)
         return 2
     out = args.out.resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and any(out.iterdir()) and not (out / "viewer-check.json").exists():
+        print(f"viewer-check: {out} is not empty and not a previous check's: give another --out", file=sys.stderr)
+        return 2
+    shutil.rmtree(out, ignore_errors=True)  # a previous check's runs: the run names must be free
+    out.mkdir(parents=True)
     app, data = serve(args.lichtblick), serve(out)
     base = f"http://127.0.0.1:{app}/"
     browser = Browser(args.chromium, Path(tempfile.mkdtemp(prefix="viewer-check-")))

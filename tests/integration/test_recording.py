@@ -56,8 +56,9 @@ def test_run_mcap_holds_every_channel_with_one_estimate_per_scored_sample(record
     assert schemas["/scene"] == "foxglove.SceneUpdate" and schemas["/events"] == "foxglove.Log"
     assert all(schemas[f"/vehicle/{v}/metrics"] == "swarmloc.Metrics" for v in (1, 2, 3))
     assert schemas["/swarm"] == "swarmloc.SwarmError"
-    assert schemas["/ranging"] == "foxglove.SceneUpdate" and schemas["/health"] == "swarmloc.GnssHealth"
-    assert schemas["/loop"] == "swarmloc.LoopStatus" and schemas["/trails"] == "foxglove.SceneUpdate"
+    assert schemas["/ranging"] == "foxglove.SceneUpdate" and schemas["/trails"] == "foxglove.SceneUpdate"
+    assert all(schemas[f"/vehicle/{v}/health"] == "swarmloc.GnssHealth" for v in (1, 2, 3))
+    assert all(schemas[f"/vehicle/{v}/loop"] == "swarmloc.LoopStatus" for v in (1, 2, 3))
     counts = {c.topic: summary.statistics.channel_message_counts[c.id] for c in summary.channels.values()}
     rows = _metrics(recorded)
     per_vehicle = defaultdict(int)
@@ -136,8 +137,8 @@ def test_ranging_lines_join_true_positions_and_status_channels_follow_every_vehi
     assert set(swarm) == {round(float(r["t_s"]), 6) for r in rows}
     at_5 = [float(r["err_pos_m"]) for r in rows if float(r["t_s"]) == 5.0]
     assert swarm[5.0]["rms_error_m"] == pytest.approx(np.sqrt(np.mean(np.square(at_5))), rel=1e-5)
-    health = [d for topic, _, d in messages if topic == "/health"]
-    loops = [d for topic, _, d in messages if topic == "/loop"]
+    health = [d for topic, _, d in messages if topic.endswith("/health")]
+    loops = [d for topic, _, d in messages if topic.endswith("/loop")]
     assert {d["vehicle"] for d in health} == {d["vehicle"] for d in loops} == {1, 2, 3}
     assert not any(d["gnss_glitch"] for d in health)  # a clean run
     assert max(d["cycles"] for d in loops if d["vehicle"] == 1) > 0

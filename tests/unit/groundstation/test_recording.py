@@ -45,8 +45,8 @@ def test_the_layouts_in_the_repository_are_the_generated_ones_and_name_our_chann
         topics = ("/scene", "/vehicle/5/metrics.err_pos_m", "/vehicle/1/metrics.nees", "/events", "/ranging")
         topics += (
             "/terrain",
-            "/health{vehicle==3}.gnss_test_ratio",
-            "/loop{vehicle==2}.overruns",
+            "/vehicle/3/health.gnss_test_ratio",
+            "/vehicle/2/loop.overruns",
             "/swarm.rms_error_m",
         )
         for topic in topics:
