@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -32,6 +33,21 @@ class Fix:
     fused: bool = True  # False: the gate refused it, or the vehicle did not believe it (``refused``)
     shift: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # G = d w / d(own position), row by row (1/m)
     range_m: float = 0.0  # the measured range
+
+    # what every window over the fix needs, computed once (a fix is in some 100 windows)
+    @cached_property
+    def finite(self) -> bool:
+        return math.isfinite(self.whitened[0]) and math.isfinite(self.whitened[1])
+
+    @cached_property
+    def clipped(self) -> tuple[float, float]:
+        """The whitened innovation shortened to at most BIAS_CLIP (the bias test's)."""
+        return _clip(self.whitened)
+
+    @cached_property
+    def square(self) -> float:
+        """|w|^2: the NIS as whitened."""
+        return self.whitened[0] ** 2 + self.whitened[1] ** 2
 
 
 @dataclass(frozen=True)
@@ -114,18 +130,33 @@ def window_stats(record: Sequence[Fix], since_us: int, decorrelation_s: float = 
     """A neighbour's fixes ``record`` stamped after ``since_us``. The mean NIS is over the fixes the gate passed;
     the bias over all of them, each whitened innovation shortened to at most ``BIAS_CLIP`` (a fix the
     gate refused is evidence of an offset, but one wild fix must not make a bias alone), counting at
-    most one fix per ``decorrelation_s`` over the span they cover."""
-    fixes = [f for f in record if f.stamp_us > since_us]
-    finite = [f for f in fixes if all(map(math.isfinite, f.whitened))]
-    passed = [f for f in finite if not f.gated_out]
+    most one fix per ``decorrelation_s`` over the span they cover. One pass, in stamp order."""
+    fixes = passed = finite = 0
+    nis = m0 = m1 = 0
+    first_us = last_us = 0
+    for f in record:
+        if f.stamp_us <= since_us:
+            continue
+        fixes += 1
+        if not f.finite:
+            continue
+        if not finite:
+            first_us = f.stamp_us
+        finite += 1
+        last_us = f.stamp_us
+        c0, c1 = f.clipped
+        m0 += c0
+        m1 += c1
+        if not f.gated_out:
+            passed += 1
+            nis += f.square
     if not passed:
-        return WindowStats(len(fixes), len(fixes) - len(passed), math.inf, math.inf)
-    mean_nis = sum(f.whitened[0] ** 2 + f.whitened[1] ** 2 for f in passed) / len(passed)
-    clipped = [_clip(f.whitened) for f in finite]
-    m0 = sum(w0 for w0, _ in clipped) / len(clipped)
-    m1 = sum(w1 for _, w1 in clipped) / len(clipped)
-    n_eff = effective_count(finite, decorrelation_s)
-    return WindowStats(len(fixes), len(fixes) - len(passed), mean_nis, n_eff * (m0 * m0 + m1 * m1))
+        return WindowStats(fixes, fixes - passed, math.inf, math.inf)
+    m0, m1 = m0 / finite, m1 / finite
+    n_eff = (
+        float(finite) if decorrelation_s <= 0.0 else min(finite, 1.0 + (last_us - first_us) * 1e-6 / decorrelation_s)
+    )
+    return WindowStats(fixes, fixes - passed, nis / passed, n_eff * (m0 * m0 + m1 * m1))
 
 
 def effective_count(fixes: list[Fix], decorrelation_s: float) -> float:
