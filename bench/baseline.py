@@ -1,7 +1,7 @@
 """An older commit of this repository, checked out beside it and installed in a virtual environment
 of its own, so that a benchmark can run it and today's code side by side in one sitting (issue 44:
 "measured in one run against a0fccee built from the repository's history"). Cached under
-``bench/.baseline/<commit>`` (ignored by git); built once, in a minute or two."""
+``~/.cache/swarmloc/baseline/<commit>``; built once, in a minute or two."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-CACHE = ROOT / "bench" / ".baseline"
+CACHE = Path.home() / ".cache" / "swarmloc" / "baseline"
 A0FCCEE = "a0fccee"  # before the redesign and the three issues that followed it (issue 44's yardstick)
 
 

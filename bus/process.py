@@ -7,6 +7,22 @@ import threading
 import time
 
 
+def die_with_parent(sig: int = signal.SIGTERM) -> None:
+    """Ask Linux to send ``sig`` to this process when the thread that started it ends (a campaign's
+    run when its worker is lost; a swarm's process when its forkserver ends): PR_SET_PDEATHSIG. A
+    parent already gone by now is treated the same. Elsewhere (not Linux) nothing is set."""
+    import ctypes
+    import os
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(sig), 0, 0, 0)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() == 1:  # the parent died before the request took effect
+        os.kill(os.getpid(), sig)
+
+
 def stop_on_signals() -> threading.Event:
     """An Event set by SIGINT or SIGTERM, so loops end cleanly and sessions close."""
     stop = threading.Event()

@@ -10,6 +10,7 @@ import typer
 
 from bus.errors import SwarmlocError
 from cli import process_commands
+from cli.campaign_commands import campaign
 from cli.errors import REPORT_HELP, fail
 from cli.experiment_commands import experiment_app
 from cli.fault_commands import fault_app
@@ -23,6 +24,7 @@ app = typer.Typer(
 app.add_typer(fault_app, name="fault")
 app.add_typer(experiment_app, name="experiment")
 app.add_typer(replay_app, name="replay")
+app.command()(campaign)
 
 
 @app.command()

@@ -14,7 +14,6 @@ would lie in if those runs were independent - a reference line, narrower than th
 from __future__ import annotations
 
 import json
-import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,8 +22,10 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bus import statistics
-from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, ViewConfig, build_config
+from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, build_config
+from bus.errors import ConfigError
 from groundstation.report.rundata import load_run
+from launch.runspec import RunSpec
 
 SCORE_EVERY_US = 200_000
 CENTRALIZED = "centralized"
@@ -82,39 +83,86 @@ def cooperative_config(variant: str, seed: int, setup: Setup) -> SwarmConfig:
     )
 
 
-def run_cooperative(
-    out: Path,
-    *,
-    seeds: list[int],
-    variants: list[str],
-    setup: Setup,
-    stop: threading.Event,
-    show_progress: bool,
-    view: ViewConfig | None = None,
-) -> tuple[Path, dict[str, dict[int, Path]], dict[str, dict[int, Any]], list[str]]:
-    """Fly every variant on every seed (real processes) and the centralized reference (in process).
-    Returns the experiment folder, run directories [variant][seed], the centralized tracks
-    [seed] and failures."""
-    from experiments.centralized_reference import run_centralized
-    from launch.launcher import launch, unique_run_dir
+CENTRALIZED_TRACKS = "centralized.npz"  # in a centralized run's directory: per vehicle t_s, error_m, nees
 
-    folder = unique_run_dir(out, "cooperative")
-    runs: dict[str, dict[int, Path]] = {}
-    central: dict[str, dict[int, Any]] = {CENTRALIZED: {}}
-    failures: list[str] = []
-    for seed in seeds:
-        for variant in variants:
-            if stop.is_set():
-                return folder, runs, central, failures + ["stopped"]
-            run_dir, failed, _ = launch(
-                cooperative_config(variant, seed, setup), folder, show_progress=show_progress, stop=stop, view=view
+
+def plan(
+    seeds: int, first_seed: int, variants: str, vehicles: int, jammed: int, jam_start: float, jam: float, world: str
+) -> list[RunSpec]:
+    """Every variant on every seed (real processes), and the centralized reference on each seed's world
+    (a run in one process: ``fly_centralized``)."""
+    setup, chosen = _setup(variants, vehicles, jammed, jam_start, jam, world)
+    specs = []
+    for seed in range(first_seed, first_seed + seeds):
+        for variant in chosen:
+            specs.append(
+                RunSpec(
+                    f"{variant}-seed{seed}",
+                    variant,
+                    seed,
+                    cooperative_config(variant, seed, setup).model_dump(mode="json"),
+                )
             )
-            runs.setdefault(variant, {})[seed] = run_dir
-            failures += [f"{variant} seed {seed}: {f}" for f in failed]
-        central[CENTRALIZED][seed] = run_centralized(
-            cooperative_config(CENTRALIZED, seed, setup), score_every_us=SCORE_EVERY_US
+        config = cooperative_config(CENTRALIZED, seed, setup).model_dump(mode="json")
+        specs.append(
+            RunSpec(f"{CENTRALIZED}-seed{seed}", CENTRALIZED, seed, config, runner=f"{__name__}:fly_centralized")
         )
-    return folder, runs, central, failures
+    return specs
+
+
+def fly_centralized(spec: RunSpec, config: SwarmConfig, run_dir: Path) -> list[str]:
+    """The centralized reference of one seed (in this process), its tracks written to the run directory."""
+    from experiments.centralized_reference import run_centralized
+
+    tracks = run_centralized(config, score_every_us=SCORE_EVERY_US)
+    arrays = {f"{key}_v{vid}": track[key] for vid, track in tracks.items() for key in ("t_s", "error_m", "nees")}
+    np.savez(run_dir / CENTRALIZED_TRACKS, **arrays)
+    return []
+
+
+def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:
+    """experiment.json and the figures from the runs that completed; a line per variant."""
+    setup, chosen = _setup(**{k: v for k, v in params.items() if k not in ("seeds", "first_seed")})
+    done = {row["run"]: row for row in rows if row.get("status") == "complete"}
+    seeds = range(params["first_seed"], params["first_seed"] + params["seeds"])
+    runs = {v: {s: folder / f"{v}-seed{s}" for s in seeds if f"{v}-seed{s}" in done} for v in chosen}
+    reference = {s: folder / f"{CENTRALIZED}-seed{s}" for s in seeds if f"{CENTRALIZED}-seed{s}" in done}
+    table, figures = compare(folder, runs, {CENTRALIZED: {s: _tracks(p) for s, p in reference.items()}}, setup)
+    end_s = setup.jam_start_s + setup.jam_s
+    lines = [
+        f"jammed vehicles {setup.jammed_ids}, {setup.jam_start_s:g}-{end_s:g} s, {len(seeds)} seed(s), "
+        f"{setup.world} world:"
+    ]
+    for row in table["variants"].values():
+        lo, hi = row["anees_interval_95"]
+        lines.append(
+            f"  {row['label']:<44} RMSE {row['rmse_m']:7.3f} m   ANEES {row['anees']:7.2f} [{lo:.2f}, {hi:.2f}]"
+        )
+    return lines + [f"figure: {f}" for f in figures]
+
+
+def _setup(
+    variants: str, vehicles: int, jammed: int, jam_start: float, jam: float, world: str
+) -> tuple[Setup, list[str]]:
+    chosen = [v.strip() for v in variants.split(",") if v.strip()]
+    unknown = [v for v in chosen if v not in VARIANTS]
+    if unknown or not chosen:
+        raise ConfigError(f"unknown variant(s) {', '.join(unknown) or '(none given)'}; known: {', '.join(VARIANTS)}")
+    if jammed > vehicles:
+        raise ConfigError(f"--jammed {jammed} is more than --vehicles {vehicles}")
+    if world not in ("honest", "ideal"):
+        raise ConfigError(f"--world must be honest or ideal, got {world!r}")
+    return Setup(vehicles=vehicles, jammed=jammed, jam_start_s=jam_start, jam_s=jam, world=world), chosen
+
+
+def _tracks(run_dir: Path) -> dict[int, dict[str, np.ndarray]]:
+    """A centralized run's tracks, as ``fly_centralized`` wrote them."""
+    with np.load(run_dir / CENTRALIZED_TRACKS) as data:
+        out: dict[int, dict[str, np.ndarray]] = {}
+        for key in data.files:
+            name, _, vid = key.rpartition("_v")
+            out.setdefault(int(vid), {})[name] = data[key]
+    return out
 
 
 def jammed_tracks_of_run(run_dir: Path, setup: Setup) -> dict[int, dict[str, np.ndarray]]:

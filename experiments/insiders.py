@@ -24,15 +24,16 @@ from __future__ import annotations
 
 import functools
 import json
-import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, ViewConfig, build_config
+from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, build_config
+from bus.errors import ConfigError
 from groundstation.report.rundata import load_run
+from launch.runspec import RunSpec
 
 LIAR, ACCOMPLICE = 3, 4
 SCORED_OUT = (LIAR, ACCOMPLICE)
@@ -40,7 +41,7 @@ START_S = 10.0
 DURATION_S = 180.0
 GROSS_S = 8.0
 DRIFT = {"drift_mps": 0.15, "heading_deg": 45.0}
-CONDITIONS: dict[str, tuple[tuple[int, ...], tuple[str, ...]]] = {  # sizes, rules
+CONDITIONS: dict[str, tuple[tuple[int, ...], tuple[str, ...]]] = {  # sizes, rules (registry: INSIDER_CONDITIONS)
     "clean": ((3, 5, 8), ("evidence",)),
     "accusers": ((5, 8), ("evidence", "quorum-only")),
     "accomplice": ((8,), ("evidence",)),
@@ -119,6 +120,37 @@ def insiders_config(case: Case) -> SwarmConfig:
     )
 
 
+def plan(seeds: int, first_seed: int, conditions: str) -> list[RunSpec]:
+    """Every case's run (the clean swarms always: they are what the others are compared with)."""
+    return [
+        RunSpec(case.name, case.group, case.seed, insiders_config(case).model_dump(mode="json"))
+        for case in _cases_of(seeds, first_seed, conditions)
+    ]
+
+
+def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:
+    """experiment.json from the runs that completed; a line per condition."""
+    done = {row["run"] for row in rows if row.get("status") == "complete"}
+    runs = {case: folder / case.name for case in _cases_of(**params) if case.name in done}
+    table = summarize(runs)
+    (folder / "experiment.json").write_text(json.dumps(table, indent=2, sort_keys=True) + "\n")
+    return [
+        f"  {name:<24} honest RMSE / clean {row['honest_rmse_vs_clean_mean']} (max {row['honest_rmse_vs_clean_max']})"
+        f"  honest distrusting honest {row['honest_distrusting_honest']}  distrust/trust events"
+        f" {row['distrust_events']}/{row['trust_events']}  contradicted insiders {row['contradicted_insiders']}"
+        f" honest {row['contradicted_honest']}"
+        for name, row in table["conditions"].items()
+    ]
+
+
+def _cases_of(seeds: int, first_seed: int, conditions: str) -> list[Case]:
+    chosen = tuple(dict.fromkeys(("clean", *(c.strip() for c in conditions.split(",") if c.strip()))))
+    unknown = [c for c in chosen if c not in CONDITIONS]
+    if unknown:
+        raise ConfigError(f"unknown condition(s) {', '.join(unknown)}; known: {', '.join(CONDITIONS)}")
+    return cases(list(range(first_seed, first_seed + seeds)), chosen)
+
+
 @functools.cache
 def rangers_of(seed: int, vehicles: int) -> tuple[int, ...]:
     """The vehicles the pure world of ``seed`` has ranging the liar after ``START_S``."""
@@ -135,30 +167,6 @@ def rangers_of(seed: int, vehicles: int) -> tuple[int, ...]:
             if topic is Topic.RANGING and msg.target_id == LIAR and msg.stamp_us >= start_us:
                 found.add(vid)
     return tuple(sorted(found))
-
-
-def run_insiders(
-    out: Path,
-    *,
-    seeds: list[int],
-    stop: threading.Event,
-    show_progress: bool,
-    conditions: tuple[str, ...] = tuple(CONDITIONS),
-    view: ViewConfig | None = None,
-) -> tuple[Path, dict[Case, Path], list[str]]:
-    """Fly every case (real processes); the experiment folder, each case's run directory, failures."""
-    from launch.launcher import launch, unique_run_dir
-
-    folder = unique_run_dir(out, "insiders")
-    runs: dict[Case, Path] = {}
-    failures: list[str] = []
-    for case in cases(seeds, conditions):
-        if stop.is_set():
-            return folder, runs, failures + ["stopped"]
-        run_dir, failed, _ = launch(insiders_config(case), folder, show_progress=show_progress, stop=stop, view=view)
-        runs[case] = run_dir
-        failures += [f"{case.name}: {f}" for f in failed]
-    return folder, runs, failures
 
 
 def honest_rmse(run_dir: Path) -> float | None:

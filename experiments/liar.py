@@ -29,16 +29,16 @@ from __future__ import annotations
 import functools
 import json
 import math
-import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, ViewConfig, build_config
+from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, build_config
 from bus.errors import ConfigError
 from groundstation.report.rundata import load_run
+from launch.runspec import RunSpec
 
 LIAR = 3
 LIE_START_S = 10.0
@@ -159,29 +159,48 @@ def _world_config(seed: int) -> SwarmConfig:
     return liar_config(Case("clean", True, seed))
 
 
-def run_liar(
-    out: Path,
-    *,
-    seeds: list[int],
-    stop: threading.Event,
-    show_progress: bool,
-    profiles: tuple[str, ...] = PROFILES,
-    silenced: tuple[float, ...] = (),
-    view: ViewConfig | None = None,
-) -> tuple[Path, dict[Case, Path], list[str]]:
-    """Fly every case (real processes); the experiment folder, each case's run directory, failures."""
-    from launch.launcher import launch, unique_run_dir
+def plan(seeds: int, first_seed: int, profiles: str, silenced: str) -> list[RunSpec]:
+    """Every case's run, named as the case (one-line ConfigError for unknown profiles or delays)."""
+    return [
+        RunSpec(case.name, case.group, case.seed, liar_config(case).model_dump(mode="json"))
+        for case in _cases_of(seeds, first_seed, profiles, silenced)
+    ]
 
-    folder = unique_run_dir(out, "liar")
-    runs: dict[Case, Path] = {}
-    failures: list[str] = []
-    for case in cases(seeds, profiles, silenced):
-        if stop.is_set():
-            return folder, runs, failures + ["stopped"]
-        run_dir, failed, _ = launch(liar_config(case), folder, show_progress=show_progress, stop=stop, view=view)
-        runs[case] = run_dir
-        failures += [f"{case.name}: {f}" for f in failed]
-    return folder, runs, failures
+
+def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:
+    """experiment.json from the runs that completed; a line per condition."""
+    done = {row["run"] for row in rows if row.get("status") == "complete"}
+    runs = {case: folder / case.name for case in _cases_of(**params) if case.name in done}
+    table = summarize(runs)
+    (folder / "experiment.json").write_text(json.dumps(table, indent=2, sort_keys=True) + "\n")
+    return [
+        f"  {name:<26} honest RMSE / clean {row['honest_rmse_vs_clean_mean']} (max {row['honest_rmse_vs_clean_max']})"
+        f"  liar distrusted by {row['rangers_that_distrusted_the_liar']}"
+        f" (median {row['detection_s_median']} s, max {row['detection_s_max']} s)  false alarms {row['false_alarms']}"
+        for name, row in table["conditions"].items()
+    ]
+
+
+def _cases_of(seeds: int, first_seed: int, profiles: str, silenced: str) -> list[Case]:
+    chosen = tuple(p.strip() for p in profiles.split(",") if p.strip())
+    unknown = [p for p in chosen if p not in PROFILES]
+    if unknown or not chosen:
+        raise ConfigError(f"unknown profile(s) {', '.join(unknown) or '(none given)'}; known: {', '.join(PROFILES)}")
+    return cases(list(range(first_seed, first_seed + seeds)), chosen, _delays(silenced))
+
+
+def _delays(text: str) -> tuple[float, ...]:
+    """--silenced's delays (s), each from 0 to the lie's length; a one-line ConfigError otherwise."""
+    delays = []
+    for item in (t.strip() for t in text.split(",") if t.strip()):
+        try:
+            delay = float(item)
+        except ValueError:
+            raise ConfigError(f"--silenced: {item!r} is not a number of seconds") from None
+        if not 0.0 <= delay <= DURATION_S - LIE_START_S:
+            raise ConfigError(f"--silenced: {item} s is outside 0 to {DURATION_S - LIE_START_S:g} s (the lie's length)")
+        delays.append(delay)
+    return tuple(dict.fromkeys(delays))
 
 
 def honest_rmse(run_dir: Path) -> float | None:

@@ -9,7 +9,6 @@ map draws the landmarks with 3-sigma ellipses); the experiment adds the comparis
 from __future__ import annotations
 
 import json
-import threading
 from pathlib import Path
 from typing import Any
 
@@ -17,8 +16,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bus import statistics
-from bus.config import SwarmConfig, ViewConfig, build_config
+from bus.config import SwarmConfig, build_config
 from groundstation.report.rundata import RunData, load_run
+from launch.runspec import RunSpec
 
 FLIGHTS = (("slam", "ekf-slam", "EKF-SLAM (camera)"), ("dead-reckoning", "ekf", "dead reckoning"))
 
@@ -43,26 +43,39 @@ def vision_slam_config(estimator: str, *, name: str, seed: int, duration_s: floa
     )
 
 
-def run_vision_slam(
-    out: Path,
-    *,
-    seed: int,
-    duration_s: float,
-    stop: threading.Event,
-    show_progress: bool,
-    view: ViewConfig | None = None,
-) -> tuple[Path, dict[str, Path], list[str]]:
-    """Fly both; returns the experiment folder, the run directory of each flight and failures."""
-    from launch.launcher import launch, unique_run_dir
+def plan(seed: int, duration: float) -> list[RunSpec]:
+    """The two flights on ``seed``."""
+    return [
+        RunSpec(
+            name,
+            name,
+            seed,
+            vision_slam_config(estimator, name=name, seed=seed, duration_s=duration).model_dump(mode="json"),
+        )
+        for name, estimator, _ in FLIGHTS
+    ]
 
-    folder = unique_run_dir(out, "vision-slam")
-    runs, failures = {}, []
-    for name, estimator, _ in FLIGHTS:
-        config = vision_slam_config(estimator, name=name, seed=seed, duration_s=duration_s)
-        run_dir, failed, _ = launch(config, folder, show_progress=show_progress, stop=stop, view=view)
-        runs[name] = run_dir
-        failures += [f"{name}: {f}" for f in failed]
-    return folder, runs, failures
+
+def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:
+    """experiment.json, the figures and each flight's report (its map with the landmarks)."""
+    from groundstation.report import write_report
+
+    done = {row["run"] for row in rows if row.get("status") == "complete"}
+    runs = {name: folder / name for name, _, _ in FLIGHTS if name in done}
+    lines = []
+    for run in runs.values():
+        try:
+            lines.append(f"report: {write_report(run)}")
+        except Exception as exc:  # a report that cannot be drawn is said, never a traceback (groundstation.display)
+            lines.append(f"report of {run.name} not written: {exc}")
+    table, figures = compare(folder, runs)
+    for name, flight in table.items():
+        landmarks = {vid: v.get("landmarks") for vid, v in flight["vehicles"].items()}
+        lines.append(
+            f"{name}: {flight['status']}, swarm RMSE {flight['swarm_rmse_m']} m, ANEES {flight['swarm_anees']}"
+            + (f", landmarks {landmarks}" if any(landmarks.values()) else "")
+        )
+    return lines + [f"figure: {f}" for f in figures]
 
 
 def compare(folder: Path, runs: dict[str, Path]) -> tuple[dict[str, Any], list[Path]]:

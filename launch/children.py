@@ -20,6 +20,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from bus.process import die_with_parent
+
 PRELOAD = (
     "cli.main",
     "bus.session",
@@ -121,6 +123,7 @@ def _child(args: list[str], env: dict[str, str], log_path: str, inherit_stdout: 
     import setproctitle
 
     setproctitle.setproctitle(" ".join(["swarm", *args]))  # before the environment changes: it moves it
+    die_with_parent()  # a forkserver that ends (its command killed) takes its children with it
     os.setsid()
     os.environ.clear()
     os.environ.update(env)

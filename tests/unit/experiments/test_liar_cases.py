@@ -108,3 +108,10 @@ def test_the_summary_scores_honest_vehicles_the_liar_and_false_alarms_apart(tmp_
     assert row["rangers_that_distrusted_the_liar"] == f"{len(rangers)} of {len(rangers)}"
     assert row["distrusted_before_ranging_it"] == 1
     assert row["detection_s_median"] == pytest.approx(1.5) and row["detection_s_max"] == pytest.approx(1.5)
+
+
+def test_the_registry_names_each_experiments_own_conditions():
+    from experiments import insiders, liar
+    from experiments.registry import INSIDER_CONDITIONS, LIAR_PROFILES
+
+    assert INSIDER_CONDITIONS == tuple(insiders.CONDITIONS) and LIAR_PROFILES == liar.PROFILES
