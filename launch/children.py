@@ -15,6 +15,7 @@ from __future__ import annotations
 import atexit
 import multiprocessing
 import os
+import runpy
 import signal
 import subprocess
 import sys
@@ -134,10 +135,9 @@ def _child(args: list[str], env: dict[str, str], log_path: str, inherit_stdout: 
     os.close(log)
     sys.stdout.reconfigure(line_buffering=True)
     sys.stderr.reconfigure(line_buffering=True)
-    from cli.main import app
-
-    try:
-        app(args=args, prog_name="swarm")
+    sys.argv = ["swarm", *args]
+    try:  # what `python -m cli ARGS` runs (the CLI's modules are preloaded), as the subprocess path does
+        runpy.run_module("cli", run_name="__main__", alter_sys=True)
     finally:
         sys.stdout.flush()
         sys.stderr.flush()
