@@ -37,6 +37,7 @@ import numpy as np
 
 from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, build_config
 from bus.errors import ConfigError
+from experiments.conclusions import completed, write_experiment
 from groundstation.report.rundata import load_run
 from launch.runspec import RunSpec
 
@@ -169,10 +170,8 @@ def plan(seeds: int, first_seed: int, profiles: str, silenced: str) -> list[RunS
 
 def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:
     """experiment.json from the runs that completed; a line per condition."""
-    done = {row["run"] for row in rows if row.get("status") == "complete"}
-    runs = {case: folder / case.name for case in _cases_of(**params) if case.name in done}
-    table = summarize(runs)
-    (folder / "experiment.json").write_text(json.dumps(table, indent=2, sort_keys=True) + "\n")
+    table = summarize(completed(rows, _cases_of(**params), folder))
+    write_experiment(folder, table)
     return [
         f"  {name:<26} honest RMSE / clean {row['honest_rmse_vs_clean_mean']} (max {row['honest_rmse_vs_clean_max']})"
         f"  liar distrusted by {row['rangers_that_distrusted_the_liar']}"

@@ -5,6 +5,7 @@ its runs to the other and nothing of them running; Ctrl-C on a local campaign le
 and the same command resumes it; twice as many runs at once as there are cores do not hear each
 other."""
 
+import contextlib
 import hashlib
 import json
 import os
@@ -80,29 +81,30 @@ def sequential(tmp_path_factory):
     return out / "grid"
 
 
-def test_a_scheduler_and_two_stock_workers_fly_the_grid_as_one_worker_does(sequential, tmp_path):
+@contextlib.contextmanager
+def _cluster(*worker_flags: str):
+    """A scheduler and two workers, started with the stock `dask` commands; (its address, the workers)."""
     port = _free_port()
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
     scheduler = subprocess.Popen(
-        [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
+        [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], **quiet
     )
-    workers = [
-        subprocess.Popen(
-            [DASK, "worker", f"tcp://127.0.0.1:{port}", "--nthreads", "1", "--resources", "swarm=1", "--no-dashboard"],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-        )
-        for _ in range(2)
-    ]
+    worker = [DASK, "worker", f"tcp://127.0.0.1:{port}", "--nthreads", "1", "--resources", "swarm=1", "--no-dashboard"]
+    workers = [subprocess.Popen([*worker, *worker_flags], start_new_session=True, **quiet) for _ in range(2)]
     try:
-        grid = _grid(tmp_path, "grid", seeds=3, duration_s=6)
-        result = _campaign(grid, tmp_path, "--scheduler", f"tcp://127.0.0.1:{port}")
-        assert result.returncode == 0, result.stdout + result.stderr
+        yield f"tcp://127.0.0.1:{port}", workers
     finally:
         for process in [*workers, scheduler]:
-            process.terminate()
-            process.wait(timeout=60)
+            if process.poll() is None:
+                process.terminate()
+                process.wait(timeout=60)
+
+
+def test_a_scheduler_and_two_stock_workers_fly_the_grid_as_one_worker_does(sequential, tmp_path):
+    with _cluster() as (address, _):
+        grid = _grid(tmp_path, "grid", seeds=3, duration_s=6)
+        result = _campaign(grid, tmp_path, "--scheduler", address)
+        assert result.returncode == 0, result.stdout + result.stderr
     flown = tmp_path / "grid"
     assert len(_outputs(flown)) == 12 and _outputs(flown) == _outputs(sequential)  # 6 runs, in any order
     rows = [json.loads(p.read_text()) for p in flown.glob("*/row.json")]
@@ -111,39 +113,17 @@ def test_a_scheduler_and_two_stock_workers_fly_the_grid_as_one_worker_does(seque
 
 
 def test_a_worker_killed_in_the_middle_leaves_its_runs_to_the_other_and_nothing_running(tmp_path):
-    port = _free_port()
-    scheduler = subprocess.Popen(
-        [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    workers = [
-        subprocess.Popen(
-            [DASK, "worker", f"tcp://127.0.0.1:{port}", "--nthreads", "1", "--resources", "swarm=1", "--no-dashboard",
-             "--no-nanny"],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            start_new_session=True,
+    grid, folder = _grid(tmp_path, "grid", seeds=3, duration_s=20), tmp_path / "grid"
+    with _cluster("--no-nanny") as (address, workers):
+        campaign = subprocess.Popen(
+            [*CLI, "campaign", str(grid), "--out", str(tmp_path), "--scheduler", address],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
         )
-        for _ in range(2)
-    ]  # fmt: skip
-    grid = _grid(tmp_path, "grid", seeds=3, duration_s=20)
-    campaign = subprocess.Popen(
-        [*CLI, "campaign", str(grid), "--out", str(tmp_path), "--scheduler", f"tcp://127.0.0.1:{port}"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-    try:
-        folder = tmp_path / "grid"
         _wait(lambda: len(list(folder.glob("*/metrics.csv"))) >= 2, "two runs to be flying")
-        os.killpg(workers[0].pid, signal.SIGKILL)  # the worker and whatever it started
+        os.kill(workers[0].pid, signal.SIGKILL)  # the worker alone: what it started must die with it
         output, _ = campaign.communicate(timeout=600)
-    finally:
-        for process in [*workers, scheduler]:
-            if process.poll() is None:
-                process.terminate()
-                process.wait(timeout=60)
     assert campaign.returncode == 0, output
     rows = [json.loads(p.read_text()) for p in folder.glob("*/row.json")]
     assert len(rows) == 6 and all(r["status"] == "complete" for r in rows), output
