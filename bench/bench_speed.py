@@ -1,0 +1,164 @@
+"""Speed against the past (issue 44): the same `swarm up` command run by today's code and by
+``a0fccee`` (built from the repository's history, bench/baseline.py), interleaved A B A B in one
+sitting, medians of ``ROUNDS``: wall time, CPU of every process and the largest process; and the CPU
+each role spends per vehicle per simulated second at 5, 20 and 50 vehicles (lockstep), read from
+/proc while the runs fly, with the projection to 100 and 200 vehicles over hosts."""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from bench.baseline import A0FCCEE, baseline_python
+from bench.common import Row
+
+ROUNDS = 5
+DEMO = ("--vehicles", "5", "--duration", "60", "--mode", "lockstep", "--seed", "5")
+ROLES = ("vehicle", "sim", "gs", "router")
+HZ = os.sysconf("SC_CLK_TCK")
+
+
+def timed(python: Path | str, args: tuple[str, ...], out: Path, name: str) -> dict[str, float]:
+    """Wall s, CPU s (every process) and the largest process's peak RSS (MB) of one `swarm up`."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run([str(python), "-m", "cli", "up", *args, "--quiet", "--no-report", "--out", str(out), "--name", name],
+                   check=True, capture_output=True)  # fmt: skip
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    timing = json.loads((out / name / "timing.json").read_text())
+    return {"wall_s": wall, "cpu_s": cpu, "max_rss_mb": after.ru_maxrss / 1024, "rtf": timing["real_time_factor"]}
+
+
+def role_cpu(args: tuple[str, ...], out: Path, name: str) -> dict[str, float]:
+    """CPU seconds of each role's processes (summed), sampled from /proc until the run ends."""
+    seen: dict[int, tuple[str, float]] = {}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "cli", "up", *args, "--quiet", "--no-report", "--out", str(out), "--name", name],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    marker = str(out / name) + "/"
+    while process.poll() is None:
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit():
+                continue
+            try:
+                cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+                if marker not in cmd or not cmd.startswith("swarm "):
+                    continue
+                stat = (entry / "stat").read_text()
+                fields = stat[stat.rindex(")") + 2 :].split()
+                seen[int(entry.name)] = (cmd.split()[1], (int(fields[11]) + int(fields[12])) / HZ)
+            except (OSError, ValueError, IndexError):
+                continue
+        time.sleep(0.2)
+    totals = {role: 0.0 for role in ROLES}
+    for role, cpu in seen.values():
+        if role in totals:
+            totals[role] += cpu
+    return totals
+
+
+def run(quick: bool) -> list[Row]:
+    old = baseline_python(A0FCCEE)
+    rounds = 1 if quick else ROUNDS
+    results: dict[str, list[dict[str, float]]] = {"now": [], "then": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(rounds):
+            results["now"].append(timed(sys.executable, DEMO, Path(tmp), f"now-{k}"))
+            results["then"].append(timed(old, DEMO, Path(tmp), f"then-{k}"))
+        twenty = timed(sys.executable, ("--vehicles", "20", "--duration", "20", "--mode", "lockstep"), Path(tmp), "n20")
+        per_role = {
+            n: role_cpu(("--vehicles", str(n), "--duration", str(d), "--mode", "lockstep"), Path(tmp), f"roles-{n}")
+            for n, d in ((5, 60), (20, 30), (50, 20))
+        }
+    med = {side: {k: statistics.median(r[k] for r in rs) for k in rs[0]} for side, rs in results.items()}
+    ratio = med["now"]["wall_s"] / med["then"]["wall_s"]
+    details = {side: {k: round(v, 3) for k, v in m.items()} for side, m in med.items()}
+    rows = [
+        Row(
+            "speed",
+            f"lockstep 5 vehicles x 60 s against {A0FCCEE}",
+            "wall (median of interleaved rounds)",
+            round(ratio, 3),
+            "x",
+            "<= 0.75x",
+            ratio <= 0.75,
+            {**details, "rounds": rounds},
+        ),  # fmt: skip
+        Row(
+            "speed",
+            f"lockstep 5 vehicles x 60 s against {A0FCCEE}",
+            "CPU of every process",
+            round(med["now"]["cpu_s"] / med["then"]["cpu_s"], 3),
+            "x",
+            "-",
+            None,
+        ),  # fmt: skip
+        Row(
+            "speed",
+            "lockstep 5 vehicles x 60 s",
+            "real-time factor",
+            round(med["now"]["rtf"], 1),
+            "x",
+            ">= 30x",
+            med["now"]["rtf"] >= 30.0,
+        ),  # fmt: skip
+        Row(
+            "speed",
+            "lockstep 20 vehicles x 20 s",
+            "real-time factor",
+            round(twenty["rtf"], 1),
+            "x",
+            ">= 8x",
+            twenty["rtf"] >= 8.0,
+            {k: round(v, 2) for k, v in twenty.items()},
+        ),  # fmt: skip
+    ]
+    durations = {5: 60, 20: 30, 50: 20}
+    per_vs = {
+        n: {role: 1000.0 * cpu / (n * durations[n]) for role, cpu in roles.items()} for n, roles in per_role.items()
+    }
+    total = {n: sum(v.values()) for n, v in per_vs.items()}
+    growth = total[50] / total[5]
+    rows.append(
+        Row(
+            "speed",
+            "CPU per vehicle per simulated second, 50 against 5 vehicles",
+            "ratio",
+            round(growth, 3),
+            "x",
+            "<= 1.3x",
+            growth <= 1.3,
+            {f"{n} vehicles (ms)": {k: round(v, 2) for k, v in roles.items()} for n, roles in per_vs.items()},
+        ),  # fmt: skip
+    )
+    for n in (100, 200):  # vehicles' own CPU grows with N; the world's and the ground station's are one process each
+        vehicle_cores = per_vs[50]["vehicle"] * n / 1000.0
+        central_cores = (per_vs[50]["sim"] + per_vs[50]["gs"] + per_vs[50]["router"]) * n / 1000.0
+        rows.append(
+            Row(
+                "speed",
+                f"projection: {n} vehicles in real time",
+                "cores (vehicles + world, ground station, router)",
+                round(vehicle_cores + central_cores, 1),
+                "cores",
+                "-",
+                None,
+                {
+                    "vehicle_cores": round(vehicle_cores, 1),
+                    "world_gs_router_cores": round(central_cores, 2),
+                    "from": "CPU per vehicle-second at 50 vehicles, lockstep",
+                },
+            ),  # fmt: skip
+        )
+    return rows
