@@ -81,6 +81,7 @@ class WorldNode:
         bus.subscribe(keys.ack("*"), acks, MAX_ACK_BYTES)
         self.plan_version = -1
         self.kills = KillSchedule()
+        self.kills.set_plan(config.faults)  # the plan's first kills held from the start, as the supervisor acts on them
         self.status = "complete"
         bus.declare_token(keys.alive("world", 0))
         self.members = Membership(expected=set(self.world.vehicle_ids()))
