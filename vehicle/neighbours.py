@@ -33,16 +33,18 @@ disagrees with a vehicle, the vehicle is the likelier one to be wrong, and it ac
 own GNSS is no such ground, since a spoofed receiver agrees with the filter it drags). A distrusted
 neighbour's fixes are still judged but not fused; it is trusted again after passing every test for
 a probation that grows with its record (``retrust_s`` at the first verdict, doubled at each
-relapse, one relapse forgiven per ``forgive_s`` believed), and while it has a record its tests are
-watchful (``watchful_bias``). What the others say (``vehicle.hearsay``) never outweighs what the
-vehicle finds itself: a neighbour it judges (``judges``: fresh fixes of its own) is judged by its
-own tests, watchful while more than ``max_compromised`` believed vehicles accuse it; only a
-neighbour it cannot judge is distrusted on the word of more than ``max_compromised`` of them. The
-believed neighbours' recent fixes also have a say on the vehicle's own GNSS: a position reset that
-they speak against is refused (``vehicle.reset_say``). The thresholds are set from clean runs (no liar:
-the honest world, jamming, link faults; docs/liars.md), well above what those reach. The statistics
-of one neighbour's fixes live in vehicle.neighbour_fixes. Pure; the record lives in the filter's
-state, so a fusion-horizon replay restores it with everything else.
+relapse, one relapse forgiven per ``forgive_s`` believed), its bias well inside even the watchful
+bound throughout (``clear_bias``: a lie that grows slowly does not earn trust back while it grows);
+while it has a record its tests are watchful (``watchful_bias``). What the others say
+(``vehicle.hearsay``) never outweighs what the vehicle finds itself: a neighbour it judges
+(``judges``: fresh fixes of its own) is judged by its own tests, watchful while more than
+``max_compromised`` believed vehicles accuse it; only a neighbour it cannot judge is distrusted on
+the word of more than ``max_compromised`` of them. The believed neighbours' recent fixes also have a
+say on the vehicle's own GNSS: a position reset that they speak against is refused
+(``vehicle.reset_say``). The thresholds are set from clean runs (no liar: the honest world, jamming,
+link faults; docs/liars.md), well above what those reach. The statistics of one neighbour's fixes
+live in vehicle.neighbour_fixes. Pure; the record lives in the filter's state, so a fusion-horizon
+replay restores it with everything else.
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ class MonitorSpec:
     mean_nis: float = 12.0  # window mean NIS (2 expected)
     bias: float = 40.0  # n_eff |mean whitened innovation|^2 (chi-square, 2 dof: P(> 40) = 2e-9)
     watchful_bias: float = 25.0  # the bias bound for a neighbour with a record or accused by more than f (P = 4e-6)
-    clear_bias: float = 12.0  # own evidence clears an accused neighbour only with its bias below this
+    clear_bias: float = 12.0  # own evidence clears an accused or a distrusted neighbour only with its bias below this
     decorrelation_s: float = 1.0  # fixes closer than this count as one in the bias test (n_eff)
     retrust_s: float = 10.0  # probation after a first verdict; each relapse doubles it
     forgive_s: float = 120.0  # one past verdict is forgiven per this long believed
@@ -245,7 +247,11 @@ def see(book: NeighbourBook, spec: MonitorSpec, neighbour: int, fix: Fix) -> Ver
     horizon = now - round(max(spec.window_s, spec.long_window_s) * 1e6)
     while record.fixes and record.fixes[0].stamp_us <= horizon:
         record.fixes.popleft()
-    reason = failure(record, spec, now, _best_claim(book, spec, neighbour, record))
+    best_m2 = _best_claim(book, spec, neighbour, record)
+    if record.distrusted:  # trust is earned back only by evidence that clears it (as it clears an accused)
+        reason = failure(record, spec, now, best_m2, bias=spec.clear_bias)
+    else:
+        reason = failure(record, spec, now, best_m2)
     if not record.distrusted:
         if reason and _credible(book, spec, neighbour, now):
             record.verdicts = record.standing(spec, now) + 1

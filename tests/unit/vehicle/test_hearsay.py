@@ -159,3 +159,19 @@ def test_accusations_by_the_accused_of_the_vehicle_itself_or_by_the_distrusted_d
     assert _accuse(book, [LIAR], {LIAR}, 4_000_000) == []  # nor the liar's of itself
     (verdict,) = _accuse(book, [7], {LIAR}, 4_000_000)
     assert verdict.reason == "accused by v5, v6, v7"
+
+
+def test_a_caught_liar_that_goes_on_to_drift_slowly_does_not_earn_trust_back_while_it_drifts():
+    """The relapse profile: 8 s grossly off, then an offset growing 0.03 m/s from zero (0.06 sigma a
+    second here). Distrusted at once and never trusted again in 3 minutes. Controls: the same liar
+    turning honest after its gross phase is trusted again, and so is the drift when trust comes back
+    on the watchful bound (25) instead of the clearing one (12)."""
+    gross = np.full((40, 2), 30.0)
+    cases = ((0.03, SPEC, False), (0.0, SPEC, True), (0.03, dataclasses.replace(SPEC, clear_bias=25.0), True))
+    for growth, spec, trusted_again in cases:
+        rng = np.random.default_rng(29)
+        book = NeighbourBook()
+        drift = np.outer(np.arange(900) * PERIOD_US * 1e-6 * growth, [1.0, 0.0])
+        verdicts = stream(book, LIAR, np.concatenate([gross, drift]), rng, spec=spec)
+        assert not verdicts[0].trusted
+        assert any(v.trusted for v in verdicts) == trusted_again, (growth, spec.clear_bias, verdicts)
