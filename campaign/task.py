@@ -59,7 +59,8 @@ def fly(spec_json: str, folder: str, campaign: str, timeout_s: float, shared: bo
 
 def _run(spec_file: Path, base: Path, timeout_s: float) -> tuple[str, str]:
     """(status, exit reason) of ``python -m launch.fly`` on the spec, within ``timeout_s``."""
-    log = (base / f".{spec_file.stem}.log").open("w")
+    log_path = base / f".{spec_file.name.removesuffix('.spec.json').lstrip('.')}.log"
+    log = log_path.open("w")
     process = subprocess.Popen(
         [sys.executable, "-m", "launch.fly", str(spec_file), str(base)],
         stdout=log,
@@ -76,8 +77,9 @@ def _run(spec_file: Path, base: Path, timeout_s: float) -> tuple[str, str]:
     finally:
         log.close()
     if code == 0:
+        log_path.unlink(missing_ok=True)
         return "complete", ""
-    tail = (base / f".{spec_file.stem}.log").read_text(errors="replace").strip().splitlines()[-3:]
+    tail = log_path.read_text(errors="replace").strip().splitlines()[-3:]
     return "failed", f"exit status {code}: " + " | ".join(tail)[-500:]
 
 

@@ -101,6 +101,7 @@ def plan(
                     variant,
                     seed,
                     cooperative_config(variant, seed, setup).model_dump(mode="json"),
+                    report=True,
                 )
             )
         config = cooperative_config(CENTRALIZED, seed, setup).model_dump(mode="json")

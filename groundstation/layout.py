@@ -74,21 +74,32 @@ def _plots(vehicles: int) -> tuple[_Plot, ...]:
         _Plot(
             "error",
             "position error [m]",
-            tuple((f"v{v}", f"/vehicle/{v}/metrics.err_pos_m") for v in ids) + (("swarm RMS", "/swarm.rms_error_m"),),
+            tuple((f"v{v}", f"{_topic(v, 'metrics')}.err_pos_m") for v in ids) + (("swarm RMS", "/swarm.rms_error_m"),),
         ),
         _Plot(
             "nees",
             "pose NEES (3 dof)",
-            tuple((f"v{v}", f"/vehicle/{v}/metrics.nees") for v in ids)
+            tuple((f"v{v}", f"{_topic(v, 'metrics')}.nees") for v in ids)
             + (("95 % low", f"{low:.4f}"), ("95 % high", f"{high:.4f}")),
         ),
-        _Plot("gnss", "GNSS test ratio", tuple((f"v{v}", f"/vehicle/{v}/health.gnss_test_ratio") for v in ids)),
-        _Plot("loop", "loop overruns", tuple((f"v{v}", f"/vehicle/{v}/loop.overruns") for v in ids)),
+        _Plot("gnss", "GNSS test ratio", tuple((f"v{v}", f"{_topic(v, 'health')}.gnss_test_ratio") for v in ids)),
+        _Plot("loop", "loop overruns", tuple((f"v{v}", f"{_topic(v, 'loop')}.overruns") for v in ids)),
     )
 
 
+def _topic(vehicle_id: int, kind: str) -> str:
+    from groundstation.recording import pose_topic
+
+    return pose_topic(vehicle_id, kind)
+
+
+def _truth_topics(vehicles: int) -> list[str]:
+    """The true poses' topics (hidden at open: the scene draws truth and estimate already)."""
+    return [_topic(v, "truth") for v in range(1, vehicles + 1)]
+
+
 def _scene_topics(vehicles: int) -> dict[str, dict[str, object]]:
-    hidden = {f"/vehicle/{v}/truth": {"visible": False, "type": "arrow"} for v in range(1, vehicles + 1)}
+    hidden = {topic: {"visible": False, "type": "arrow"} for topic in _truth_topics(vehicles)}
     return {**{t: {"visible": True} for t in SCENE_TOPICS}, **hidden}
 
 
@@ -96,10 +107,11 @@ def foxglove_layout(vehicles: int, view: Framing) -> str:
     """The layout as Foxglove reads it (Layouts, Import from file), built with the SDK's classes."""
     from foxglove import layouts as fl
 
+    truth = set(_truth_topics(vehicles))
     topics = {
         topic: (
             fl.BaseRendererPoseTopicSettings(visible=False, type="arrow")
-            if topic.endswith("/truth")
+            if topic in truth
             else fl.BaseRendererSceneUpdateTopicSettings(visible=True)
         )
         for topic in _scene_topics(vehicles)

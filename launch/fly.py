@@ -32,13 +32,25 @@ def main(argv: list[str]) -> int:
             config.dump(run_dir / "config.json")
             failures = resolve(spec.runner)(spec, config, run_dir) or []
         else:
-            _, failures, _ = launch(config, Path(argv[1]), show_progress=False, stop=stop_on_signals())
+            run_dir, failures, _ = launch(config, Path(argv[1]), show_progress=False, stop=stop_on_signals())
+            if spec.report and not failures:
+                _report(run_dir)
     except SwarmlocError as exc:
         print(f"fly: {spec.name}: {exc}", file=sys.stderr)
         return 1
     for failure in failures:
         print(f"fly: {spec.name}: {failure}", file=sys.stderr)
     return 1 if failures else 0
+
+
+def _report(run_dir: Path) -> None:
+    """The run's report; one that cannot be drawn is said in a line, the run stays complete."""
+    from groundstation.report import write_report
+
+    try:
+        write_report(run_dir)
+    except Exception as exc:  # a report is a view of the run, never its outcome
+        print(f"fly: report of {run_dir.name} not written: {exc}", file=sys.stderr)
 
 
 if __name__ == "__main__":

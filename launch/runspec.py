@@ -28,6 +28,7 @@ class RunSpec:
     measure: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)  # what a campaign grid set (for the table)
     runner: str | None = None
+    report: bool = False  # write the run's report (report.html) when it completes, as `swarm up` does
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True)

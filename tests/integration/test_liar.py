@@ -1,13 +1,12 @@
 """A vehicle that lies, through real processes: vehicle 3 of 4 broadcasts its position drifting away
 at 0.3 m/s from 5 s (validly signed: it speaks only for itself). With the neighbour monitor the
-others distrust it (events in the run directory and summary.json, nobody else distrusted; one on
-the word of two others, whose verdicts travel in their V2V broadcasts: flown for f = 1, a quorum
-of two, since four vehicles hold no quorum of three) and stay near the clean
+others distrust it (events in the run directory and summary.json, nobody else distrusted; one
+made watchful by two others, whose verdicts travel in their V2V broadcasts: flown for f = 1, a
+quorum of two, since four vehicles hold no quorum of three) and stay near the clean
 run; the control, the same lie with the monitor off, shows them dragged along, so the test can
 fail."""
 
 import json
-import math
 
 import numpy as np
 import pytest
@@ -74,13 +73,15 @@ def test_the_defence_stops_the_drag_that_goes_on_in_the_control(runs):
     assert late["defended"] < 0.75 * late["open"], late
 
 
-def test_a_vehicle_is_warned_by_two_that_found_the_liar_themselves(runs):
-    """The verdicts travel in the V2V broadcasts: a vehicle distrusts the liar on the word of two
-    vehicles whose own tests had failed it by then (here vehicle 2, told by 1 and 4)."""
-    distrusted = _events(runs["defended"], "neighbour_distrusted")
-    first_hand = {e["vehicle"]: e["t_s"] for e in distrusted if not e["reason"].startswith("accused by")}
-    told = [e for e in distrusted if e["reason"].startswith("accused by")]
-    assert told, distrusted
-    for e in told:
-        accusers = [int(v) for v in e["reason"].removeprefix("accused by v").split(", v")]
-        assert len(accusers) >= 2 and all(first_hand.get(j, math.inf) <= e["t_s"] for j in accusers), e
+def test_a_vehicle_warned_by_two_that_found_the_liar_themselves_judges_it_watchfully(runs):
+    """The verdicts travel in the V2V broadcasts: a vehicle that ranges the liar is not told what to
+    conclude (its own evidence decides, vehicle.hearsay) but made watchful by the two accusers: it
+    distrusts the liar on its own fixes with a bias below the usual bound (40), above the watchful
+    one (25), after two others had found the liar themselves."""
+    distrusted = sorted(_events(runs["defended"], "neighbour_distrusted"), key=lambda e: e["t_s"])
+    assert not [e for e in distrusted if e["reason"].startswith("accused by")], distrusted  # all judge it
+    watchful = [e for e in distrusted if e["reason"].startswith("biased by") and 25 <= int(e["reason"].split()[2]) < 40]
+    assert watchful, distrusted
+    for e in watchful:
+        before = {d["vehicle"] for d in distrusted if d["t_s"] < e["t_s"] and d["vehicle"] != e["vehicle"]}
+        assert len(before) >= 2, (e, distrusted)
