@@ -355,7 +355,7 @@ class VehicleConfig(_Strict):
         "(vehicle.neighbours; docs: liars)",
     )
     max_compromised: int = Field(
-        2,
+        1,
         ge=0,
         le=250,
         description="f: how many vehicles may be compromised (their own keys, any lie or accusation); a "

@@ -13,11 +13,12 @@ Vehicles of the honest world (``HONEST_WORLD``, ``HONEST_DATASHEET``), real proc
   0.15 m/s from a zero offset, in swarms of 3 and 8;
 - ``stale``: vehicle 3 rebroadcasts its estimate of 5 s before, covariance as it was, in swarms of 3 and 8.
 
-Each flies under the trust rule (``evidence``), and for comparison the accusers under the rule it
-replaced (``quorum-only`` with f = 1: a quorum of two decides) and the liars with the monitor off
-(``off``), next to the clean swarm of the same seed and size. Scored from ``START_S`` to the end on every vehicle but 3
-and 4 (``SCORED_OUT``: the insiders of every condition, so that the liar alone and the liar with an
-accomplice are scored on the same vehicles), against the clean run's same vehicles.
+Each flies under the trust rule (``evidence``, told f = 2: two insiders at most), and for comparison
+the accusers under the rule it replaced (``quorum-only`` with f = 1: a quorum of two decides) and the
+liars with the monitor off (``off``), next to the clean swarm of the same seed and size. Scored from
+``START_S`` to the end on every vehicle but 3 and 4 (``SCORED_OUT``: the insiders of every condition,
+so that the liar alone and the liar with an accomplice are scored on the same vehicles), against the
+clean run's same vehicles.
 """
 
 from __future__ import annotations
@@ -108,7 +109,11 @@ def faults(case: Case) -> list[dict[str, Any]]:
 
 
 def insiders_config(case: Case) -> SwarmConfig:
-    rule = {"quorum-only": {"trust_rule": "quorum-only", "max_compromised": 1}, "off": {"neighbour_monitor": False}}
+    rule = {  # two insiders at most in every case: the swarm is told f = 2 (the rule before: a quorum of two)
+        "evidence": {"max_compromised": 2},
+        "quorum-only": {"trust_rule": "quorum-only", "max_compromised": 1},
+        "off": {"neighbour_monitor": False},
+    }
     return build_config(
         {
             "name": case.name,

@@ -8,12 +8,20 @@ import dataclasses
 
 import numpy as np
 
-from tests.unit.vehicle.neighbour_streams import PERIOD_US, SPEC, stream
+from tests.unit.vehicle import neighbour_streams
+from tests.unit.vehicle.neighbour_streams import PERIOD_US
 from vehicle.hearsay import Contradiction, hear
 from vehicle.neighbours import NeighbourBook, Verdict
 
 ME, LIAR = 1, 3
-F = SPEC.max_compromised  # 2 by default: it takes 3 believed accusers
+SPEC = dataclasses.replace(neighbour_streams.SPEC, max_compromised=2)  # told f = 2: it takes 3 believed accusers
+F = SPEC.max_compromised
+
+
+def stream(*args, **kwargs):
+    return neighbour_streams.stream(*args, **{"spec": SPEC, **kwargs})
+
+
 HOLD_US = round(SPEC.min_hold_s * 1e6)
 
 
