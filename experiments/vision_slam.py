@@ -51,6 +51,7 @@ def plan(seed: int, duration: float) -> list[RunSpec]:
             name,
             seed,
             vision_slam_config(estimator, name=name, seed=seed, duration_s=duration).model_dump(mode="json"),
+            report=True,
         )
         for name, estimator, _ in FLIGHTS
     ]
