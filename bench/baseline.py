@@ -14,6 +14,18 @@ CACHE = Path.home() / ".cache" / "swarmloc" / "baseline"
 A0FCCEE = "a0fccee"  # before the redesign and the three issues that followed it (issue 44's yardstick)
 
 
+def swarm_of(python: Path | str) -> str:
+    """The `swarm` command installed beside a Python (what a user types; a0fccee had no `cli` package)."""
+    return str(Path(python).parent / "swarm")
+
+
+def checkout_of(python: Path | str) -> Path:
+    """The checkout a Python runs the code of: its baseline worktree, or this repository. `python -m
+    cli` imports the package of the working directory first, so a baseline must run from its own."""
+    path = Path(python)
+    return path.parents[2] if CACHE in path.parents else ROOT
+
+
 def baseline_python(commit: str = A0FCCEE) -> Path:
     """The Python of a virtual environment with ``commit`` of this repository installed (built here
     on first use)."""

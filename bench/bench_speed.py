@@ -16,7 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench.baseline import A0FCCEE, baseline_python
+from bench.baseline import A0FCCEE, baseline_python, checkout_of, swarm_of
 from bench.common import Row
 
 ROUNDS = 5
@@ -29,8 +29,8 @@ def timed(python: Path | str, args: tuple[str, ...], out: Path, name: str) -> di
     """Wall s, CPU s (every process) and the largest process's peak RSS (MB) of one `swarm up`."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    subprocess.run([str(python), "-m", "cli", "up", *args, "--quiet", "--no-report", "--out", str(out), "--name", name],
-                   check=True, capture_output=True)  # fmt: skip
+    subprocess.run([swarm_of(python), "up", *args, "--quiet", "--no-report", "--out", str(out), "--name", name],
+                   check=True, capture_output=True, cwd=checkout_of(python))  # fmt: skip
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)

@@ -12,7 +12,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from bench.baseline import baseline_python
+from bench.baseline import baseline_python, checkout_of, swarm_of
 from bench.common import Row
 from bench.startup import ROLES, probe
 
@@ -25,9 +25,9 @@ def swarm_cpu_s(python: Path | str, vehicles: int, duration_s: float, out: Path,
     """CPU seconds (user + system, every process) of one lockstep `swarm up` run with ``python``."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run(
-        [str(python), "-m", "cli", "up", "--vehicles", str(vehicles), "--duration", str(duration_s), "--mode",
+        [swarm_of(python), "up", "--vehicles", str(vehicles), "--duration", str(duration_s), "--mode",
          "lockstep", "--seed", "5", "--quiet", "--no-report", "--out", str(out), "--name", name],
-        check=True, capture_output=True,
+        check=True, capture_output=True, cwd=checkout_of(python),
     )  # fmt: skip
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)

@@ -131,3 +131,17 @@ def binned_rms(t_s: np.ndarray, values: np.ndarray, bin_s: float) -> tuple[np.nd
     """(bin centres (B,) s, root mean square of ``values`` (N,) per bin (B,)), empty bins left out."""
     centres, mean_square = binned_mean(t_s, np.asarray(values) ** 2, bin_s)
     return centres, np.sqrt(mean_square)
+
+
+def interval(values: list[float | None]) -> tuple[float, float, int]:
+    """(mean, half width of the 95 % confidence interval, n) of independent samples (Student's t:
+    mean +- t(0.975, n - 1) s / sqrt(n); NaN width when n < 2; None and non-finite values left out)."""
+    from scipy.stats import t
+
+    data = np.array([v for v in values if v is not None and math.isfinite(v)], dtype=float)
+    if data.size == 0:
+        return math.nan, math.nan, 0
+    if data.size < 2:
+        return float(data.mean()), math.nan, 1
+    half = float(t.ppf(0.975, data.size - 1) * data.std(ddof=1) / math.sqrt(data.size))
+    return float(data.mean()), half, int(data.size)

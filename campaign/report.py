@@ -9,22 +9,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+from bus.statistics import interval
 
 METRICS = (("rmse_m", "swarm RMSE [m]"), ("anees", "ANEES (3 dof)"), ("nees_in_band", "NEES in 95 % band"))
-
-
-def interval(values: list[float]) -> tuple[float, float, int]:
-    """(mean, half width of the 95 % confidence interval, n) of independent samples (NaN width: n < 2)."""
-    from scipy.stats import t
-
-    data = np.array([v for v in values if v is not None and math.isfinite(v)], dtype=float)
-    if data.size == 0:
-        return math.nan, math.nan, 0
-    if data.size < 2:
-        return float(data.mean()), math.nan, 1
-    half = float(t.ppf(0.975, data.size - 1) * data.std(ddof=1) / math.sqrt(data.size))
-    return float(data.mean()), half, int(data.size)
 
 
 def by_variant(rows: list[dict[str, Any]], metrics: tuple[str, ...]) -> dict[str, dict[str, tuple[float, float, int]]]:

@@ -42,6 +42,7 @@ SEEDS = (
 COOPERATIVE_VARIANTS = ("dead-reckoning", "naive", "ci-ekf", "ci-ukf", "ci-ekf-iae", "plain-ci-ekf")
 LIAR_PROFILES = ("gross", "drift", "overconfident", "spoofed")
 INSIDER_CONDITIONS = ("clean", "accusers", "accomplice", "drift", "relapse", "stale")
+MRCLAM_VARIANTS = ("dead-reckoning", "known-map", "known-map-coop", "slam-coop", "centralized")
 
 
 EXPERIMENTS: dict[str, Experiment] = {
@@ -109,6 +110,23 @@ EXPERIMENTS: dict[str, Experiment] = {
         (
             Param("seed", 3, "seed of trajectories, sensor noise and terrain", 0),
             Param("duration", 60.0, "simulated seconds per flight", 1.0),
+        ),
+    ),
+    "mrclam": Experiment(
+        "experiments.mrclam",
+        "A recorded MRCLAM data set replayed through the real swarm by each estimator variant (dead reckoning, "
+        "the known map alone and with cooperation, SLAM with cooperation, the centralized reference in one "
+        "process), on several seeds of the launch priors' perturbation. Writes experiment.json (RMSE and ANEES "
+        "per variant with their 95 % intervals over the seeds, each robot's RMSE).",
+        2.0,
+        (
+            Param("dataset", "", "an MRCLAM data set (1-9): its directory or its .tar.xz"),
+            Param("seeds", 3, "how many seeds of the launch priors' perturbation", 1),
+            Param("first_seed", 0, "the first seed; the others follow", 0),
+            Param("variants", ",".join(MRCLAM_VARIANTS), f"comma-separated variants: {', '.join(MRCLAM_VARIANTS)}"),
+            Param("robots", "1,2,3,4,5", "robots to replay, comma-separated"),
+            Param("start", 120.0, "data set second the replay starts (after the calibration, 0-120 s)", 0.0),
+            Param("duration", 0.0, "seconds replayed (0: to the data set's end)", 0.0),
         ),
     ),
 }

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from bus.errors import ConfigError
+from bus.statistics import interval
 from campaign.grid import load_grid
-from campaign.report import by_variant, interval
+from campaign.report import by_variant
 from campaign.table import done_rows, read_table, write_table
 from launch.runspec import RunSpec
 

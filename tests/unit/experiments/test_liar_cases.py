@@ -115,3 +115,7 @@ def test_the_registry_names_each_experiments_own_conditions():
     from experiments.registry import INSIDER_CONDITIONS, LIAR_PROFILES
 
     assert INSIDER_CONDITIONS == tuple(insiders.CONDITIONS) and LIAR_PROFILES == liar.PROFILES
+    from experiments import mrclam
+    from experiments.registry import MRCLAM_VARIANTS
+
+    assert MRCLAM_VARIANTS == tuple(mrclam.VARIANTS)

@@ -1,0 +1,120 @@
+"""`swarm experiment mrclam`: a recorded MRCLAM data set replayed through the real swarm by each
+estimator variant (launch.replay_setup), on several seeds of the launch priors' perturbation: dead
+reckoning, the known map, the known map with cooperation, SLAM with cooperation, and the centralized
+reference (one filter over every robot, in one process: ``fly_centralized``). Each variant's runs
+are scored by their summary (the reference by its reference.json, in summary.json's shape):
+experiment.json holds per variant the swarm RMSE and ANEES, mean and 95 % interval over the seeds,
+and each robot's RMSE."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from bus.config import SwarmConfig
+from bus.errors import ConfigError
+from bus.statistics import interval
+from experiments.conclusions import write_experiment
+from launch.replay_setup import ReplayChoice, replay_config
+from launch.runspec import RunSpec
+
+VARIANTS: dict[str, tuple[str, bool]] = {  # name: (estimator, cooperative)
+    "dead-reckoning": ("dead-reckoning", False),
+    "known-map": ("known-map", False),
+    "known-map-coop": ("known-map", True),
+    "slam-coop": ("slam", True),
+    "centralized": ("centralized", True),
+}
+REFERENCE = "reference.json"
+
+
+def plan(
+    dataset: str, seeds: int, first_seed: int, variants: str, robots: str, start: float, duration: float
+) -> list[RunSpec]:
+    """Every variant on every seed; the window ``start`` .. ``start + duration`` data set seconds (0
+    duration: to the data set's end)."""
+    if not dataset:
+        raise ConfigError("--dataset: give an MRCLAM data set (its directory or its .tar.xz)")
+    specs = []
+    for variant in _variants(variants):
+        estimator, cooperative = VARIANTS[variant]
+        for seed in range(first_seed, first_seed + seeds):
+            choice = ReplayChoice(
+                dataset,
+                _robots(robots),
+                estimator,
+                cooperative,
+                start,
+                duration or None,
+                seed=seed,
+            )
+            name = f"{variant}-seed{seed}"
+            config = replay_config(choice, name=name).model_dump(mode="json")
+            runner = f"{__name__}:fly_centralized" if variant == "centralized" else None
+            specs.append(RunSpec(name, variant, seed, config, runner=runner))
+    return specs
+
+
+def fly_centralized(spec: RunSpec, config: SwarmConfig, run_dir: Path) -> list[str]:
+    """The centralized reference of one seed (in this process): reference.json, in summary.json's shape."""
+    import json
+
+    from experiments.centralized_reference import run_centralized, tracks_summary
+
+    summary = {
+        "name": spec.name,
+        "status": "complete",
+        "reference": "centralized",
+        **tracks_summary(run_centralized(config)),
+    }
+    (run_dir / REFERENCE).write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
+    return []
+
+
+def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:
+    """experiment.json: per variant the swarm RMSE and ANEES (mean, 95 % interval over the seeds) and
+    each robot's mean RMSE; a line per variant."""
+    import json
+
+    table: dict[str, Any] = {"dataset": params["dataset"], "variants": {}}
+    for variant in _variants(params["variants"]):
+        summaries = []
+        for row in rows:
+            if row.get("variant") != variant or row.get("status") != "complete":
+                continue
+            path = folder / row["run"] / (REFERENCE if variant == "centralized" else "summary.json")
+            summaries.append(json.loads(path.read_text()))
+        if not summaries:
+            continue
+        rmse, rmse_half, n = interval([s["swarm"]["rmse_m"] for s in summaries])
+        anees, anees_half, _ = interval([s["swarm"]["anees"] for s in summaries])
+        robots = sorted(summaries[0]["vehicles"], key=int)
+        table["variants"][variant] = {
+            "seeds": n,
+            "rmse_m": rmse,
+            "rmse_m_interval_95": rmse_half,
+            "anees": anees,
+            "anees_interval_95": anees_half,
+            "rmse_m_per_robot": {r: sum(s["vehicles"][r]["rmse_m"] for s in summaries) / n for r in robots},
+        }
+    write_experiment(folder, table)
+    return [
+        f"  {name:<16} RMSE {v['rmse_m']:.3f} m (+- {v['rmse_m_interval_95']:.3f})  ANEES {v['anees']:.2f} "
+        f"(+- {v['anees_interval_95']:.2f})  per robot " + " ".join(f"{x:.3f}" for x in v["rmse_m_per_robot"].values())
+        for name, v in table["variants"].items()
+    ]
+
+
+def _variants(text: str) -> list[str]:
+    chosen = [v.strip() for v in text.split(",") if v.strip()]
+    unknown = [v for v in chosen if v not in VARIANTS]
+    if unknown or not chosen:
+        raise ConfigError(f"unknown variant(s) {', '.join(unknown) or '(none given)'}; known: {', '.join(VARIANTS)}")
+    return chosen
+
+
+def _robots(text: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise ConfigError(f"--robots must be comma-separated robots 1-5, got {text!r}") from None
