@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from sim.mrclam import load_mrclam
@@ -110,3 +111,25 @@ def test_cooperation_keeps_robots_without_landmarks_localized(runs):
     sightings = [log.sightings for log in data.robots.values()]
     taken = sum(int(((s[:, 1] <= 5) & (s[:, 0] > 120) & (s[:, 0] <= 240)).sum()) for s in sightings)
     assert sum(v["v2v_fused"] for v in together["vehicles"].values()) > 1.5 * taken
+
+
+def test_the_mrclam_experiment_compares_variants_over_seeds(tmp_path):
+    """`swarm experiment mrclam` as a campaign: each variant on each seed of the launch priors, the
+    centralized reference a run of its own; one results row per run, and experiment.json with the
+    variants' RMSE and its interval over the seeds. A variant it does not know is refused by name."""
+    command = [sys.executable, "-m", "cli", "experiment", "mrclam", "--dataset", str(EXCERPT), "--seeds", "2",
+               "--duration", "30", "--variants", "known-map,centralized", "--out", str(tmp_path), "--quiet"]  # fmt: skip
+    result = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    folder = tmp_path / "mrclam"
+    table = json.loads((folder / "experiment.json").read_text())
+    assert set(table["variants"]) == {"known-map", "centralized"}
+    for name, variant in table["variants"].items():
+        assert variant["seeds"] == 2 and variant["rmse_m"] < 0.3, (name, variant)
+        assert variant["rmse_m_interval_95"] > 0  # the seeds differ: the launch priors are perturbed
+        assert set(variant["rmse_m_per_robot"]) == {"1", "2", "3", "4", "5"}
+    rows = pd.read_parquet(folder / "results.parquet")
+    assert len(rows) == 4 and set(rows["status"]) == {"complete"}
+    unknown = [*command[:5], "--dataset", str(EXCERPT), "--variants", "known-map,telepathy", "--out", str(tmp_path / "x")]
+    refused = subprocess.run(unknown, capture_output=True, text=True, timeout=60, env={**os.environ, "COLUMNS": "200"})
+    assert refused.returncode != 0 and "telepathy" in refused.stderr and "Traceback" not in refused.stderr
