@@ -117,8 +117,9 @@ def test_the_mrclam_experiment_compares_variants_over_seeds(tmp_path):
     """`swarm experiment mrclam` as a campaign: each variant on each seed of the launch priors, the
     centralized reference a run of its own; one results row per run, and experiment.json with the
     variants' RMSE and its interval over the seeds. A variant it does not know is refused by name."""
-    command = [sys.executable, "-m", "cli", "experiment", "mrclam", "--dataset", str(EXCERPT), "--seeds", "2",
-               "--duration", "30", "--variants", "known-map,centralized", "--out", str(tmp_path), "--quiet"]  # fmt: skip
+    experiment = [sys.executable, "-m", "cli", "experiment", "mrclam", "--dataset", str(EXCERPT)]
+    command = [*experiment, "--seeds", "2", "--duration", "30", "--variants", "known-map,centralized",
+               "--out", str(tmp_path), "--quiet"]  # fmt: skip
     result = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
     folder = tmp_path / "mrclam"
@@ -130,6 +131,6 @@ def test_the_mrclam_experiment_compares_variants_over_seeds(tmp_path):
         assert set(variant["rmse_m_per_robot"]) == {"1", "2", "3", "4", "5"}
     rows = pd.read_parquet(folder / "results.parquet")
     assert len(rows) == 4 and set(rows["status"]) == {"complete"}
-    unknown = [*command[:5], "--dataset", str(EXCERPT), "--variants", "known-map,telepathy", "--out", str(tmp_path / "x")]
+    unknown = [*experiment, "--variants", "known-map,telepathy", "--out", str(tmp_path / "x")]
     refused = subprocess.run(unknown, capture_output=True, text=True, timeout=60, env={**os.environ, "COLUMNS": "200"})
     assert refused.returncode != 0 and "telepathy" in refused.stderr and "Traceback" not in refused.stderr
