@@ -4,7 +4,6 @@ their reports) plus comparison figures and a JSON table (``experiments.vision_sl
 from __future__ import annotations
 
 import inspect
-import json
 from pathlib import Path
 from typing import Any, Optional
 
@@ -115,50 +114,3 @@ def _fly_experiment(name: str, options: dict[str, Any]) -> None:
 
 for _name, _entry in EXPERIMENTS.items():
     _experiment_command(_name, _entry)
-
-
-@experiment_app.command("ar-slam")
-def ar_slam(
-    out: Path = typer.Option(Path("runs"), help="parent folder of the experiment folder"),
-    seed: int = typer.Option(3, help="seed of the trajectory, sensor noise and terrain"),
-    duration: float = typer.Option(163.0, min=10.0, max=3600.0, help="simulated seconds (163 s: 1630 frames)"),
-    cases: str = typer.Option("", help="comma-separated case names (default: all; see docs/ar-slam)"),
-    quiet: bool = typer.Option(False, help="no progress display"),
-) -> None:
-    """The AR-EKF-SLAM paper's experiment: one camera UAV, GNSS denied, a long circle flown by full
-    EKF-SLAM, a fixed 25 m range and the adaptive range (each association method, visual odometry,
-    repetitive ground), each estimator timed per frame in this process. Writes experiment.json and
-    the figures (cost per frame, squared x error, state size and NEES)."""
-    from rich.console import Console
-
-    from experiments.ar_slam import CASES, run_ar_slam, write_figures
-    from launch.launcher import unique_run_dir
-
-    chosen = tuple(c.strip() for c in cases.split(",") if c.strip())
-    known = {c.name: c for c in CASES}
-    unknown = [c for c in chosen if c not in known]
-    if unknown:
-        fail(f"unknown case(s) {', '.join(unknown)}; known: {', '.join(known)}")
-    console = Console()
-    folder = unique_run_dir(out, "ar-slam")
-    try:
-        table, tracks = run_ar_slam(
-            folder,
-            seed=seed,
-            duration_s=duration,
-            cases=tuple(known[c] for c in chosen) if chosen else CASES,
-            progress=(lambda _: None) if quiet else (lambda text: console.print(text, highlight=False)),
-        )
-    except SwarmlocError as exc:
-        fail(str(exc))
-    (folder / "experiment.json").write_text(json.dumps(table, indent=2, sort_keys=True) + "\n")
-    for name, row in table["cases"].items():
-        console.print(
-            f"  {name:<28} RMSE {row['rmse_m']} m  ANEES {row['anees']}  state <= {row['state_dim_max']}"
-            f"  frame p50/p99 {row['frame_ms_p50']}/{row['frame_ms_p99']} ms  correct {row['correct_rate']}"
-            f"  false {row['false_pairs']}",
-            highlight=False,
-        )
-    for figure in write_figures(folder, tracks):
-        console.print(f"figure: {figure}")
-    console.print(f"experiment: {folder}")

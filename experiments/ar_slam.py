@@ -20,8 +20,9 @@ landmark being the ground point of the keypoint that created it. Writes experime
 
 from __future__ import annotations
 
+import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,10 @@ from matplotlib.figure import Figure
 from bus import messages as m
 from bus import statistics
 from bus.config import SwarmConfig, build_config
+from bus.errors import ConfigError
 from bus.topics import Topic
+from experiments.conclusions import write_experiment
+from launch.runspec import RunSpec
 from vehicle.association.optimum import optimal_assignment
 from vehicle.association.problem import linear_cost
 from vehicle.vision import features
@@ -45,6 +49,7 @@ REPETITIVE_PERIOD_PX = 16  # 1.6 m tiles
 FIXED_RANGE = {"r0_m": 25.0, "r_max_m": 25.0, "n_min": 1, "n_max": 100_000}  # R never leaves 25 m
 SPEED_MPS = 4.0  # the world's default speed: 1630 frames over 652 m (the paper: 1605 over 820 m)
 DURATION_S = 163.0
+TRACK, CASE = "track.json", "case.json"  # what a case's run directory holds
 
 
 @dataclass(frozen=True)
@@ -253,39 +258,85 @@ def summary(track: Track) -> dict[str, Any]:
 
 def _range_of(case: Case) -> str:
     if case.estimator != "ar-ekf-slam":
-        return "every landmark"
+        return "all"
     return "fixed 25 m" if case.ar == FIXED_RANGE else "adaptive"
 
 
-def run_ar_slam(
-    folder: Path, *, seed: int, duration_s: float, cases: tuple[Case, ...] = CASES, progress=print
-) -> tuple[dict[str, Any], dict[str, Track]]:
-    """Fly every case; experiment.json's table and the tracks."""
-    folder.mkdir(parents=True, exist_ok=True)
-    tracks = {}
-    for case in cases:
-        progress(f"  {case.name} ...")
-        tracks[case.name] = fly(case, seed=seed, duration_s=duration_s)
-    table = {
-        "seed": seed,
-        "duration_s": duration_s,
-        "cases": {
-            case.name: {
-                "estimator": case.estimator,
-                "association": case.association,
-                "odometry": case.odometry,
-                "range": "fixed 25 m"
-                if case.ar == FIXED_RANGE
-                else "adaptive"
-                if case.estimator == "ar-ekf-slam"
-                else "all",
-                "terrain": "repetitive" if case.period_px else "varied",
-                **summary(tracks[case.name]),
-            }
-            for case in cases
-        },
+def slug(case: Case) -> str:
+    """The run directory's name of a case."""
+    return case.name.replace(" ", "-")
+
+
+def plan(seed: int, duration: float, cases: str) -> list[RunSpec]:
+    """One run per case (default: every case) on ``seed``, each an estimator fed in one process
+    (``fly_case``)."""
+    return [
+        RunSpec(
+            slug(case),
+            case.name,
+            seed,
+            ar_slam_config(case, seed=seed, duration_s=duration).model_dump(mode="json"),
+            measure=f"{__name__}:measure",
+            runner=f"{__name__}:fly_case",
+        )
+        for case in chosen_cases(cases)
+    ]
+
+
+def chosen_cases(text: str) -> tuple[Case, ...]:
+    """The cases a comma-separated list names (every case for none); ConfigError naming the unknown."""
+    chosen = [c.strip() for c in text.split(",") if c.strip()]
+    known = {c.name: c for c in CASES}
+    unknown = [c for c in chosen if c not in known]
+    if unknown:
+        raise ConfigError(f"unknown case(s) {', '.join(unknown)}; known: {', '.join(known)}")
+    return tuple(known[c] for c in chosen) if chosen else CASES
+
+
+def fly_case(spec: RunSpec, config: SwarmConfig, run_dir: Path) -> list[str]:
+    """Fly one case in this process: its track (track.json) and its row of the table (case.json)."""
+    case = next(c for c in CASES if c.name == spec.variant)
+    track = fly(case, seed=spec.seed, duration_s=config.clock.duration_s)
+    (run_dir / TRACK).write_text(json.dumps(asdict(track)) + "\n")
+    (run_dir / CASE).write_text(json.dumps(case_row(case, track), indent=2, sort_keys=True) + "\n")
+    return []
+
+
+def measure(run_dir: Path) -> dict[str, Any]:
+    """A case's numbers for the campaign's results table."""
+    row = json.loads((run_dir / CASE).read_text())
+    keys = ("rmse_m", "anees", "state_dim_max", "frame_ms_p50", "frame_ms_p99", "correct_rate", "false_pairs")
+    return {key: row[key] for key in keys}
+
+
+def case_row(case: Case, track: Track) -> dict[str, Any]:
+    return {
+        "estimator": case.estimator,
+        "association": case.association,
+        "odometry": case.odometry,
+        "range": _range_of(case),
+        "terrain": "repetitive" if case.period_px else "varied",
+        **summary(track),
     }
-    return table, tracks
+
+
+def conclude(rows: list[dict], folder: Path, *, seed: int, duration: float, cases: str) -> list[str]:
+    """experiment.json (a row per case that completed) and the figures, from the cases' run directories."""
+    done = {row["run"] for row in rows if row.get("status") == "complete"}
+    table: dict[str, Any] = {"seed": seed, "duration_s": duration, "cases": {}}
+    tracks = {}
+    for case in chosen_cases(cases):
+        if slug(case) in done:
+            table["cases"][case.name] = json.loads((folder / slug(case) / CASE).read_text())
+            tracks[case.name] = Track(**json.loads((folder / slug(case) / TRACK).read_text()))
+    write_experiment(folder, table)
+    lines = [
+        f"  {name:<28} RMSE {row['rmse_m']} m  ANEES {row['anees']}  state <= {row['state_dim_max']}"
+        f"  frame p50/p99 {row['frame_ms_p50']}/{row['frame_ms_p99']} ms  correct {row['correct_rate']}"
+        f"  false {row['false_pairs']}"
+        for name, row in table["cases"].items()
+    ]
+    return lines + [f"figure: {figure}" for figure in write_figures(folder, tracks)]
 
 
 COMPARED = ("ekf-slam", "fixed 25 m", "ar-ekf-slam", "ar-ekf-slam visual odometry")

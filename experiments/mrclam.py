@@ -50,8 +50,19 @@ def plan(
             )
             name = f"{variant}-seed{seed}"
             config = replay_config(choice, name=name).model_dump(mode="json")
-            runner = f"{__name__}:fly_centralized" if variant == "centralized" else None
-            specs.append(RunSpec(name, variant, seed, config, runner=runner))
+            if variant == "centralized":
+                specs.append(
+                    RunSpec(
+                        name,
+                        variant,
+                        seed,
+                        config,
+                        measure=f"{__name__}:measure_reference",
+                        runner=f"{__name__}:fly_centralized",
+                    )
+                )
+            else:
+                specs.append(RunSpec(name, variant, seed, config))
     return specs
 
 
@@ -69,6 +80,14 @@ def fly_centralized(spec: RunSpec, config: SwarmConfig, run_dir: Path) -> list[s
     }
     (run_dir / REFERENCE).write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
     return []
+
+
+def measure_reference(run_dir: Path) -> dict[str, Any]:
+    """The centralized reference's swarm RMSE and ANEES, for its row of the results table."""
+    import json
+
+    swarm = json.loads((run_dir / REFERENCE).read_text())["swarm"]
+    return {"rmse_m": swarm["rmse_m"], "anees": swarm["anees"]}
 
 
 def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:

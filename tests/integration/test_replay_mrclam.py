@@ -130,7 +130,7 @@ def test_the_mrclam_experiment_compares_variants_over_seeds(tmp_path):
         assert variant["rmse_m_interval_95"] > 0  # the seeds differ: the launch priors are perturbed
         assert set(variant["rmse_m_per_robot"]) == {"1", "2", "3", "4", "5"}
     rows = pd.read_parquet(folder / "results.parquet")
-    assert len(rows) == 4 and set(rows["status"]) == {"complete"}
+    assert len(rows) == 4 and set(rows["status"]) == {"complete"} and rows["rmse_m"].notna().all()
     unknown = [*experiment, "--variants", "known-map,telepathy", "--out", str(tmp_path / "x")]
     refused = subprocess.run(unknown, capture_output=True, text=True, timeout=60, env={**os.environ, "COLUMNS": "200"})
     assert refused.returncode != 0 and "telepathy" in refused.stderr and "Traceback" not in refused.stderr
