@@ -123,7 +123,7 @@ class Recording:
         self.terrain_scene = SceneUpdateChannel("/terrain", context=self.context)
         self.swarm_channel = foxglove.Channel("/swarm", schema=SWARM_SCHEMA, context=self.context)
         self._poses: dict[tuple[str, int], Any] = {}
-        self._scene: dict[int, Any] = {}  # vehicle -> its latest scene entity, not logged yet
+        self._scene: dict[int, Score] = {}  # vehicle -> its latest score, not in the scene yet
         self._scene_us = self._ranging_us = self._clock_us = -(2**62)  # when each was last logged
         self._zones: set[str] = set()
         self._terrain: bytes | None = None
@@ -260,15 +260,7 @@ class Recording:
             self._pose_channel("truth", s.vehicle_id).log(
                 fm.PoseInFrame(timestamp=stamp, frame_id="world", pose=true_pose), log_time=ns
             )
-            ring = ellipse_xy(np.asarray(est.position_m[:2]), s.pose_covariance[:2, :2])
-            self._scene[s.vehicle_id] = fm.SceneEntity(
-                timestamp=stamp,
-                frame_id="world",
-                id=f"vehicle-{s.vehicle_id}",
-                arrows=[sp.arrow(fm, estimate_pose, (0.2, 0.4, 1.0)), sp.arrow(fm, true_pose, (0.1, 0.8, 0.2))],
-                lines=[sp.loop(fm, ring, (0.2, 0.4, 1.0, 0.8), 2.0)],
-                texts=[sp.label(fm, estimate_pose, f"v{s.vehicle_id}", (1.0, 1.0, 1.0, 1.0))],
-            )
+            self._scene[s.vehicle_id] = s
             self._pose_channel("metrics", s.vehicle_id).log(metrics_record(s, self._nees_band), log_time=ns)
         if scores:
             self._clock(scores[-1].stamp_us)
@@ -283,7 +275,8 @@ class Recording:
         from foxglove import messages as fm
 
         if self._scene:
-            self.scene.log(fm.SceneUpdate(entities=list(self._scene.values())), log_time=stamp_us * 1000)
+            entities = [_vehicle_entity(fm, s) for s in self._scene.values()]
+            self.scene.log(fm.SceneUpdate(entities=entities), log_time=stamp_us * 1000)
             self._scene, self._scene_us = {}, stamp_us
 
     def _log_trails(self, scores: list[Score]) -> None:
@@ -438,6 +431,24 @@ def _terrain_requests(wanted: threading.Event) -> Any:
                 wanted.set()
 
     return TerrainRequests()
+
+
+def _vehicle_entity(fm: Any, s: Score) -> Any:
+    """A vehicle in the scene: its estimated and true pose arrows, its 3-sigma ellipse and its label."""
+    est, truth = s.estimate, s.truth_pose
+    estimate_pose = sp.pose(fm, est.position_m[0], est.position_m[1], est.yaw_rad)
+    ring = ellipse_xy(np.asarray(est.position_m[:2]), s.pose_covariance[:2, :2])
+    return fm.SceneEntity(
+        timestamp=sp.stamp(fm, s.stamp_us),
+        frame_id="world",
+        id=f"vehicle-{s.vehicle_id}",
+        arrows=[
+            sp.arrow(fm, estimate_pose, (0.2, 0.4, 1.0)),
+            sp.arrow(fm, sp.pose(fm, truth[0], truth[1], truth[2]), (0.1, 0.8, 0.2)),
+        ],
+        lines=[sp.loop(fm, ring, (0.2, 0.4, 1.0, 0.8), 2.0)],
+        texts=[sp.label(fm, estimate_pose, f"v{s.vehicle_id}", (1.0, 1.0, 1.0, 1.0))],
+    )
 
 
 def open_recording(run_dir: Path, view: Any, vehicles: int = 0) -> Recording | None:
