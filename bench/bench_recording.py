@@ -1,6 +1,6 @@
 """What run.mcap and the live view cost: the 5-vehicle demo (lockstep, 60 s) with nothing, with run.mcap
 (the default) and with run.mcap plus ``--live`` and one WebSocket client subscribed to every channel,
-interleaved over ``ROUNDS`` rounds (5: one round to the next differs by up to 15 %) so the ratios
+interleaved over ``ROUNDS`` rounds (7: one round to the next differs by up to 15 %) so the ratios
 come from one run on one machine; and the MCAP bytes per vehicle per simulated minute. Target:
 run.mcap costs the lockstep run under 5 % of its speed (then it is on by default, as it is)."""
 
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import socket
+import resource
 import subprocess
 import sys
 import tempfile
@@ -19,7 +20,7 @@ import numpy as np
 
 from bench.common import Row
 
-VEHICLES, DURATION_S, ROUNDS = 5, 60.0, 5
+VEHICLES, DURATION_S, ROUNDS = 5, 60.0, 7
 TARGET_COST = 0.05
 
 
@@ -62,8 +63,8 @@ def _viewer(port: int, stop: threading.Event, received: list[int]) -> None:
                 received[0] += 1
 
 
-def run_once(out: Path, name: str, flags: list[str]) -> tuple[float, int]:
-    """(real-time factor, run.mcap bytes) of one demo run with ``flags``."""
+def run_once(out: Path, name: str, flags: list[str]) -> tuple[float, int, float]:
+    """(real-time factor, run.mcap bytes, CPU seconds of all its processes) of one demo run with ``flags``."""
     port = _free_port()
     live = "--live" in flags
     stop, received = threading.Event(), [0]
@@ -73,25 +74,30 @@ def run_once(out: Path, name: str, flags: list[str]) -> tuple[float, int]:
     command = [sys.executable, "-m", "cli", "up", "--quiet", "--no-report", "--out", str(out), "--name", name]
     command += ["--vehicles", str(VEHICLES), "--duration", str(DURATION_S), "--mode", "lockstep", "--seed", "1"]
     command += flags + (["--live-port", str(port)] if live else [])
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run(command, check=True, capture_output=True, timeout=1800)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu_s = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
     stop.set()
     if viewer is not None:
         viewer.join(timeout=5)
     rtf = json.loads((out / name / "timing.json").read_text())["real_time_factor"]
     mcap = out / name / "run.mcap"
-    return rtf, (mcap.stat().st_size if mcap.exists() else 0)
+    return rtf, (mcap.stat().st_size if mcap.exists() else 0), cpu_s
 
 
 def run(quick: bool = False) -> list[Row]:
     cases = {"nothing": ["--no-record"], "run.mcap": [], "run.mcap + live": ["--live"]}
     rtf: dict[str, list[float]] = {name: [] for name in cases}
+    cpu: dict[str, list[float]] = {name: [] for name in cases}
     size = []
     with tempfile.TemporaryDirectory() as tmp:
         for round_ in range(1 if quick else ROUNDS):
             for name, flags in cases.items():
                 print(f"  recording: {name}, round {round_ + 1} ...", flush=True)
-                factor, nbytes = run_once(Path(tmp), f"{name.replace(' ', '').replace('+', '-')}-{round_}", flags)
+                factor, nbytes, cpu_s = run_once(Path(tmp), f"{name.replace(' ', '').replace('+', '-')}-{round_}", flags)
                 rtf[name].append(factor)
+                cpu[name].append(cpu_s)
                 if name == "run.mcap":
                     size.append(nbytes)
     base = float(np.median(rtf["nothing"]))
@@ -101,6 +107,8 @@ def run(quick: bool = False) -> list[Row]:
         target, met = (f"< {TARGET_COST:.0%} slower", cost < TARGET_COST) if name == "run.mcap" else ("-", None)
         details = {"rtf_median": round(float(np.median(rtf[name])), 2), "rtf_nothing_median": round(base, 2)}
         details["rtf_all"] = [round(v, 2) for v in rtf[name]]
+        details["cpu_s_median"] = round(float(np.median(cpu[name])), 2)
+        details["cpu_s_nothing_median"] = round(float(np.median(cpu["nothing"])), 2)
         rows.append(
             Row(
                 "recording",

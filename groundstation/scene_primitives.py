@@ -4,6 +4,7 @@ ellipse of a position covariance. Pure."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -16,9 +17,16 @@ def ellipse_xy(centre: np.ndarray, covariance: np.ndarray, sigmas: float = 3.0) 
     its eigenvectors."""
     values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
     axes = sigmas * np.sqrt(np.maximum(values, 0.0))
-    angle = np.linspace(0.0, 2.0 * np.pi, ELLIPSE_POINTS, endpoint=False)
-    unit = np.stack([axes[0] * np.cos(angle), axes[1] * np.sin(angle)], axis=1)
-    return centre + unit @ vectors.T
+    return centre + (_unit_circle(ELLIPSE_POINTS) * axes) @ vectors.T
+
+
+@functools.cache
+def _unit_circle(points: int) -> np.ndarray:
+    """(points, 2) cos and sin of ``points`` angles evenly around the circle (read-only)."""
+    angle = np.linspace(0.0, 2.0 * np.pi, points, endpoint=False)
+    circle = np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    circle.flags.writeable = False
+    return circle
 
 
 def pose(fm, x: float, y: float, yaw: float):
@@ -55,6 +63,6 @@ def loop(fm, xy: np.ndarray, rgba: tuple[float, float, float, float], thickness:
         type=fm.LinePrimitiveLineType.LineLoop,
         thickness=thickness,
         scale_invariant=True,
-        points=[fm.Point3(x=float(a), y=float(b), z=0.0) for a, b in xy],
+        points=[fm.Point3(x=a, y=b, z=0.0) for a, b in np.asarray(xy, dtype=float).tolist()],
         color=fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]),
     )
