@@ -7,8 +7,8 @@ run.mcap costs the lockstep run under 5 % of its speed (then it is on by default
 from __future__ import annotations
 
 import json
-import socket
 import resource
+import socket
 import subprocess
 import sys
 import tempfile
@@ -95,7 +95,8 @@ def run(quick: bool = False) -> list[Row]:
         for round_ in range(1 if quick else ROUNDS):
             for name, flags in cases.items():
                 print(f"  recording: {name}, round {round_ + 1} ...", flush=True)
-                factor, nbytes, cpu_s = run_once(Path(tmp), f"{name.replace(' ', '').replace('+', '-')}-{round_}", flags)
+                run_name = f"{name.replace(' ', '').replace('+', '-')}-{round_}"
+                factor, nbytes, cpu_s = run_once(Path(tmp), run_name, flags)
                 rtf[name].append(factor)
                 cpu[name].append(cpu_s)
                 if name == "run.mcap":

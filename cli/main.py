@@ -178,12 +178,15 @@ def with_chaos(config, seed: int):
     return build_config(data)
 
 
-def _print_result(run_dir: Path, failures: list[str], notes: list[str], *, report: bool = True) -> None:
-    """The run's table, then its report (``report``: written now; else how to write it later); exits
-    1 when a process failed, no summary was written or the report could not be."""
+def _print_result(
+    run_dir: Path, failures: list[str], notes: list[str], *, report: bool = True, consistency: bool = False
+) -> None:
+    """The run's table (``consistency``: and its consistency table), then its report (``report``:
+    written now; else how to write it later); exits 1 when a process failed, no summary was written or
+    the report could not be."""
     from rich.console import Console
 
-    from groundstation.display import rmse_table
+    from groundstation.display import consistency_table, rmse_table
 
     console = Console()
     for note in notes:
@@ -196,6 +199,8 @@ def _print_result(run_dir: Path, failures: list[str], notes: list[str], *, repor
         timing_path = run_dir / "timing.json"
         timing = json.loads(timing_path.read_text()) if timing_path.exists() else None
         console.print(rmse_table(summary, timing, title=f"{summary['name']}: {summary['status']}"))
+        if consistency:
+            console.print(consistency_table(summary))
     else:
         console.print(f"[red]swarm: no summary.json was written in {run_dir}[/red]")
     console.print(f"run directory: {run_dir}")

@@ -117,7 +117,7 @@ def mrclam(
         )
     except SwarmlocError as exc:
         fail(str(exc))
-    _print_result(run_dir, failures, notes, report=report)
+    _print_result(run_dir, failures, notes, report=report, consistency=True)
 
 
 def _reference(config: SwarmConfig, out: Path) -> None:
@@ -128,7 +128,7 @@ def _reference(config: SwarmConfig, out: Path) -> None:
     from rich.console import Console
 
     from experiments.centralized_reference import run_centralized, tracks_summary
-    from groundstation.display import rmse_table
+    from groundstation.display import consistency_table, rmse_table
     from launch.launcher import unique_run_dir
 
     run_dir = unique_run_dir(out, config.name)
@@ -144,4 +144,5 @@ def _reference(config: SwarmConfig, out: Path) -> None:
     (run_dir / "reference.json").write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
     console = Console()
     console.print(rmse_table(summary, title=f"{config.name}: centralized reference (one process, no bus)"))
+    console.print(consistency_table(summary))
     console.print(f"run directory: {run_dir}")

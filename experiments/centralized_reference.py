@@ -13,6 +13,7 @@ import numpy as np
 
 from bus import statistics
 from bus.config import SwarmConfig
+from bus.consistency import consistency
 from experiments import harness
 from vehicle.centralized import CentralizedEkf
 from vehicle.estimators.filter import Filter
@@ -64,7 +65,8 @@ def _block_estimator(config: SwarmConfig) -> dict:
 
 def tracks_summary(tracks: dict[int, dict[str, np.ndarray]]) -> dict:
     """Per vehicle and swarm: samples, RMSE and max position error (m), ANEES and the share of NEES
-    inside its 95% chi-square band (3 dof), in the shape of summary.json's ``vehicles`` and ``swarm``."""
+    inside its 95% chi-square band (3 dof), per vehicle the block ANEES and tail shares
+    (bus.consistency), in the shape of summary.json's ``vehicles`` and ``swarm``."""
     low, high = statistics.chi2_band(statistics.POSE_NEES_DOF)
     vehicles = {}
     for vid, track in sorted(tracks.items()):
@@ -75,6 +77,7 @@ def tracks_summary(tracks: dict[int, dict[str, np.ndarray]]) -> dict:
             "max_error_m": round(float(error.max()), 6),
             "anees": round(float(nees.mean()), 6),
             "nees_inside_95": round(float(np.mean((nees >= low) & (nees <= high))), 6),
+            "consistency": consistency(track["t_s"], nees).as_dict(),
         }
     errors = np.concatenate([t["error_m"] for t in tracks.values()]) if tracks else np.zeros(0)
     nees = np.concatenate([t["nees"] for t in tracks.values()]) if tracks else np.zeros(0)

@@ -4,7 +4,7 @@ reckoning, the known map, the known map with cooperation, SLAM with cooperation,
 reference (one filter over every robot, in one process: ``fly_centralized``). Each variant's runs
 are scored by their summary (the reference by its reference.json, in summary.json's shape):
 experiment.json holds per variant the swarm RMSE and ANEES, mean and 95 % interval over the seeds,
-and each robot's RMSE."""
+and each robot's RMSE, block ANEES and share of NEES above the 95 % point (bus.consistency)."""
 
 from __future__ import annotations
 
@@ -115,13 +115,33 @@ def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:
             "anees": anees,
             "anees_interval_95": anees_half,
             "rmse_m_per_robot": {r: sum(s["vehicles"][r]["rmse_m"] for s in summaries) / n for r in robots},
+            **_consistency_per_robot(summaries, robots),
         }
     write_experiment(folder, table)
     return [
         f"  {name:<16} RMSE {v['rmse_m']:.3f} m (+- {v['rmse_m_interval_95']:.3f})  ANEES {v['anees']:.2f} "
-        f"(+- {v['anees_interval_95']:.2f})  per robot " + " ".join(f"{x:.3f}" for x in v["rmse_m_per_robot"].values())
+        f"(+- {v['anees_interval_95']:.2f})  per robot "
+        + " ".join(f"{x:.3f}" for x in v["rmse_m_per_robot"].values())
+        + f"  block ANEES in band {v['robots_inside_band']}"
         for name, v in table["variants"].items()
     ]
+
+
+def _consistency_per_robot(summaries: list[dict], robots: list[str]) -> dict[str, Any]:
+    """Per robot the block ANEES and the share of NEES above the 95 % point (bus.consistency), means
+    over the seeds, and how many robot runs were inside their block band ("k/n")."""
+    runs = [(r, s["vehicles"][r].get("consistency") or {}) for s in summaries for r in robots]
+    inside = sum(bool(c.get("inside")) for _, c in runs)
+
+    def mean(robot: str, key: str) -> float | None:
+        values = [c[key] for r, c in runs if r == robot and c.get(key) is not None]
+        return sum(values) / len(values) if values else None
+
+    return {
+        "block_anees_per_robot": {r: mean(r, "block_anees") for r in robots},
+        "share_above_95_per_robot": {r: mean(r, "share_above_95") for r in robots},
+        "robots_inside_band": f"{inside}/{len(runs)}",
+    }
 
 
 def _variants(text: str) -> list[str]:

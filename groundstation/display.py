@@ -46,6 +46,30 @@ def rmse_table(summary: dict[str, Any], timing: dict[str, Any] | None = None, ti
     return table
 
 
+def consistency_table(summary: dict[str, Any], title: str = "consistency") -> Table:
+    """Per vehicle: block ANEES against its band and the NEES tail shares (bus.consistency), from a
+    summary whose vehicles carry ``consistency``."""
+    table = Table(title=title)
+    for column in ("vehicle", "blocks", "block ANEES", "95% band", "inside", "> 95% pt", "< 5% pt"):
+        table.add_column(column, justify="right")
+    for vid, v in summary["vehicles"].items():
+        c = v.get("consistency")
+        if not c:
+            continue
+        band = c.get("band_95") or [None, None]
+        table.add_row(
+            vid,
+            str(c.get("blocks", "-")),
+            _num(c.get("block_anees"), 2),
+            f"{_num(band[0], 2)}-{_num(band[1], 2)}",
+            "yes" if c.get("inside") else "no",
+            _pct(c.get("share_above_95")),
+            _pct(c.get("share_below_05")),
+        )
+    table.caption = "NEES in 30 s blocks; consistent: inside the band, 5 % above the 95 % point, 5 % below the 5 %"
+    return table
+
+
 def _num(value: float | None, digits: int = 3) -> str:
     return "-" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.{digits}f}"
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from bus import statistics
 from bus.angles import wrap_angle as wrap
+from bus.consistency import ConsistencyTally
 from bus.mavlink_codec import StateEstimate, pose_of
 
 log = logging.getLogger("swarmloc.groundstation")
@@ -52,6 +53,7 @@ class Tally:
     max_position_error_m: float = 0.0
     sum_nees: float = 0.0
     nees_inside: int = 0
+    consistency: ConsistencyTally = field(default_factory=ConsistencyTally)  # block ANEES, tail shares
 
     def add(self, score: Score, bounds: tuple[float, float]) -> None:
         err = score.position_error_m
@@ -60,6 +62,7 @@ class Tally:
         self.max_position_error_m = max(self.max_position_error_m, err)
         self.sum_nees += score.nees
         self.nees_inside += int(bounds[0] <= score.nees <= bounds[1])
+        self.consistency.add(score.stamp_us * 1e-6, score.nees)
 
 
 class TruthTrack:

@@ -44,6 +44,7 @@ def build_summary(
                 max_error_m=_round(tally.max_position_error_m),
                 anees=_round(tally.sum_nees / tally.samples),
                 nees_inside_95=_round(tally.nees_inside / tally.samples),
+                consistency=tally.consistency.result().as_dict(),
             )
             total_sq, total_n, total_nees = (
                 total_sq + tally.sum_sq_position_m2,

@@ -39,6 +39,7 @@ def write_report(run_dir: Path) -> Report:
         ("Position error", "error", f.error_figure),
         ("Swarm RMSE", "rmse", f.rmse_figure),
         ("NEES", "nees", f.nees_figure),
+        ("NEES per vehicle, in blocks", "nees_blocks", f.block_nees_figure),
     ):
         figure = build(data)
         if figure is None:

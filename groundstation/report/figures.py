@@ -12,7 +12,8 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 from matplotlib.ticker import FormatStrFormatter
 
-from bus.statistics import binned_rms
+from bus.consistency import BLOCK_S, consistency
+from bus.statistics import binned_mean, binned_rms
 from groundstation.report.rundata import RunData
 from groundstation.report.stats import binned_nees, covariance_ellipse
 
@@ -145,7 +146,7 @@ def error_figure(data: RunData) -> Figure | None:
         ax.grid(alpha=0.3)
     axes[0].set_title("position error per axis (lines) and its 3-sigma envelope (shaded)")
     _marker_legend(axes[0], events)
-    axes[0].legend(loc="upper right", fontsize="small", ncols=4)
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside upper center", fontsize="small", ncols=4)
     axes[-1].set_xlabel("sim time [s]")
     return fig
 
@@ -191,7 +192,48 @@ def nees_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
     ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
     ax.set_xlabel("sim time [s]")
     ax.set_ylabel("NEES [x, y, yaw]")
-    ax.set_title(f"swarm-average NEES per {bin_s:g} s (consistent: inside the band, around 3)")
+    inside = float(np.mean((mean >= lower) & (mean <= upper)))
+    ax.set_title(
+        f"swarm-average NEES per {bin_s:g} s: {100 * inside:.0f} % of the bins inside the band "
+        "(consistent: 95 %, around 3)"
+    )
     ax.grid(alpha=0.3, which="both")
     ax.legend(loc="upper right", fontsize="small")
+    return fig
+
+
+def block_nees_figure(data: RunData, *, block_s: float = BLOCK_S) -> Figure | None:
+    """Per vehicle: its NEES per second (thin), each ``block_s`` block's mean (steps), the block ANEES
+    (their mean, red) and its band (shaded; bus.consistency): a consistent filter's steps scatter
+    around 3 and their mean falls inside the band."""
+    vehicles = [v for v in data.vehicles if len(data.rows_of(v).get("t_s", ()))][:MAX_ERROR_PANELS]
+    if not vehicles:
+        return None
+    fig = Figure(figsize=(9.0, 1.0 + 1.7 * len(vehicles)), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(len(vehicles), 1, sharex=True))
+    for ax, vid in zip(axes, vehicles):
+        r = data.rows_of(vid)
+        t, nees = r["t_s"], r["nees"]
+        result = consistency(t, nees, block_s=block_s)
+        seconds, per_second = binned_mean(t, nees, 1.0)
+        centres, per_block = binned_mean(t, nees, block_s)
+        ax.plot(seconds, per_second, color="0.6", lw=0.6, label="NEES, mean per second")
+        ax.step(centres, per_block, where="mid", color="black", lw=1.4, label=f"mean per {block_s:g} s block")
+        if result.blocks:
+            ax.axhspan(*result.band, color="tab:green", alpha=0.2, lw=0, label="95 % band of the block ANEES")
+            ax.axhline(result.block_anees, color="tab:red", lw=1.2, label="block ANEES (mean of the steps)")
+            verdict = "inside" if result.inside else "outside"
+            ax.set_title(
+                f"v{vid}: block ANEES {result.block_anees:.2f} ({verdict} [{result.band[0]:.2f}, "
+                f"{result.band[1]:.2f}]), {100 * result.share_above:.0f} % of NEES above the 95 % point",
+                fontsize="small",
+                loc="left",
+            )
+        ax.axhline(3.0, color="tab:green", lw=0.8)
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+        ax.set_ylabel(f"v{vid} NEES")
+        ax.grid(alpha=0.3, which="both")
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside upper center", fontsize="small", ncols=4)
+    axes[-1].set_xlabel("sim time [s]")
     return fig

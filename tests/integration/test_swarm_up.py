@@ -146,9 +146,9 @@ def test_realtime_mode_runs_and_reports_loop_timing(tmp_path):
 def test_swarm_up_writes_the_report(three_vehicle_runs):
     run_dir = three_vehicle_runs[0]
     page = (run_dir / "report.html").read_text()
-    for name in ("map", "error", "rmse", "nees"):
+    for name in ("map", "error", "rmse", "nees", "nees_blocks"):
         assert (run_dir / "report" / f"{name}.png").stat().st_size > 10_000
-    assert page.count("data:image/png;base64,") == 4
+    assert page.count("data:image/png;base64,") == 5
     assert not re.search(r"""(?:src|href)=['"](?:https?:|//)""", page)
 
 

@@ -60,12 +60,12 @@ def _references(page: str) -> list[str]:
 
 def test_report_writes_figures_and_a_self_contained_page(run_dir):
     report = write_report(run_dir)
-    assert [p.name for p in report.figures] == ["map.png", "error.png", "rmse.png", "nees.png"]
+    assert [p.name for p in report.figures] == ["map.png", "error.png", "rmse.png", "nees.png", "nees_blocks.png"]
     for png in report.figures:
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
     page = report.html.read_text()
     refs = _references(page)
-    assert sum(r.startswith("data:image/png;base64,") for r in refs) == 4
+    assert sum(r.startswith("data:image/png;base64,") for r in refs) == 5
     for ref in refs:  # nothing from the network; links only to files of this run
         assert ref.startswith("data:") or (not re.match(r"^[a-z]+:|^/|\.\.", ref) and (run_dir / ref).is_file()), ref
     assert "<script" not in page and "<link" not in page
@@ -85,7 +85,7 @@ def test_killed_run_still_reports_and_says_what_is_missing(run_dir, tmp_path):
     assert any(p.startswith("metrics.csv: 1 malformed") for p in report.problems)
     assert any(p.startswith("events.jsonl: 1 malformed") for p in report.problems)
     page = report.html.read_text()
-    assert "summary.json is missing" in page and len(report.figures) == 4
+    assert "summary.json is missing" in page and len(report.figures) == 5
     rows = load_run(killed).rows_of(1)
     assert np.all(np.diff(rows["t_s"]) > 0) and len(rows["t_s"]) < 101
 

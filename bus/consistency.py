@@ -1,0 +1,127 @@
+"""Is a filter's covariance honest? Consistency statistics for NEES (or NIS) sequences whose epochs are
+strongly autocorrelated, as a filter's errors are: one epoch's NEES tells little that the previous
+one did not say.
+
+- **Block ANEES.** The samples are cut into blocks of ``block_s`` seconds, longer than the error's
+  correlation time; each block's mean NEES counts as one sample, and the average over the B blocks is
+  judged against the chi-square band of B samples of ``dof`` each (Bar-Shalom, Li, Kirubarajan 2001,
+  sec. 5.4.2, with blocks for runs). The band of every epoch taken as independent is far too narrow:
+  10 Hz over 660 s gives [2.98, 3.02] for 3 dof, 30 s blocks give [2.06, 4.10].
+- **Tail shares.** The share of epochs whose NEES is above the upper ``tail`` point of chi-square(dof)
+  and the share below its lower one (``tail`` = 5 %: 5 % each for a consistent filter). Autocorrelation
+  leaves these expectations unchanged; it only widens their spread.
+
+A block holding fewer than half the samples of the median block (a run's last partial block, a gap in
+the truth) is left out: it would count as a whole independent sample. Pure.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bus.statistics import POSE_NEES_DOF, chi2_band, upper_quantile
+
+BLOCK_S = 30.0  # longer than a filter's error correlation time (MRCLAM's blind stretches, a jam)
+TAIL = 0.05  # the share of a consistent filter's NEES above (and below) the tail points
+
+
+@dataclass(frozen=True)
+class Consistency:
+    """The consistency of one NEES sequence (see the module docstring)."""
+
+    samples: int
+    blocks: int
+    block_anees: float  # mean over the blocks of each block's mean NEES (nan without a block)
+    band: tuple[float, float]  # the two-sided 95 % band of block_anees for a consistent filter
+    share_above: float  # share of samples above the upper TAIL point of chi-square(dof)
+    share_below: float  # share below the lower TAIL point
+
+    @property
+    def inside(self) -> bool:
+        return self.blocks > 0 and self.band[0] <= self.block_anees <= self.band[1]
+
+    def as_dict(self) -> dict:
+        return {
+            "samples": self.samples,
+            "blocks": self.blocks,
+            "block_anees": _round(self.block_anees),
+            "band_95": [_round(b) for b in self.band],
+            "inside": self.inside,
+            "share_above_95": _round(self.share_above),
+            "share_below_05": _round(self.share_below),
+        }
+
+
+def tail_points(dof: int = POSE_NEES_DOF, tail: float = TAIL) -> tuple[float, float]:
+    """(lower, upper) ``tail`` points of chi-square(``dof``): P(X < lower) = P(X > upper) = ``tail``."""
+    return upper_quantile(dof, 1.0 - tail), upper_quantile(dof, tail)
+
+
+def consistency(
+    t_s: np.ndarray, nees: np.ndarray, *, dof: int = POSE_NEES_DOF, block_s: float = BLOCK_S
+) -> Consistency:
+    """The consistency of NEES samples ``nees`` (N,) taken at times ``t_s`` (N,) s."""
+    t_s, nees = np.asarray(t_s, dtype=float), np.asarray(nees, dtype=float)
+    if t_s.shape != nees.shape or t_s.ndim != 1:
+        raise ValueError(f"times {t_s.shape} and NEES {nees.shape} must be two 1-D arrays of one length")
+    keep = np.isfinite(t_s) & np.isfinite(nees)
+    t_s, nees = t_s[keep], nees[keep]
+    block = np.floor(t_s / block_s).astype(np.int64)
+    tally = ConsistencyTally(dof=dof, block_s=block_s)
+    for index in np.unique(block):
+        inside = nees[block == index]
+        tally.blocks[int(index)] = [float(inside.sum()), int(inside.size)]
+    low, high = tally.points
+    tally.samples, tally.above, tally.below = int(nees.size), int(np.sum(nees > high)), int(np.sum(nees < low))
+    return tally.result()
+
+
+@dataclass
+class ConsistencyTally:
+    """The running totals behind :func:`consistency`, one NEES at a time (the ground station's)."""
+
+    dof: int = POSE_NEES_DOF
+    block_s: float = BLOCK_S
+    samples: int = 0
+    above: int = 0
+    below: int = 0
+    blocks: dict[int, list] = field(default_factory=lambda: defaultdict(lambda: [0.0, 0]))  # index -> [sum, n]
+    points: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        self.points = tail_points(self.dof)
+
+    def add(self, t_s: float, nees: float) -> None:
+        if not (math.isfinite(t_s) and math.isfinite(nees)):
+            return
+        self.samples += 1
+        self.above += int(nees > self.points[1])
+        self.below += int(nees < self.points[0])
+        entry = self.blocks[math.floor(t_s / self.block_s)]
+        entry[0] += nees
+        entry[1] += 1
+
+    def result(self) -> Consistency:
+        sums = np.array([s for s, _ in self.blocks.values()], dtype=float)
+        counts = np.array([n for _, n in self.blocks.values()], dtype=float)
+        full = counts >= 0.5 * np.median(counts) if counts.size else counts.astype(bool)
+        means = sums[full] / counts[full]
+        blocks = int(means.size)
+        band = chi2_band(self.dof, runs=blocks) if blocks else (float("nan"), float("nan"))
+        share = (lambda k: k / self.samples) if self.samples else (lambda k: float("nan"))
+        return Consistency(
+            samples=self.samples,
+            blocks=blocks,
+            block_anees=float(means.mean()) if blocks else float("nan"),
+            band=(float(band[0]), float(band[1])),
+            share_above=share(self.above),
+            share_below=share(self.below),
+        )
+
+
+def _round(value: float) -> float | None:
+    return round(float(value), 6) if np.isfinite(value) else None
