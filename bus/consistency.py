@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from dataclasses import dataclass, field
+from functools import cache
 
 import numpy as np
 
@@ -125,3 +126,54 @@ class ConsistencyTally:
 
 def _round(value: float) -> float | None:
     return round(float(value), 6) if np.isfinite(value) else None
+
+
+NIS_KINDS = ("landmark", "robot", "seen", "gnss")  # a vehicle's sightings of landmarks, its own sightings
+# of neighbours (fused with their broadcasts), neighbours' sightings of it relayed, and GNSS fixes
+NIS_FIELDS = 4  # per kind: count, sum of NIS, count above the upper TAIL point, count below the lower
+
+
+@dataclass(frozen=True)
+class NisBook:
+    """A vehicle's running NIS per measurement kind (NIS_KINDS) of the updates it fused: ``values``
+    holds per kind (count, sum, above the upper TAIL point, below the lower) of chi-square(dof), dof the
+    measurement's dimension. Immutable (a filter state's snapshot shares it); ``add`` returns a new book."""
+
+    values: tuple[float, ...] = (0.0,) * (NIS_FIELDS * len(NIS_KINDS))
+
+    def add(self, kind: str, nis: float, dof: int) -> NisBook:
+        if not math.isfinite(nis):
+            return self
+        low, high = _cached_tail_points(dof)
+        k = NIS_FIELDS * NIS_KINDS.index(kind)
+        values = list(self.values)
+        values[k : k + NIS_FIELDS] = (
+            values[k] + 1.0,
+            values[k + 1] + nis,
+            values[k + 2] + float(nis > high),
+            values[k + 3] + float(nis < low),
+        )
+        return NisBook(tuple(values))
+
+
+def nis_summary(values: tuple[float, ...]) -> dict[str, dict]:
+    """Per measurement kind with any update: count, mean NIS and the shares above the upper and below
+    the lower TAIL point, from a NisBook's ``values`` (as a VehicleStatus carries them)."""
+    summary: dict[str, dict] = {}
+    if len(values) != NIS_FIELDS * len(NIS_KINDS):
+        return summary
+    for i, kind in enumerate(NIS_KINDS):
+        count, total, above, below = values[NIS_FIELDS * i : NIS_FIELDS * (i + 1)]
+        if count > 0:
+            summary[kind] = {
+                "count": int(count),
+                "mean": _round(total / count),
+                "share_above_95": _round(above / count),
+                "share_below_05": _round(below / count),
+            }
+    return summary
+
+
+@cache
+def _cached_tail_points(dof: int) -> tuple[float, float]:
+    return tail_points(dof)

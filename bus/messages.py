@@ -12,8 +12,9 @@ from typing import Annotated
 
 import numpy as np
 
+from bus.consistency import NIS_FIELDS, NIS_KINDS
 from bus.rejections import REASONS
-from bus.schema import Array, Bool, Counts, Covariance, Float, Int, Text, decode, encode
+from bus.schema import Array, Bool, Counts, Covariance, Float, Floats, Int, Text, decode, encode
 
 VehicleId = Annotated[int, Int(1, 250)]
 StampUs = Annotated[int, Int(0, 2**53)]
@@ -219,6 +220,7 @@ class VehicleStatus:
     landmarks: Annotated[int, Int(0, 2**31)] = 0  # SLAM: landmarks in the map
     landmarks_updated: Annotated[int, Int(0, 2**31)] = 0  # SLAM: landmarks the last usable frame updated
     frames_used: Annotated[int, Int(0, 2**53)] = 0  # SLAM: camera frames through the front end
+    nis: Annotated[tuple[float, ...], Floats((0, NIS_FIELDS * len(NIS_KINDS)), 1e15)] = ()  # bus.consistency.NisBook
 
 
 @dataclass(frozen=True)

@@ -80,6 +80,28 @@ class Counts:
 
 
 @dataclasses.dataclass(frozen=True)
+class Floats:
+    """A tuple of finite floats within +-``max_abs`` whose length is one of ``lengths`` (travels as a
+    msgpack list)."""
+
+    lengths: tuple[int, ...]
+    max_abs: float
+
+    def pack(self, value: Any) -> list[float]:
+        return [float(v) for v in value]
+
+    def unpack(self, name: str, raw: Any) -> tuple[float, ...]:
+        if not isinstance(raw, list) or len(raw) not in self.lengths:
+            raise DecodeError(f"{name}: expected a list of {' or '.join(map(str, self.lengths))} numbers")
+        if not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) <= self.max_abs  # NaN fails too
+            for v in raw
+        ):
+            raise DecodeError(f"{name}: entries must be finite numbers within +-{self.max_abs:g}")
+        return tuple(float(v) for v in raw)
+
+
+@dataclasses.dataclass(frozen=True)
 class Text:
     """A short printable string (travels as a msgpack str)."""
 

@@ -186,7 +186,7 @@ def _print_result(
     the report could not be."""
     from rich.console import Console
 
-    from groundstation.display import consistency_table, rmse_table
+    from groundstation.display import consistency_table, nis_table, rmse_table
 
     console = Console()
     for note in notes:
@@ -201,6 +201,9 @@ def _print_result(
         console.print(rmse_table(summary, timing, title=f"{summary['name']}: {summary['status']}"))
         if consistency:
             console.print(consistency_table(summary))
+            nis = nis_table(summary)
+            if nis is not None:
+                console.print(nis)
     else:
         console.print(f"[red]swarm: no summary.json was written in {run_dir}[/red]")
     console.print(f"run directory: {run_dir}")

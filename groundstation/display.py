@@ -14,6 +14,8 @@ from rich.live import Live
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from bus.consistency import NIS_KINDS
+
 
 def rmse_table(summary: dict[str, Any], timing: dict[str, Any] | None = None, title: str = "swarm RMSE") -> Table:
     """Per-vehicle and swarm position RMSE, ANEES and loop counters from a summary (and timing)."""
@@ -46,7 +48,7 @@ def rmse_table(summary: dict[str, Any], timing: dict[str, Any] | None = None, ti
     return table
 
 
-def consistency_table(summary: dict[str, Any], title: str = "consistency") -> Table:
+def consistency_table(summary: dict[str, Any], title: str = "consistency (NEES)") -> Table:
     """Per vehicle: block ANEES against its band and the NEES tail shares (bus.consistency), from a
     summary whose vehicles carry ``consistency``."""
     table = Table(title=title)
@@ -68,6 +70,28 @@ def consistency_table(summary: dict[str, Any], title: str = "consistency") -> Ta
         )
     table.caption = "NEES in 30 s blocks; consistent: inside the band, 5 % above the 95 % point, 5 % below the 5 %"
     return table
+
+
+def nis_table(summary: dict[str, Any], title: str = "consistency (NIS of the fused updates)") -> Table | None:
+    """Per vehicle and measurement kind (bus.consistency.NIS_KINDS): mean NIS and the shares above the
+    95 % and below the 5 % point; None when no vehicle reported any."""
+    kinds = [k for k in NIS_KINDS if any(k in v.get("nis", {}) for v in summary["vehicles"].values())]
+    if not kinds:
+        return None
+    table = Table(title=title)
+    for column in ("vehicle", *kinds):
+        table.add_column(column, justify="right")
+    for vid, v in summary["vehicles"].items():
+        nis = v.get("nis", {})
+        table.add_row(vid, *(_nis(nis.get(k)) for k in kinds))
+    table.caption = "mean (2 for a 2-D measurement) / above 95 % pt / below 5 % pt (5 % each if consistent)"
+    return table
+
+
+def _nis(entry: dict | None) -> str:
+    if not entry:
+        return "-"
+    return f"{entry['mean']:.2f} / {_pct(entry['share_above_95'])} / {_pct(entry['share_below_05'])}"
 
 
 def _num(value: float | None, digits: int = 3) -> str:

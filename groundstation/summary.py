@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from bus.config import SwarmConfig
+from bus.consistency import nis_summary
 from bus.messages import VehicleStatus
 from bus.rejections import REASONS, counts_to_dict
 from bus.statistics import POSE_NEES_DOF
@@ -67,6 +68,9 @@ def build_summary(
             )
             if st.frames_used:  # a camera vehicle running SLAM
                 entry.update(landmarks=st.landmarks, camera_frames_used=st.frames_used)
+            nis = nis_summary(st.nis)
+            if nis:
+                entry["nis"] = nis
         entry["mavlink_rejected"] = per_vehicle_rejected.get(vid, 0)
         if vid in quality:
             entry["mavlink_link"] = quality[vid].as_dict()

@@ -313,6 +313,7 @@ class VehicleNode:
                 landmarks=c.landmarks,
                 landmarks_updated=c.landmarks_updated,
                 frames_used=c.frames_used,
+                nis=c.nis.values,
             ),
             self._landmark_map(t_us),
         )

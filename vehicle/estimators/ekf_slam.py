@@ -288,7 +288,9 @@ class VisionSlamMap:
         k = self.head_dim + 2 * j
         y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
         H = np.hstack([H_pose, H_landmark])
-        return f.store.update(s, y, H, R, self._gate, [0, 1, 2, k, k + 1]).accepted
+        result = f.store.update(s, y, H, R, self._gate, [0, 1, 2, k, k + 1])
+        f.tally_nis("landmark", result, 2)
+        return result.accepted
 
     def _linearize_at(self, s: FilterState, j: int) -> tuple[np.ndarray, np.ndarray] | None:
         """First estimates: the position as last propagated and the landmark's first estimate."""
@@ -382,7 +384,7 @@ class VisionSlamMap:
         model = added_states.in_columns(f.errors.model(s, first), idx)
         H, R, predicted = added_states.persisting_sighting(H, R, predicted, s.x, **model)
         y = np.array([z[0] - predicted[0], wrap_angle(z[1] - predicted[1])])
-        f.store.update(s, y, H, R, self._gate, idx)
+        f.tally_nis("landmark", f.store.update(s, y, H, R, self._gate, idx), 2)
 
 
 def build(

@@ -46,6 +46,7 @@ from vehicle.estimators.state import SEVERITY_INFO, SEVERITY_WARNING, EstimatorC
 from vehicle.estimators.trust import NeighbourTrust
 from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 from vehicle.inputs import HeldInput, VisualMotion, swept
+from vehicle.kalman import UpdateResult
 from vehicle.models import unicycle
 from vehicle.models.cooperative import CooperativeFix, CooperativeRule, SeenFix
 from vehicle.neighbours import MonitorSpec
@@ -315,9 +316,8 @@ class Filter:
             s.counters.gnss_rejected += 1
             return
         observed = self.gnss.observe(s.x, fix.covariance_m2)  # the position may have been reset
-        self.store.update(
-            s, fix.position_m - observed.predicted, observed.H, fix.covariance_m2, self.gate, observed.idx
-        )
+        y = fix.position_m - observed.predicted
+        self.tally_nis("gnss", self.store.update(s, y, observed.H, fix.covariance_m2, self.gate, observed.idx), len(y))
         s.counters.gnss_accepted += 1
 
     def _cooperative_update(self, fix: CooperativeFix | SeenFix) -> bool:
@@ -339,7 +339,13 @@ class Filter:
             return False
         if correction is not None:
             self.store.correct(s, correction)
+        self.tally_nis("robot" if isinstance(fix, CooperativeFix) else "seen", result, 2)
         return result.accepted
+
+    def tally_nis(self, kind: str, result: UpdateResult, dof: int) -> None:
+        """Count a fused update's NIS of ``dof`` dimensions under ``kind`` (bus.consistency.NIS_KINDS)."""
+        if result.accepted:
+            self.state.counters.nis = self.state.counters.nis.add(kind, result.nis, dof)
 
     def reset_position(self, offset_m: np.ndarray, variance_m2: float) -> None:
         """Jump the position by ``offset_m`` (2,) with per-axis variance ``variance_m2``; decorrelate it."""

@@ -95,6 +95,7 @@ class KnownMap:
             H, R, predicted = added_states.persisting_sighting(H, R, predicted, s.x, **model)
         y = np.array([msg.range_m - predicted[0], wrap_angle(msg.bearing_rad - predicted[1])])
         result = f.store.update(s, y, H, R, f.gate)
+        f.tally_nis("landmark", result, 2)
         if result.accepted:
             book.fused += 1
             book.failed_in_a_row = []

@@ -25,6 +25,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from bus.consistency import NisBook
 from vehicle.adaptive import NoiseAdaptation
 from vehicle.alignment import GnssAlignment
 from vehicle.gnss_health import GnssHealth
@@ -63,6 +64,7 @@ class EstimatorCounters:
     landmarks: int = 0  # SLAM: landmarks in the map; known-map: landmarks in the surveyed map
     landmarks_updated: int = 0  # SLAM: landmarks the last usable camera frame updated
     frames_used: int = 0  # SLAM: camera frames through the front end
+    nis: NisBook = field(default_factory=NisBook)  # NIS of the fused updates per kind (immutable: shared by copies)
 
 
 @dataclass

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bus.consistency import ConsistencyTally, consistency, tail_points
+from bus.consistency import NIS_KINDS, ConsistencyTally, NisBook, consistency, nis_summary, tail_points
 from bus.statistics import chi2_band
 
 RATE_HZ, DURATION_S, TAU_S = 10.0, 660.0, 3.0
@@ -95,3 +95,17 @@ def test_no_samples_give_no_verdict_and_mismatched_arrays_are_refused():
     assert empty.as_dict()["block_anees"] is None
     with pytest.raises(ValueError, match="one length"):
         consistency(np.zeros(3), np.zeros(4))
+
+
+def test_the_nis_book_counts_each_kind_apart_and_is_immutable():
+    empty = NisBook()
+    book = empty.add("landmark", 1.0, 2).add("landmark", 7.0, 2).add("gnss", 0.05, 2).add("robot", float("nan"), 2)
+    assert empty.values == (0.0,) * len(empty.values)
+    summary = nis_summary(book.values)
+    assert set(summary) == {"landmark", "gnss"}
+    assert summary["landmark"] == {"count": 2, "mean": 4.0, "share_above_95": 0.5, "share_below_05": 0.0}
+    assert summary["gnss"]["share_below_05"] == 1.0
+    assert nis_summary(()) == {} and nis_summary((1.0, 2.0)) == {}
+    with pytest.raises(ValueError):
+        book.add("no such kind", 1.0, 2)
+    assert len(book.values) == 4 * len(NIS_KINDS)

@@ -23,6 +23,7 @@ SAMPLES = [
     m.RangeBearing(2, 200_000, 4, 3, 42.5, -0.3, np.diag([0.09, 0.0004])),
     m.TickAck(9, 7),
     m.VehicleStatus(1, 100, 5, 0, 12.5, 300.0, 0, 1, 0, 0, 3, 4, 5, 6, 7),
+    m.VehicleStatus(1, 100, 5, 0, 12.5, 300.0, 0, 1, 0, 0, 3, 4, 5, 6, 7, nis=tuple(float(k) for k in range(16))),
     m.RunEnd(3001, 60_000_000, 5),
 ]
 
@@ -123,3 +124,34 @@ def test_well_formed_msgpack_with_wrong_values_raises_decode_error(msg, field, v
         m.decode(type(msg), _pack(body))
     except DecodeError:
         pass
+
+
+@pytest.mark.parametrize(
+    "nis, why",
+    [
+        ([1.0] * 15, "list of 0 or 16 numbers"),
+        ([float("nan")] + [0.0] * 15, "finite numbers"),
+        ([True] + [0.0] * 15, "finite numbers"),
+        (["1"] + [0.0] * 15, "finite numbers"),
+        ([1e16] + [0.0] * 15, "finite numbers"),
+        ("not a list", "list of 0 or 16 numbers"),
+    ],
+)
+def test_a_status_nis_book_that_is_not_one_is_refused_by_name(nis, why):
+    body = _body(m.VehicleStatus(1, 100, 5, 0, 12.5, 300.0, 0, 1, 0, 0, 3))
+    body["nis"] = nis
+    with pytest.raises(DecodeError, match=f"VehicleStatus.nis: .*{why}"):
+        m.decode(m.VehicleStatus, _pack(body))
+
+
+@given(
+    st.lists(st.one_of(st.floats(), st.integers(-(2**63), 2**64 - 1), st.booleans(), st.text(max_size=3)), max_size=20)
+)
+def test_any_status_nis_list_decodes_or_raises_decode_error(values):
+    body = _body(m.VehicleStatus(1, 100, 5, 0, 12.5, 300.0, 0, 1, 0, 0, 3))
+    body["nis"] = values
+    try:
+        decoded = m.decode(m.VehicleStatus, _pack(body))
+    except DecodeError:
+        return
+    assert len(decoded.nis) in (0, 16) and all(abs(v) <= 1e15 for v in decoded.nis)

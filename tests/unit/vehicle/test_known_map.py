@@ -136,3 +136,27 @@ def test_unknown_landmarks_and_misreadings_are_not_fused():
     assert estimator.state.landmarks.rejected == 1 and np.allclose(estimator.x[:2], x0[:2], atol=1e-3)
     estimator.handle(m.LandmarkSighting(1, 3000, 2, 12, np.hypot(lx, ly) + 0.05, 0.0, cov))
     assert estimator.state.landmarks.fused == 1 and np.all(np.diagonal(estimator.P)[:2] < np.diagonal(P0)[:2])
+
+
+def test_the_landmark_nis_a_vehicle_reports_is_that_of_a_consistent_filter():
+    """Where the datasheet is right, the NIS the filter reports for its landmark sightings (the
+    VehicleStatus ``nis`` book) has mean 2, 5 % of it above chi-square(2)'s 95 % point and 5 % below
+    its 5 % point."""
+    from bus.consistency import nis_summary
+
+    counts, means, above, below = [], [], [], []
+    for seed in range(8):
+        data = synthetic(np.random.default_rng(700 + seed), robots=1, duration_s=101.0)
+        config = replay_config("known-map", seed)
+        estimator = get_estimator(config.for_vehicle(), 1)
+        replay_in_memory(config, data, estimators={1: estimator})
+        landmark = nis_summary(estimator.counters.nis.values)["landmark"]
+        counts.append(landmark["count"])
+        means.append(landmark["mean"])
+        above.append(landmark["share_above_95"])
+        below.append(landmark["share_below_05"])
+    weights = np.array(counts) / sum(counts)
+    assert sum(counts) > 1200
+    assert 1.8 <= float(weights @ means) <= 2.2, means
+    assert 0.03 <= float(weights @ above) <= 0.07, above
+    assert 0.03 <= float(weights @ below) <= 0.07, below
