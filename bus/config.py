@@ -494,7 +494,7 @@ class SwarmConfig(_Strict):
         if self.world.vehicles != len(replay.robots):
             raise ValueError(f"a replay of robots {list(replay.robots)} needs world.vehicles = {len(replay.robots)}")
         low, high = replay.calibration_s
-        if replay.start_s < high and replay.start_s + self.clock.duration_s > low:
+        if not replay.calibrated_elsewhere and replay.start_s < high and replay.start_s + self.clock.duration_s > low:
             raise ValueError(
                 f"the replayed window [{replay.start_s:g}, {replay.start_s + self.clock.duration_s:g}] s "
                 f"overlaps the calibration interval [{low:g}, {high:g}] s: nothing calibrated is scored"

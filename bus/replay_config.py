@@ -21,6 +21,14 @@ class ReplayConfig(BaseModel):
         description="data set interval the noise datasheet "
         "was calibrated on [s]; the replayed window may not overlap it",
     )
+    calibration_file: str = Field(
+        "", max_length=4096, description="the file the datasheet was read from ('': calibrated on calibration_s)"
+    )
+    calibrated_elsewhere: bool = Field(
+        False,
+        description="the datasheet was fitted on another data set (calibration_s is that one's): "
+        "the whole of this one may be replayed",
+    )
     odom_lag_s: float = Field(
         0.0,
         ge=0,

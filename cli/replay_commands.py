@@ -54,6 +54,11 @@ def mrclam(
         "(odometry lag, camera latency, noise and the part of it that persists); the "
         "replayed window may not overlap it",
     ),
+    calibration: Optional[Path] = typer.Option(
+        None,
+        help="a calibration file written by `swarm replay calibrate` (fitted on another data set, or on "
+        "another interval of this one), read instead of calibrating; --calibrate is then not used",
+    ),
     withhold_landmarks: str = typer.Option("", help="robots whose landmark sightings are withheld, comma-separated"),
     mode: str = typer.Option("lockstep", help="lockstep (as fast as possible, reproducible) or realtime"),
     speed: float = typer.Option(1.0, help="realtime only: data set seconds per wall second"),
@@ -95,6 +100,7 @@ def mrclam(
         _numbers(withhold_landmarks, "--withhold-landmarks"),
         seed,
         relay,
+        str(calibration) if calibration is not None else "",
     )
     if estimator == "centralized" and mode != "lockstep":
         fail("the centralized reference runs in this process as fast as it can: --mode realtime does not apply")
@@ -146,3 +152,45 @@ def _reference(config: SwarmConfig, out: Path) -> None:
     console.print(rmse_table(summary, title=f"{config.name}: centralized reference (one process, no bus)"))
     console.print(consistency_table(summary))
     console.print(f"run directory: {run_dir}")
+
+
+@replay_app.command("calibrate")
+def calibrate_command(
+    dataset: Path = typer.Argument(..., help="an MRCLAM data set (1-9): its directory or its .tar.xz"),
+    interval: str = typer.Option("0,120", help="data set interval START,END (s) to fit on"),
+    robots: str = typer.Option("1,2,3,4,5", help="robots whose data it is fitted on, comma-separated"),
+    out: Path = typer.Option(..., help="the calibration file to write (JSON)"),
+) -> None:
+    """Fit the datasheet (odometry noise and lag, camera latency, each camera's sigmas, what persists)
+    on an interval of a data set against its ground truth, and freeze it in a file that `swarm replay
+    mrclam --calibration FILE` reads: the other half of the data set, or another data set, is then
+    replayed with numbers that never saw it (docs: real data)."""
+    from rich.console import Console
+
+    from sim.mrclam import load_mrclam
+    from sim.mrclam_calibration_file import calibration_file, dataset_name, write_calibration
+
+    span = _numbers(interval, "--interval", float)
+    chosen = _numbers(robots, "--robots")
+    if len(span) != 2 or not 0 <= span[0] < span[1]:
+        fail(f"--interval must be START,END in seconds with 0 <= START < END, got {interval!r}")
+    if not chosen or any(r not in (1, 2, 3, 4, 5) for r in chosen) or len(set(chosen)) != len(chosen):
+        fail(f"--robots must be distinct robots 1-5, got {robots!r}")
+    try:
+        data = load_mrclam(dataset)
+        frozen = calibration_file(data, dataset_name(dataset), span, chosen)
+        write_calibration(out, frozen)
+    except SwarmlocError as exc:
+        fail(str(exc))
+    except ValueError as exc:
+        fail(f"calibration: {exc}")
+    except OSError as exc:
+        fail(f"cannot write {out}: {exc.strerror or exc}")
+    s = frozen.sensors
+    Console().print(
+        f"{out}: fitted on {frozen.dataset} [{span[0]:g}, {span[1]:g}] s, robots {list(chosen)} "
+        f"({frozen.sightings} landmark sightings, {frozen.odometry_windows} odometry windows): "
+        f"odometry lag {frozen.odom_lag_s:.2f} s, camera latency {frozen.camera_latency_s:.2f} s, "
+        f"bearing {s.bearing_sigma_rad:.4f} rad, range {s.range_sigma_m:.3f} m",
+        highlight=False,
+    )

@@ -29,10 +29,18 @@ REFERENCE = "reference.json"
 
 
 def plan(
-    dataset: str, seeds: int, first_seed: int, variants: str, robots: str, start: float, duration: float
+    dataset: str,
+    seeds: int,
+    first_seed: int,
+    variants: str,
+    robots: str,
+    start: float,
+    duration: float,
+    calibration: str = "",
 ) -> list[RunSpec]:
     """Every variant on every seed; the window ``start`` .. ``start + duration`` data set seconds (0
-    duration: to the data set's end)."""
+    duration: to the data set's end); ``calibration``: a frozen calibration file (else calibrated on
+    the data set's first 120 s)."""
     if not dataset:
         raise ConfigError("--dataset: give an MRCLAM data set (its directory or its .tar.xz)")
     specs = []
@@ -47,6 +55,7 @@ def plan(
                 start,
                 duration or None,
                 seed=seed,
+                calibration_file=calibration,
             )
             name = f"{variant}-seed{seed}"
             config = replay_config(choice, name=name).model_dump(mode="json")

@@ -141,6 +141,7 @@ EXPERIMENTS: dict[str, Experiment] = {
             Param("robots", "1,2,3,4,5", "robots to replay, comma-separated"),
             Param("start", 120.0, "data set second the replay starts (after the calibration, 0-120 s)", 0.0),
             Param("duration", 0.0, "seconds replayed (0: to the data set's end)", 0.0),
+            Param("calibration", "", "a file from `swarm replay calibrate` read instead of calibrating on 0-120 s"),
         ),
     ),
 }

@@ -13,6 +13,7 @@ with known-map's models, the surveyed landmarks and every robot-to-robot sightin
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 from bus.config import SwarmConfig, build_config
 from bus.errors import ConfigError
@@ -42,12 +43,16 @@ class ReplayChoice:
     withhold_landmarks: tuple[int, ...] = ()
     seed: int = 0
     relay_sightings: bool = True
+    calibration_file: str = ""  # a datasheet frozen by `swarm replay calibrate` ("": calibrate on calibration_s)
 
 
 def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = None) -> SwarmConfig:
-    """Load the data set, calibrate, and build the validated config (ConfigError, DataError name the problem)."""
+    """Load the data set, calibrate (or read the frozen calibration), and build the validated config
+    (ConfigError, DataError name the problem). With a calibration fitted on another data set the window
+    starts at 0 by default; on this one, where its interval ends, and may not overlap it."""
     from sim.mrclam import load_mrclam
     from sim.mrclam_calibration import calibrate, sighting_sigmas
+    from sim.mrclam_calibration_file import CalibratedSensors
 
     if choice.estimator not in ESTIMATORS:
         raise ConfigError(f"unknown estimator {choice.estimator!r}: use {', '.join(ESTIMATORS)}")
@@ -60,14 +65,26 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
     if any(r not in choice.robots for r in choice.withhold_landmarks):
         raise ConfigError(f"--withhold-landmarks {list(choice.withhold_landmarks)} names robots not replayed")
     data = load_mrclam(choice.dataset)
-    start = choice.calibration_s[1] if choice.start_s is None else choice.start_s
+    frozen = _frozen_calibration(choice, data)
+    calibration_s = frozen.interval_s if frozen is not None else choice.calibration_s
+    elsewhere = frozen is not None and not frozen.fitted_on(data)
+    default_start = 0.0 if elsewhere else calibration_s[1]
+    start = default_start if choice.start_s is None else choice.start_s
     end = data.duration_s if choice.duration_s is None else start + choice.duration_s
     if end <= start:
         raise ConfigError(f"the window starts at {start:g} s, after the data set's end ({data.duration_s:g} s)")
-    try:
-        cal = calibrate(data, choice.calibration_s, choice.robots)
-    except ValueError as exc:
-        raise ConfigError(f"calibration: {exc}") from None
+    if frozen is not None:
+        sensors = frozen.sensors.model_dump()
+        lag, latency = frozen.odom_lag_s, frozen.camera_latency_s
+        cameras = [list(frozen.camera_of(robot)) for robot in choice.robots]
+    else:
+        try:
+            cal = calibrate(data, choice.calibration_s, choice.robots)
+        except ValueError as exc:
+            raise ConfigError(f"calibration: {exc}") from None
+        sensors = {name: getattr(cal, name) for name in CalibratedSensors.model_fields}
+        lag, latency = cal.odom_lag_s, cal.camera_latency_s
+        cameras = [list(pair) for pair in sighting_sigmas(data, choice.calibration_s, choice.robots, latency)]
     landmarks = [(int(row[0]), float(row[1]), float(row[2])) for row in data.landmarks]
     config = {
         "name": name,
@@ -76,17 +93,8 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
         "sensors": {
             "odom_rate_hz": RATE_HZ,
             "truth_rate_hz": RATE_HZ,
-            "odom_speed_sigma_mps": cal.odom_speed_sigma_mps,
-            "odom_yaw_rate_sigma_radps": cal.odom_yaw_rate_sigma_radps,
-            "odom_travel_sigma_m": cal.odom_travel_sigma_m,
-            "odom_turn_sigma_rad": cal.odom_turn_sigma_rad,
-            "range_sigma_m": cal.range_sigma_m,
-            "bearing_sigma_rad": cal.bearing_sigma_rad,
+            **sensors,
             "prior_sigma_m": PRIOR_SIGMA_M,
-            "range_correlated_sigma_per_m": cal.range_correlated_sigma_per_m,
-            "range_correlation_s": cal.range_correlation_s,
-            "bearing_correlated_fraction": cal.bearing_correlated_fraction,
-            "bearing_correlation_s": cal.bearing_correlation_s,
             "odom_scale_prior_sigma": ODOM_SCALE_PRIOR_SIGMA,
             "range_scale_prior_sigma": RANGE_SCALE_PRIOR_SIGMA,
             "prior_heading_sigma_rad": PRIOR_HEADING_SIGMA_RAD,
@@ -100,12 +108,12 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
             "dataset": str(choice.dataset),
             "robots": list(choice.robots),
             "start_s": start,
-            "calibration_s": list(choice.calibration_s),
-            "odom_lag_s": cal.odom_lag_s,
-            "camera_latency_s": cal.camera_latency_s,
-            "sighting_sigmas": [
-                list(pair) for pair in sighting_sigmas(data, choice.calibration_s, choice.robots, cal.camera_latency_s)
-            ],
+            "calibration_s": list(calibration_s),
+            "calibration_file": choice.calibration_file,
+            "calibrated_elsewhere": elsewhere,
+            "odom_lag_s": lag,
+            "camera_latency_s": latency,
+            "sighting_sigmas": cameras,
             "withhold_landmarks": list(choice.withhold_landmarks),
             "relay_sightings": choice.relay_sightings,
         },
@@ -113,3 +121,12 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
     for section, values in (overrides or {}).items():
         config.setdefault(section, {}).update({k: v for k, v in values.items() if v is not None})
     return build_config(config)
+
+
+def _frozen_calibration(choice: ReplayChoice, data):
+    """The calibration file the user named (sim.mrclam_calibration_file), or None."""
+    if not choice.calibration_file:
+        return None
+    from sim.mrclam_calibration_file import read_calibration
+
+    return read_calibration(Path(choice.calibration_file))
