@@ -78,7 +78,7 @@ def nis_table(summary: dict[str, Any], title: str = "consistency (NIS of the fus
     kinds = [k for k in NIS_KINDS if any(k in v.get("nis", {}) for v in summary["vehicles"].values())]
     if not kinds:
         return None
-    table = Table(title=title)
+    table = Table(title=title, min_width=76)
     for column in ("vehicle", *kinds):
         table.add_column(column, justify="right")
     for vid, v in summary["vehicles"].items():

@@ -14,6 +14,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from bus.statistics import chi2_band
 from sim.mrclam import load_mrclam
 from tests.integration.conftest import ESTIMATES_PER_S, read_summary
 
@@ -58,6 +59,7 @@ def runs(tmp_path_factory) -> dict[str, Path]:
         folder = tmp_path_factory.mktemp(name)
         result = _replay(folder, "--estimator", "known-map", *extra)
         assert result.returncode == 0, result.stdout + result.stderr
+        (folder / "stdout.txt").write_text(result.stdout)
         out[name] = folder / "replay"
     return out
 
@@ -68,6 +70,38 @@ def test_every_robot_localizes_against_the_map(runs):
     for vid, vehicle in summary["vehicles"].items():
         assert vehicle["samples"] >= (120 - 2) * ESTIMATES_PER_S, vid  # scored all along (Vicon gaps aside)
         assert vehicle["rmse_m"] < 0.3, (vid, vehicle["rmse_m"])
+
+
+def test_the_replay_reports_how_honest_each_robots_covariance_is(runs):
+    """Under the RMSE the replay prints, and summary.json holds, each robot's block ANEES against the
+    band of its number of 30 s blocks, its NEES tail shares, and the NIS of each kind of update it
+    fused: landmarks for a robot that sees them; only robot sightings for robots without landmarks."""
+    summary = read_summary(runs["known-map"])
+    for vid, vehicle in summary["vehicles"].items():
+        consistency = vehicle["consistency"]
+        assert consistency["blocks"] == 4, vid  # 120 s in 30 s blocks
+        assert consistency["band_95"] == pytest.approx(list(chi2_band(3, runs=4)), abs=1e-6)
+        assert 0 <= consistency["share_above_95"] <= 1 and 0 <= consistency["share_below_05"] <= 1
+        assert set(vehicle["nis"]) == {"landmark"} and vehicle["nis"]["landmark"]["count"] > 100, vid
+    printed = (runs["known-map"].parent / "stdout.txt").read_text()
+    assert "consistency (NEES)" in printed and "consistency (NIS of the fused updates)" in printed
+    together = read_summary(runs["together"])["vehicles"]
+    assert "landmark" not in together["2"]["nis"] and together["2"]["nis"]["seen"]["count"] > 10
+    assert together["1"]["nis"]["landmark"]["count"] > 100 and together["1"]["nis"]["robot"]["count"] > 10
+
+
+def test_a_calibration_frozen_in_a_file_replays_to_the_byte(runs, tmp_path):
+    """`swarm replay calibrate` on the same interval, then the replay reading the file: the same
+    summary and metrics as the replay that calibrated itself."""
+    frozen = tmp_path / "calibration.json"
+    command = [sys.executable, "-m", "cli", "replay", "calibrate", str(EXCERPT), "--interval", "0,120"]
+    written = subprocess.run([*command, "--out", str(frozen)], capture_output=True, text=True, timeout=120)
+    assert written.returncode == 0, written.stdout + written.stderr
+    result = _replay(tmp_path, "--estimator", "known-map", "--calibration", str(frozen))
+    assert result.returncode == 0, result.stdout + result.stderr
+    replayed, calibrated = tmp_path / "replay", runs["known-map"]
+    assert (replayed / "metrics.csv").read_bytes() == (calibrated / "metrics.csv").read_bytes()
+    assert read_summary(replayed)["vehicles"] == read_summary(calibrated)["vehicles"]
 
 
 def test_two_replays_give_identical_summaries(runs):
