@@ -71,14 +71,37 @@ def consistency(
         raise ValueError(f"times {t_s.shape} and NEES {nees.shape} must be two 1-D arrays of one length")
     keep = np.isfinite(t_s) & np.isfinite(nees)
     t_s, nees = t_s[keep], nees[keep]
-    block = np.floor(t_s / block_s).astype(np.int64)
-    tally = ConsistencyTally(dof=dof, block_s=block_s)
-    for index in np.unique(block):
-        inside = nees[block == index]
-        tally.blocks[int(index)] = [float(inside.sum()), int(inside.size)]
-    low, high = tally.points
-    tally.samples, tally.above, tally.below = int(nees.size), int(np.sum(nees > high)), int(np.sum(nees < low))
-    return tally.result()
+    _, block = np.unique(np.floor(t_s / block_s), return_inverse=True)
+    low, high = tail_points(dof)
+    return summarize(
+        np.bincount(block, weights=nees),
+        np.bincount(block),
+        samples=int(nees.size),
+        above=int(np.sum(nees > high)),
+        below=int(np.sum(nees < low)),
+        dof=dof,
+    )
+
+
+def summarize(
+    block_sums: np.ndarray, block_counts: np.ndarray, *, samples: int, above: int, below: int, dof: int
+) -> Consistency:
+    """The verdict from each block's NEES sum (B,) and sample count (B,), and the counts of samples in
+    all, above the upper and below the lower TAIL point (blocks under half the median count left out)."""
+    sums, counts = np.asarray(block_sums, dtype=float), np.asarray(block_counts, dtype=float)
+    full = counts >= 0.5 * np.median(counts) if counts.size else counts.astype(bool)
+    means = sums[full] / counts[full]
+    blocks = int(means.size)
+    band = chi2_band(dof, runs=blocks) if blocks else (float("nan"), float("nan"))
+    share = (lambda k: k / samples) if samples else (lambda k: float("nan"))
+    return Consistency(
+        samples=samples,
+        blocks=blocks,
+        block_anees=float(means.mean()) if blocks else float("nan"),
+        band=(float(band[0]), float(band[1])),
+        share_above=share(above),
+        share_below=share(below),
+    )
 
 
 @dataclass
@@ -107,25 +130,15 @@ class ConsistencyTally:
         entry[1] += 1
 
     def result(self) -> Consistency:
-        sums = np.array([s for s, _ in self.blocks.values()], dtype=float)
-        counts = np.array([n for _, n in self.blocks.values()], dtype=float)
-        full = counts >= 0.5 * np.median(counts) if counts.size else counts.astype(bool)
-        means = sums[full] / counts[full]
-        blocks = int(means.size)
-        band = chi2_band(self.dof, runs=blocks) if blocks else (float("nan"), float("nan"))
-        share = (lambda k: k / self.samples) if self.samples else (lambda k: float("nan"))
-        return Consistency(
+        entries = [self.blocks[index] for index in sorted(self.blocks)]
+        return summarize(
+            [total for total, _ in entries],
+            [count for _, count in entries],
             samples=self.samples,
-            blocks=blocks,
-            block_anees=float(means.mean()) if blocks else float("nan"),
-            band=(float(band[0]), float(band[1])),
-            share_above=share(self.above),
-            share_below=share(self.below),
+            above=self.above,
+            below=self.below,
+            dof=self.dof,
         )
-
-
-def _round(value: float) -> float | None:
-    return round(float(value), 6) if np.isfinite(value) else None
 
 
 NIS_KINDS = ("landmark", "robot", "seen", "gnss")  # a vehicle's sightings of landmarks, its own sightings
@@ -177,3 +190,7 @@ def nis_summary(values: tuple[float, ...]) -> dict[str, dict]:
 @cache
 def _cached_tail_points(dof: int) -> tuple[float, float]:
     return tail_points(dof)
+
+
+def _round(value: float) -> float | None:
+    return round(float(value), 6) if np.isfinite(value) else None

@@ -51,8 +51,6 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
     (ConfigError, DataError name the problem). With a calibration fitted on another data set the window
     starts at 0 by default; on this one, where its interval ends, and may not overlap it."""
     from sim.mrclam import load_mrclam
-    from sim.mrclam_calibration import calibrate, sighting_sigmas
-    from sim.mrclam_calibration_file import CalibratedSensors
 
     if choice.estimator not in ESTIMATORS:
         raise ConfigError(f"unknown estimator {choice.estimator!r}: use {', '.join(ESTIMATORS)}")
@@ -65,7 +63,7 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
     if any(r not in choice.robots for r in choice.withhold_landmarks):
         raise ConfigError(f"--withhold-landmarks {list(choice.withhold_landmarks)} names robots not replayed")
     data = load_mrclam(choice.dataset)
-    frozen = _frozen_calibration(choice, data)
+    frozen = _frozen_calibration(choice)
     calibration_s = frozen.interval_s if frozen is not None else choice.calibration_s
     elsewhere = frozen is not None and not frozen.fitted_on(data)
     default_start = 0.0 if elsewhere else calibration_s[1]
@@ -73,18 +71,7 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
     end = data.duration_s if choice.duration_s is None else start + choice.duration_s
     if end <= start:
         raise ConfigError(f"the window starts at {start:g} s, after the data set's end ({data.duration_s:g} s)")
-    if frozen is not None:
-        sensors = frozen.sensors.model_dump()
-        lag, latency = frozen.odom_lag_s, frozen.camera_latency_s
-        cameras = [list(frozen.camera_of(robot)) for robot in choice.robots]
-    else:
-        try:
-            cal = calibrate(data, choice.calibration_s, choice.robots)
-        except ValueError as exc:
-            raise ConfigError(f"calibration: {exc}") from None
-        sensors = {name: getattr(cal, name) for name in CalibratedSensors.model_fields}
-        lag, latency = cal.odom_lag_s, cal.camera_latency_s
-        cameras = [list(pair) for pair in sighting_sigmas(data, choice.calibration_s, choice.robots, latency)]
+    sensors, lag, latency, cameras = _datasheet(choice, data, frozen)
     landmarks = [(int(row[0]), float(row[1]), float(row[2])) for row in data.landmarks]
     config = {
         "name": name,
@@ -123,10 +110,28 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
     return build_config(config)
 
 
-def _frozen_calibration(choice: ReplayChoice, data):
+def _frozen_calibration(choice: ReplayChoice):
     """The calibration file the user named (sim.mrclam_calibration_file), or None."""
     if not choice.calibration_file:
         return None
     from sim.mrclam_calibration_file import read_calibration
 
     return read_calibration(Path(choice.calibration_file))
+
+
+def _datasheet(choice: ReplayChoice, data, frozen) -> tuple[dict, float, float, list[list[float]]]:
+    """(the calibrated sensor fields, odometry lag s, camera latency s, each replayed robot's camera
+    sigmas): read from the ``frozen`` calibration, or calibrated now on ``choice.calibration_s``."""
+    if frozen is not None:
+        cameras = [list(frozen.camera_of(robot)) for robot in choice.robots]
+        return frozen.sensors.model_dump(), frozen.odom_lag_s, frozen.camera_latency_s, cameras
+    from sim.mrclam_calibration import calibrate, sighting_sigmas
+    from sim.mrclam_calibration_file import CalibratedSensors
+
+    try:
+        cal = calibrate(data, choice.calibration_s, choice.robots)
+    except ValueError as exc:
+        raise ConfigError(f"calibration: {exc}") from None
+    sensors = {name: getattr(cal, name) for name in CalibratedSensors.model_fields}
+    cameras = [list(pair) for pair in sighting_sigmas(data, choice.calibration_s, choice.robots, cal.camera_latency_s)]
+    return sensors, cal.odom_lag_s, cal.camera_latency_s, cameras
