@@ -162,6 +162,14 @@ class SensorSpec(_Strict):
         "estimates both (0: taken as exact)",
     )
     prior_sigma_m: float = Field(0.5, gt=0, description="launch-pad survey of the start position")
+    frame_sigma_m: float = Field(
+        0.0,
+        ge=0,
+        le=10,
+        description="how far, per axis, where a replayed robot's sightings put it may lie from where its "
+        "truth (Vicon) has it, however many it sees: added to the published position covariance, "
+        "not to the filter's own (calibrated on a replay; the simulated world has no such error)",
+    )
     prior_heading_sigma_rad: float = Field(0.05, gt=0)
     camera_rate_hz: float = Field(0.0, ge=0, le=100, description="down-looking camera frames (0: no camera)")
     camera_size_px: int = Field(80, ge=16, le=1024, description="square frame side (the paper's 80 px)")
@@ -483,10 +491,12 @@ class SwarmConfig(_Strict):
     @model_validator(mode="after")
     def _replay_fits(self) -> SwarmConfig:
         replay = self.replay
-        if replay is None and (self.sensors.odom_turn_sigma_rad or self.sensors.odom_travel_sigma_m):
+        if replay is None and (
+            self.sensors.odom_turn_sigma_rad or self.sensors.odom_travel_sigma_m or self.sensors.frame_sigma_m
+        ):
             raise ValueError(
-                "sensors.odom_turn_sigma_rad and odom_travel_sigma_m describe a replayed robot's "
-                "odometry; the simulated world makes no such error, so a filter told of it would be "
+                "sensors.odom_turn_sigma_rad, odom_travel_sigma_m and frame_sigma_m describe a replayed "
+                "robot's data; the simulated world makes no such error, so a filter told of it would be "
                 "told wrong (leave them 0)"
             )
         if replay is None:
@@ -494,7 +504,8 @@ class SwarmConfig(_Strict):
         if self.world.vehicles != len(replay.robots):
             raise ValueError(f"a replay of robots {list(replay.robots)} needs world.vehicles = {len(replay.robots)}")
         low, high = replay.calibration_s
-        if not replay.calibrated_elsewhere and replay.start_s < high and replay.start_s + self.clock.duration_s > low:
+        overlaps = replay.start_s < high and replay.start_s + self.clock.duration_s > low
+        if overlaps and not (replay.calibrated_elsewhere or replay.fitting):
             raise ValueError(
                 f"the replayed window [{replay.start_s:g}, {replay.start_s + self.clock.duration_s:g}] s "
                 f"overlaps the calibration interval [{low:g}, {high:g}] s: nothing calibrated is scored"

@@ -7,6 +7,30 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
+class CameraReadout(BaseModel):
+    """How one robot's camera misreads what it sees, calibrated against ground truth
+    (sim.mrclam_camera): a target at true range r and bearing b reads the range
+    r (1 + scale + tilt b + curvature b^2) + offset_m, with a scale and an offset for landmarks and
+    for robots (their barcodes differ in size), and the bearing b + bearing_offset_rad +
+    bearing_scale b + bearing_curvature b^2, with b taken no further than span_rad off the axis in the
+    curves (they are fitted there, not beyond). All zero: read as seen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    landmark_scale: float = Field(0.0, ge=-0.5, le=0.5, description="landmark ranges read long by this fraction")
+    landmark_offset_m: float = Field(0.0, ge=-1.0, le=1.0, description="and by this much (m)")
+    robot_scale: float = Field(0.0, ge=-0.5, le=0.5, description="robot ranges read long by this fraction")
+    robot_offset_m: float = Field(0.0, ge=-1.0, le=1.0, description="and by this much (m)")
+    tilt: float = Field(0.0, ge=-1.0, le=1.0, description="range read long by this fraction per rad of bearing")
+    curvature: float = Field(0.0, ge=-5.0, le=5.0, description="and per rad^2 of bearing squared")
+    bearing_offset_rad: float = Field(0.0, ge=-0.5, le=0.5)
+    bearing_scale: float = Field(0.0, ge=-0.5, le=0.5, description="bearing read too wide by this fraction")
+    bearing_curvature: float = Field(0.0, ge=-5.0, le=5.0, description="rad per rad^2 of bearing squared")
+    span_rad: float = Field(
+        0.0, ge=0.0, le=3.2, description="the curves hold within +-span_rad of bearing (the fitted sightings')"
+    )
+
+
 class ReplayConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -50,6 +74,17 @@ class ReplayConfig(BaseModel):
         "calibrated; empty: the datasheet's range_sigma_m "
         "(m) and bearing_sigma_rad",
     )
+    readouts: tuple[CameraReadout, ...] = Field(
+        (),
+        description="per replayed robot, how its camera misreads range and bearing (calibrated); the "
+        "replay reads each sighting back through it, as a camera driver applies its calibration; "
+        "empty: sightings as recorded",
+    )
+    fitting: bool = Field(
+        False,
+        description="a run inside the calibration interval that completes the calibration "
+        "(launch.frame_floor): never scored, never a user's run",
+    )
     withhold_landmarks: tuple[int, ...] = Field(
         (), description="robots whose landmark sightings are withheld (they localize from odometry and the others)"
     )
@@ -71,6 +106,8 @@ class ReplayConfig(BaseModel):
             len(self.sighting_sigmas) != len(self.robots) or any(not (r > 0 and b > 0) for r, b in self.sighting_sigmas)
         ):
             raise ValueError("sighting_sigmas needs one positive (range, bearing) pair per replayed robot")
+        if self.readouts and len(self.readouts) != len(self.robots):
+            raise ValueError("readouts needs one camera readout per replayed robot")
         low, high = self.calibration_s
         if not 0 <= low < high:
             raise ValueError(f"calibration_s must be an interval [start, end] with 0 <= start < end, got {[low, high]}")

@@ -167,8 +167,9 @@ def calibrate_command(
     replayed with numbers that never saw it (docs: real data)."""
     from rich.console import Console
 
+    from launch.replay_setup import ReplayChoice, calibration
     from sim.mrclam import load_mrclam
-    from sim.mrclam_calibration_file import calibration_file, dataset_name, write_calibration
+    from sim.mrclam_calibration_file import dataset_name, write_calibration
 
     span = _numbers(interval, "--interval", float)
     chosen = _numbers(robots, "--robots")
@@ -178,7 +179,8 @@ def calibrate_command(
         fail(f"--robots must be distinct robots 1-5, got {robots!r}")
     try:
         data = load_mrclam(dataset)
-        frozen = calibration_file(data, dataset_name(dataset), span, chosen)
+        choice = ReplayChoice(str(dataset), robots=tuple(chosen), calibration_s=(span[0], span[1]))
+        frozen = calibration(choice, data, dataset_name(dataset))
         write_calibration(out, frozen)
     except SwarmlocError as exc:
         fail(str(exc))
@@ -191,6 +193,6 @@ def calibrate_command(
         f"{out}: fitted on {frozen.dataset} [{span[0]:g}, {span[1]:g}] s, robots {list(chosen)} "
         f"({frozen.sightings} landmark sightings, {frozen.odometry_windows} odometry windows): "
         f"odometry lag {frozen.odom_lag_s:.2f} s, camera latency {frozen.camera_latency_s:.2f} s, "
-        f"bearing {s.bearing_sigma_rad:.4f} rad, range {s.range_sigma_m:.3f} m",
+        f"bearing {s.bearing_sigma_rad:.4f} rad, range {s.range_sigma_m:.3f} m, frame floor {s.frame_sigma_m:.3f} m",
         highlight=False,
     )

@@ -12,6 +12,7 @@ with known-map's models, the surveyed landmarks and every robot-to-robot sightin
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -71,16 +72,45 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
     end = data.duration_s if choice.duration_s is None else start + choice.duration_s
     if end <= start:
         raise ConfigError(f"the window starts at {start:g} s, after the data set's end ({data.duration_s:g} s)")
-    sensors, lag, latency, cameras = _datasheet(choice, data, frozen)
+    sheet = _read_datasheet(choice, frozen) if frozen is not None else calibrated_datasheet(choice, data)
+    config = _config_dict(choice, name, data, sheet, (start, end), calibration_s)
+    config["replay"]["calibrated_elsewhere"] = elsewhere
+    for section, values in (overrides or {}).items():
+        config.setdefault(section, {}).update({k: v for k, v in values.items() if v is not None})
+    return build_config(config)
+
+
+@dataclass(frozen=True)
+class Datasheet:
+    """What a calibration gives a replay: the ``sensors`` fields, the odometry lag and camera latency
+    (s), and per replayed robot its camera's sigmas [range per metre, bearing rad] and readout."""
+
+    sensors: dict
+    odom_lag_s: float
+    camera_latency_s: float
+    sighting_sigmas: list[list[float]]
+    readouts: list[dict]
+
+
+def _config_dict(
+    choice: ReplayChoice,
+    name: str,
+    data,
+    sheet: Datasheet,
+    window_s: tuple[float, float],
+    calibration_s: tuple[float, float],
+) -> dict:
+    """The config (as a dict) replaying ``window_s`` of ``data`` with ``sheet``."""
+    start, end = window_s
     landmarks = [(int(row[0]), float(row[1]), float(row[2])) for row in data.landmarks]
-    config = {
+    return {
         "name": name,
         "world": {"vehicles": len(choice.robots), "seed": choice.seed, "altitude_m": 0.0},
         "clock": {"duration_s": round(end - start, 6)},
         "sensors": {
             "odom_rate_hz": RATE_HZ,
             "truth_rate_hz": RATE_HZ,
-            **sensors,
+            **sheet.sensors,
             "prior_sigma_m": PRIOR_SIGMA_M,
             "odom_scale_prior_sigma": ODOM_SCALE_PRIOR_SIGMA,
             "range_scale_prior_sigma": RANGE_SCALE_PRIOR_SIGMA,
@@ -97,17 +127,14 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
             "start_s": start,
             "calibration_s": list(calibration_s),
             "calibration_file": choice.calibration_file,
-            "calibrated_elsewhere": elsewhere,
-            "odom_lag_s": lag,
-            "camera_latency_s": latency,
-            "sighting_sigmas": cameras,
+            "odom_lag_s": sheet.odom_lag_s,
+            "camera_latency_s": sheet.camera_latency_s,
+            "sighting_sigmas": sheet.sighting_sigmas,
+            "readouts": sheet.readouts,
             "withhold_landmarks": list(choice.withhold_landmarks),
             "relay_sightings": choice.relay_sightings,
         },
     }
-    for section, values in (overrides or {}).items():
-        config.setdefault(section, {}).update({k: v for k, v in values.items() if v is not None})
-    return build_config(config)
 
 
 def _frozen_calibration(choice: ReplayChoice):
@@ -119,19 +146,54 @@ def _frozen_calibration(choice: ReplayChoice):
     return read_calibration(Path(choice.calibration_file))
 
 
-def _datasheet(choice: ReplayChoice, data, frozen) -> tuple[dict, float, float, list[list[float]]]:
-    """(the calibrated sensor fields, odometry lag s, camera latency s, each replayed robot's camera
-    sigmas): read from the ``frozen`` calibration, or calibrated now on ``choice.calibration_s``."""
-    if frozen is not None:
-        cameras = [list(frozen.camera_of(robot)) for robot in choice.robots]
-        return frozen.sensors.model_dump(), frozen.odom_lag_s, frozen.camera_latency_s, cameras
+def _read_datasheet(choice: ReplayChoice, frozen) -> Datasheet:
+    """The datasheet of the ``frozen`` calibration (sim.mrclam_calibration_file) for the replayed robots."""
+    return Datasheet(
+        frozen.sensors.model_dump(),
+        frozen.odom_lag_s,
+        frozen.camera_latency_s,
+        [list(frozen.camera_of(robot)) for robot in choice.robots],
+        [frozen.readout_of(robot).model_dump() for robot in choice.robots],
+    )
+
+
+def calibrated_datasheet(choice: ReplayChoice, data) -> Datasheet:
+    """The datasheet calibrated now on ``choice.calibration_s`` of ``data`` (:func:`calibration`)."""
+    from sim.mrclam_calibration_file import dataset_name
+
+    frozen = calibration(choice, data, dataset_name(choice.dataset))
+    return _read_datasheet(choice, frozen)
+
+
+def calibration(choice: ReplayChoice, data, dataset: str):
+    """The calibration of ``choice.robots`` on ``choice.calibration_s`` of ``data`` (named
+    ``dataset``) as a file would hold it (sim.mrclam_calibration_file): the datasheet fitted against
+    the ground truth (sim.mrclam_calibration), then its frame floor fitted by replaying that interval
+    with it (launch.frame_floor). ConfigError when the interval holds too little."""
+    from launch.frame_floor import fit_frame_sigma
     from sim.mrclam_calibration import calibrate, sighting_sigmas
-    from sim.mrclam_calibration_file import CalibratedSensors
+    from sim.mrclam_calibration_file import calibration_file
 
     try:
         cal = calibrate(data, choice.calibration_s, choice.robots)
     except ValueError as exc:
         raise ConfigError(f"calibration: {exc}") from None
-    sensors = {name: getattr(cal, name) for name in CalibratedSensors.model_fields}
-    cameras = [list(pair) for pair in sighting_sigmas(data, choice.calibration_s, choice.robots, cal.camera_latency_s)]
-    return sensors, cal.odom_lag_s, cal.camera_latency_s, cameras
+    sigmas = sighting_sigmas(data, choice.calibration_s, choice.robots, cal.camera_latency_s, cal.readouts)
+    unfloored = calibration_file(data, dataset, cal, choice.robots, sigmas, 0.0)
+    floor = fit_frame_sigma(_fitting_config(choice, data, _read_datasheet(choice, unfloored)), data)
+    return calibration_file(data, dataset, cal, choice.robots, sigmas, floor)
+
+
+def _fitting_config(choice: ReplayChoice, data, sheet: Datasheet) -> SwarmConfig | None:
+    """The known-map replay of the calibration interval that fits the frame floor (launch.frame_floor),
+    from the first instant Vicon has every robot; None when that leaves nothing of the interval."""
+    low, high = choice.calibration_s
+    start = max(
+        [low] + [float(data.robots[r].groundtruth[0, 0]) for r in choice.robots if len(data.robots[r].groundtruth)]
+    )
+    if start >= high:
+        return None
+    known_map = dataclasses.replace(choice, estimator="known-map", cooperative=False, withhold_landmarks=())
+    config = _config_dict(known_map, "frame-floor", data, sheet, (start, high), (low, high))
+    config["replay"]["fitting"] = True
+    return build_config(config)

@@ -15,8 +15,13 @@ then never scored (Leung et al., IJRR 2011). Pure: data in, numbers out.
   to ``MAX_CAMERA_LATENCY_S``) is the one that minimises the robust RMS of the landmark bearings'
   residuals; every sighting statistic below is taken on the sightings restamped with it, and so is
   the replay (``replay.camera_latency_s``).
-- Odometry (commanded speed and yaw rate, lag removed, held between samples): integrated over windows of
-  ``WINDOW_S`` from the true pose, against the true pose at the window's end. Its error grows with
+- Odometry (commanded speed and yaw rate, lag removed, held between samples): integrated over windows
+  from the true pose, against the true pose at the window's end. The windows are as long as the
+  odometry has to carry a robot alone between landmark sightings, typically (``blind_stretch``: the
+  gaps' length-weighted mean, 13-15 s on data set 6): the error does not grow as a random walk, its
+  variance per second is 1.5-1.8 times larger over 20 s windows than over 5 s ones, so a datasheet
+  fitted on short windows would have the filter sure of itself exactly where it drives blind. The
+  error grows with
   time and with the motion: a window's squared along-track error ~ a T + b d (T its length, d the
   distance travelled) and its squared heading error ~ c T + e r (r the angle turned), fitted by
   non-negative least squares over the windows (the odometry motion model of Thrun et al.,
@@ -49,13 +54,15 @@ import numpy as np
 from scipy.optimize import nnls
 
 from bus.angles import wrap_angle, wrap_angles
+from bus.replay_config import CameraReadout
 from sim.mrclam import MrclamData, RobotLog, delayed, pose_at
+from sim.mrclam_camera import fit_readouts, rectified
 
 OUTLIER_SIGMAS = 5.0
 LAG_STEP_S, MAX_LAG_S = 0.01, 0.5
 MAX_CAMERA_LATENCY_S = 0.3
 RATE_STEP_S = 0.02  # Vicon differentiated over this
-WINDOW_S = 5.0
+WINDOW_S = 5.0  # the shortest odometry window (blind_stretch sets the one used)
 MOVING_MPS = 0.01  # windows where the robot is commanded to stand still say nothing about its wheels
 # lag bins of the range error's correlation: short lags only, where pairs are many and tell most
 LAG_EDGES_S = np.array([0.1, 0.5, 1.0, 2.0, 4.0])
@@ -83,6 +90,7 @@ class Calibration:
     odom_lag_s: float
     interval_s: tuple[float, float]
     camera_latency_s: float = 0.0
+    readouts: tuple[CameraReadout, ...] = ()  # each robot's camera readout, in ``robots`` order
 
 
 def landmark_sightings(log: RobotLog, landmarks: dict[int, np.ndarray], t0: float, t1: float) -> np.ndarray:
@@ -188,7 +196,11 @@ def _persistence(errors: list[np.ndarray]) -> tuple[float, float, float]:
 def odometry_errors(log: RobotLog, t0: float, t1: float, window_s: float = WINDOW_S) -> tuple[np.ndarray, np.ndarray]:
     """Along-track (m) and heading (rad) error (k, 2) of the held odometry integrated over
     consecutive windows in [t0, t1) from the true pose, against the true pose, and each window's
-    [length s, distance travelled m, angle turned rad] (k, 3) by the odometry; moving windows only."""
+    [length s, distance travelled m, angle turned rad] (k, 3) by the odometry; moving windows only.
+    The along-track error is the speed's alone: the commanded speeds are integrated along the true
+    track (Vicon's heading at each hold), and the error is the distance from the true end (the
+    heading's error, which bends an integrated track further off the longer the window, is the yaw
+    rate's, measured apart)."""
     od, out, extents = log.odometry, [], []
     for start in np.arange(t0, t1 - window_s, window_s):
         before = np.flatnonzero(od[:, 0] <= start)
@@ -203,12 +215,14 @@ def odometry_errors(log: RobotLog, t0: float, t1: float, window_s: float = WINDO
         if not np.all(np.isfinite(ends)):
             continue
         dt = np.diff(times)
-        heading = ends[0, 2] + np.concatenate([[0.0], np.cumsum(rows[:, 2] * dt)])
+        heading = ends[0, 2] + np.sum(rows[:, 2] * dt)
+        track = pose_at(log.groundtruth, 0.5 * (times[:-1] + times[1:]))[:, 2]
+        if not np.all(np.isfinite(track)):
+            continue
         step = rows[:, 1] * dt
-        x = ends[0, 0] + np.sum(step * np.cos(heading[:-1]))
-        y = ends[0, 1] + np.sum(step * np.sin(heading[:-1]))
-        c, s = np.cos(ends[1, 2]), np.sin(ends[1, 2])
-        out.append([c * (x - ends[1, 0]) + s * (y - ends[1, 1]), wrap_angle(heading[-1] - ends[1, 2])])
+        x = ends[0, 0] + np.sum(step * np.cos(track))
+        y = ends[0, 1] + np.sum(step * np.sin(track))
+        out.append([np.hypot(x - ends[1, 0], y - ends[1, 1]), wrap_angle(heading - ends[1, 2])])
         extents.append([window_s, np.sum(np.abs(step)), np.sum(np.abs(rows[:, 2]) * dt)])
     return np.array(out).reshape(-1, 2), np.array(extents).reshape(-1, 3)
 
@@ -251,11 +265,13 @@ def calibrate(data: MrclamData, interval_s: tuple[float, float], robots: tuple[i
     """The datasheet of ``robots`` measured on ``interval_s`` of ``data`` (see the module docstring)."""
     t0, t1 = interval_s
     latency = camera_latency(data, interval_s, robots)
-    logs = {r: delayed(data.robots[r], 0.0, latency) for r in robots}
+    readouts = camera_readouts(data, interval_s, robots, latency)
+    logs = {r: rectified(delayed(data.robots[r], 0.0, latency), readout) for r, readout in zip(robots, readouts)}
     residuals = np.vstack([sighting_residuals(logs[r], _landmark_positions(data), t0, t1) for r in robots])
     lags = np.arange(0.0, MAX_LAG_S + 1e-9, LAG_STEP_S)
     lag = float(lags[np.argmin(sum(lag_mismatch(data.robots[r], t0, t1, lags) for r in robots))])
-    windows = [odometry_errors(delayed(data.robots[r], lag), t0, t1) for r in robots]
+    window = blind_stretch(data, interval_s, robots)
+    windows = [odometry_errors(delayed(data.robots[r], lag), t0, t1, window) for r in robots]
     odometry, extents = np.vstack([w[0] for w in windows]), np.vstack([w[1] for w in windows])
     if len(residuals) < 20 or len(odometry) < 10:
         raise ValueError(
@@ -290,7 +306,33 @@ def calibrate(data: MrclamData, interval_s: tuple[float, float], robots: tuple[i
         lag,
         (float(t0), float(t1)),
         latency,
+        readouts,
     )
+
+
+def camera_readouts(
+    data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...], camera_latency_s: float
+) -> tuple[CameraReadout, ...]:
+    """Each robot's camera readout (sim.mrclam_camera) fitted on ``interval_s``, its sightings
+    restamped by ``camera_latency_s``, against the surveyed landmarks and every robot's Vicon track."""
+    targets = {**_landmark_positions(data), **{r: log.groundtruth for r, log in data.robots.items()}}
+    readouts = fit_readouts({r: delayed(data.robots[r], 0.0, camera_latency_s) for r in robots}, targets, *interval_s)
+    return tuple(readouts[r] for r in robots)
+
+
+def blind_stretch(data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...]) -> float:
+    """How long (s) the odometry has to carry a robot alone, typically: the mean length of the gaps
+    between its landmark sightings on ``interval_s``, weighted by their length (the gap a moment of
+    the interval lies in, on average), pooled over ``robots``; at least WINDOW_S."""
+    landmarks = list(_landmark_positions(data))
+    t0, t1 = interval_s
+    gaps = []
+    for robot in robots:
+        t = data.robots[robot].sightings
+        t = t[(t[:, 0] >= t0) & (t[:, 0] < t1) & np.isin(t[:, 1], landmarks), 0]
+        gaps.append(np.diff(np.concatenate([[t0], np.sort(t), [t1]])))
+    g = np.concatenate(gaps)
+    return max(WINDOW_S, float(np.sum(g**2) / max(np.sum(g), 1e-9)))
 
 
 def camera_latency(data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...]) -> float:
@@ -309,13 +351,21 @@ def camera_latency(data: MrclamData, interval_s: tuple[float, float], robots: tu
 
 
 def sighting_sigmas(
-    data: MrclamData, interval_s: tuple[float, float], robots: tuple[int, ...], camera_latency_s: float = 0.0
+    data: MrclamData,
+    interval_s: tuple[float, float],
+    robots: tuple[int, ...],
+    camera_latency_s: float = 0.0,
+    readouts: tuple[CameraReadout, ...] = (),
 ) -> tuple[tuple[float, float], ...]:
     """Each robot's own camera: (range sigma per metre of range, bearing sigma rad) of its landmark
-    sightings on ``interval_s``, restamped by ``camera_latency_s`` (robust RMS of error / true range,
-    and of the bearing error; the pooled sigmas where a robot saw fewer than 20 landmarks)."""
+    sightings on ``interval_s``, restamped by ``camera_latency_s`` and read back through its readout
+    in ``readouts`` (robust RMS of error / true range, and of the bearing error; the pooled sigmas
+    where a robot saw fewer than 20 landmarks)."""
     landmarks = _landmark_positions(data)
-    logs = {robot: delayed(data.robots[robot], 0.0, camera_latency_s) for robot in robots}
+    logs = {
+        robot: rectified(delayed(data.robots[robot], 0.0, camera_latency_s), readout)
+        for robot, readout in zip(robots, readouts or (CameraReadout(),) * len(robots))
+    }
     errors = {robot: range_errors(logs[robot], landmarks, *interval_s) for robot in robots}
     bearings = {robot: sighting_residuals(logs[robot], landmarks, *interval_s)[:, 1] for robot in robots}
     pooled = (

@@ -1,12 +1,13 @@
 """A datasheet calibrated from ground truth, frozen in a file: ``swarm replay calibrate`` fits it on an
-interval of one data set (sim.mrclam_calibration) and writes it; ``swarm replay mrclam --calibration
+interval of one data set (sim.mrclam_calibration, launch.frame_floor) and writes it; ``swarm replay mrclam --calibration
 FILE`` reads it instead of calibrating, so a held-out data set, or the other half of the same one, is
 replayed with numbers that never saw it. Nothing in the file is typed by hand.
 
 The file is JSON: the data set it was fitted on (its name, and its recording's start time, which names
 it whatever its file is called: the whole data set and an excerpt of it are the same recording), the
 interval and robots, the swarm's datasheet (the ``sensors`` fields a replay sets), the odometry lag and
-camera latency, each robot's camera sigmas, and how much it was measured on. Reading it is total: a
+camera latency, each robot's camera sigmas and readout (how it misreads range and bearing), and how
+much it was measured on. Reading it is total: a
 file that is not one is refused with one line naming the file and what is wrong.
 """
 
@@ -19,8 +20,9 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from bus.errors import ConfigError
+from bus.replay_config import CameraReadout
 from sim.mrclam import MrclamData
-from sim.mrclam_calibration import calibrate, sighting_sigmas
+from sim.mrclam_calibration import Calibration
 
 FORMAT = "swarmloc/mrclam-calibration"
 
@@ -40,6 +42,9 @@ class CalibratedSensors(BaseModel):
     range_correlation_s: float = Field(gt=0, le=1e4)
     bearing_correlated_fraction: float = Field(ge=0, le=0.95)
     bearing_correlation_s: float = Field(gt=0, le=1e4)
+    frame_sigma_m: float = Field(
+        0.0, ge=0, le=10, description="fitted by a replay of the interval (launch.frame_floor)"
+    )
 
 
 class CalibrationFile(BaseModel):
@@ -59,6 +64,10 @@ class CalibrationFile(BaseModel):
     sighting_sigmas: dict[int, tuple[float, float]] = Field(
         description="per robot: its camera's range sigma per metre of range and bearing sigma (rad)"
     )
+    readouts: dict[int, CameraReadout] = Field(
+        default_factory=dict,
+        description="per robot: how its camera misreads range and bearing (none: read as recorded)",
+    )
     sightings: int = Field(ge=0)
     outliers: int = Field(ge=0)
     odometry_windows: int = Field(ge=0)
@@ -74,24 +83,35 @@ class CalibrationFile(BaseModel):
             )
         return self.sighting_sigmas[robot]
 
+    def readout_of(self, robot: int) -> CameraReadout:
+        """The robot's camera readout (identity in a file written before readouts were calibrated)."""
+        self.camera_of(robot)
+        return self.readouts.get(robot, CameraReadout())
+
 
 def calibration_file(
-    data: MrclamData, dataset: str, interval_s: tuple[float, float], robots: tuple[int, ...]
+    data: MrclamData,
+    dataset: str,
+    cal: Calibration,
+    robots: tuple[int, ...],
+    cameras: tuple[tuple[float, float], ...],
+    frame_sigma_m: float,
 ) -> CalibrationFile:
-    """The calibration of ``robots`` on ``interval_s`` of ``data`` (named ``dataset``); ValueError when
-    the interval holds too little to calibrate on."""
-    cal = calibrate(data, interval_s, robots)
-    cameras = sighting_sigmas(data, interval_s, robots, cal.camera_latency_s)
-    sensors = CalibratedSensors(**{name: getattr(cal, name) for name in CalibratedSensors.model_fields})
+    """The file of calibration ``cal`` of ``robots`` on ``data`` (named ``dataset``), with each
+    robot's camera sigmas (sim.mrclam_calibration.sighting_sigmas) and the frame floor
+    (launch.frame_floor)."""
+    fitted = {name: getattr(cal, name) for name in CalibratedSensors.model_fields if name != "frame_sigma_m"}
+    sensors = CalibratedSensors(**fitted, frame_sigma_m=frame_sigma_m)
     return CalibrationFile(
         dataset=dataset,
         recorded_at_s=data.start_s,
-        interval_s=(float(interval_s[0]), float(interval_s[1])),
+        interval_s=(float(cal.interval_s[0]), float(cal.interval_s[1])),
         robots=tuple(robots),
         sensors=sensors,
         odom_lag_s=cal.odom_lag_s,
         camera_latency_s=cal.camera_latency_s,
         sighting_sigmas={robot: (float(r), float(b)) for robot, (r, b) in zip(robots, cameras)},
+        readouts=dict(zip(robots, cal.readouts)),
         sightings=cal.sightings,
         outliers=cal.outliers,
         odometry_windows=cal.odometry_windows,

@@ -29,6 +29,7 @@ from bus.config import SwarmConfig
 from bus.feed import CameraBlock
 from bus.topics import Topic
 from sim.mrclam import DataError, MrclamData, delayed, pose_at
+from sim.mrclam_camera import rectified
 from sim.physical_faults import PhysicalFaults
 
 Block = tuple[np.ndarray, np.ndarray]  # stamps (k,) us, rows (k, w)
@@ -138,6 +139,8 @@ class ReplayWorld:
         self._streams: dict[int, dict[str, Block]] = {}
         for vid, robot in self.robots.items():
             log = delayed(data.robots[robot], replay.odom_lag_s, replay.camera_latency_s)
+            if replay.readouts:
+                log = rectified(log, replay.readouts[vid - 1])
             landmark, peers, skipped = sighting_rows(
                 log.sightings, self.start_s, end_s, vehicle_of, sigmas[vid - 1], relative
             )
