@@ -162,13 +162,14 @@ class SensorSpec(_Strict):
         "estimates both (0: taken as exact)",
     )
     prior_sigma_m: float = Field(0.5, gt=0, description="launch-pad survey of the start position")
-    frame_sigma_m: float = Field(
+    unmodelled_sigma_m: float = Field(
         0.0,
         ge=0,
         le=10,
-        description="how far, per axis, where a replayed robot's sightings put it may lie from where its "
-        "truth (Vicon) has it, however many it sees: added to the published position covariance, "
-        "not to the filter's own (calibrated on a replay; the simulated world has no such error)",
+        description="how far, per axis, a replayed robot may lie from where its filter puts it beyond the "
+        "filter's own covariance (what no sighting sees, what a calibration cannot know): added to the "
+        "published position covariance, not to the filter's own (measured out of sample by the "
+        "calibration, launch.unmodelled; the simulated world has no such error)",
     )
     prior_heading_sigma_rad: float = Field(0.05, gt=0)
     camera_rate_hz: float = Field(0.0, ge=0, le=100, description="down-looking camera frames (0: no camera)")
@@ -492,10 +493,10 @@ class SwarmConfig(_Strict):
     def _replay_fits(self) -> SwarmConfig:
         replay = self.replay
         if replay is None and (
-            self.sensors.odom_turn_sigma_rad or self.sensors.odom_travel_sigma_m or self.sensors.frame_sigma_m
+            self.sensors.odom_turn_sigma_rad or self.sensors.odom_travel_sigma_m or self.sensors.unmodelled_sigma_m
         ):
             raise ValueError(
-                "sensors.odom_turn_sigma_rad, odom_travel_sigma_m and frame_sigma_m describe a replayed "
+                "sensors.odom_turn_sigma_rad, odom_travel_sigma_m and unmodelled_sigma_m describe a replayed "
                 "robot's data; the simulated world makes no such error, so a filter told of it would be "
                 "told wrong (leave them 0)"
             )
@@ -505,7 +506,7 @@ class SwarmConfig(_Strict):
             raise ValueError(f"a replay of robots {list(replay.robots)} needs world.vehicles = {len(replay.robots)}")
         low, high = replay.calibration_s
         overlaps = replay.start_s < high and replay.start_s + self.clock.duration_s > low
-        if overlaps and not (replay.calibrated_elsewhere or replay.fitting):
+        if overlaps and not replay.calibrated_elsewhere:
             raise ValueError(
                 f"the replayed window [{replay.start_s:g}, {replay.start_s + self.clock.duration_s:g}] s "
                 f"overlaps the calibration interval [{low:g}, {high:g}] s: nothing calibrated is scored"

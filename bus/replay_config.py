@@ -80,11 +80,6 @@ class ReplayConfig(BaseModel):
         "replay reads each sighting back through it, as a camera driver applies its calibration; "
         "empty: sightings as recorded",
     )
-    fitting: bool = Field(
-        False,
-        description="a run inside the calibration interval that completes the calibration "
-        "(launch.frame_floor): never scored, never a user's run",
-    )
     withhold_landmarks: tuple[int, ...] = Field(
         (), description="robots whose landmark sightings are withheld (they localize from odometry and the others)"
     )

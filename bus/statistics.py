@@ -106,14 +106,14 @@ def pose_error(pose: np.ndarray, truth_pose: np.ndarray) -> np.ndarray:
     return np.array([pose[0] - truth_pose[0], pose[1] - truth_pose[1], wrap_angle(pose[2] - truth_pose[2])])
 
 
-def published_pose_cov(pose_cov: np.ndarray, frame_sigma_m: float) -> np.ndarray:
-    """A filter's pose covariance (3, 3) [m, m, rad] as it is published: with ``frame_sigma_m``^2
-    added to each position variance (sensors.frame_sigma_m: what no sighting can see)."""
-    if not frame_sigma_m:
+def published_pose_cov(pose_cov: np.ndarray, unmodelled_sigma_m: float) -> np.ndarray:
+    """A filter's pose covariance (3, 3) [m, m, rad] as it is published: with ``unmodelled_sigma_m``^2
+    added to each position variance (sensors.unmodelled_sigma_m: what no sighting can see)."""
+    if not unmodelled_sigma_m:
         return pose_cov
     out = pose_cov.copy()
-    out[0, 0] += frame_sigma_m**2
-    out[1, 1] += frame_sigma_m**2
+    out[0, 0] += unmodelled_sigma_m**2
+    out[1, 1] += unmodelled_sigma_m**2
     return out
 
 

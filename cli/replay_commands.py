@@ -193,6 +193,7 @@ def calibrate_command(
         f"{out}: fitted on {frozen.dataset} [{span[0]:g}, {span[1]:g}] s, robots {list(chosen)} "
         f"({frozen.sightings} landmark sightings, {frozen.odometry_windows} odometry windows): "
         f"odometry lag {frozen.odom_lag_s:.2f} s, camera latency {frozen.camera_latency_s:.2f} s, "
-        f"bearing {s.bearing_sigma_rad:.4f} rad, range {s.range_sigma_m:.3f} m, frame floor {s.frame_sigma_m:.3f} m",
+        f"bearing {s.bearing_sigma_rad:.4f} rad, range {s.range_sigma_m:.3f} m, "
+        f"unmodelled {s.unmodelled_sigma_m:.3f} m",
         highlight=False,
     )

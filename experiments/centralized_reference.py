@@ -44,7 +44,7 @@ def run_centralized(
             if not np.isfinite(truth[k, 0]):  # a gap in the recorded truth
                 continue
             pose, cov = filt.pose(vid)
-            cov = statistics.published_pose_cov(cov, config.sensors.frame_sigma_m)
+            cov = statistics.published_pose_cov(cov, config.sensors.unmodelled_sigma_m)
             error = statistics.pose_error(pose, truth[k, :3])
             rows[vid].append((t_us * 1e-6, float(np.hypot(error[0], error[1])), statistics.nees(error, cov)))
 

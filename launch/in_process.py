@@ -81,7 +81,7 @@ def run(
 def pose_score(f: Filter, truth_pose: np.ndarray) -> tuple[float, float]:
     """(pose NEES, position error m) of a filter's estimate against the truth pose (3,)."""
     error = statistics.pose_error(f.state.x[:3], truth_pose)
-    cov = statistics.published_pose_cov(f.state.P[:3, :3], f.spec.frame_sigma_m)
+    cov = statistics.published_pose_cov(f.state.P[:3, :3], f.spec.unmodelled_sigma_m)
     return statistics.nees(error, cov), float(np.hypot(error[0], error[1]))
 
 

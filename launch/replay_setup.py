@@ -168,32 +168,74 @@ def calibrated_datasheet(choice: ReplayChoice, data) -> Datasheet:
 def calibration(choice: ReplayChoice, data, dataset: str):
     """The calibration of ``choice.robots`` on ``choice.calibration_s`` of ``data`` (named
     ``dataset``) as a file would hold it (sim.mrclam_calibration_file): the datasheet fitted against
-    the ground truth (sim.mrclam_calibration), then its frame floor fitted by replaying that interval
-    with it (launch.frame_floor). ConfigError when the interval holds too little."""
-    from launch.frame_floor import fit_frame_sigma
-    from sim.mrclam_calibration import calibrate, sighting_sigmas
+    the ground truth on the whole interval (sim.mrclam_calibration), and what it leaves uncovered,
+    measured where it is used, out of sample (:func:`held_out_sigma`). ConfigError when the interval
+    holds too little."""
     from sim.mrclam_calibration_file import calibration_file
+
+    cal, sigmas = _fitted(choice, data)
+    return calibration_file(data, dataset, cal, choice.robots, sigmas, held_out_sigma(choice, data, dataset))
+
+
+def _fitted(choice: ReplayChoice, data) -> tuple:
+    """(sim.mrclam_calibration's calibration, each robot's camera sigmas) on ``choice.calibration_s``."""
+    from sim.mrclam_calibration import calibrate, sighting_sigmas
 
     try:
         cal = calibrate(data, choice.calibration_s, choice.robots)
     except ValueError as exc:
         raise ConfigError(f"calibration: {exc}") from None
-    sigmas = sighting_sigmas(data, choice.calibration_s, choice.robots, cal.camera_latency_s, cal.readouts)
-    unfloored = calibration_file(data, dataset, cal, choice.robots, sigmas, 0.0)
-    floor = fit_frame_sigma(_fitting_config(choice, data, _read_datasheet(choice, unfloored)), data)
-    return calibration_file(data, dataset, cal, choice.robots, sigmas, floor)
+    return cal, sighting_sigmas(data, choice.calibration_s, choice.robots, cal.camera_latency_s, cal.readouts)
 
 
-def _fitting_config(choice: ReplayChoice, data, sheet: Datasheet) -> SwarmConfig | None:
-    """The known-map replay of the calibration interval that fits the frame floor (launch.frame_floor),
-    from the first instant Vicon has every robot; None when that leaves nothing of the interval."""
-    low, high = choice.calibration_s
-    start = max(
-        [low] + [float(data.robots[r].groundtruth[0, 0]) for r in choice.robots if len(data.robots[r].groundtruth)]
-    )
+def held_out_sigma(choice: ReplayChoice, data, dataset: str) -> float:
+    """The unmodelled sigma (launch.unmodelled) of a calibration on ``choice.calibration_s``,
+    cross-validated inside it: a datasheet fitted on part of it replays the rest (known-map,
+    :func:`held_out_folds`), and the sigma is fitted on all the replays' errors together; 0 when a
+    part holds too little to calibrate on or to replay."""
+    from launch.unmodelled import position_errors, unmodelled_sigma
+    from sim.mrclam_calibration_file import calibration_file
+
+    errors, covariances = [], []
+    for fit_on, replay_on in held_out_folds(*choice.calibration_s):
+        half = dataclasses.replace(choice, calibration_s=fit_on)
+        try:
+            cal, sigmas = _fitted(half, data)
+        except ConfigError:
+            return 0.0
+        sheet = _read_datasheet(half, calibration_file(data, dataset, cal, choice.robots, sigmas, 0.0))
+        config = _known_map_config(half, data, sheet, replay_on)
+        if config is None:
+            return 0.0
+        e, c = position_errors(config, data)
+        errors.append(e)
+        covariances.append(c)
+    return unmodelled_sigma(errors, covariances)
+
+
+def held_out_folds(low: float, high: float) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+    """(interval fitted on, interval replayed) pairs inside [low, high]: each half replayed with the
+    datasheet of the other, and each outer third with that of the two thirds beside it (repeated
+    cross-validation: one split's answer depends on which minutes it holds out)."""
+    half, third = low + (high - low) / 2, (high - low) / 3
+    return [
+        ((low, half), (half, high)),
+        ((half, high), (low, half)),
+        ((low, high - third), (high - third, high)),
+        ((low + third, high), (low, low + third)),
+    ]
+
+
+def _known_map_config(
+    choice: ReplayChoice, data, sheet: Datasheet, window_s: tuple[float, float]
+) -> SwarmConfig | None:
+    """The known-map replay of ``window_s`` (outside ``choice.calibration_s``) with ``sheet``, from the
+    first instant Vicon has every robot; None when that leaves nothing of the window."""
+    low, high = window_s
+    first_truths = [float(data.robots[r].groundtruth[0, 0]) for r in choice.robots if len(data.robots[r].groundtruth)]
+    start = max([low, *first_truths])
     if start >= high:
         return None
     known_map = dataclasses.replace(choice, estimator="known-map", cooperative=False, withhold_landmarks=())
-    config = _config_dict(known_map, "frame-floor", data, sheet, (start, high), (low, high))
-    config["replay"]["fitting"] = True
-    return build_config(config)
+    end = high - 1e-5  # clear of a calibration interval starting there, whatever the rounding of its duration
+    return build_config(_config_dict(known_map, "held-out", data, sheet, (start, end), choice.calibration_s))

@@ -1,14 +1,14 @@
 """A datasheet calibrated from ground truth, frozen in a file: ``swarm replay calibrate`` fits it on an
-interval of one data set (sim.mrclam_calibration, launch.frame_floor) and writes it; ``swarm replay mrclam --calibration
-FILE`` reads it instead of calibrating, so a held-out data set, or the other half of the same one, is
-replayed with numbers that never saw it. Nothing in the file is typed by hand.
+interval of one data set (sim.mrclam_calibration, launch.unmodelled) and writes it; ``swarm replay
+mrclam --calibration FILE`` reads it instead of calibrating, so a held-out data set, or the other half
+of the same one, is replayed with numbers that never saw it. Nothing in the file is typed by hand.
 
 The file is JSON: the data set it was fitted on (its name, and its recording's start time, which names
 it whatever its file is called: the whole data set and an excerpt of it are the same recording), the
 interval and robots, the swarm's datasheet (the ``sensors`` fields a replay sets), the odometry lag and
-camera latency, each robot's camera sigmas and readout (how it misreads range and bearing), and how
-much it was measured on. Reading it is total: a
-file that is not one is refused with one line naming the file and what is wrong.
+camera latency, each robot's camera sigmas and readout (how it misreads range and bearing), the
+unmodelled sigma, and how much it was measured on. Reading it is total: a file that is not one is
+refused with one line naming the file and what is wrong.
 """
 
 from __future__ import annotations
@@ -42,8 +42,8 @@ class CalibratedSensors(BaseModel):
     range_correlation_s: float = Field(gt=0, le=1e4)
     bearing_correlated_fraction: float = Field(ge=0, le=0.95)
     bearing_correlation_s: float = Field(gt=0, le=1e4)
-    frame_sigma_m: float = Field(
-        0.0, ge=0, le=10, description="fitted by a replay of the interval (launch.frame_floor)"
+    unmodelled_sigma_m: float = Field(
+        0.0, ge=0, le=10, description="measured out of sample inside the interval (launch.unmodelled)"
     )
 
 
@@ -95,13 +95,13 @@ def calibration_file(
     cal: Calibration,
     robots: tuple[int, ...],
     cameras: tuple[tuple[float, float], ...],
-    frame_sigma_m: float,
+    unmodelled_sigma_m: float,
 ) -> CalibrationFile:
     """The file of calibration ``cal`` of ``robots`` on ``data`` (named ``dataset``), with each
-    robot's camera sigmas (sim.mrclam_calibration.sighting_sigmas) and the frame floor
-    (launch.frame_floor)."""
-    fitted = {name: getattr(cal, name) for name in CalibratedSensors.model_fields if name != "frame_sigma_m"}
-    sensors = CalibratedSensors(**fitted, frame_sigma_m=frame_sigma_m)
+    robot's camera sigmas (sim.mrclam_calibration.sighting_sigmas) and the unmodelled sigma
+    (launch.unmodelled)."""
+    fitted = {name: getattr(cal, name) for name in CalibratedSensors.model_fields if name != "unmodelled_sigma_m"}
+    sensors = CalibratedSensors(**fitted, unmodelled_sigma_m=unmodelled_sigma_m)
     return CalibrationFile(
         dataset=dataset,
         recorded_at_s=data.start_s,

@@ -174,7 +174,7 @@ class Filter:
             vehicle_id=self.vehicle_id,
             stamp_us=max(t_us, s.time_us),
             pose=s.x[:3].copy(),
-            pose_cov=published_pose_cov(s.P[:3, :3].copy(), spec.frame_sigma_m),
+            pose_cov=published_pose_cov(s.P[:3, :3].copy(), spec.unmodelled_sigma_m),
             speed_mps=s.speed.value or 0.0,
             speed_var=spec.odom_speed_sigma_mps**2,
             yaw_rate_radps=gyro - float(s.x[3]),
@@ -190,7 +190,7 @@ class Filter:
         h, P = self.state.gnss_health, self.state.P
         P = P if P is not None else np.eye(4) * 1e6
         ratio = max(h.last_test_ratio, h.last_mean_test_ratio)
-        floor = self.spec.frame_sigma_m**2
+        floor = self.spec.unmodelled_sigma_m**2
         return Health(self.vehicle_id, t_us, h.healthy, ratio, float(np.sqrt(0.5 * (P[0, 0] + P[1, 1]) + floor)))
 
     # -- measurements ------------------------------------------------------------------------
