@@ -198,13 +198,13 @@ def held_out_sigma(choice: ReplayChoice, data, dataset: str) -> float:
 
     errors, covariances = [], []
     for fit_on, replay_on in held_out_folds(*choice.calibration_s):
-        half = dataclasses.replace(choice, calibration_s=fit_on)
+        part = dataclasses.replace(choice, calibration_s=fit_on)
         try:
-            cal, sigmas = _fitted(half, data)
+            cal, sigmas = _fitted(part, data)
         except ConfigError:
             return 0.0
-        sheet = _read_datasheet(half, calibration_file(data, dataset, cal, choice.robots, sigmas, 0.0))
-        config = _known_map_config(half, data, sheet, replay_on)
+        sheet = _read_datasheet(part, calibration_file(data, dataset, cal, choice.robots, sigmas, 0.0))
+        config = _known_map_config(part, data, sheet, replay_on)
         if config is None:
             return 0.0
         e, c = position_errors(config, data)
