@@ -13,7 +13,7 @@ curves hold on the second: the relative range error's spread falls from 4.3 % to
 both halves.
 
 The fit, per robot, on its sightings at least ``MIN_RANGE_M`` away where Vicon has both ends:
-robust least squares (rows beyond ``OUTLIER_SIGMAS`` robust sigmas of the fit dropped, ``ROUNDS``
+robust least squares (sim.robust: rows beyond five robust sigmas of the fit dropped, three
 times) of the landmarks' relative range error on [1, 1/r, b, b^2] and of their bearing error on
 [1, b, b^2] (r, b: the true range and bearing); then the robots' relative range error, less the
 landmarks' readout, on [1, 1/r], pooled over the cameras (a robot's barcode is another size than a
@@ -35,13 +35,13 @@ import numpy as np
 from bus.angles import wrap_angles
 from bus.replay_config import CameraReadout
 from sim.mrclam import RobotLog, pose_at
+from sim.robust import robust_fit
 
 MIN_SIGHTINGS = 50  # landmark sightings a camera needs to be fitted at all
 MIN_OWN = 300  # and to be one the others' prior is taken from
 PRIOR_FLOOR = (0.002, 0.005, 0.02, 0.005, 0.005, 0.05, 0.005)  # the prior's least spread (coefficients' units)
 MIN_RANGE_M = 0.5
-OUTLIER_SIGMAS = 5.0
-ROUNDS = 3
+READ_BACK_ROUNDS = 3  # fixed-point steps inverting the bearing's curve
 ROBOT_SUBJECTS = (1, 2, 3, 4, 5)
 SIDE_RAD, COVERAGE = 0.2, 0.1  # a camera "covers" its image with a tenth of its sightings beyond 0.2 rad each side
 SPAN_SHARE = 0.99  # the curves hold within the bearings 99 % of the fitted sightings were seen at
@@ -69,36 +69,6 @@ def sighting_geometry(
     )
     keep = np.all(np.isfinite(rows), axis=1) & (rows[:, 0] >= MIN_RANGE_M)
     return rows[keep], ~np.isin(s[keep, 1], ROBOT_SUBJECTS)
-
-
-def robust_fit(
-    X: np.ndarray, y: np.ndarray, prior: tuple[np.ndarray, np.ndarray] | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares coefficients (m,) of y (k,) on the columns of X (k, m), without the rows beyond
-    OUTLIER_SIGMAS robust sigmas (misread barcodes): of y's median first, then of the previous fit,
-    ROUNDS times; and the rows kept (k,) bool. With a ``prior`` (mean (m,), variance (m,)) the
-    coefficients are its Gaussian posterior given the kept rows, their residual spread the noise."""
-    keep = _within(y - np.median(y), np.ones(len(y), bool))
-    coef = np.zeros(X.shape[1])
-    spread = 1.4826 * np.median(np.abs(y[keep] - np.median(y[keep])))
-    for _ in range(ROUNDS):
-        if prior is None:
-            coef = np.linalg.lstsq(X[keep], y[keep], rcond=None)[0]
-        else:
-            mean, variance = prior
-            noise = max(spread, 1e-9) ** 2
-            information = X[keep].T @ X[keep] / noise + np.diag(1.0 / variance)
-            coef = np.linalg.solve(information, X[keep].T @ y[keep] / noise + mean / variance)
-        residual = y - X @ coef
-        spread = 1.4826 * np.median(np.abs(residual[keep]))
-        keep = _within(residual, keep)
-    return coef, keep
-
-
-def _within(residual: np.ndarray, kept: np.ndarray) -> np.ndarray:
-    """Rows (k,) whose residual is within OUTLIER_SIGMAS robust sigmas of the ``kept`` rows' spread."""
-    spread = 1.4826 * np.median(np.abs(residual[kept]))
-    return np.abs(residual) <= OUTLIER_SIGMAS * max(spread, 1e-12)
 
 
 def fit_readouts(
@@ -215,7 +185,7 @@ def read_back(sightings: np.ndarray, readout: CameraReadout) -> np.ndarray:
     out = sightings.copy()
     read = sightings[:, 3]
     bearing, offset = read, readout.bearing_offset_rad
-    for _ in range(ROUNDS):  # b = (read - offset - curvature b^2) / (1 + scale): a contraction at |b| < 1
+    for _ in range(READ_BACK_ROUNDS):  # b = (read - offset - curvature b^2) / (1 + scale): a contraction at |b| < 1
         bent = np.clip(bearing, -readout.span_rad, readout.span_rad)  # the curves are not extrapolated
         bearing = (read - offset - readout.bearing_curvature * bent**2) / (1 + readout.bearing_scale)
     bent = np.clip(bearing, -readout.span_rad, readout.span_rad)

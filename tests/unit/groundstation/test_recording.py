@@ -135,8 +135,9 @@ def test_rejected_input_shows_in_the_event_log_once_per_kind(tmp_path):
 
 def test_a_viewer_that_never_reads_has_its_queue_overflow_counted_and_never_blocks_the_logger():
     """The live server with a 4-message queue and a viewer subscribed to /events that reads nothing:
-    logging goes on (the oldest messages dropped) and each overflow the SDK reports is counted. Many
-    times the kernel's TCP buffers are logged, for at least 10 s, so the queue must overflow."""
+    logging goes on (the oldest messages dropped) and each overflow the SDK reports is counted: the
+    test logs until one is (a viewer that never reads must overflow a 4-message queue; if none is
+    ever counted, pytest-timeout ends the test as failed)."""
     import socket
     import time
 
@@ -156,18 +157,15 @@ def test_a_viewer_that_never_reads_has_its_queue_overflow_counted_and_never_bloc
         with connect(f"ws://127.0.0.1:{port}", sock=sock, subprotocols=["foxglove.sdk.v1"], close_timeout=1) as client:
             channel_id = None
             while channel_id is None:
-                message = client.recv(timeout=10)
+                message = client.recv()
                 if isinstance(message, str) and json.loads(message).get("op") == "advertise":
                     topics = {c["topic"]: c["id"] for c in json.loads(message)["channels"]}
                     channel_id = topics.get("/events")
             client.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel_id}]}))
-            kernel_buffers = sum(_largest_tcp_buffer(k) for k in ("wmem", "rmem"))
             text, logged, overflows = "x" * 65536, 0, 0
             # logging goes on until the SDK reports an overflow (from its own thread, once the server
-            # has taken the subscription: that may come late on a loaded machine) or, without one,
-            # until many times the kernel's buffers were logged over at least 10 s
-            started = time.monotonic()
-            while overflows == 0 and (logged < 4 * kernel_buffers or time.monotonic() < started + 10):
+            # has taken the subscription: that may come late on a loaded machine)
+            while overflows == 0:
                 for _ in range(16):
                     recording.message(1, text)
                 logged += 16 * len(text)
@@ -176,12 +174,3 @@ def test_a_viewer_that_never_reads_has_its_queue_overflow_counted_and_never_bloc
             assert overflows >= 1, f"{logged / 1e6:.0f} MB logged to a viewer that reads nothing, no overflow"
     finally:
         recording.close()
-
-
-def _largest_tcp_buffer(kind: str) -> int:
-    """The kernel's largest TCP send (``wmem``) or receive (``rmem``) buffer, bytes (64 MiB when the
-    kernel does not say: above Linux's defaults)."""
-    try:
-        return int(Path(f"/proc/sys/net/ipv4/tcp_{kind}").read_text().split()[2])
-    except (OSError, IndexError, ValueError):
-        return 64 * 2**20
