@@ -17,6 +17,7 @@ cycle < b.
 
 from __future__ import annotations
 
+import bisect
 import heapq
 import itertools
 import logging
@@ -163,8 +164,7 @@ class FusionHorizon:
         oldest = self._checkpoints[0][0]
         if len(self._outstanding) > 64:  # announced but never came (lost on the way): forget them
             self._outstanding = Counter({s: n for s, n in self._outstanding.items() if n > 0 and s >= limit})
-        cut = next((i for i, e in enumerate(self._applied) if e[0] >= oldest), len(self._applied))
-        del self._applied[:cut]
+        del self._applied[: bisect.bisect_left(self._applied, oldest, key=_stamp)]  # applied in stamp order
         while self._cycles and self._cycles[0] < oldest:
             self._cycles.popleft()
         if len(self._seen) > MAX_SEEN:
@@ -208,3 +208,7 @@ class FusionHorizon:
                 self._checkpoint(t_us + 1)
         for entry in redo[k:]:
             heapq.heappush(self._pending, entry)
+
+
+def _stamp(entry: Entry) -> int:
+    return entry[0]

@@ -7,8 +7,9 @@ neighbour: no numpy on the hot path)."""
 
 from __future__ import annotations
 
+import bisect
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -157,6 +158,104 @@ def window_stats(record: Sequence[Fix], since_us: int, decorrelation_s: float = 
         float(finite) if decorrelation_s <= 0.0 else min(finite, 1.0 + (last_us - first_us) * 1e-6 / decorrelation_s)
     )
     return WindowStats(fixes, fixes - passed, nis / passed, n_eff * (m0 * m0 + m1 * m1))
+
+
+class FixWindow:
+    """A neighbour's fixes in stamp order, with running sums that give ``window_stats`` over any
+    suffix in O(log n) (a vehicle asks two windows of some 100 fixes for every fix it judges).
+
+    Each entry keeps, after its fix, the running count of finite fixes, of fixes the gate passed,
+    and the sums of the passed fixes' NIS and of the finite fixes' clipped whitened innovations; a
+    window's sums are differences of two running ones (equal to ``window_stats``'s to rounding: a
+    few 1e-16 of the running sums). Fixes leave from the old end (``popleft``); a fix out of stamp
+    order makes every later question take the one-pass reference (``window_stats``)."""
+
+    __slots__ = ("_base", "_entries", "_head", "_ordered")
+
+    def __init__(self, entries: list | None = None, base: tuple = (0, 0, 0.0, 0.0, 0.0), ordered: bool = True) -> None:
+        self._entries: list[tuple] = [] if entries is None else entries  # (stamp, finite, passed, nis, m0, m1, fix)
+        self._base = base  # the running (finite, passed, nis, m0, m1) before the first entry
+        self._head = 0  # entries before it have left
+        self._ordered = ordered
+
+    def append(self, fix: Fix) -> None:
+        finite, passed, nis, m0, m1 = self._running(len(self._entries))
+        if self._head < len(self._entries):
+            self._ordered = self._ordered and fix.stamp_us >= self._entries[-1][0]
+        if fix.finite:
+            c0, c1 = fix.clipped
+            finite, m0, m1 = finite + 1, m0 + c0, m1 + c1
+            if not fix.gated_out:
+                passed, nis = passed + 1, nis + fix.square
+        self._entries.append((fix.stamp_us, finite, passed, nis, m0, m1, fix))
+
+    def popleft(self) -> Fix:
+        if self._head >= len(self._entries):
+            raise IndexError("pop from an empty FixWindow")
+        fix = self._entries[self._head][6]
+        self._head += 1
+        if self._head >= 64 and 2 * self._head >= len(self._entries):
+            self._base = self._running(self._head)
+            del self._entries[: self._head]
+            self._head = 0
+        return fix
+
+    def _running(self, i: int) -> tuple:
+        """The running sums before entry ``i``."""
+        return self._entries[i - 1][1:6] if i > 0 else self._base
+
+    def replace_last(self, fix: Fix) -> None:
+        """The latest fix, said again with fields that no window statistic reads (``fused``)."""
+        last = self._entries[-1]
+        self._entries[-1] = (*last[:6], fix)
+
+    def copy(self) -> FixWindow:
+        return FixWindow(self._entries[self._head :], self._running(self._head), self._ordered)
+
+    def latest(self, n: int) -> list[Fix]:
+        """The newest ``n`` fixes (fewer when there are fewer), oldest first."""
+        return [e[6] for e in self._entries[max(self._head, len(self._entries) - n) :]]
+
+    def __len__(self) -> int:
+        return len(self._entries) - self._head
+
+    def __bool__(self) -> bool:
+        return len(self._entries) > self._head
+
+    def __iter__(self) -> Iterator[Fix]:
+        return (self._entries[i][6] for i in range(self._head, len(self._entries)))
+
+    def __getitem__(self, i: int) -> Fix:
+        n = len(self)
+        if not -n <= i < n:
+            raise IndexError("FixWindow index out of range")
+        return self._entries[self._head + i if i >= 0 else len(self._entries) + i][6]
+
+    def stats(self, since_us: int, decorrelation_s: float = 0.0) -> WindowStats:
+        """``window_stats`` of the fixes stamped after ``since_us``."""
+        if not self._ordered:
+            return window_stats(list(self), since_us, decorrelation_s)
+        entries, end = self._entries, len(self._entries)
+        start = bisect.bisect_right(entries, since_us, lo=self._head, key=_stamp)
+        fixes = end - start
+        before, last = self._running(start), self._running(end)
+        passed = last[1] - before[1]
+        if not passed:
+            return WindowStats(fixes, fixes - passed, math.inf, math.inf)
+        finite = last[0] - before[0]
+        nis = last[2] - before[2]
+        m0 = (last[3] - before[3]) / finite
+        m1 = (last[4] - before[4]) / finite
+        n_eff = float(finite)
+        if decorrelation_s > 0.0:
+            first_us = next(entries[i][0] for i in range(start, end) if entries[i][6].finite)
+            last_us = next(entries[i][0] for i in range(end - 1, start - 1, -1) if entries[i][6].finite)
+            n_eff = min(finite, 1.0 + (last_us - first_us) * 1e-6 / decorrelation_s)
+        return WindowStats(fixes, fixes - passed, nis / passed, n_eff * (m0 * m0 + m1 * m1))
+
+
+def _stamp(entry: tuple) -> int:
+    return entry[0]
 
 
 def effective_count(fixes: list[Fix], decorrelation_s: float) -> float:

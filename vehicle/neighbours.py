@@ -51,11 +51,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections import deque
 from dataclasses import dataclass, field
 
 from bus.config import VehicleConfig
-from vehicle.neighbour_fixes import Fix, window_stats
+from vehicle.neighbour_fixes import Fix, FixWindow
 
 
 @dataclass(frozen=True)
@@ -91,7 +90,7 @@ class NeighbourRecord:
     (first-hand verdicts against it, less those forgiven), ``changed_us``: when the vehicle's
     belief in it last changed; ``accusers``: the believed vehicles that accuse it now."""
 
-    fixes: deque = field(default_factory=deque)
+    fixes: FixWindow = field(default_factory=FixWindow)
     distrusted: bool = False
     passing_since_us: int | None = None  # while distrusted: every test has passed since then
     reason: str = ""
@@ -101,7 +100,7 @@ class NeighbourRecord:
     accusers: tuple[int, ...] = ()
 
     def copy(self) -> NeighbourRecord:
-        return dataclasses.replace(self, fixes=deque(self.fixes))
+        return dataclasses.replace(self, fixes=self.fixes.copy())
 
     @property
     def believed(self) -> bool:
@@ -177,7 +176,7 @@ def refused(book: NeighbourBook, neighbour: int) -> None:
     """The neighbour's latest fix was not fused (distrusted, or an implausible claim): it pulled nothing."""
     record = book.records.get(neighbour)
     if record is not None and record.fixes:
-        record.fixes[-1] = dataclasses.replace(record.fixes[-1], fused=False)
+        record.fixes.replace_last(dataclasses.replace(record.fixes[-1], fused=False))
 
 
 def failure(
@@ -187,7 +186,7 @@ def failure(
     ``best_m2``: the smallest position variance had or claimed by anyone else (the implausibility
     test; 0 or infinite: none). The bias bound is ``bias``; None: ``watchful_bias`` while the
     neighbour has a record or more than f believed vehicles accuse it, else ``bias``."""
-    latest = list(record.fixes)[-spec.min_fixes :]
+    latest = record.fixes.latest(spec.min_fixes)
     if len(latest) == spec.min_fixes and all(f.gated_out for f in latest):
         return f"its last {spec.min_fixes} fixes fail the gate"
     plausible = spec.implausible_ratio * best_m2 if math.isfinite(best_m2) else 0.0
@@ -197,7 +196,7 @@ def failure(
     if bias is None:
         watchful = record.standing(spec, now_us) > 0 or len(record.accusers) >= spec.quorum
         bias = spec.watchful_bias if watchful else spec.bias
-    short = window_stats(record.fixes, now_us - round(spec.window_s * 1e6), spec.decorrelation_s)
+    short = record.fixes.stats(now_us - round(spec.window_s * 1e6), spec.decorrelation_s)
     if short.fixes >= spec.min_fixes:
         if short.gated_out > spec.gate_fail_share * short.fixes:
             return f"{short.gated_out} of {short.fixes} fixes fail the gate"
@@ -205,7 +204,7 @@ def failure(
             return f"mean NIS {short.mean_nis:.1f} over {short.fixes} fixes"
         if short.bias > bias:
             return f"biased by {short.bias:.0f} over {short.fixes} fixes"
-    long = window_stats(record.fixes, now_us - round(spec.long_window_s * 1e6), spec.decorrelation_s)
+    long = record.fixes.stats(now_us - round(spec.long_window_s * 1e6), spec.decorrelation_s)
     if long.fixes >= spec.min_fixes and long.bias > bias and math.isfinite(long.bias):
         return f"biased by {long.bias:.0f} over {long.fixes} fixes"
     return ""
@@ -262,7 +261,7 @@ def see(book: NeighbourBook, spec: MonitorSpec, neighbour: int, fix: Fix) -> Ver
             record.hearsay, record.changed_us = "", now
             return Verdict(now, neighbour, True, "consistent here")
         return None
-    if reason or window_stats(record.fixes, now - round(spec.window_s * 1e6)).fixes < spec.min_fixes:
+    if reason or record.fixes.stats(now - round(spec.window_s * 1e6)).fixes < spec.min_fixes:
         record.passing_since_us = None
         return None
     record.passing_since_us = now if record.passing_since_us is None else record.passing_since_us
@@ -298,9 +297,6 @@ def _credible(book: NeighbourBook, spec: MonitorSpec, accused: int, t_us: int) -
     it drags)."""
     since = t_us - round(spec.window_s * 1e6)
     return any(
-        j != accused
-        and r.believed
-        and window_stats(r.fixes, since).fixes >= spec.min_fixes
-        and not failure(r, spec, t_us)
+        j != accused and r.believed and r.fixes.stats(since).fixes >= spec.min_fixes and not failure(r, spec, t_us)
         for j, r in book.records.items()
     )

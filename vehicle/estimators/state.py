@@ -20,6 +20,7 @@ front-end results cached by frame, the floor of the reset counter.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -117,9 +118,15 @@ def copied(value: T) -> T:
 def _fieldwise(value: T) -> T:
     """A mutable dataclass copied field by field with :func:`copied`."""
     twin = object.__new__(type(value))
-    for f in dataclasses.fields(value):
-        object.__setattr__(twin, f.name, copied(getattr(value, f.name)))
+    for name in _field_names(type(value)):
+        object.__setattr__(twin, name, copied(getattr(value, name)))
     return twin
+
+
+@functools.cache
+def _field_names(cls: type) -> tuple[str, ...]:
+    """The fields of dataclass ``cls`` (looked up once per class: a state is copied at every checkpoint)."""
+    return tuple(f.name for f in dataclasses.fields(cls))
 
 
 def frozen(array: np.ndarray) -> np.ndarray:
