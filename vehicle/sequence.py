@@ -15,13 +15,19 @@ class SequenceTracker:
         self._recent: dict[str, set[int]] = {}
 
     def see(self, topic: str, seq: int) -> None:
-        recent = self._recent.setdefault(topic, set())
-        if seq in recent:
+        recent = self._recent.get(topic)
+        if recent is None:
+            recent = self._recent[topic] = set()
+            self._first[topic] = self._highest[topic] = seq
+            self._distinct[topic] = 0
+        elif seq in recent:
             return
         recent.add(seq)
-        self._first[topic] = min(self._first.get(topic, seq), seq)
-        self._highest[topic] = max(self._highest.get(topic, seq), seq)
-        self._distinct[topic] = self._distinct.get(topic, 0) + 1
+        if seq < self._first[topic]:
+            self._first[topic] = seq
+        elif seq > self._highest[topic]:
+            self._highest[topic] = seq
+        self._distinct[topic] += 1
         if len(recent) > 2 * WINDOW:
             floor = self._highest[topic] - WINDOW
             self._recent[topic] = {s for s in recent if s >= floor}
