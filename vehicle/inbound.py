@@ -16,7 +16,7 @@ from bus import feed
 from bus import messages as m
 from bus.errors import DecodeError
 from bus.faults import Accuse, Lie
-from bus.keys import KeySpace
+from bus.keys import KeySpace, ParsedKey
 from bus.link_faults import Arrival, LinkFaultStage
 from bus.mailbox import Oversized
 from bus.mavlink_codec import MAX_V2V_BYTES, frame_header
@@ -30,6 +30,7 @@ ODOMETRY_ID = 331  # MAVLINK_MSG_ID_ODOMETRY: the V2V packet
 MAX_BATCH_BYTES = 1 << 20
 MAX_CLOCK_BYTES = 8 << 10
 MAX_PLAN_BYTES = 1 << 20
+MAX_PARSED_KEYS = 4096  # the keys whose parse is remembered (a swarm has a few per vehicle)
 LISTENER_BATCHES = 8  # the batches whose listeners are kept (a realtime cycle runs within a tick or two of its batch)
 
 
@@ -68,6 +69,7 @@ class Inbound:
         self.heard: dict[int, int] = {}  # V2V frames heard per sender
         self.heard_until: dict[int, int] = {}  # the newest stamp heard per sender (before link faults)
         self._listeners: deque[tuple[int, tuple[int, ...]]] = deque(maxlen=LISTENER_BATCHES)
+        self._parsed: dict[str, ParsedKey] = {}  # keys seen, as KeySpace.parse read them
 
     def take(self, item: Any) -> list[Delivery]:
         """File one mailbox item; returns what passes on (possibly nothing)."""
@@ -82,7 +84,11 @@ class Inbound:
             return self._clock(item)
         if item.key == keys.fault_plan():
             return self._plan(item)
-        parsed = keys.parse(item.key)
+        parsed = self._parsed.get(item.key) if isinstance(item.key, str) else None
+        if parsed is None:
+            parsed = keys.parse(item.key)
+            if parsed is not None and len(self._parsed) < MAX_PARSED_KEYS:  # bounded against a flood of made-up keys
+                self._parsed[item.key] = parsed
         if parsed is None or parsed.kind != "vehicle":
             self.rejections.reject("bad_key", "subscription", repr(item.key))
             return []

@@ -68,11 +68,19 @@ def _wait_until_ready(node: VehicleNode, tick: m.ClockTick, later: deque, stop: 
 
 def _wait_for_neighbours(node: VehicleNode, tick: m.ClockTick, t_us: int, later: deque, stop: threading.Event) -> None:
     """Keep filing mailbox items until the neighbours' broadcasts the cycle at ``t_us`` pairs ranging
-    with have arrived (or time runs out: they are then written off as missing)."""
-    if not node.unheard_neighbours(tick, t_us):
-        return
-    _file_until(node, lambda: not node.unheard_neighbours(tick, t_us), later, stop)
+    with have arrived (or time runs out: they are then written off as missing). What the cycle
+    waits for is found once; each item filed then only crosses off what it brought."""
     unheard = node.unheard_neighbours(tick, t_us)
+    if not unheard:
+        return
+
+    def heard_all() -> bool:
+        nonlocal unheard
+        unheard = node.still_unheard(unheard)
+        return not node.waited_for(unheard)
+
+    _file_until(node, heard_all, later, stop)
+    unheard = node.waited_for(node.still_unheard(unheard))
     if unheard:
         log.warning(
             "vehicle %d: broadcasts %s (neighbour, stamp us) not heard after %g s; fusing without them",

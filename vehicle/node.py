@@ -233,6 +233,17 @@ class VehicleNode:
             if s > tick_start_us and j in tick.running and until.get(j, -1) < s and j not in departed
         ]
 
+    def still_unheard(self, awaited: list[tuple[int, int]]) -> list[tuple[int, int]]:
+        """Of ``awaited`` (``unheard_neighbours`` of one cycle), the broadcasts not heard yet, their
+        senders departed or not (a departed neighbour may come back while the cycle waits)."""
+        until = self.inbound.heard_until
+        return [(j, s) for j, s in awaited if until.get(j, -1) < s]
+
+    def waited_for(self, unheard: list[tuple[int, int]]) -> list[tuple[int, int]]:
+        """Of ``unheard``, those whose senders are alive (``unheard_neighbours``'s rule)."""
+        departed = self.world_watch.departed
+        return [(j, s) for j, s in unheard if j not in departed]
+
     def write_off_unheard(self, unheard: list[tuple[int, int]]) -> None:
         """After the wait for them timed out: count those broadcasts as heard (they are missing)."""
         until = self.inbound.heard_until
