@@ -23,6 +23,8 @@ ROUNDS = 5
 DEMO = ("--vehicles", "5", "--duration", "60", "--mode", "lockstep", "--seed", "5")
 ROLES = ("vehicle", "sim", "gs", "router")
 HZ = os.sysconf("SC_CLK_TCK")
+SAMPLE_S = 0.02
+GROWTH_S = 30  # every size flies as long: start-up is then the same share of each size's CPU
 
 
 def timed(python: Path | str, args: tuple[str, ...], out: Path, name: str) -> dict[str, float]:
@@ -39,8 +41,10 @@ def timed(python: Path | str, args: tuple[str, ...], out: Path, name: str) -> di
 
 
 def role_cpu(args: tuple[str, ...], out: Path, name: str) -> dict[str, float]:
-    """CPU seconds of each role's processes (summed), sampled from /proc until the run ends."""
+    """CPU seconds of each role's processes (summed), read from /proc every ``SAMPLE_S`` until the run
+    ends (a process's CPU after its last reading is not counted: at most ``SAMPLE_S`` each)."""
     seen: dict[int, tuple[str, float]] = {}
+    others: set[int] = set()  # processes that are not the run's
     process = subprocess.Popen(
         [sys.executable, "-m", "cli", "up", *args, "--quiet", "--no-report", "--out", str(out), "--name", name],
         stdout=subprocess.DEVNULL,
@@ -48,19 +52,24 @@ def role_cpu(args: tuple[str, ...], out: Path, name: str) -> dict[str, float]:
     )
     marker = str(out / name) + "/"
     while process.poll() is None:
-        for entry in Path("/proc").iterdir():
-            if not entry.name.isdigit():
+        for entry in os.scandir("/proc"):
+            if not entry.name.isdigit() or int(entry.name) in others:
                 continue
+            pid = int(entry.name)
             try:
-                cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
-                if marker not in cmd or not cmd.startswith("swarm "):
-                    continue
-                stat = (entry / "stat").read_text()
+                if pid not in seen:
+                    cmd = Path(entry.path, "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+                    if marker not in cmd or not cmd.startswith("swarm "):
+                        if "forkserver" not in cmd:  # a child of the forkserver names itself once started
+                            others.add(pid)
+                        continue
+                    seen[pid] = (cmd.split()[1], 0.0)
+                stat = Path(entry.path, "stat").read_text()
                 fields = stat[stat.rindex(")") + 2 :].split()
-                seen[int(entry.name)] = (cmd.split()[1], (int(fields[11]) + int(fields[12])) / HZ)
+                seen[pid] = (seen[pid][0], (int(fields[11]) + int(fields[12])) / HZ)
             except (OSError, ValueError, IndexError):
                 continue
-        time.sleep(0.2)
+        time.sleep(SAMPLE_S)
     totals = {role: 0.0 for role in ROLES}
     for role, cpu in seen.values():
         if role in totals:
@@ -79,7 +88,7 @@ def run(quick: bool) -> list[Row]:
         twenty = timed(sys.executable, ("--vehicles", "20", "--duration", "20", "--mode", "lockstep"), Path(tmp), "n20")
         per_role = {
             n: role_cpu(("--vehicles", str(n), "--duration", str(d), "--mode", "lockstep"), Path(tmp), f"roles-{n}")
-            for n, d in ((5, 60), (20, 30), (50, 20))
+            for n, d in ((5, GROWTH_S), (20, GROWTH_S), (50, GROWTH_S))
         }
     med = {side: {k: statistics.median(r[k] for r in rs) for k in rs[0]} for side, rs in results.items()}
     ratio = med["now"]["wall_s"] / med["then"]["wall_s"]
@@ -124,7 +133,7 @@ def run(quick: bool) -> list[Row]:
             {k: round(v, 2) for k, v in twenty.items()},
         ),  # fmt: skip
     ]
-    durations = {5: 60, 20: 30, 50: 20}
+    durations = {5: GROWTH_S, 20: GROWTH_S, 50: GROWTH_S}
     per_vs = {
         n: {role: 1000.0 * cpu / (n * durations[n]) for role, cpu in roles.items()} for n, roles in per_role.items()
     }

@@ -159,9 +159,10 @@ class ClockTick:
     published before it.
 
     ``wall_ns`` is the world's wall clock at publication; ``final`` marks the end of the run.
-    ``v2v_published`` counts, per vehicle (entry id - 1), the V2V broadcasts it had sent by its last
-    acknowledgement: in lockstep a vehicle waits until it has heard them all before it cycles on, so
-    what it fuses never depends on how the bus interleaves keys.
+    ``v2v_published`` counts, per vehicle (entry id - 1), the V2V broadcasts to every vehicle it had
+    sent by its last acknowledgement: in lockstep a vehicle waits until it has heard them all before
+    it cycles on, so what it fuses never depends on how the bus interleaves keys (frames sent to the
+    vehicles that range their sender alone are waited for one by one: ``running``).
     ``members`` lists the vehicles the world waits for (each acknowledged the previous tick, or is
     rejoining): in lockstep the ground station scores up to where all of them have published, so
     the order of metrics.csv never depends on when it hears their liveliness.

@@ -91,9 +91,10 @@ class WorldNode:
         self.tick_us = round(config.clock.tick_s * 1e6)
         self.final_tick = round(config.clock.duration_s * 1e6) // self.tick_us
         self._gs_gone_since: float | None = None
-        # realtime simulation: each batch names who ranges the vehicle, and its V2V frames go to them
-        # alone (bus.feed.SensorBatch.listeners); lockstep and replays broadcast to every vehicle
-        self.addressed_v2v = config.clock.mode == "realtime" and config.replay is None
+        # a simulated world: each batch names who ranges the vehicle, and its V2V frames go to them
+        # alone (bus.feed.SensorBatch.listeners); replays broadcast to every vehicle (a data set's
+        # robots see each other, which the world does not turn into listeners)
+        self.addressed_v2v = config.replay is None
 
     def publish(self, key: str, payload: bytes) -> None:
         pub = self._publishers.get(key)

@@ -66,7 +66,7 @@ class Inbound:
         self.plan_version = -1
         self.received_tick = -1  # the newest sensor batch that arrived
         self.received_stamp_us = -1  # and the end of the time it covers
-        self.heard: dict[int, int] = {}  # V2V frames heard per sender
+        self.heard: dict[int, int] = {}  # V2V frames sent to every vehicle heard, per sender
         self.heard_until: dict[int, int] = {}  # the newest stamp heard per sender (before link faults)
         self._listeners: deque[tuple[int, tuple[int, ...]]] = deque(maxlen=LISTENER_BATCHES)
         self._parsed: dict[str, ParsedKey] = {}  # keys seen, as KeySpace.parse read them
@@ -101,7 +101,7 @@ class Inbound:
             self.rejections.reject("unexpected", item.key, "a V2V frame addressed to another vehicle")
             return []
         if parsed.topic == "v2v" and parsed.vehicle_id != self.vehicle_id:
-            return self._v2v(item, parsed.vehicle_id)
+            return self._v2v(item, parsed.vehicle_id, to_all=parsed.recipient is None)
         if parsed.topic == "v2v":
             return []  # our own broadcast
         self.rejections.reject("unexpected", item.key, "not a key this vehicle listens to")
@@ -179,8 +179,9 @@ class Inbound:
             return Delivery(Kind.V2V, payload=payload, stamp_us=payload[1])
         return Delivery(Kind.SAMPLE, topic, payload, payload.stamp_us)
 
-    def _v2v(self, item: Envelope, sender: int) -> list[Delivery]:
-        """A neighbour's ODOMETRY frame: counted as heard, then through link faults."""
+    def _v2v(self, item: Envelope, sender: int, *, to_all: bool) -> list[Delivery]:
+        """A neighbour's ODOMETRY frame: counted as heard (``heard``: the frames sent to every vehicle,
+        which lockstep's barrier counts), then through link faults."""
         frame = item.payload
         header = frame_header(frame) if len(frame) <= MAX_V2V_BYTES else None
         if header is None or header[2] != ODOMETRY_ID or header[3] is None:
@@ -189,7 +190,8 @@ class Inbound:
         if header[0] != sender:
             self.rejections.reject("impersonation", item.key, f"frame from sysid {header[0]}")
             return []
-        self.heard[sender] = self.heard.get(sender, 0) + 1
+        if to_all:
+            self.heard[sender] = self.heard.get(sender, 0) + 1
         stamp = header[3]
         self.heard_until[sender] = max(stamp, self.heard_until.get(sender, -1))
         heard = (_V2V_FRAME, (sender, stamp, frame))

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import deque
 
 from bus import messages as m
 from bus.config import VehicleProcessConfig
@@ -33,6 +34,7 @@ from vehicle.v2v import V2V
 
 log = logging.getLogger("swarmloc.vehicle")
 GS_LISTEN_WAIT_S = 2.0
+TICK_SPANS = 256  # lockstep ticks remembered for the V2V waits (a fix waits one V2V latency: 5 ticks of 20 ms)
 
 
 class WorldGone(SwarmlocError):
@@ -128,6 +130,8 @@ class VehicleNode:
         self.first_tick: m.ClockTick | None = None
         self.world_watch = WorldWatch(timeout_s=vc.world_timeout_s)
         self._heard_floor: dict[int, int] = {}
+        # lockstep: (previous tick's stamp, stamp, running) of the ticks cycled, for the V2V waits
+        self._tick_spans: deque[tuple[int, int, frozenset[int]]] = deque(maxlen=TICK_SPANS)
 
     def join(self, stop=None, *, v2v_wait_s: float = 30.0) -> None:
         """Declare this vehicle alive once what it publishes has listeners: its acks (the world) and
@@ -215,22 +219,24 @@ class VehicleNode:
 
     def unheard_neighbours(self, tick: m.ClockTick, t_us: int) -> list[tuple[int, int]]:
         """Lockstep, before the cycle at ``t_us``: (neighbour, stamp) of the broadcasts its maturing
-        ranging measurements pair with that have not arrived yet, for stamps inside ``tick`` (earlier
-        ones ``ready`` already waited for) from neighbours that run every cycle of it. Zenoh orders
-        one neighbour's broadcasts, so having heard a later stamp means the wanted one came (or the
-        neighbour, which broadcasts at every epoch, had none to send). Lets a tick span several
-        V2V latencies with what a cycle fuses still independent of the bus's timing. A neighbour
-        that died meanwhile (its liveliness token is gone) is not waited for."""
-        if not self.config.vehicle.cooperative:
+        ranging measurements pair with that have not arrived yet, from neighbours that ran every
+        cycle of the tick the stamp falls in (``running`` of that tick). Zenoh orders one
+        neighbour's frames to this vehicle, so having heard a later stamp means the wanted one came
+        (or the neighbour, which sends at every epoch to whoever ranges it, had none to send). Lets
+        a tick span several V2V latencies, and each frame go only to the vehicles that range its
+        sender, with what a cycle fuses still independent of the bus's timing. Not waited for: the
+        stamps up to this vehicle's first tick (a restart: what was sent before it may be lost), and
+        a neighbour that died meanwhile (its liveliness token is gone)."""
+        if not self.config.vehicle.cooperative or self.finished_us is None:
             return []
-        tick_start_us = (
-            tick.stamp_us if self.finished_us is None else self.finished_us
-        )  # a restart: from its first tick
+        spans = self._tick_spans
+        if not spans or spans[-1][1] != tick.stamp_us:
+            spans.append((self.finished_us, tick.stamp_us, frozenset(tick.running)))
         until, departed = self.inbound.heard_until, self.world_watch.departed
         return [
             (j, s)
             for j, s in self.v2v.awaited(t_us)
-            if s > tick_start_us and j in tick.running and until.get(j, -1) < s and j not in departed
+            if until.get(j, -1) < s and j not in departed and _ran(spans, j, s)
         ]
 
     def still_unheard(self, awaited: list[tuple[int, int]]) -> list[tuple[int, int]]:
@@ -352,3 +358,13 @@ class VehicleNode:
         if due:
             self.next_cycle_us = due[-1] + self.period_us
         return due
+
+
+def _ran(spans: deque[tuple[int, int, frozenset[int]]], neighbour: int, stamp_us: int) -> bool:
+    """Whether ``neighbour`` ran every cycle of the tick (span) that ``stamp_us`` falls in."""
+    for start_us, end_us, running in reversed(spans):
+        if start_us < stamp_us <= end_us:
+            return neighbour in running
+        if end_us < stamp_us:
+            return False
+    return False

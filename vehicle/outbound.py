@@ -34,12 +34,12 @@ class Outbound:
         self._accuser = MavlinkEncoder(vehicle_id=vehicle_id, signing_key=signing_key, link_id=2)
         self.mavlink_publisher = self._mavlink = bus.publisher(keys.mavlink(vehicle_id))
         self.v2v_publisher = self._v2v = bus.publisher(keys.v2v(vehicle_id))
-        # the addressed publishers (realtime: every neighbour's, declared up front: a declaration is a
-        # round trip to the router, which an overloaded swarm must not wait for mid-run)
-        neighbours = (
-            [j for j in range(1, config.vehicles + 1) if j != vehicle_id] if config.clock.mode == "realtime" else []
-        )
-        self._v2v_to = {j: bus.publisher(keys.v2v_to(vehicle_id, j)) for j in neighbours}
+        # the addressed publishers, one per neighbour: in realtime declared up front (a declaration is a
+        # round trip to the router, which an overloaded swarm must not wait for mid-run), in lockstep
+        # as listeners first appear (nothing there waits on the wall clock)
+        self._bus, self._neighbours = bus, frozenset(j for j in range(1, config.vehicles + 1) if j != vehicle_id)
+        realtime = config.clock.mode == "realtime"
+        self._v2v_to = {j: bus.publisher(keys.v2v_to(vehicle_id, j)) for j in (self._neighbours if realtime else ())}
         self.ack_publisher = self._ack = bus.publisher(keys.ack(vehicle_id))
         self._status = bus.publisher(keys.status(vehicle_id))
         self._v2v_period_us = round(1e6 / config.sensors.ranging_rate_hz)
@@ -109,8 +109,11 @@ class Outbound:
             self.v2v_sent += 1
             return
         for j in listeners:
-            if j in self._v2v_to:  # the world names only this swarm's vehicles, in realtime
-                self._v2v_to[j].put(frame)
+            publisher = self._v2v_to.get(j)
+            if publisher is None and j in self._neighbours:  # the world names only this swarm's vehicles
+                publisher = self._v2v_to[j] = self._bus.publisher(self._bus.keys.v2v_to(self.vehicle_id, j))
+            if publisher is not None:
+                publisher.put(frame)
 
     def flush(self) -> None:
         """Publish the frames encoded since the last flush as one message."""

@@ -16,11 +16,12 @@ measured from the observer's heading, so the heading's uncertainty counts.
 
 Neighbours' frames are kept as they arrive and decoded and checked when a measurement pairs with
 them (the radio ranges at most a few peers per epoch; where every neighbour's broadcast is heard, in
-lockstep and replays, four frames in five were decoded for nothing in a 20-vehicle swarm; a
-realtime simulation sends each frame only to the vehicles that range with its sender, on
-``v/j/v2v/<receiver>``): the sender must be the vehicle whose key it came on, the covariance must be
-usable; what fails is counted then. Authenticity rests on the router: only vehicle j's login may
-publish on ``v/j/v2v`` and ``v/j/v2v/*`` (bus.access); a vehicle holds no other vehicle's signing key.
+replays, four frames in five were decoded for nothing in a 20-vehicle swarm; a simulation sends
+each frame only to the vehicles that range with its sender, on ``v/j/v2v/<receiver>``, so what a
+vehicle files per epoch does not grow with the swarm): the sender must be the vehicle whose key it
+came on, the covariance must be usable; what fails is counted then. Authenticity rests on the
+router: only vehicle j's login may publish on ``v/j/v2v`` and ``v/j/v2v/*`` (bus.access); a vehicle
+holds no other vehicle's signing key.
 """
 
 from __future__ import annotations

@@ -150,6 +150,27 @@ def test_a_cycle_inside_a_long_tick_waits_for_the_broadcasts_its_ranging_pairs_w
     assert node.rejections.total == 0  # "no estimate" is a broadcast, not a fault
 
 
+def test_a_cycle_waits_for_a_broadcast_of_the_previous_tick_from_a_neighbour_that_ran_it():
+    """Frames go only to the vehicles that range their sender, so no count of broadcasts covers a fix
+    stamped in the previous tick that matures in this one: the cycle waits for its frame if the
+    neighbour ran that tick, and not for a neighbour that did not (it was rejoining)."""
+    node, _ = _node()
+    keys = node.bus.keys
+    node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+    first = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, 0, False, (), (1, 2, 3), (1, 2, 3)))))
+    node.finish_tick(first)
+    node.take(Envelope(keys.feed(1), _batch(1, 1, 400_000, _ranging(1, [400_000, 400_000], [2, 3]))))
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 400_000, 0, False, (), (1, 2, 3), (1, 2)))))
+    assert node.unheard_neighbours(tick, 400_000) == []  # matures at 500 ms, in the next tick
+    node.finish_tick(tick)
+    node.take(Envelope(keys.feed(1), _batch(1, 2, 800_000, {})))
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(2, 800_000, 0, False, (), (1, 2, 3), (1, 2, 3)))))
+    assert node.ready(tick)  # nothing was broadcast to everyone: no count to wait for
+    assert node.unheard_neighbours(tick, 500_000) == [(2, 400_000)]  # 3 did not run tick 1
+    node.take(Envelope(keys.v2v_to(2, 1), MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, 400_000))))
+    assert node.unheard_neighbours(tick, 500_000) == []
+
+
 def test_a_neighbour_that_died_is_not_waited_for():
     node, _ = _node()
     keys = node.bus.keys
@@ -230,15 +251,16 @@ def test_a_vehicle_whose_world_is_gone_stops_with_a_clear_error(monkeypatch):
         node.world_watch.check()
 
 
-def test_v2v_frames_go_to_the_listeners_the_batch_names_else_to_everyone():
-    """A realtime simulation's batch names who ranges the vehicle: its epoch's V2V frame goes to each
-    of them on its own key; with no batch naming them (the first cycle, lockstep, replays) it is
-    broadcast. A frame addressed to another vehicle is refused."""
+@pytest.mark.parametrize("mode", ["realtime", "lockstep"])
+def test_v2v_frames_go_to_the_listeners_the_batch_names_else_to_everyone(mode: str):
+    """A simulation's batch names who ranges the vehicle: its epoch's V2V frame goes to each of them
+    on its own key; with no batch naming them (the first cycle, replays) it is broadcast. A frame
+    addressed to another vehicle is refused; lockstep's barrier counts only what was broadcast."""
     hub = MemoryHub()
     sent: list[str] = []
     deliver = hub.deliver
     hub.deliver = lambda key, payload: (sent.append(key), deliver(key, payload))
-    node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": "realtime"}}).for_vehicle(), 1)
+    node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": mode}}).for_vehicle(), 1)
     keys = node.bus.keys
     for tick, listeners in enumerate([(), (3, 4), (), ()]):  # batches for stamps 0, 20, 40, 60 ms
         blocks = PRIOR if tick == 0 else {}
@@ -258,7 +280,9 @@ def test_v2v_frames_go_to_the_listeners_the_batch_names_else_to_everyone():
     assert node.take(Envelope(keys.v2v_to(2, 5), frame)) is None
     assert counts_to_dict(node.rejections.as_counts()) == {"unexpected": 1}
     node.take(Envelope(keys.v2v_to(2, 1), frame))
-    assert node.inbound.heard == {2: 1}
+    assert node.inbound.heard_until == {2: 0} and node.inbound.heard == {}
+    node.take(Envelope(keys.v2v(2), MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, 200_000))))
+    assert node.inbound.heard_until == {2: 200_000} and node.inbound.heard == {2: 1}
 
 
 def test_realtime_a_flood_of_messages_delays_filing_never_a_cycle():
