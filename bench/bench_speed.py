@@ -2,7 +2,9 @@
 ``a0fccee`` (built from the repository's history, bench/baseline.py), interleaved A B A B in one
 sitting, medians of ``ROUNDS``: wall time, CPU of every process and the largest process; and the CPU
 each role spends per vehicle per simulated second at 5, 20 and 50 vehicles (lockstep), read from
-/proc while the runs fly, with the projection to 100 and 200 vehicles over hosts."""
+/proc while the runs fly: the difference between a long and a short run of each size, so that
+start-up and shutdown (per process, or per run for the world, the ground station and the router)
+cancel out; with the projection to 100 and 200 vehicles over hosts."""
 
 from __future__ import annotations
 
@@ -24,7 +26,8 @@ DEMO = ("--vehicles", "5", "--duration", "60", "--mode", "lockstep", "--seed", "
 ROLES = ("vehicle", "sim", "gs", "router")
 HZ = os.sysconf("SC_CLK_TCK")
 SAMPLE_S = 0.02
-GROWTH_S = 30  # every size flies as long: start-up is then the same share of each size's CPU
+GROWTH_REPEATS = 3
+GROWTH_S = (10, 40)  # each size flies both: the difference is the stepping's CPU, without start and stop
 
 
 def timed(python: Path | str, args: tuple[str, ...], out: Path, name: str) -> dict[str, float]:
@@ -38,6 +41,10 @@ def timed(python: Path | str, args: tuple[str, ...], out: Path, name: str) -> di
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     timing = json.loads((out / name / "timing.json").read_text())
     return {"wall_s": wall, "cpu_s": cpu, "max_rss_mb": after.ru_maxrss / 1024, "rtf": timing["real_time_factor"]}
+
+
+def lockstep(vehicles: int, duration_s: int) -> tuple[str, ...]:
+    return ("--vehicles", str(vehicles), "--duration", str(duration_s), "--mode", "lockstep")
 
 
 def role_cpu(args: tuple[str, ...], out: Path, name: str) -> dict[str, float]:
@@ -86,9 +93,12 @@ def run(quick: bool) -> list[Row]:
             results["now"].append(timed(sys.executable, DEMO, Path(tmp), f"now-{k}"))
             results["then"].append(timed(old, DEMO, Path(tmp), f"then-{k}"))
         twenty = timed(sys.executable, ("--vehicles", "20", "--duration", "20", "--mode", "lockstep"), Path(tmp), "n20")
-        per_role = {
-            n: role_cpu(("--vehicles", str(n), "--duration", str(d), "--mode", "lockstep"), Path(tmp), f"roles-{n}")
-            for n, d in ((5, GROWTH_S), (20, GROWTH_S), (50, GROWTH_S))
+        per_role = {  # n -> [(short run, long run) per repetition]
+            n: [
+                tuple(role_cpu(lockstep(n, d), Path(tmp), f"roles-{n}-{d}-{k}") for d in GROWTH_S)
+                for k in range(1 if quick else GROWTH_REPEATS)
+            ]
+            for n in (5, 20, 50)
         }
     med = {side: {k: statistics.median(r[k] for r in rs) for k in rs[0]} for side, rs in results.items()}
     ratio = med["now"]["wall_s"] / med["then"]["wall_s"]
@@ -133,9 +143,13 @@ def run(quick: bool) -> list[Row]:
             {k: round(v, 2) for k, v in twenty.items()},
         ),  # fmt: skip
     ]
-    durations = {5: GROWTH_S, 20: GROWTH_S, 50: GROWTH_S}
-    per_vs = {
-        n: {role: 1000.0 * cpu / (n * durations[n]) for role, cpu in roles.items()} for n, roles in per_role.items()
+    short, long = GROWTH_S
+    per_vs = {  # the marginal CPU of a simulated second (start-up and shutdown cancel out), median of repetitions
+        n: {
+            role: statistics.median(1000.0 * (b[role] - a[role]) / (n * (long - short)) for a, b in pairs)
+            for role in ROLES
+        }
+        for n, pairs in per_role.items()
     }
     total = {n: sum(v.values()) for n, v in per_vs.items()}
     growth = total[50] / total[5]
