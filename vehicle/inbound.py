@@ -65,6 +65,7 @@ class Inbound:
         self.behaviour = _own_behaviour(faults, vehicle_id)  # the plan's lies and accusations of it (bus.lies)
         self.plan_version = -1
         self.received_tick = -1  # the newest sensor batch that arrived
+        self.refused_since = 0  # batches on its feed refused since the newest that arrived
         self.received_stamp_us = -1  # and the end of the time it covers
         self.heard: dict[int, int] = {}  # V2V frames sent to every vehicle heard, per sender
         self.heard_until: dict[int, int] = {}  # the newest stamp heard per sender (before link faults)
@@ -75,6 +76,8 @@ class Inbound:
         """File one mailbox item; returns what passes on (possibly nothing)."""
         if isinstance(item, Oversized):
             self.rejections.reject("oversized", item.key, f"{item.size} bytes")
+            if item.key == self.keys.feed(self.vehicle_id):
+                self.refused_since += 1
             return []
         if not isinstance(item, Envelope):
             self.rejections.reject("unexpected", "mailbox", type(item).__name__)
@@ -145,11 +148,13 @@ class Inbound:
             batch = feed.decode_batch(item.payload)
         except DecodeError as exc:
             self.rejections.reject("malformed", item.key, str(exc))
+            self.refused_since += 1
             return []
         if batch.vehicle_id != self.vehicle_id:
             self.rejections.reject("impersonation", item.key, f"batch names vehicle {batch.vehicle_id}")
+            self.refused_since += 1
             return []
-        self.received_tick = max(self.received_tick, batch.tick)
+        self.received_tick, self.refused_since = max(self.received_tick, batch.tick), 0
         self.received_stamp_us = max(self.received_stamp_us, batch.stamp_us)
         if batch.listeners is not None:
             self._listeners.append((batch.stamp_us, batch.listeners))

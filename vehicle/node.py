@@ -204,9 +204,13 @@ class VehicleNode:
 
     def ready(self, tick: m.ClockTick) -> bool:
         """Lockstep: the tick's sensor batch has arrived, and every V2V broadcast the neighbours had
-        sent by their last acknowledgements (zenoh orders samples within a key, not across keys)."""
+        sent by their last acknowledgements (zenoh orders samples within a key, not across keys). The
+        world sends one batch per tick, in order on the vehicle's key, so the batches refused
+        (malformed, or too large) since the newest good one were the ticks after it: a tick whose
+        batch was refused runs without it at once instead of waiting for a batch not on its way."""
         joined_late = tick is self.first_tick and tick.tick > 0  # a restart: earlier batches are gone
-        if self.inbound.received_tick < tick.tick and not joined_late:
+        covered = self.inbound.received_tick + self.inbound.refused_since
+        if covered < tick.tick and not joined_late:
             return False
         if not self.config.vehicle.cooperative:
             return True

@@ -125,6 +125,32 @@ def test_a_tick_waits_for_its_batch_and_for_every_broadcast_the_neighbours_sent(
     assert node.ready(tick)
 
 
+def test_a_tick_whose_batch_was_refused_runs_without_it_and_only_that_tick():
+    """The world sends one batch per tick, in order: a refused one (malformed, too large) was the next
+    tick's, which then runs at once without it; the tick after still waits for its own."""
+    node, _ = _node()
+    keys = node.bus.keys
+    node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, 0, False))))
+    node.finish_tick(tick)
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 100_000, 0, False))))
+    assert not node.ready(tick)  # batch 1 on its way
+    node.take(Envelope(keys.feed(1), b"\x93not a batch"))
+    assert node.ready(tick)  # it came, refused: nothing more is coming for tick 1
+    node.finish_tick(tick)
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(2, 200_000, 0, False))))
+    assert not node.ready(tick)  # batch 2 is its own
+    node.take(Oversized(keys.feed(1), 10**7))
+    assert node.ready(tick)
+    node.finish_tick(tick)
+    node.take(Envelope(keys.feed(1), _batch(1, 3, 300_000, {})))
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(3, 300_000, 0, False))))
+    assert node.ready(tick) and node.inbound.refused_since == 0
+    tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(4, 400_000, 0, False))))
+    assert not node.ready(tick)
+    assert counts_to_dict(node.rejections.as_counts()) == {"malformed": 1, "oversized": 1}
+
+
 def _ranging(vid: int, stamps_us: list[int], targets: list[int]) -> dict:
     rows = np.array([[j, 10.0, 0.1, 0.09, 0.0, 0.0, 0.0004] for j in targets])
     return {"ranging": (np.array(stamps_us), 0, rows)}
