@@ -209,6 +209,15 @@ class StatusText:
     text: str
 
 
+@dataclass(frozen=True)
+class SystemTime:
+    """SYSTEM_TIME: the sender's time since its start (ms, modulo 2^32), sent just before each
+    STATUSTEXT so that what the vehicle says is stamped with when it said it."""
+
+    vehicle_id: int
+    time_boot_ms: int
+
+
 class MavlinkEncoder:
     """Packs one vehicle's MAVLink 2 stream (sysid = vehicle id, compid 191), signed if keyed."""
 
@@ -291,6 +300,10 @@ class MavlinkEncoder:
     def statustext(self, severity: int, text: str) -> bytes:
         return self._pack(self._mav.statustext_encode(severity, text.encode()[:50]))
 
+    def system_time(self, time_us: int) -> bytes:
+        """SYSTEM_TIME at sim time ``time_us`` (time_boot_ms, modulo 2^32; no Unix time)."""
+        return self._pack(self._mav.system_time_encode(0, (time_us // 1000) % 2**32))
+
     def accusation(self, time_usec: int, neighbour: int) -> bytes:
         """NAMED_VALUE_INT "distrust" = ``neighbour`` at the epoch ``time_usec`` (ms, modulo 2^32)."""
         msg = self._mav.named_value_int_encode((time_usec // 1000) % 2**32, DISTRUST.encode(), neighbour)
@@ -340,10 +353,10 @@ class MavlinkDecoder:
 
     def decode(
         self, frame: bytes
-    ) -> StateEstimate | NoEstimate | Heartbeat | EstimatorStatus | StatusText | Accusation | None:
+    ) -> StateEstimate | NoEstimate | Heartbeat | EstimatorStatus | StatusText | SystemTime | Accusation | None:
         """One frame -> StateEstimate (NoEstimate for an ODOMETRY of unknown covariance), Heartbeat,
-        EstimatorStatus, StatusText, Accusation (a NAMED_VALUE_INT named "distrust"), or None for
-        other types.
+        EstimatorStatus, StatusText, SystemTime, Accusation (a NAMED_VALUE_INT named "distrust"), or
+        None for other types.
 
         Raises DecodeError for malformed frames, MavlinkRejected for failed authentication.
         """
@@ -370,6 +383,8 @@ class MavlinkDecoder:
             )
         if isinstance(msg, mavlink2.MAVLink_statustext_message):
             return StatusText(msg.get_srcSystem(), msg.severity, _text(msg.text))
+        if isinstance(msg, mavlink2.MAVLink_system_time_message):
+            return SystemTime(msg.get_srcSystem(), msg.time_boot_ms)
         if isinstance(msg, mavlink2.MAVLink_named_value_int_message) and _text(msg.name) == DISTRUST:
             return Accusation(msg.get_srcSystem(), msg.time_boot_ms, msg.value)
         return None

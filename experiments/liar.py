@@ -17,8 +17,8 @@ jamming ending after ``JAMMING_ENDS_AFTER_S`` flies with the monitor on and off 
 no verdict, so the difference is the neighbours' say on the GNSS resets as the receivers come back). Scored on
 the honest vehicles (all but the liar) from ``LIE_START_S`` to the end. Detection: for each vehicle
 that ranged the liar after the lie began (read off the pure world of the same seed), the time from
-its first such ranging to its first ``neighbour_distrusted`` event about the liar (the ground
-station stamps events with its clock tick: up to one 0.5 s tick late), 0 when it distrusted the liar
+its first such ranging to its first ``neighbour_distrusted`` event about the liar (stamped with the
+vehicle's own time: the SYSTEM_TIME before its STATUSTEXT), 0 when it distrusted the liar
 on the word of others before it ranged it. A false alarm is any distrust
 of an honest vehicle; those the liar itself raised are counted apart too (a spoofed vehicle that
 distrusts the honest neighbours who could correct it hurts itself, not them).

@@ -82,3 +82,15 @@ class MavlinkIntake:
 
     def release(self, now_us: int, ready: Callable[[Arrival, int], bool] | None = None) -> list[tuple[int, bytes]]:
         return self.links.release(now_us, ready)
+
+
+def said_at(time_boot_ms: int, now_us: int) -> int | None:
+    """The sim time (us) a SYSTEM_TIME's ``time_boot_ms`` (modulo 2^32 ms) names, taken as the one
+    nearest the ground station's ``now_us``; None when that is not near it (``PAST_US`` behind to
+    ``FUTURE_US`` ahead, as for estimates)."""
+    wrap_ms, now_ms = 2**32, now_us // 1000
+    ms = now_ms - (now_ms - time_boot_ms) % wrap_ms  # the latest at or before now
+    if now_ms - ms > wrap_ms // 2:
+        ms += wrap_ms
+    stamp_us = ms * 1000
+    return stamp_us if now_us - PAST_US <= stamp_us <= now_us + FUTURE_US else None

@@ -24,14 +24,14 @@ from bus.errors import DecodeError
 from bus.landmark_map import MAX_MAP_BYTES, map_record
 from bus.link_faults import Arrival
 from bus.mailbox import Mailbox, Oversized
-from bus.mavlink_codec import EstimatorStatus, StateEstimate, StatusText
+from bus.mavlink_codec import EstimatorStatus, StateEstimate, StatusText, SystemTime
 from bus.plan import FaultReply, FaultRequest, decode_json, encode_json
 from bus.rejections import Rejections, counts_to_dict
 from bus.session import Bus, Envelope, LivelinessEvent, Request
 from groundstation.claims import IdRegister
 from groundstation.fault_control import FaultControl
 from groundstation.layout import swarm_layouts
-from groundstation.mavlink_in import MAX_STREAM_BYTES, MavlinkIntake
+from groundstation.mavlink_in import MAX_STREAM_BYTES, MavlinkIntake, said_at
 from groundstation.mavlink_out import MavlinkForwarder
 from groundstation.membership import MembershipLog
 from groundstation.recording import open_recording
@@ -92,6 +92,7 @@ class GroundStation:
         )
         self.forwarder = forwarder
         self.latency_us: dict[int, list[int]] = {}
+        self.said_us: dict[int, int | None] = {}  # per vehicle: the time its last SYSTEM_TIME said, until a STATUSTEXT
         self.reports = VehicleReports(config.world.vehicles, self.rejections)  # loop statistics, SLAM maps
         self.events: Counter[str] = Counter()
         self.sim_time_us = 0
@@ -106,7 +107,7 @@ class GroundStation:
         self.latest_estimate_us: dict[int, int] = {}
         self.latest_truth_us = -1
         self.gnss_glitch: dict[int, bool] = {}
-        self.faults = FaultControl(config.faults, vehicles=config.world.vehicles, log=self._fault_event)
+        self.faults = FaultControl(config.faults, vehicles=config.world.vehicles, log=self._event_at)
         self.resumed = False
         self._resume(run_dir)
         self.membership = MembershipLog(resumed=self.resumed)
@@ -138,7 +139,7 @@ class GroundStation:
             self.events[kind] += 1
         self.run.event(kind, self.sim_time_us, **fields)
 
-    def _fault_event(self, kind: str, stamp_us: int, **fields: object) -> None:
+    def _event_at(self, kind: str, stamp_us: int, **fields: object) -> None:
         self.events[kind] += 1
         self.run.event(kind, stamp_us, **fields)
 
@@ -286,24 +287,27 @@ class GroundStation:
             self.latest_estimate_us[vid] = max(decoded.time_usec, self.latest_estimate_us.get(vid, -1))
         elif isinstance(decoded, EstimatorStatus):
             self._on_estimator_status(decoded)
+        elif isinstance(decoded, SystemTime):
+            self.said_us[decoded.vehicle_id] = said_at(decoded.time_boot_ms, self.sim_time_us)
         elif isinstance(decoded, StatusText):
-            self.run.event(
-                "vehicle_message",
-                self.sim_time_us,
-                vehicle=decoded.vehicle_id,
-                severity=decoded.severity,
-                text=decoded.text,
-            )
-            if decoded.text.startswith("estimator reset"):
-                self.event("estimator_reset", vehicle=decoded.vehicle_id, text=decoded.text)
-            verdict = trust_verdict(decoded.text)
-            if verdict is not None:
-                kind, neighbour, reason = verdict
-                self.event(kind, vehicle=decoded.vehicle_id, neighbour=neighbour, reason=reason)
-            contradicted = contradiction(decoded.text)
-            if contradicted is not None:
-                accuser, accused = contradicted
-                self.event("accusation_contradicted", vehicle=decoded.vehicle_id, accuser=accuser, accused=accused)
+            self._on_statustext(decoded)
+
+    def _on_statustext(self, said: StatusText) -> None:
+        """A vehicle's message, and the events it announces, stamped with the SYSTEM_TIME the vehicle
+        sent just before it (else, or if that was not near the swarm's time, the clock tick)."""
+        stamp = self.said_us.pop(said.vehicle_id, None)
+        stamp = self.sim_time_us if stamp is None else stamp
+        self.run.event("vehicle_message", stamp, vehicle=said.vehicle_id, severity=said.severity, text=said.text)
+        if said.text.startswith("estimator reset"):
+            self._event_at("estimator_reset", stamp, vehicle=said.vehicle_id, text=said.text)
+        verdict = trust_verdict(said.text)
+        if verdict is not None:
+            kind, neighbour, reason = verdict
+            self._event_at(kind, stamp, vehicle=said.vehicle_id, neighbour=neighbour, reason=reason)
+        contradicted = contradiction(said.text)
+        if contradicted is not None:
+            accuser, accused = contradicted
+            self._event_at("accusation_contradicted", stamp, vehicle=said.vehicle_id, accuser=accuser, accused=accused)
 
     def _on_estimator_status(self, status: EstimatorStatus) -> None:
         """GNSS health changes (the GPS glitch flag) become events, stamped with the vehicle's time."""

@@ -64,7 +64,10 @@ class Outbound:
         plan's lies and accusations of this vehicle (``behaviour``) have it."""
         notices = estimator.take_notices()
         for notice in notices:
-            self._frames.append(self.encoder.statustext(notice.severity, notice.text[:50]))
+            self._frames += [  # when it was said, then what
+                self.encoder.system_time(notice.stamp_us),
+                self.encoder.statustext(notice.severity, notice.text[:50]),
+            ]
         on_v2v, on_mavlink = t_us % self._v2v_period_us == 0, t_us % self._mavlink_period_us == 0
         if not estimator.initialized:
             if on_v2v:  # neighbours in lockstep wait for every epoch's broadcast: say there is none

@@ -240,3 +240,11 @@ def test_an_accusation_round_trips_signed_and_other_named_values_are_not_one():
     assert decoder.decode(frame) == Accusation(4, 5_000_200, 3)
     mav = mavlink2.MAVLink(None, srcSystem=4, srcComponent=191)
     assert MavlinkDecoder().decode(bytes(mav.named_value_int_encode(0, b"rpm", 3).pack(mav))) is None
+
+
+def test_system_time_says_the_senders_time_in_ms_modulo_2_32():
+    from bus.mavlink_codec import SystemTime
+
+    decoder = MavlinkDecoder()
+    for time_us, ms in ((760_000, 760), (2**32 * 1000 + 5_000, 5)):
+        assert decoder.decode(MavlinkEncoder(vehicle_id=4).system_time(time_us)) == SystemTime(4, ms)

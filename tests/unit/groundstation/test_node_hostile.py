@@ -143,3 +143,39 @@ def test_contradicted_accusations_name_the_accuser_and_the_accused():
     assert contradiction("discredit v4: accuses v1, consistent here") == (4, 1)
     assert trust_verdict("discredit v4: accuses v1, consistent here") is None
     assert contradiction("discredit v0: accuses v1, x") is None and contradiction("distrust v3: x") is None
+
+
+def test_what_a_vehicle_says_is_stamped_with_when_it_said_it(tmp_path):
+    """A STATUSTEXT and the events it announces take the SYSTEM_TIME sent just before it, not the
+    ground station's clock tick (which trails by up to a tick and depends on arrival order); without
+    one, or with one far from the swarm's time, the tick."""
+    import json
+
+    gs = _gs(tmp_path)
+    keys = gs.bus.keys
+    gs.handle(Envelope(keys.clock(), m.encode(m.ClockTick(2, 1_000_000, 0, False))))
+    encoder = MavlinkEncoder(vehicle_id=2, signing_key=vehicle_signing_key(MASTER, 2))
+    said = [
+        encoder.system_time(760_000) + encoder.statustext(4, "distrust v3: 8 of 8 fixes fail the gate"),
+        encoder.statustext(4, "trust v3: consistent again"),  # no SYSTEM_TIME before it
+        encoder.system_time(900_000_000) + encoder.statustext(6, "far off"),  # 15 min ahead of the swarm
+    ]
+    for payload in said:
+        gs.handle(Envelope(keys.mavlink(2), payload))
+    gs.run.flush()
+    events = [json.loads(line) for line in (tmp_path / "run" / "events.jsonl").read_text().splitlines()]
+    stamps = {(e["event"], e.get("text", e.get("reason"))): e["t_s"] for e in events if e.get("vehicle") == 2}
+    assert stamps[("neighbour_distrusted", "8 of 8 fixes fail the gate")] == 0.76
+    assert stamps[("vehicle_message", "distrust v3: 8 of 8 fixes fail the gate")] == 0.76
+    assert stamps[("neighbour_trusted", "consistent again")] == 1.0
+    assert stamps[("vehicle_message", "far off")] == 1.0
+    assert gs.rejections.total == 0
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(0, 2**50))
+def test_a_system_time_is_read_near_the_swarms_time_or_not_at_all(time_boot_ms, now_us):
+    from groundstation.mavlink_in import FUTURE_US, PAST_US, said_at
+
+    stamp = said_at(time_boot_ms, now_us)
+    assert stamp is None or (now_us - PAST_US <= stamp <= now_us + FUTURE_US and stamp // 1000 % 2**32 == time_boot_ms)
+    assert said_at((now_us // 1000) % 2**32, now_us) == now_us // 1000 * 1000  # its own time, past any wrap

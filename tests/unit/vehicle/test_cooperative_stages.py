@@ -3,14 +3,18 @@ world on the in-memory bus (stage 1: test_noise_free.py; stage 2: test_estimator
 
 3. Two vehicles, one with GNSS and one without: ranging to the one that knows where it is brings
    the other's error down.
-4. Four vehicles with GNSS jammed for all and V2V packets delayed: Covariance Intersection stays
-   consistent and beats independent dead reckoning, naive fusion turns over-confident.
+4. Four vehicles with GNSS jammed for all and V2V packets delayed: Covariance Intersection is never
+   over-confident and beats independent dead reckoning, naive fusion turns over-confident.
 
-Measured (3 seeds, 10-25 s): RMSE dead reckoning 2.49 m, split CI 0.21 m (ANEES 1.02), plain CI
-0.64 m (ANEES 2.43), naive 0.26 m (ANEES 13.7), the centralized reference 0.14 m (ANEES 1.49); two-sided
-95% band [1.78, 4.54]. The band treats the 12 vehicle runs as independent; they are not (the vehicles
-fuse each other), so it is narrower than the truth: over 12 seeds the centralized reference's ANEES
-is 1.92 +- 0.40, conservative while the swarm's absolute position is unobserved.
+Measured (3 seeds, each with its own link-fault draws, 10-25 s): RMSE dead reckoning 2.49 m, split
+CI 0.21 m (ANEES 0.89), plain CI 0.59 m (ANEES 2.09), naive 0.30 m (ANEES 22.2), the centralized
+reference 0.14 m (ANEES 1.53); two-sided 95% band [1.78, 4.54]. Both CIs are conservative (they
+assume the worst correlation): over 8 seeds plain CI's ANEES is 1.88 and split CI's 1.06, below that
+sample's band [2.21, 3.91], so plain CI is held to lie between split CI and the band's top, not inside
+the band (with one link-fault draw shared by the three seeds it had come out at 2.43). The band
+treats the 12 vehicle runs as independent; they are not (the vehicles fuse each other), so it is
+narrower than the truth: over 12 seeds the centralized reference's ANEES is 1.92 +- 0.40,
+conservative while the swarm's absolute position is unobserved.
 """
 
 import numpy as np
@@ -79,6 +83,7 @@ def _stage_4(**vehicle) -> tuple[float, np.ndarray, float]:
         config = build_config(
             {
                 "world": {"vehicles": 4, "seed": seed},
+                "fault_seed": seed,
                 "clock": {"duration_s": 25},
                 "vehicle": vehicle,
                 "faults": [JAM_ALL, V2V_DELAY],
@@ -93,7 +98,7 @@ def _stage_4(**vehicle) -> tuple[float, np.ndarray, float]:
 
 def test_stage_4_ci_stays_consistent_and_beats_dead_reckoning_where_naive_fusion_turns_overconfident():
     """Split CI (the default) is the most accurate and never over-confident, but conservative (it
-    assumes the worst correlation at every fix); plain CI's ANEES lies inside the two-sided band."""
+    assumes the worst correlation at every fix); plain CI is less conservative, still never over-confident."""
     dead_reckoning, _, _ = _stage_4(cooperative=False)
     split, split_nees, count = _stage_4(cooperative_fusion="split-ci")
     plain, plain_nees, _ = _stage_4(cooperative_fusion="ci")
@@ -101,7 +106,7 @@ def test_stage_4_ci_stays_consistent_and_beats_dead_reckoning_where_naive_fusion
     lower, upper = chi2.ppf([0.025, 0.975], 3 * count) / count  # one sample per vehicle and seed each second
     assert split < dead_reckoning / 4 and plain < dead_reckoning / 2, (split, plain, dead_reckoning)
     assert np.all(split_nees < upper) and np.all(plain_nees < upper), (split_nees, plain_nees, upper)
-    assert lower <= plain_nees.mean() <= upper, (plain_nees.mean(), lower, upper)
+    assert split_nees.mean() < plain_nees.mean() < upper, (split_nees.mean(), plain_nees.mean(), lower, upper)
     assert np.all(naive_nees > upper), (naive_nees, upper)  # double counting: over-confident at every second
     central, central_nees = _centralized_stage_4()
     assert central < split and np.all(central_nees < upper), (central, split, central_nees)  # the yardstick
