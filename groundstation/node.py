@@ -9,7 +9,6 @@ and event counts already there, so summary.json still covers the whole run.
 from __future__ import annotations
 
 import logging
-import re
 import time
 from collections import Counter
 from pathlib import Path
@@ -40,6 +39,7 @@ from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
 from groundstation.summary import build_summary, build_timing
 from groundstation.vehicle_reports import VehicleReports
+from groundstation.vehicle_says import announced
 
 log = logging.getLogger("swarmloc.groundstation")
 REALTIME_LAG_US = 1_000_000
@@ -298,16 +298,8 @@ class GroundStation:
         stamp = self.said_us.pop(said.vehicle_id, None)
         stamp = self.sim_time_us if stamp is None else stamp
         self.run.event("vehicle_message", stamp, vehicle=said.vehicle_id, severity=said.severity, text=said.text)
-        if said.text.startswith("estimator reset"):
-            self._event_at("estimator_reset", stamp, vehicle=said.vehicle_id, text=said.text)
-        verdict = trust_verdict(said.text)
-        if verdict is not None:
-            kind, neighbour, reason = verdict
-            self._event_at(kind, stamp, vehicle=said.vehicle_id, neighbour=neighbour, reason=reason)
-        contradicted = contradiction(said.text)
-        if contradicted is not None:
-            accuser, accused = contradicted
-            self._event_at("accusation_contradicted", stamp, vehicle=said.vehicle_id, accuser=accuser, accused=accused)
+        for kind, fields in announced(said.text):
+            self._event_at(kind, stamp, vehicle=said.vehicle_id, **fields)
 
     def _on_estimator_status(self, status: EstimatorStatus) -> None:
         """GNSS health changes (the GPS glitch flag) become events, stamped with the vehicle's time."""
@@ -431,25 +423,3 @@ class GroundStation:
             out["world"] = self.ended.rejected
         out.update({f"vehicle-{vid}": st.rejected for vid, st in sorted(self.reports.statuses.items()) if st.rejected})
         return out
-
-
-_VERDICT = re.compile(r"(distrust|trust) v([1-9][0-9]{0,2}): (.{0,60})")
-_CONTRADICTION = re.compile(r"discredit v([1-9][0-9]{0,2}): accuses v([1-9][0-9]{0,2}), .{0,40}")
-
-
-def trust_verdict(text: str) -> tuple[str, int, str] | None:
-    """("neighbour_distrusted" | "neighbour_trusted", neighbour, reason) from a vehicle's STATUSTEXT
-    (vehicle.estimators.filter says "distrust v3: <reason>"), None for any other text (total)."""
-    match = _VERDICT.fullmatch(text) if isinstance(text, str) else None
-    if match is None:
-        return None
-    kind = "neighbour_distrusted" if match.group(1) == "distrust" else "neighbour_trusted"
-    return kind, int(match.group(2)), match.group(3)
-
-
-def contradiction(text: str) -> tuple[int, int] | None:
-    """(accuser, accused) from a vehicle's STATUSTEXT saying its own evidence contradicted an
-    accusation (vehicle.estimators.trust says "discredit v4: accuses v1, consistent here"), None
-    for any other text (total)."""
-    match = _CONTRADICTION.fullmatch(text) if isinstance(text, str) else None
-    return None if match is None else (int(match.group(1)), int(match.group(2)))

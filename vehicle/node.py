@@ -236,12 +236,7 @@ class VehicleNode:
         spans = self._tick_spans
         if not spans or spans[-1][1] != tick.stamp_us:
             spans.append((self.finished_us, tick.stamp_us, frozenset(tick.running)))
-        until, departed = self.inbound.heard_until, self.world_watch.departed
-        return [
-            (j, s)
-            for j, s in self.v2v.awaited(t_us)
-            if until.get(j, -1) < s and j not in departed and _ran(spans, j, s)
-        ]
+        return self.waited_for(self.still_unheard([(j, s) for j, s in self.v2v.awaited(t_us) if _ran(spans, j, s)]))
 
     def still_unheard(self, awaited: list[tuple[int, int]]) -> list[tuple[int, int]]:
         """Of ``awaited`` (``unheard_neighbours`` of one cycle), the broadcasts not heard yet, their

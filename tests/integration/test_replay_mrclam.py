@@ -44,7 +44,7 @@ def _replay(out: Path, *args: str) -> subprocess.CompletedProcess:
         "--no-report",
         *args,
     ]
-    return subprocess.run(command, capture_output=True, text=True, timeout=300, env={**os.environ, "COLUMNS": "200"})
+    return subprocess.run(command, capture_output=True, text=True, env={**os.environ, "COLUMNS": "200"})
 
 
 @pytest.fixture(scope="module")
@@ -102,7 +102,7 @@ def test_out_of_sample_every_robots_covariance_is_honest(tmp_path):
     table is in the docs)."""
     command = [sys.executable, "-m", "cli", "replay", "mrclam", str(HELD_OUT), "--calibration", str(FIRST_HALF)]
     options = ["--duration", "119", "--quiet", "--no-report", "--out", str(tmp_path), "--name", "held-out"]
-    result = subprocess.run([*command, *options], capture_output=True, text=True, timeout=300)
+    result = subprocess.run([*command, *options], capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr
     summary = read_summary(tmp_path / "held-out")
     assert summary["status"] == "complete" and set(summary["vehicles"]) == {"1", "2", "3", "4", "5"}
@@ -118,7 +118,7 @@ def test_a_calibration_frozen_in_a_file_replays_to_the_byte(runs, tmp_path):
     summary and metrics as the replay that calibrated itself."""
     frozen = tmp_path / "calibration.json"
     command = [sys.executable, "-m", "cli", "replay", "calibrate", str(EXCERPT), "--interval", "0,120"]
-    written = subprocess.run([*command, "--out", str(frozen)], capture_output=True, text=True, timeout=120)
+    written = subprocess.run([*command, "--out", str(frozen)], capture_output=True, text=True)
     assert written.returncode == 0, written.stdout + written.stderr
     result = _replay(tmp_path, "--estimator", "known-map", "--calibration", str(frozen))
     assert result.returncode == 0, result.stdout + result.stderr
@@ -177,7 +177,7 @@ def test_the_mrclam_experiment_compares_variants_over_seeds(tmp_path):
     experiment = [sys.executable, "-m", "cli", "experiment", "mrclam", "--dataset", str(EXCERPT)]
     command = [*experiment, "--seeds", "2", "--duration", "30", "--variants", "known-map,centralized",
                "--out", str(tmp_path), "--quiet"]  # fmt: skip
-    result = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    result = subprocess.run(command, capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr
     folder = tmp_path / "mrclam"
     table = json.loads((folder / "experiment.json").read_text())
@@ -189,5 +189,5 @@ def test_the_mrclam_experiment_compares_variants_over_seeds(tmp_path):
     rows = pd.read_parquet(folder / "results.parquet")
     assert len(rows) == 4 and set(rows["status"]) == {"complete"} and rows["rmse_m"].notna().all()
     unknown = [*experiment, "--variants", "known-map,telepathy", "--out", str(tmp_path / "x")]
-    refused = subprocess.run(unknown, capture_output=True, text=True, timeout=60, env={**os.environ, "COLUMNS": "200"})
+    refused = subprocess.run(unknown, capture_output=True, text=True, env={**os.environ, "COLUMNS": "200"})
     assert refused.returncode != 0 and "telepathy" in refused.stderr and "Traceback" not in refused.stderr

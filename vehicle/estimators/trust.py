@@ -80,7 +80,7 @@ class NeighbourTrust:
 
 def notice_of(change: Verdict | Contradiction) -> Notice:
     """A neighbour's trust changed, or an accuser was contradicted: a STATUSTEXT (the ground station
-    makes it an event: groundstation.node.trust_verdict reads it)."""
+    makes it an event: groundstation.vehicle_says.trust_verdict reads it)."""
     if isinstance(change, Contradiction):
         text = f"discredit v{change.accuser}: accuses v{change.accused}, consistent here"
         return Notice(change.stamp_us, SEVERITY_WARNING, text)

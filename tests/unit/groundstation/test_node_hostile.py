@@ -117,8 +117,9 @@ def test_the_realtime_live_table_shows_a_running_ground_station(tmp_path):
 
 @given(st.one_of(st.text(max_size=80), st.from_regex(r"discredit v[0-9]{1,4}: accuses v[0-9]{1,4}, .{0,45}")))
 def test_trust_verdicts_are_read_from_any_statustext_or_none(text):
-    from groundstation.node import contradiction, trust_verdict
+    from groundstation.vehicle_says import announced, contradiction, trust_verdict
 
+    assert len(announced(text)) <= 1  # a reset, a verdict or a contradiction: they begin differently
     verdict = trust_verdict(text)
     assert verdict is None or (verdict[0] in ("neighbour_distrusted", "neighbour_trusted") and 1 <= verdict[1] <= 999)
     contradicted = contradiction(text)
@@ -126,7 +127,7 @@ def test_trust_verdicts_are_read_from_any_statustext_or_none(text):
 
 
 def test_trust_verdicts_name_the_neighbour_and_the_reason():
-    from groundstation.node import trust_verdict
+    from groundstation.vehicle_says import trust_verdict
 
     assert trust_verdict("distrust v3: 8 of 8 fixes fail the gate") == (
         "neighbour_distrusted",
@@ -138,7 +139,7 @@ def test_trust_verdicts_name_the_neighbour_and_the_reason():
 
 
 def test_contradicted_accusations_name_the_accuser_and_the_accused():
-    from groundstation.node import contradiction, trust_verdict
+    from groundstation.vehicle_says import contradiction, trust_verdict
 
     assert contradiction("discredit v4: accuses v1, consistent here") == (4, 1)
     assert trust_verdict("discredit v4: accuses v1, consistent here") is None
