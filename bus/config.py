@@ -355,7 +355,8 @@ class VehicleConfig(_Strict):
     adaptive_noise: bool = Field(
         False,
         description="IAE: estimate the GNSS and ranging noise covariances from the "
-        "innovations of the last adaptive_window fixes instead of trusting the datasheet",
+        "innovations of the last adaptive_window fixes instead of trusting the datasheet (never below it: "
+        "a CI-fused covariance is a bound, so a quieter-looking sensor is its slack)",
     )
     adaptive_window: int = Field(40, ge=5, le=10_000, description="IAE window, fixes per sensor")
     neighbour_monitor: bool = Field(
