@@ -1,6 +1,6 @@
 """IAE (vehicle.adaptive): the window's estimate is the mean of v v^T - H P H^T, clipped between the
-datasheet and a hundred times it; a filter told GNSS is 3x better than it is turns over-confident, and with IAE it learns
-the real noise and its NEES comes back near its expected value."""
+datasheet and a hundred times it; a filter told GNSS is 3x better than it is turns over-confident,
+and with IAE it learns the real noise and its NEES comes back near its expected value."""
 
 import numpy as np
 import pytest
