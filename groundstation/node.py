@@ -23,14 +23,13 @@ from bus.errors import DecodeError
 from bus.landmark_map import MAX_MAP_BYTES, map_record
 from bus.link_faults import Arrival
 from bus.mailbox import Mailbox, Oversized
-from bus.mavlink_codec import EstimatorStatus, StateEstimate, StatusText, SystemTime
 from bus.plan import FaultReply, FaultRequest, decode_json, encode_json
-from bus.rejections import Rejections, counts_to_dict
+from bus.rejections import Rejections
 from bus.session import Bus, Envelope, LivelinessEvent, Request
 from groundstation.claims import IdRegister
 from groundstation.fault_control import FaultControl
 from groundstation.layout import swarm_layouts
-from groundstation.mavlink_in import MAX_STREAM_BYTES, MavlinkIntake, said_at
+from groundstation.mavlink_in import MAX_STREAM_BYTES, MavlinkIntake
 from groundstation.mavlink_out import MavlinkForwarder
 from groundstation.membership import MembershipLog
 from groundstation.recording import open_recording
@@ -39,7 +38,7 @@ from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
 from groundstation.summary import build_summary, build_timing
 from groundstation.vehicle_reports import VehicleReports
-from groundstation.vehicle_says import announced
+from groundstation.vehicle_streams import VehicleStreams
 
 log = logging.getLogger("swarmloc.groundstation")
 REALTIME_LAG_US = 1_000_000
@@ -90,9 +89,7 @@ class GroundStation:
             faults=config.faults,
             rejections=self.rejections,
         )
-        self.forwarder = forwarder
-        self.latency_us: dict[int, list[int]] = {}
-        self.said_us: dict[int, int | None] = {}  # per vehicle: the time its last SYSTEM_TIME said, until a STATUSTEXT
+        self.streams = VehicleStreams(self.intake, self.scorer, self.run, self._event_at, self.rejections, forwarder)
         self.reports = VehicleReports(config.world.vehicles, self.rejections)  # loop statistics, SLAM maps
         self.events: Counter[str] = Counter()
         self.sim_time_us = 0
@@ -104,9 +101,7 @@ class GroundStation:
         self.departed: set[int] = set()
         self.world_alive = False
         self.world_seen = False
-        self.latest_estimate_us: dict[int, int] = {}
         self.latest_truth_us = -1
-        self.gnss_glitch: dict[int, bool] = {}
         self.faults = FaultControl(config.faults, vehicles=config.world.vehicles, log=self._event_at)
         self.resumed = False
         self._resume(run_dir)
@@ -230,36 +225,15 @@ class GroundStation:
                 self.rejections.reject("bad_key", "subscription", repr(key))
             elif parsed.topic == "mavlink":
                 for vid, frame in self.intake.offer(key, parsed.vehicle_id, item.payload):
-                    self._on_mavlink(vid, frame)
+                    self.streams.frame(vid, frame, self.sim_time_us)
             elif parsed.topic == "status":
-                self._on_status(parsed.vehicle_id, item.payload)
+                self.reports.offer_and_show(parsed.vehicle_id, item.payload, self.run.recording)
         except DecodeError as exc:
             self.rejections.reject("malformed", key, str(exc))
 
     def _show_rejection(self, reason: str, where: str, detail: str) -> None:
         """The first rejected input of a kind, in the live view and run.mcap (it is counted in summary.json)."""
         self.run.recording.message(self.sim_time_us, f"rejected input ({reason}) on {where}: {detail or '-'}")
-
-    def _on_status(self, vid: int, payload: bytes) -> None:
-        """A vehicle's status report (loop statistics) or SLAM map: kept, and shown when it is new."""
-        reports = self.reports
-        before = (reports.maps.get(vid), reports.statuses.get(vid))
-        reports.offer(vid, payload)
-        landmark_map, status = reports.maps.get(vid), reports.statuses.get(vid)
-        if self.run.recording is not None:
-            if landmark_map is not None and landmark_map is not before[0]:
-                self.run.recording.landmarks(landmark_map)
-            if status is not None and status is not before[1]:
-                self.run.recording.loop(status)
-                self._show_vehicle_rejections(status, before[1])
-
-    def _show_vehicle_rejections(self, status: m.VehicleStatus, before: m.VehicleStatus | None) -> None:
-        """A vehicle's first rejected input of each kind (its status counts them), in the live view."""
-        was = counts_to_dict(before.rejected) if before is not None else {}
-        for reason, count in counts_to_dict(status.rejected).items():
-            if not was.get(reason):
-                text = f"vehicle {status.vehicle_id} rejected input ({reason}): {count} so far"
-                self.run.recording.message(status.stamp_us, text, name=f"vehicle-{status.vehicle_id}")
 
     def _on_truth(self, batch: feed.TruthBatch) -> None:
         for k, stamp in enumerate(batch.stamps_us.tolist()):
@@ -271,48 +245,6 @@ class GroundStation:
                 last = batch.rows[-1, :, :2]
                 where = {vid: last[n] for n, vid in enumerate(batch.vehicle_ids.tolist()) if np.isfinite(last[n]).all()}
                 self.run.recording.ranging(int(batch.stamps_us[-1]), batch.pairs, where)
-
-    def _on_mavlink(self, vid: int, frame: bytes) -> None:
-        decoded = self.intake.decode(vid, frame, self.sim_time_us)
-        if decoded is None:
-            return
-        if self.forwarder is not None:
-            self.forwarder.forward(frame)
-        if isinstance(decoded, StateEstimate):
-            lat = self.latency_us.setdefault(vid, [0, 0, 0])  # count, sum, max (us)
-            delay = self.sim_time_us - decoded.time_usec
-            lat[0], lat[1], lat[2] = lat[0] + 1, lat[1] + delay, max(lat[2], delay)
-            if not self.scorer.add_estimate(decoded):
-                self.rejections.reject("pending_full", f"MAVLink of vehicle {vid}", "scoring backlog full")
-            self.latest_estimate_us[vid] = max(decoded.time_usec, self.latest_estimate_us.get(vid, -1))
-        elif isinstance(decoded, EstimatorStatus):
-            self._on_estimator_status(decoded)
-        elif isinstance(decoded, SystemTime):
-            self.said_us[decoded.vehicle_id] = said_at(decoded.time_boot_ms, self.sim_time_us)
-        elif isinstance(decoded, StatusText):
-            self._on_statustext(decoded)
-
-    def _on_statustext(self, said: StatusText) -> None:
-        """A vehicle's message, and the events it announces, stamped with the SYSTEM_TIME the vehicle
-        sent just before it (else, or if that was not near the swarm's time, the clock tick)."""
-        stamp = self.said_us.pop(said.vehicle_id, None)
-        stamp = self.sim_time_us if stamp is None else stamp
-        self.run.event("vehicle_message", stamp, vehicle=said.vehicle_id, severity=said.severity, text=said.text)
-        for kind, fields in announced(said.text):
-            self._event_at(kind, stamp, vehicle=said.vehicle_id, **fields)
-
-    def _on_estimator_status(self, status: EstimatorStatus) -> None:
-        """GNSS health changes (the GPS glitch flag) become events, stamped with the vehicle's time."""
-        if self.run.recording is not None:
-            self.run.recording.health(status)
-        was = self.gnss_glitch.get(status.vehicle_id, False)
-        self.gnss_glitch[status.vehicle_id] = status.gps_glitch
-        if status.gps_glitch != was:
-            kind = "gnss_unhealthy" if status.gps_glitch else "gnss_healthy"
-            self.events[kind] += 1
-            self.run.event(
-                kind, status.time_usec, vehicle=status.vehicle_id, test_ratio=round(status.pos_horiz_ratio, 3)
-            )
 
     def _on_tick(self, tick: m.ClockTick) -> None:
         """Lockstep: tick k means every estimate up to tick k-1 has been published."""
@@ -331,7 +263,7 @@ class GroundStation:
             if overflows:
                 self.event("live_view_overflow", times=overflows)
         for vid, frame in self.intake.release(tick.stamp_us, self._stream_passed):
-            self._on_mavlink(vid, frame)
+            self.streams.frame(vid, frame, self.sim_time_us)
         if self.config.clock.mode == "lockstep" and self.previous_tick_us >= 0:
             self.run.write_scores(self.scorer.release(self._lockstep_watermark()))
         elif self.config.clock.mode == "realtime":
@@ -371,7 +303,7 @@ class GroundStation:
         left normally; otherwise it was lost."""
         if self.ended is not None and vid in self.ended.completed:
             return True
-        return self.latest_estimate_us.get(vid, -1) >= round(self.config.clock.duration_s * 1e6)
+        return self.streams.latest_estimate_us.get(vid, -1) >= round(self.config.clock.duration_s * 1e6)
 
     def _lockstep_watermark(self) -> int:
         """Estimates up to here can be scored in (time, vehicle) order: every live vehicle has
@@ -382,14 +314,14 @@ class GroundStation:
         which estimates are scored."""
         marks = [self.previous_tick_us, self.latest_truth_us]
         members = self.active if self.tick_members is None else self.tick_members
-        marks += [self.latest_estimate_us.get(vid, -1) for vid in members]
+        marks += [self.streams.latest_estimate_us.get(vid, -1) for vid in members]
         held = self.intake.links.held_min_stamp()
         return min(marks) if held is None else min(*marks, held - 1)
 
     def finish(self, status: str) -> dict:
         """Score everything left, write summary.json and timing.json, close the files."""
         for vid, frame in self.intake.release(2**62):
-            self._on_mavlink(vid, frame)
+            self.streams.frame(vid, frame, self.sim_time_us)
         self.run.write_scores(self.scorer.release(float("inf")))
         lost = sorted(vid for vid in self.departed if not self._completed(vid))
         if lost:
@@ -411,7 +343,8 @@ class GroundStation:
         for vid, landmark_map in sorted(self.reports.maps.items()):
             self.run.write_json(f"map_v{vid}.json", map_record(landmark_map))
         wall_s = (self.wall_end or time.perf_counter()) - (self.wall_start or time.perf_counter())
-        self.run.write_json("timing.json", build_timing(statuses, self.sim_time_us * 1e-6, wall_s, self.latency_us))
+        timing = build_timing(statuses, self.sim_time_us * 1e-6, wall_s, self.streams.latency_us)
+        self.run.write_json("timing.json", timing)
         self.run.close()
         return summary
 

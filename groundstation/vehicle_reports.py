@@ -4,10 +4,12 @@ names another vehicle than the key it came on, or a vehicle outside the swarm, i
 
 from __future__ import annotations
 
+from typing import Any
+
 from bus import messages as m
 from bus.errors import DecodeError
 from bus.landmark_map import LandmarkMap, decode_map
-from bus.rejections import Rejections
+from bus.rejections import Rejections, counts_to_dict
 
 
 class VehicleReports:
@@ -33,6 +35,25 @@ class VehicleReports:
             return
         if self._belongs(vid, status.vehicle_id, "status") and not _older(status, self.statuses.get(vid)):
             self.statuses[vid] = status
+
+    def offer_and_show(self, vid: int, payload: bytes, recording: Any | None) -> None:
+        """``offer``, and a map or status that is new shown in the live view and run.mcap
+        (``recording``, a groundstation.recording.Recording, or None): with a status, the vehicle's
+        first rejected input of each kind (its status counts them)."""
+        before_map, before_status = self.maps.get(vid), self.statuses.get(vid)
+        self.offer(vid, payload)
+        if recording is None:
+            return
+        landmark_map, status = self.maps.get(vid), self.statuses.get(vid)
+        if landmark_map is not None and landmark_map is not before_map:
+            recording.landmarks(landmark_map)
+        if status is not None and status is not before_status:
+            recording.loop(status)
+            was = counts_to_dict(before_status.rejected) if before_status is not None else {}
+            for reason, count in counts_to_dict(status.rejected).items():
+                if not was.get(reason):
+                    text = f"vehicle {status.vehicle_id} rejected input ({reason}): {count} so far"
+                    recording.message(status.stamp_us, text, name=f"vehicle-{status.vehicle_id}")
 
     def _belongs(self, vid: int, claimed: int, what: str) -> bool:
         """True when a ``what`` claiming vehicle ``claimed`` may be kept for the key's vehicle ``vid``."""
