@@ -452,3 +452,16 @@ def test_lockstep_a_status_counts_the_cycle_it_follows():
     periodic, final = [s for s in sent if not s.final], [s for s in sent if s.final]
     assert [(s.stamp_us, s.cycles) for s in periodic] == [(0, 1)]  # the cycle at 0 s counted
     assert [(s.stamp_us, s.cycles) for s in final] == [(20_000, 2)] and node.stats.cycles == 2
+
+
+def test_realtime_vehicles_take_turns_to_fuse_an_epoch_and_lockstep_ones_do_not():
+    """Realtime: an epoch's fixes mature one loop cycle later per vehicle, over the first half of the
+    V2V period (its next broadcast still carries them) and inside the fusion horizon; lockstep: the
+    plain V2V latency for every vehicle."""
+    latency_us = round(SwarmConfig().vehicle.v2v_latency_s * 1e6)
+    lockstep = {_node(vid)[0].v2v.latency_us for vid in range(1, 7)}
+    assert lockstep == {latency_us}
+    realtime = [_node(vid, REALTIME)[0].v2v.latency_us - latency_us for vid in range(1, 7)]
+    assert realtime == [0, 20_000, 40_000, 60_000, 80_000, 0]  # 50 Hz cycles over half of 0.2 s
+    narrow = {**REALTIME, "vehicle": {"fusion_horizon_s": 0.15}}  # 50 ms of horizon beyond the latency
+    assert [_node(vid, narrow)[0].v2v.latency_us - latency_us for vid in range(1, 5)] == [0, 20_000, 0, 20_000]
