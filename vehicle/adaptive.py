@@ -14,10 +14,8 @@ IAE only learns a noise larger than the datasheet: the subtraction is right for 
 its error's covariance, but a filter that fuses its neighbours by covariance intersection carries a
 P that bounds its error from above (the ranging's predicted spread also holds the neighbour's CI
 bound), so mean(v v^T) - mean(H P H^T) comes out below the sensor's real noise and a window that
-reads "better than the datasheet" is that bound's slack, not the sensor. With a floor of a quarter
-(before 2026-11-28) the cooperative experiment's IAE variant learnt exactly that and turned
-over-confident (10 seeds: ANEES 5.13, against split CI's 3.50 without IAE; with the floor at the
-datasheet 3.34, RMSE 0.392 -> 0.371 m).
+reads "better than the datasheet" is that bound's slack, not the sensor (a floor below the
+datasheet turned the cooperative experiment's IAE variant over-confident: docs/decisions/cooperative.md).
 """
 
 from __future__ import annotations
