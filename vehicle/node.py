@@ -11,12 +11,10 @@ the clock allows; ``vehicle.outbound`` publishes the MAVLink stream, the V2V bro
 from __future__ import annotations
 
 import logging
-import time
 from collections import deque
 
 from bus import messages as m
 from bus.config import VehicleProcessConfig
-from bus.errors import SwarmlocError
 from bus.landmark_map import LandmarkMap
 from bus.mailbox import Mailbox
 from bus.rejections import Rejections
@@ -31,41 +29,11 @@ from vehicle.models.cooperative import SeenFix
 from vehicle.outbound import Outbound
 from vehicle.sequence import SequenceTracker
 from vehicle.v2v import V2V, fusion_slot_us
+from vehicle.world_watch import WorldWatch
 
 log = logging.getLogger("swarmloc.vehicle")
 GS_LISTEN_WAIT_S = 2.0
 TICK_SPANS = 256  # lockstep ticks remembered for the V2V waits (a fix waits one V2V latency: 5 ticks of 20 ms)
-
-
-class WorldGone(SwarmlocError):
-    """The world left (or never came back) for longer than the vehicle's ``world_timeout_s``."""
-
-
-class WorldWatch:
-    """Is the world there? Its liveliness token says; gone for ``timeout_s`` means the run is over.
-    Also notes a ground station that (re)appears (``gs_arrived`` until the loop has handled it) and
-    neighbours that died (``departed``: nobody waits for their broadcasts)."""
-
-    def __init__(self, *, timeout_s: float) -> None:
-        self.timeout_s, self.seen, self.gone_since = timeout_s, False, None
-        self.gs_arrived = False
-        self.departed: set[int] = set()  # neighbours whose liveliness token went away (and has not come back)
-
-    def on_token(self, parsed, alive: bool) -> None:
-        if parsed is not None and parsed.role == "vehicle" and parsed.vehicle_id is not None:
-            (self.departed.discard if alive else self.departed.add)(parsed.vehicle_id)
-            return
-        if parsed is not None and parsed.role == "groundstation":
-            self.gs_arrived = self.gs_arrived or alive
-            return
-        if parsed is None or parsed.role != "world":
-            return
-        self.seen = self.seen or alive
-        self.gone_since = None if alive else time.monotonic()
-
-    def check(self) -> None:
-        if self.seen and self.gone_since is not None and time.monotonic() - self.gone_since > self.timeout_s:
-            raise WorldGone(f"the world has been gone for {self.timeout_s:g} s; the vehicle stops")
 
 
 class VehicleNode:

@@ -261,19 +261,19 @@ def test_divergence_guard_resets_instead_of_publishing_nan():
 
 
 def test_a_vehicle_whose_world_is_gone_stops_with_a_clear_error(monkeypatch):
-    import vehicle.node as node_module
+    import vehicle.world_watch as world_watch
     from bus.session import LivelinessEvent
 
     node, _ = _node()
     node.world_watch.timeout_s = 5.0
     clock = [100.0]
-    monkeypatch.setattr(node_module.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(world_watch.time, "monotonic", lambda: clock[0])
     node.take(LivelinessEvent("swarm/alive/world/0", True))
     node.take(LivelinessEvent("swarm/alive/world/0", False))
     clock[0] += 4.0
     node.world_watch.check()  # not yet
     clock[0] += 2.0
-    with pytest.raises(node_module.WorldGone, match="gone for 5 s"):
+    with pytest.raises(world_watch.WorldGone, match="gone for 5 s"):
         node.world_watch.check()
 
 
