@@ -28,7 +28,7 @@ from vehicle.loop_stats import LoopStats
 from vehicle.models.cooperative import SeenFix
 from vehicle.outbound import Outbound
 from vehicle.sequence import SequenceTracker
-from vehicle.v2v import V2V, fusion_slot_us
+from vehicle.v2v import V2V, fusion_turn_us
 from vehicle.world_watch import WorldWatch
 
 log = logging.getLogger("swarmloc.vehicle")
@@ -80,9 +80,9 @@ class VehicleNode:
             self.estimator, horizon_us=round(vc.fusion_horizon_s * 1e6), every_cycles=5 if realtime else 0
         )
         v2v_period_us, latency_us = round(1e6 / config.sensors.ranging_rate_hz), round(vc.v2v_latency_s * 1e6)
-        if realtime:  # vehicles take turns to fuse an epoch (fusion_slot_us)
-            span_us = min(v2v_period_us // 2, self.fusion.horizon_us - latency_us)
-            latency_us += fusion_slot_us(vehicle_id, round(1e6 / vc.loop_rate_hz), span_us)
+        if realtime:  # vehicles take turns to fuse an epoch
+            room_us = self.fusion.horizon_us - latency_us
+            latency_us += fusion_turn_us(vehicle_id, round(1e6 / vc.loop_rate_hz), v2v_period_us, room_us)
         self.v2v = V2V(
             vehicle_id,
             latency_us=latency_us,

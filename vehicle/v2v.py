@@ -54,16 +54,16 @@ MAX_COPIES = 4  # frames kept per neighbour and epoch (a link fault duplicates; 
 MAX_WAITING = 10_000
 
 
-def fusion_slot_us(vehicle_id: int, cycle_us: int, span_us: int) -> int:
+def fusion_turn_us(vehicle_id: int, cycle_us: int, v2v_period_us: int, room_us: int) -> int:
     """Realtime: how long after its wait for the neighbours' estimates vehicle ``vehicle_id`` fuses an
-    epoch's ranging, in whole loop cycles of ``cycle_us``: vehicles take turns over ``span_us`` (slots
-    0, 1, ... of a cycle each). Every vehicle ranges at the same epochs, and fusing them replays the
-    fusion horizon from the epoch: at one shared cycle that was 20 vehicles x 2.1 ms of CPU due within
-    one 20 ms period on two cores, the cycles behind it late (docs/decisions/performance.md). The span
-    is the first half of the V2V period, so that the fixes are in the vehicle's next broadcast, and no
-    more than the fusion horizon leaves (``VehicleNode``). Lockstep needs no turns (it waits for
+    epoch's ranging, in whole loop cycles of ``cycle_us``: vehicles take turns, a cycle apart, over
+    the first half of the V2V period ``v2v_period_us`` (so the fixes are in the vehicle's next
+    broadcast) and within ``room_us``, what the fusion horizon leaves beyond the wait. Every vehicle
+    ranges at the same epochs, and fusing them replays the fusion horizon from the epoch: at one
+    shared cycle that was 20 vehicles x 2.1 ms of CPU due within one 20 ms period on two cores, the
+    cycles behind it late (docs/decisions/performance.md). Lockstep needs no turns (it waits for
     whoever is late) and keeps the plain wait."""
-    slots = max(1, span_us // cycle_us)
+    slots = max(1, min(v2v_period_us // 2, room_us) // cycle_us)
     return ((vehicle_id - 1) % slots) * cycle_us
 
 

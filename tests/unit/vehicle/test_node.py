@@ -455,13 +455,16 @@ def test_lockstep_a_status_counts_the_cycle_it_follows():
 
 
 def test_realtime_vehicles_take_turns_to_fuse_an_epoch_and_lockstep_ones_do_not():
-    """Realtime: an epoch's fixes mature one loop cycle later per vehicle, over the first half of the
-    V2V period (its next broadcast still carries them) and inside the fusion horizon; lockstep: the
-    plain V2V latency for every vehicle."""
-    latency_us = round(SwarmConfig().vehicle.v2v_latency_s * 1e6)
-    lockstep = {_node(vid)[0].v2v.latency_us for vid in range(1, 7)}
-    assert lockstep == {latency_us}
-    realtime = [_node(vid, REALTIME)[0].v2v.latency_us - latency_us for vid in range(1, 7)]
-    assert realtime == [0, 20_000, 40_000, 60_000, 80_000, 0]  # 50 Hz cycles over half of 0.2 s
-    narrow = {**REALTIME, "vehicle": {"fusion_horizon_s": 0.15}}  # 50 ms of horizon beyond the latency
-    assert [_node(vid, narrow)[0].v2v.latency_us - latency_us for vid in range(1, 5)] == [0, 20_000, 0, 20_000]
+    """Realtime: vehicle i fuses an epoch's fixes its turn of loop cycles after the V2V wait, the turns
+    over the first half of the V2V period (its next broadcast still carries them) and inside the
+    fusion horizon; lockstep: every vehicle right after the wait. Schedules in loop cycles."""
+    config = SwarmConfig()
+    wait_us, cycle_us = round(config.vehicle.v2v_latency_s * 1e6), round(1e6 / config.vehicle.loop_rate_hz)
+
+    def turns(swarm: dict | None) -> list[float]:
+        return [(_node(vid, swarm)[0].v2v.latency_us - wait_us) / cycle_us for vid in range(1, 7)]
+
+    assert turns(None) == [0] * 6
+    assert turns(REALTIME) == [0, 1, 2, 3, 4, 0]  # 5 cycles of 50 Hz in half of the 0.2 s V2V period
+    narrow = {**REALTIME, "vehicle": {"fusion_horizon_s": 0.15}}  # room for 2 turns beyond the wait
+    assert turns(narrow) == [0, 1, 0, 1, 0, 1]
