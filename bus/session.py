@@ -120,7 +120,9 @@ def zenoh_config(conf: BusConfig, transport: Transport = Transport()):
     """A zenoh.Config from our BusConfig: explicit endpoints, multicast scouting off, shared memory
     off (our messages are a few KB; zenoh would put those over 3 KB in 16 MB pools mapped into every
     process, +45 MB RSS per vehicle and slower), and the transport's login, TLS files, credentials
-    dictionary and access control."""
+    dictionary and access control. A router opens at once: zenoh would first spend its scouting delay
+    (0.5 s) looking for peers, which multicast being off leaves nothing to find (the endpoints it
+    connects to are dialled either way), and a run shorter than that waited for it to end."""
     import zenoh
 
     zconf = zenoh.Config()
@@ -130,6 +132,7 @@ def zenoh_config(conf: BusConfig, transport: Transport = Transport()):
         "listen/endpoints": list(conf.listen),
         "scouting/multicast/enabled": False,
         "transport/shared_memory/enabled": False,
+        **({"scouting/delay": 0} if conf.mode == "router" else {}),
     }
     if transport.user:
         settings["transport/auth/usrpwd"] = {

@@ -1,6 +1,6 @@
 """``python -m cli``: the `swarm` command."""
 
-from cli.main import app
+from cli.entry import main
 
 if __name__ == "__main__":  # imported again, not run, in every child the forkserver starts (launch.children)
-    app()
+    main()

@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import atexit
 import multiprocessing
+import multiprocessing.connection
 import os
 import runpy
 import signal
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 from bus.process import die_with_parent
@@ -45,6 +47,11 @@ class Forked:
     @property
     def returncode(self) -> int | None:
         return self._process.exitcode
+
+    @property
+    def sentinel(self) -> int:
+        """Readable once the child has ended (multiprocessing.connection.wait)."""
+        return self._process.sentinel
 
     def poll(self) -> int | None:
         return self._process.exitcode
@@ -84,6 +91,23 @@ def start(args: list[str], env: dict[str, str], log_path: Path, *, inherit_stdou
     )
     process.start()
     return Forked(process)
+
+
+def wait_for_any(processes: list, stop: threading.Event, timeout_s: float) -> None:
+    """Return when one of ``processes`` ends, ``stop`` is set or ``timeout_s`` is over, whichever is
+    first (forked children end the wait as they exit; subprocesses only at the timeout)."""
+    sentinels = [p.sentinel for p in processes if isinstance(p, Forked)]
+    if not sentinels or stop.is_set():
+        stop.wait(timeout_s)
+        return
+    multiprocessing.connection.wait(sentinels, timeout_s)
+
+
+def warm_up() -> None:
+    """Start the forkserver now (it returns at once), so that it imports ``PRELOAD`` while this
+    process imports the rest of what it runs: `swarm up` calls it first thing (cli.entry)."""
+    if os.environ.get("SWARMLOC_FORKSERVER", "1") != "0":
+        _context()
 
 
 def _context() -> multiprocessing.context.BaseContext:

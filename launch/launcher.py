@@ -27,6 +27,7 @@ from bus.session import Envelope
 from launch import children
 
 SHUTDOWN_GRACE_S = 4.0
+WATCH_PERIOD_S = 0.1  # the supervisor looks at the fault plan this often (a child ending wakes it at once)
 # one BLAS thread per process (each child limits itself with threadpoolctl too): told before numpy is
 # imported, OpenBLAS starts no thread pool at all (0.1 s of CPU less per process start); a user's
 # own setting wins
@@ -93,7 +94,7 @@ def wait_for_port(port: int, timeout_s: float, router: Child) -> None:
         with socket.socket() as sock:
             if sock.connect_ex(("127.0.0.1", port)) == 0:
                 return
-        time.sleep(0.05)
+        time.sleep(0.01)
     raise ChildFailed(f"router did not listen on port {port} within {timeout_s:g} s")
 
 
@@ -266,7 +267,9 @@ class Swarm:
                 failures.append(report)
                 if child.essential:
                     return failures
-            stop.wait(0.1)
+            children.wait_for_any(
+                [c.process for c in self.children if c.process.pid not in handled], stop, WATCH_PERIOD_S
+            )
         return failures
 
     def shutdown(self) -> None:

@@ -1,5 +1,6 @@
 """Config validation, key expressions (built and parsed, totally), and role enforcement in the bus layer."""
 
+import json
 import queue
 
 import pytest
@@ -153,6 +154,13 @@ def test_subscriptions_hand_on_oversized_payloads_as_markers_only():
     hub.connect("groundstation").subscribe("swarm/v/*/mavlink", inbox, max_bytes=10)
     hub.connect("vehicle").publisher("swarm/v/1/mavlink").put(b"x" * 11)
     assert inbox.get_nowait() == Oversized("swarm/v/1/mavlink", 11)
+
+
+def test_a_router_opens_without_scouting_for_peers_and_clients_keep_the_default():
+    from bus.session import zenoh_config
+
+    assert json.loads(zenoh_config(BusConfig(mode="router")).get_json("scouting/delay")) == 0
+    assert json.loads(zenoh_config(BusConfig(mode="client")).get_json("scouting/delay")) is None
 
 
 def test_zenoh_bus_refuses_truth_to_vehicles():
