@@ -3,17 +3,17 @@ the file SPEC) into FOLDER/<its name>, as `swarm up` would, quietly and without 
 status 0 when the run completed, 1 when it failed, 2 when the spec itself is wrong. A campaign's
 worker starts it as a process of its own (campaign.task), so that a timeout or a lost worker can end
 the whole run: it dies with its parent (PR_SET_PDEATHSIG), and so do the swarm's processes with it
-(launch.children)."""
+(launch.children). For a swarm, the forkserver is started as soon as the spec is read, so that it
+imports what the swarm's processes run while this one imports the launcher (launch.children.warm_up)."""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
-from bus.config import build_config
 from bus.errors import SwarmlocError
-from bus.process import die_with_parent, stop_on_signals
-from launch.launcher import launch
+from bus.process import die_with_parent
+from launch.children import warm_up
 from launch.runspec import RunSpec, resolve
 
 
@@ -21,6 +21,10 @@ def main(argv: list[str]) -> int:
     die_with_parent()
     try:
         spec = RunSpec.from_json(Path(argv[0]).read_text())
+        if not spec.runner:
+            warm_up()
+        from bus.config import build_config
+
         config = build_config({**spec.config, "name": spec.name})
     except (OSError, ValueError, TypeError, SwarmlocError) as exc:
         print(f"fly: {exc}", file=sys.stderr)
@@ -32,6 +36,9 @@ def main(argv: list[str]) -> int:
             config.dump(run_dir / "config.json")
             failures = resolve(spec.runner)(spec, config, run_dir) or []
         else:
+            from bus.process import stop_on_signals
+            from launch.launcher import launch
+
             run_dir, failures, _ = launch(config, Path(argv[1]), show_progress=False, stop=stop_on_signals())
             if spec.report and not failures:
                 _report(run_dir)
