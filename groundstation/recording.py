@@ -59,7 +59,9 @@ from typing import Any
 
 import numpy as np
 
+from groundstation import scene_entities as se
 from groundstation import scene_primitives as sp
+from groundstation.live_server import SDK_OVERFLOW_LOGGER, OverflowCounter, terrain_requests
 from groundstation.plot_records import (
     HEALTH_SCHEMA,
     LOOP_SCHEMA,
@@ -71,16 +73,12 @@ from groundstation.plot_records import (
     nees_band_3dof,
     swarm_records,
 )
-from groundstation.scene_primitives import ELLIPSE_POINTS, ellipse_xy
 from groundstation.scoring import Score
 
 log = logging.getLogger("swarmloc.groundstation")
 TERRAIN_MODEL = "terrain.glb"
-SDK_OVERFLOW_LOGGER = "foxglove.websocket.connected_client.send_lossy"  # "outbox for client ... full"
-RANGING_LIFETIME_NS = 1_000_000_000
 RANGING_STEP_US, SCENE_STEP_US, CLOCK_STEP_US = 200_000, 100_000, 100_000
 TRAIL_S, TRAIL_STEP_US = 30, 1_000_000  # trails: the last 30 s, a point a second
-ZONE_COLOURS = {"jam-gnss": (1.0, 0.2, 0.2), "spoof-gnss": (1.0, 0.6, 0.0), "jam-comms": (0.7, 0.3, 1.0)}
 WARNING_EVENTS = ("fault", "neighbour_distrusted", "accusation_contradicted", "vehicle_lost", "estimator_reset", "gnss")
 
 
@@ -128,7 +126,7 @@ class Recording:
         self._zones: set[str] = set()
         self._terrain: bytes | None = None
         self._terrain_wanted = threading.Event()  # a live viewer subscribed to /terrain (SDK thread)
-        self._overflows = _OverflowCounter()
+        self._overflows = OverflowCounter()
         self._last_ns = 0
         self._nees_band = nees_band_3dof()
         self.trail_scene = SceneUpdateChannel("/trails", context=self.context)
@@ -152,7 +150,7 @@ class Recording:
             context=self.context,
             capabilities=[Capability.Time],
             message_backlog_size=backlog,
-            server_listener=_terrain_requests(self._terrain_wanted),
+            server_listener=terrain_requests(self._terrain_wanted),
         )
 
     def overflows(self) -> int:
@@ -167,16 +165,8 @@ class Recording:
     def _log_terrain(self) -> None:
         from foxglove import messages as fm
 
-        model = fm.ModelPrimitive(
-            pose=sp.pose(fm, 0.0, 0.0, 0.0),
-            scale=fm.Vector3(x=1.0, y=1.0, z=1.0),
-            media_type="model/gltf-binary",
-            data=self._terrain,
-        )
-        entity = fm.SceneEntity(
-            timestamp=sp.stamp(fm, self._last_ns // 1000), frame_id="world", id="terrain", models=[model]
-        )
-        self.terrain_scene.log(fm.SceneUpdate(entities=[entity]), log_time=self._last_ns)
+        update = se.terrain_update(fm, self._terrain, self._last_ns // 1000)
+        self.terrain_scene.log(update, log_time=self._last_ns)
 
     def _serve_requests(self) -> None:
         """Log the terrain again for a viewer that subscribed since (the live view keeps nothing)."""
@@ -201,23 +191,7 @@ class Recording:
             self._serve_requests()
             return
         self._ranging_us = stamp_us
-
-        points = []
-        for a, b in {tuple(sorted(p)) for p in pairs.tolist()}:
-            if a in positions and b in positions:
-                points += [fm.Point3(x=float(v[0]), y=float(v[1]), z=0.0) for v in (positions[a], positions[b])]
-        line = fm.LinePrimitive(
-            type=fm.LinePrimitiveLineType.LineList,
-            thickness=1.0,
-            scale_invariant=True,
-            points=points,
-            color=fm.Color(r=0.9, g=0.9, b=0.9, a=0.6),
-        )
-        lifetime = fm.Duration(sec=RANGING_LIFETIME_NS // 1_000_000_000, nsec=0)
-        entity = fm.SceneEntity(
-            timestamp=sp.stamp(fm, stamp_us), frame_id="world", id="ranging", lifetime=lifetime, lines=[line]
-        )
-        self.ranging_scene.log(fm.SceneUpdate(entities=[entity]), log_time=stamp_us * 1000)
+        self.ranging_scene.log(se.ranging_update(fm, stamp_us, pairs, positions), log_time=stamp_us * 1000)
         self._serve_requests()
 
     def health(self, status: Any) -> None:
@@ -275,7 +249,7 @@ class Recording:
         from foxglove import messages as fm
 
         if self._scene:
-            entities = [_vehicle_entity(fm, s) for s in self._scene.values()]
+            entities = [se.vehicle_entity(fm, s) for s in self._scene.values()]
             self.scene.log(fm.SceneUpdate(entities=entities), log_time=stamp_us * 1000)
             self._scene, self._scene_us = {}, stamp_us
 
@@ -293,22 +267,7 @@ class Recording:
             while trail[0][0] < s.stamp_us - TRAIL_S * 1_000_000:
                 trail.popleft()
             grown[s.vehicle_id] = s.stamp_us
-        entities = []
-        for vid, stamp_us in grown.items():
-            trail = self._trails[vid]
-            lines = [
-                fm.LinePrimitive(
-                    type=fm.LinePrimitiveLineType.LineStrip,
-                    thickness=1.5,
-                    scale_invariant=True,
-                    points=[fm.Point3(x=float(p[which][0]), y=float(p[which][1]), z=0.0) for p in trail],
-                    color=fm.Color(r=rgb[0], g=rgb[1], b=rgb[2], a=0.7),
-                )
-                for which, rgb in ((1, (0.1, 0.8, 0.2)), (2, (0.2, 0.4, 1.0)))
-            ]
-            entities.append(
-                fm.SceneEntity(timestamp=sp.stamp(fm, stamp_us), frame_id="world", id=f"trail-{vid}", lines=lines)
-            )
+        entities = [se.trail_entity(fm, vid, stamp_us, self._trails[vid]) for vid, stamp_us in grown.items()]
         if entities:
             self.trail_scene.log(fm.SceneUpdate(entities=entities), log_time=max(grown.values()) * 1000)
 
@@ -316,30 +275,7 @@ class Recording:
         """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): one line list of 3-sigma ellipses."""
         from foxglove import messages as fm
 
-        stamp = sp.stamp(fm, lmap.stamp_us)
-        points = []
-        for xy, cov in zip(lmap.xy_m, lmap.covariance_m2):
-            ring = ellipse_xy(np.asarray(xy), np.asarray(cov))[:: ELLIPSE_POINTS // 12]
-            for a, b in zip(ring, np.roll(ring, -1, axis=0)):
-                points += [
-                    fm.Point3(x=float(a[0]), y=float(a[1]), z=0.0),
-                    fm.Point3(x=float(b[0]), y=float(b[1]), z=0.0),
-                ]
-        entity = fm.SceneEntity(
-            timestamp=stamp,
-            frame_id="world",
-            id=f"landmarks-{lmap.vehicle_id}",
-            lines=[
-                fm.LinePrimitive(
-                    type=fm.LinePrimitiveLineType.LineList,
-                    thickness=1.0,
-                    scale_invariant=True,
-                    points=points,
-                    color=fm.Color(r=1.0, g=0.85, b=0.2, a=0.8),
-                )
-            ],
-        )
-        self.landmark_scene.log(fm.SceneUpdate(entities=[entity]), log_time=max(lmap.stamp_us, 0) * 1000)
+        self.landmark_scene.log(se.landmark_update(fm, lmap), log_time=max(lmap.stamp_us, 0) * 1000)
 
     def zones(self, stamp_us: int, faults: list) -> None:
         """Draw the fault zones active at ``stamp_us`` and delete those that ended (only on a change)."""
@@ -349,25 +285,8 @@ class Recording:
         active = {f.name: f for f in faults if hasattr(f, "radius_m") and f.active(t_s)}
         if set(active) == self._zones:
             return
-        stamp = sp.stamp(fm, stamp_us)
-        deletions = [fm.SceneEntityDeletion(timestamp=stamp, id=f"zone-{n}") for n in self._zones - set(active)]
-        entities = []
-        for name, fault in active.items():
-            angle = np.linspace(0.0, 2.0 * np.pi, 72, endpoint=False)
-            x = fault.center_m[0] + fault.radius_m * np.cos(angle)
-            y = fault.center_m[1] + fault.radius_m * np.sin(angle)
-            rgba = (*ZONE_COLOURS.get(fault.kind, (0.6, 0.6, 0.6)), 0.9)
-            centre = sp.pose(fm, fault.center_m[0], fault.center_m[1], 0.0)
-            entities.append(
-                fm.SceneEntity(
-                    timestamp=stamp,
-                    frame_id="world",
-                    id=f"zone-{name}",
-                    lines=[sp.loop(fm, np.stack([x, y], axis=1), rgba, 3.0)],
-                    texts=[sp.label(fm, centre, f"{fault.kind} {name}", rgba)],
-                )
-            )
-        self.zone_scene.log(fm.SceneUpdate(deletions=deletions, entities=entities), log_time=stamp_us * 1000)
+        update = se.zone_update(fm, stamp_us, active, self._zones - set(active))
+        self.zone_scene.log(update, log_time=stamp_us * 1000)
         self._zones = set(active)
 
     def event(self, record: dict[str, Any], stamp_us: int) -> None:
@@ -401,54 +320,6 @@ class Recording:
             self.server.stop()
             self.server = None
             logging.getLogger(SDK_OVERFLOW_LOGGER).removeHandler(self._overflows)
-
-
-class _OverflowCounter(logging.Handler):
-    """Counts the SDK's reports of a viewer's full queue (they come on the SDK's threads)."""
-
-    def __init__(self) -> None:
-        super().__init__(level=logging.DEBUG)
-        self._count, self._count_lock = 0, threading.Lock()
-
-    def emit(self, record: logging.LogRecord) -> None:
-        if "full" in record.getMessage():
-            with self._count_lock:
-                self._count += 1
-
-    def take(self) -> int:
-        with self._count_lock:
-            count, self._count = self._count, 0
-        return count
-
-
-def _terrain_requests(wanted: threading.Event) -> Any:
-    """A foxglove ServerListener: a viewer's subscription to /terrain sets ``wanted``."""
-    from foxglove.websocket import ServerListener
-
-    class TerrainRequests(ServerListener):
-        def on_subscribe(self, client: Any, channel: Any) -> None:
-            if channel.topic == "/terrain":
-                wanted.set()
-
-    return TerrainRequests()
-
-
-def _vehicle_entity(fm: Any, s: Score) -> Any:
-    """A vehicle in the scene: its estimated and true pose arrows, its 3-sigma ellipse and its label."""
-    est, truth = s.estimate, s.truth_pose
-    estimate_pose = sp.pose(fm, est.position_m[0], est.position_m[1], est.yaw_rad)
-    ring = ellipse_xy(np.asarray(est.position_m[:2]), s.pose_covariance[:2, :2])
-    return fm.SceneEntity(
-        timestamp=sp.stamp(fm, s.stamp_us),
-        frame_id="world",
-        id=f"vehicle-{s.vehicle_id}",
-        arrows=[
-            sp.arrow(fm, estimate_pose, (0.2, 0.4, 1.0)),
-            sp.arrow(fm, sp.pose(fm, truth[0], truth[1], truth[2]), (0.1, 0.8, 0.2)),
-        ],
-        lines=[sp.loop(fm, ring, (0.2, 0.4, 1.0, 0.8), 2.0)],
-        texts=[sp.label(fm, estimate_pose, f"v{s.vehicle_id}", (1.0, 1.0, 1.0, 1.0))],
-    )
 
 
 def open_recording(run_dir: Path, view: Any, vehicles: int = 0) -> Recording | None:
