@@ -40,7 +40,9 @@ def up(
     speed: Optional[float] = typer.Option(None, help="realtime only: sim seconds per wall second [default: 1]"),
     seed: Optional[int] = typer.Option(None, help="seed of trajectories and sensor noise [default: 0]"),
     tick: Optional[float] = typer.Option(
-        None, help="sim seconds the world advances per clock tick [default: 0.5 lockstep, 0.02 realtime]"
+        None,
+        help="sim seconds the world advances per clock tick [default: lockstep 1, or 0.5 with cameras, a live view "
+        "or kill faults; realtime 0.02]",
     ),
     out: Path = typer.Option(Path("runs"), help="parent folder of run directories"),
     name: Optional[str] = typer.Option(

@@ -206,3 +206,20 @@ def test_estimator_options_that_do_not_fit_together_are_refused():
     with pytest.raises(ConfigError, match="cooperative_fusion"):
         build_config({"vehicle": {"cooperative_fusion": "fancy"}})
     assert build_config({"vehicle": {"estimator": "ukf"}, "sensors": {"camera_rate_hz": 10}}).vehicle.estimator == "ukf"
+
+
+@pytest.mark.parametrize(
+    ("data", "tick_s"),
+    [
+        ({}, 1.0),
+        ({"clock": {"mode": "realtime"}}, 0.02),
+        ({"sensors": {"camera_rate_hz": 10}}, 0.5),  # a tick's batch of camera frames grows with the tick
+        ({"view": {"live": True}}, 0.5),  # a live view is paced a tick at a time
+        ({"faults": [{"kind": "kill", "vehicle": 2, "start_s": 10.3}]}, 0.5),  # a kill lands at a tick's end
+        ({"faults": [{"kind": "jam-gnss", "center_m": [0, 0], "radius_m": 5}]}, 1.0),
+        ({"clock": {"tick_s": 0.1}, "sensors": {"camera_rate_hz": 10}}, 0.1),  # a given tick is kept
+    ],
+)
+def test_the_lockstep_tick_is_one_second_unless_a_longer_tick_would_cost_something(data, tick_s):
+    assert build_config(data).clock.tick_s == tick_s
+    assert build_config({}).clock.tick_s == 1.0  # no configuration changes another's default

@@ -87,7 +87,8 @@ def test_the_compose_live_config_is_the_compose_config_with_the_live_view_on():
     plain = load_config(ROOT / "deploy" / "compose-config.json", env={})
     live = load_config(ROOT / "deploy" / "compose-config-live.json", env={})
     assert live.view.live and live.view.live_host == "0.0.0.0" and live.view.live_port == 8765
-    assert live.model_copy(update={"view": plain.view}) == plain
+    assert live.model_copy(update={"view": plain.view, "clock": plain.clock}) == plain
+    assert (live.clock.tick_s, plain.clock.tick_s) == (0.5, 1.0)  # the live view is paced a tick at a time
     assert "./deploy/compose-config-live.json:/config/config.json" in (ROOT / "deploy" / "compose-live.yml").read_text()
 
 
