@@ -42,7 +42,7 @@ def test_same_seed_gives_identical_summary_and_metrics(three_vehicle_runs):
 
 
 def test_the_clock_tick_changes_no_estimate(three_vehicle_runs, tmp_path):
-    """Lockstep ticks of 20 ms (one per cycle) and of the default 500 ms (five V2V latencies) give the
+    """Lockstep ticks of 20 ms (one per cycle) and of the default 1 s (ten V2V latencies) give the
     same run: samples carry their stamps, vehicles cycle at 50 Hz in sim time either way, and a cycle
     waits for the neighbours' broadcasts its ranging pairs with."""
     result = run_swarm(
