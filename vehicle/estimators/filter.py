@@ -28,7 +28,6 @@ plain records (bus.estimate).
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from functools import partial
 from typing import Any
@@ -307,8 +306,8 @@ class Filter:
         observed = self.gnss.observe(s.x, fix.covariance_m2)
         H = observed.full_H(len(s.x))
         y, HPH = fix.position_m - observed.predicted, H @ s.P @ H.T
+        # the fix's noise from here on: the white part of what it reports, or IAE's
         R = observed.R if s.iae is None else s.iae.adapt(Topic.GNSS, y, HPH, observed.R)
-        fix = dataclasses.replace(fix, covariance_m2=R)  # from here on: the white part, or IAE's
         may_reset = None if self.trust is None else partial(self.trust.allows_reset, self, fix.stamp_us)
         verdict = s.gnss_health.check(fix.stamp_us, y, HPH + R, R, may_reset)
         if verdict.reset_offset_m is not None:
@@ -316,9 +315,9 @@ class Filter:
         if not verdict.fuse:
             s.counters.gnss_rejected += 1
             return
-        observed = self.gnss.observe(s.x, fix.covariance_m2)  # the position may have been reset
+        observed = self.gnss.observe(s.x, R)  # the position may have been reset
         y = fix.position_m - observed.predicted
-        self.tally_nis("gnss", self.store.update(s, y, observed.H, fix.covariance_m2, self.gate, observed.idx), len(y))
+        self.tally_nis("gnss", self.store.update(s, y, observed.H, R, self.gate, observed.idx), len(y))
         s.counters.gnss_accepted += 1
 
     def _cooperative_update(self, fix: CooperativeFix | SeenFix) -> bool:
