@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from bus.errors import SwarmlocError
-from bus.process import die_with_parent
+from bus.process import die_with_parent, stop_on_signals
 from launch.children import warm_up
 from launch.runspec import RunSpec, resolve
 
@@ -36,7 +36,6 @@ def main(argv: list[str]) -> int:
             config.dump(run_dir / "config.json")
             failures = resolve(spec.runner)(spec, config, run_dir) or []
         else:
-            from bus.process import stop_on_signals
             from launch.launcher import launch
 
             run_dir, failures, _ = launch(config, Path(argv[1]), show_progress=False, stop=stop_on_signals())
