@@ -112,7 +112,7 @@ def up(
         if config.view.live:
             check_live_address(config.view.live_host, config.view.live_port)
         if chaos is not None:
-            config = with_chaos(config, chaos)
+            config = with_chaos(config, chaos, tick_given=tick is not None or "tick_s" in base.get("clock", {}))
         if mavlink_out:
             parse_udpout(mavlink_out)
         security = Security(
@@ -168,8 +168,9 @@ def config(
     typer.echo(f"wrote {out / 'config.json'} (world, ground station) and {out / 'vehicle.json'} (vehicles)")
 
 
-def with_chaos(config, seed: int):
-    """``config`` with a chaos fault timeline (every kind of fault) added to its own faults."""
+def with_chaos(config, seed: int, *, tick_given: bool = False):
+    """``config`` with a chaos fault timeline (every kind of fault) added to its own faults; the tick
+    chosen again for the new plan unless one was given (its kill faults want lockstep's short tick)."""
     from bus.config import build_config
     from launch.chaos import chaos_faults
 
@@ -177,6 +178,8 @@ def with_chaos(config, seed: int):
     data["faults"] = data["faults"] + chaos_faults(
         seed, vehicles=config.world.vehicles, duration_s=config.clock.duration_s, spacing_m=config.world.spacing_m
     )
+    if not tick_given:
+        data["clock"]["tick_s"] = None
     return build_config(data)
 
 

@@ -30,3 +30,14 @@ def test_the_fault_commands_know_every_fault_kind_the_plan_has():
     from cli.fault_commands import KINDS
 
     assert set(KINDS) == {*LINK_KINDS, *PHYSICAL_KINDS, *BEHAVIOUR_KINDS}
+
+
+def test_a_chaos_timeline_with_kill_faults_gets_the_short_tick_unless_one_was_given():
+    from bus.config import build_config
+    from cli.main import with_chaos
+
+    plain = build_config({})
+    assert plain.clock.tick_s == 1.0
+    chaotic = with_chaos(plain, 7)
+    assert any(f.kind == "kill" for f in chaotic.faults) and chaotic.clock.tick_s == 0.5
+    assert with_chaos(build_config({"clock": {"tick_s": 0.1}}), 7, tick_given=True).clock.tick_s == 0.1
