@@ -60,7 +60,7 @@ class ClockConfig(_Strict):
         gt=0,
         le=1.0,
         description="sim time per clock tick (lockstep barrier): default 0.02 in realtime; in lockstep 1, or 0.5 "
-        "with cameras, a live view or kill faults",
+        "with cameras, a live view, kill faults or a truth batch too large for 1 s",
     )
     duration_s: float = Field(60.0, gt=0, le=86400)
     ack_timeout_s: float = Field(10.0, gt=0, description="lockstep: wall time before a silent vehicle is dead")
@@ -442,10 +442,21 @@ class SwarmConfig(_Strict):
         """Lockstep's tick when none is given: 1 s, a barrier round trip per 50 loop cycles (0.5 s took
         14 % more CPU for the same run, and the result is the same whatever the tick), or 0.5 s where a
         longer one would cost something: camera frames (a tick's batch of frames grows with it), a
-        live view (paced a tick at a time) and kill faults (a kill lands at a tick's end)."""
+        live view (paced a tick at a time), kill faults (a kill lands at a tick's end) and a truth batch
+        that 1 s would make larger than the ground station takes (many vehicles at a high truth rate)."""
+        from bus.feed import MAX_TRUTH_BYTES, truth_batch_bytes
+
         if self.clock.tick_s is None:
             short = self.sensors.camera_rate_hz or self.view.live or any(f.kind == "kill" for f in self.faults)
+            short = short or truth_batch_bytes(self.sensors.truth_rate_hz, 1.0, self.world.vehicles) > MAX_TRUTH_BYTES
             object.__setattr__(self, "clock", self.clock.model_copy(update={"tick_s": 0.5 if short else 1.0}))
+        size = truth_batch_bytes(self.sensors.truth_rate_hz, self.clock.tick_s, self.world.vehicles)
+        if size > MAX_TRUTH_BYTES:
+            raise ValueError(
+                f"a tick's truth batch ({self.world.vehicles} vehicles at {self.sensors.truth_rate_hz:g} Hz for "
+                f"{self.clock.tick_s:g} s) would be about {size >> 10} kB, more than the ground station takes "
+                f"({MAX_TRUTH_BYTES >> 10} kB): lower sensors.truth_rate_hz or clock.tick_s"
+            )
         return self
 
     @model_validator(mode="after")

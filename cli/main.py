@@ -41,8 +41,8 @@ def up(
     seed: Optional[int] = typer.Option(None, help="seed of trajectories and sensor noise [default: 0]"),
     tick: Optional[float] = typer.Option(
         None,
-        help="sim seconds the world advances per clock tick [default: lockstep 1, or 0.5 with cameras, a live view "
-        "or kill faults; realtime 0.02]",
+        help="sim seconds the world advances per clock tick [default: lockstep 1, or 0.5 with cameras, a live view, "
+        "kill faults or a truth batch too large for 1 s; realtime 0.02]",
     ),
     out: Path = typer.Option(Path("runs"), help="parent folder of run directories"),
     name: Optional[str] = typer.Option(

@@ -44,7 +44,6 @@ log = logging.getLogger("swarmloc.groundstation")
 REALTIME_LAG_US = 1_000_000
 PLAN_REPEAT_S = 1.0
 MAX_CONTROL_BYTES = 8 << 10
-MAX_TRUTH_BYTES = 1 << 20
 
 
 class GroundStation:
@@ -66,7 +65,7 @@ class GroundStation:
         for expr, lane, cap in (
             (keys.clock(), control, MAX_CONTROL_BYTES),
             (keys.end(), control, MAX_CONTROL_BYTES),
-            (keys.truth(), truth, MAX_TRUTH_BYTES),
+            (keys.truth(), truth, feed.MAX_TRUTH_BYTES),
             (keys.mavlink("*"), mavlink, MAX_STREAM_BYTES),
             (keys.status("*"), status, MAX_MAP_BYTES),
         ):

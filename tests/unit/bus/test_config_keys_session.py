@@ -218,8 +218,34 @@ def test_estimator_options_that_do_not_fit_together_are_refused():
         ({"faults": [{"kind": "kill", "vehicle": 2, "start_s": 10.3}]}, 0.5),  # a kill lands at a tick's end
         ({"faults": [{"kind": "jam-gnss", "center_m": [0, 0], "radius_m": 5}]}, 1.0),
         ({"clock": {"tick_s": 0.1}, "sensors": {"camera_rate_hz": 10}}, 0.1),  # a given tick is kept
+        ({"world": {"vehicles": 250}}, 1.0),  # a 1 s truth batch: about 530 kB of the ground station's 1 MB
+        ({"world": {"vehicles": 250}, "sensors": {"truth_rate_hz": 100}}, 0.5),  # 1 s would pass it
     ],
 )
 def test_the_lockstep_tick_is_one_second_unless_a_longer_tick_would_cost_something(data, tick_s):
     assert build_config(data).clock.tick_s == tick_s
     assert build_config({}).clock.tick_s == 1.0  # no configuration changes another's default
+
+
+def test_a_truth_batch_larger_than_the_ground_station_takes_is_refused_in_one_line():
+    with pytest.raises(ConfigError, match="truth batch .* lower sensors.truth_rate_hz or clock.tick_s"):
+        build_config({"world": {"vehicles": 250}, "sensors": {"truth_rate_hz": 100}, "clock": {"tick_s": 1.0}})
+
+
+def test_the_truth_batch_estimate_covers_what_the_world_sends():
+    """The estimate the configuration checks against is at least the encoded size of a real tick."""
+    import numpy as np
+
+    from bus import feed
+    from sim.world import World
+
+    config = build_config({"world": {"vehicles": 60, "seed": 1}, "clock": {"duration_s": 2}})
+    world = World(config)
+    out = world.advance(round(config.clock.tick_s * 1e6))
+    ids = world.vehicle_ids()
+    rows = np.array(out.truth).reshape(len(out.truth_stamps), len(ids), feed.TRUTH_WIDTH)
+    pairs = np.array([(o, t) for t, obs in out.listeners().items() for o in obs], np.int64).reshape(-1, 2)
+    batch = feed.TruthBatch(1, out.truth_stamps[-1], np.array(out.truth_stamps), np.array(ids), rows, pairs)
+    encoded = len(feed.encode_truth(batch))
+    estimate = feed.truth_batch_bytes(config.sensors.truth_rate_hz, config.clock.tick_s, 60)
+    assert encoded <= estimate <= 1.3 * encoded
