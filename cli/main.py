@@ -42,7 +42,7 @@ def up(
     tick: Optional[float] = typer.Option(
         None,
         help="sim seconds the world advances per clock tick [default: lockstep 1, or 0.5 with cameras, a live view, "
-        "kill faults or a truth batch too large for 1 s; realtime 0.02]",
+        "kill faults, --restart on-failure or a truth batch too large for 1 s; realtime 0.02]",
     ),
     out: Path = typer.Option(Path("runs"), help="parent folder of run directories"),
     name: Optional[str] = typer.Option(
@@ -91,6 +91,8 @@ def up(
         fail("TLS needs --tls-cert, --tls-key and --tls-ca, all existing PEM files")
     try:
         base = load_scenario(scenario) if scenario else {}
+        if tick is None and restart == "on-failure" and "tick_s" not in base.get("clock", {}):
+            tick = 0.5  # a ground station started again loses the ticks it had not acknowledged: short ones
         config = build_config(
             overlay(
                 base,

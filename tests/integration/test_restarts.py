@@ -83,6 +83,7 @@ def test_restart_on_failure_brings_back_a_vehicle_and_the_ground_station(tmp_pat
     assert summary["events"].get("groundstation_restarted") == 1
     assert summary["vehicles"]["3"]["reset_counter"] >= 1
     tick_s = json.loads((run / "config.json").read_text())["clock"]["tick_s"]
+    assert tick_s == 0.5  # --restart on-failure keeps lockstep's short tick: a restarted ground station loses less
     for vid in (1, 2):  # lockstep waited for the new ground station: only what the old one had not
         # acknowledged was lost (the tick it was on and at most two the world had sent meanwhile)
         stamps = [float(r["t_s"]) for r in _rows(run, vid)]
