@@ -17,7 +17,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
-from tests.integration.conftest import run_swarm, swarm_command
+from tests.integration.conftest import ESTIMATES_PER_S, run_swarm, swarm_command
 from tests.viewer_rules import FREQUENCY_LIMIT_HZ, json_schema_errors, lichtblick_layout_errors
 
 pytestmark = pytest.mark.integration
@@ -271,10 +271,10 @@ def test_fault_zones_are_drawn_while_active_and_deleted_when_they_end(tmp_path):
     assert len(deleted) == 1 and 4e9 <= deleted[0] <= 4.5e9, zones
 
 
-def test_a_paced_live_view_holds_a_lockstep_run_to_its_speed(tmp_path):
-    """`--live-speed 2`: the ground station holds its tick acknowledgements, so 6 s of sim time take
-    at least 3 s of wall time, less the ticks the world may run ahead of it (``gs_lag_ticks``). Unpaced,
-    such a run takes about a second here. A lower bound on time only: a slow machine cannot fail it."""
+def test_a_paced_live_view_runs_a_lockstep_swarm_to_its_end(tmp_path):
+    """`--live-speed 2`: the ground station holds its tick acknowledgements to twice real time (the rule,
+    with the wall clock injected: tests/unit/groundstation/test_live_pacing.py); held so, the real
+    processes still finish the run, every estimate scored."""
     scenario = tmp_path / "paced.toml"
     scenario.write_text(f"[view]\nlive = true\nlive_port = {_free_port()}\n")
     result = run_swarm(
@@ -282,7 +282,7 @@ def test_a_paced_live_view_holds_a_lockstep_run_to_its_speed(tmp_path):
         "--live-speed", "2",
     )  # fmt: skip
     assert result.returncode == 0, result.stdout + result.stderr
-    timing = json.loads((tmp_path / "paced" / "timing.json").read_text())
-    clock = json.loads((tmp_path / "paced" / "config.json").read_text())["clock"]
-    lead_s = clock["gs_lag_ticks"] * clock["tick_s"]
-    assert timing["wall_s"] >= (6.0 - lead_s) / 2.0, timing
+    summary = json.loads((tmp_path / "paced" / "summary.json").read_text())
+    assert summary["status"] == "complete"
+    assert json.loads((tmp_path / "paced" / "config.json").read_text())["view"]["live_speed"] == 2.0
+    assert all(v["samples"] == 6 * ESTIMATES_PER_S + 1 for v in summary["vehicles"].values()), summary["vehicles"]
