@@ -70,6 +70,7 @@ class FusionHorizon:
         self._seen: dict[tuple[Topic, int], int] = {}  # (topic, seq) -> stamp
         self._arrival = itertools.count()
         self.cycle_us: int | None = None  # time of the last cycle
+        self.due_us: int | None = None  # time of the last cycle due: the last run, or one postponed since
         if horizon_us > 0:
             self._checkpoint(0)
 
@@ -85,6 +86,9 @@ class FusionHorizon:
         self._seen[ident] = msg.stamp_us
         entry = (msg.stamp_us, next(self._arrival), topic, msg)
         if self.cycle_us is None or msg.stamp_us > self.cycle_us:
+            if self.due_us is not None and msg.stamp_us <= self.due_us:  # late, but its cycle has not run
+                self.counters.late_fused += 1
+                self._arrived_before_checkpoint(msg.stamp_us)
             heapq.heappush(self._pending, entry)
         elif (
             msg.stamp_us >= self.cycle_us - self.horizon_us and self._checkpoint_at_or_before(msg.stamp_us) is not None
@@ -101,8 +105,15 @@ class FusionHorizon:
             heapq.heappush(self._expected, stamp_us)
             self._outstanding[stamp_us] += 1
 
+    def postpone(self, t_us: int) -> None:
+        """The cycle at ``t_us`` is due but will run later (before any later one): a measurement
+        stamped at or before it that arrives meanwhile is late, and is fused in stamp order when the
+        cycle runs, with no replay."""
+        self.due_us = t_us
+
     def cycle(self, t_us: int) -> None:
         """Fuse everything stamped <= ``t_us`` (replaying for late arrivals), then run the cycle."""
+        self.due_us = t_us if self.due_us is None else max(self.due_us, t_us)
         if self._late:
             self._replay()
         while self._pending and self._pending[0][0] <= t_us:
@@ -116,6 +127,14 @@ class FusionHorizon:
             self._checkpoint(t_us + 1)
             self._periodic.add(t_us + 1)
         self._prune(t_us)
+
+    def _arrived_before_checkpoint(self, stamp_us: int) -> None:
+        """An announced late measurement came before anything from its stamp on was applied: the
+        checkpoint kept for it is not needed."""
+        if self._outstanding[stamp_us] > 0 and stamp_us in self._expected:
+            self._outstanding[stamp_us] -= 1
+            self._expected.remove(stamp_us)
+            heapq.heapify(self._expected)
 
     def _checkpoints_due(self, stamp_us: int) -> None:
         """Before anything stamped ``stamp_us`` is applied: a checkpoint with bound s for the earliest

@@ -34,7 +34,7 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
         for t_us in node.cycles_due(tick.stamp_us):
             _wait_for_neighbours(node, tick, t_us, ticks, stop)
             start = time.perf_counter()
-            node.cycle(t_us)
+            node.cycle(t_us, deferrable=t_us < tick.stamp_us)
             node.stats.record(jitter_us=0.0, cycle_us=(time.perf_counter() - start) * 1e6, overran=False)
             node.report(t_us)
         node.finish_tick(tick)

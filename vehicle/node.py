@@ -104,6 +104,7 @@ class VehicleNode:
         self._heard_floor: dict[int, int] = {}
         # lockstep: (previous tick's stamp, stamp, running) of the ticks cycled, for the V2V waits
         self._tick_spans: deque[tuple[int, int, frozenset[int]]] = deque(maxlen=TICK_SPANS)
+        self._deferred: list[int] = []  # lockstep: cycles to run before the next one (``cycle``)
 
     def join(self, stop=None, *, v2v_wait_s: float = 30.0) -> None:
         """Declare this vehicle alive once what it publishes has listeners: its acks (the world) and
@@ -249,12 +250,27 @@ class VehicleNode:
             if j != self.vehicle_id and short > 0:
                 self._heard_floor[j] = self._heard_floor.get(j, 0) + short
 
-    def cycle(self, t_us: int) -> None:
-        """One loop cycle at sim time t_us: fuse everything stamped <= t_us, encode the estimate."""
+    def cycle(self, t_us: int, *, deferrable: bool = False) -> None:
+        """One loop cycle at sim time t_us: fuse everything stamped <= t_us, encode the estimate.
+
+        ``deferrable`` (lockstep, not a tick's last cycle): a cycle whose estimate a ranging measurement
+        still waiting for its neighbour's broadcast will revise, and at which nothing is sent on a
+        schedule, runs later, just before the next cycle that is not deferred: the same operations in
+        the same order, without the provisional pass the fusion horizon's replay would undo."""
         for delivery in self.inbound.release(t_us):
             self._deliver(delivery)
         for fix in self.v2v.mature(t_us):
             self.fusion.push(Topic.SEEN if isinstance(fix, SeenFix) else Topic.RANGING, fix)
+        if deferrable and self.v2v.revises(t_us) and self.outbound.quiet_at(t_us):
+            self._deferred.append(t_us)
+            self.fusion.postpone(t_us)
+            return
+        for deferred_us in self._deferred:
+            self._run_cycle(deferred_us)
+        self._deferred.clear()
+        self._run_cycle(t_us)
+
+    def _run_cycle(self, t_us: int) -> None:
         self.fusion.cycle(t_us)
         self.outbound.cycle(
             t_us,

@@ -88,6 +88,16 @@ class Outbound:
             self._frames += [self.encoder.heartbeat(), self.encoder.estimator_status(status_of(estimator.health(t_us)))]
             self._next_heartbeat_us = t_us + self._heartbeat_us
 
+    def quiet_at(self, t_us: int) -> bool:
+        """Whether the cycle at ``t_us`` sends nothing on a schedule: no ODOMETRY, no V2V broadcast, no
+        heartbeat and no loop statistics (notices aside)."""
+        return (
+            t_us % self._v2v_period_us != 0
+            and t_us % self._mavlink_period_us != 0
+            and t_us < self._next_heartbeat_us
+            and t_us < self._next_status_us
+        )
+
     def _v2v_frame(
         self, honest: bytes, estimate: PoseEstimate, t_us: int, reset_counter: int, behaviour: tuple
     ) -> bytes:

@@ -190,6 +190,11 @@ class V2V:
         heapq.heappush(self._waiting, (measurement.stamp_us, next(self._order), measurement))
         return True
 
+    def revises(self, t_us: int) -> bool:
+        """Whether a measurement stamped at or before ``t_us`` is still waiting for its neighbour's
+        broadcast: the estimate at ``t_us`` will be revised when it is fused."""
+        return bool(self._waiting) and self._waiting[0][0] <= t_us
+
     def awaited(self, now_us: int) -> list[tuple[int, int]]:
         """(neighbour, stamp) of every ranging measurement that matures by ``now_us``: whose
         broadcasts the cycle at ``now_us`` pairs them with."""

@@ -2,6 +2,8 @@
 duplicates are counted, never fused; checkpoints are taken only where a late one can land; the
 divergence guard and the reset counter behave through replays."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -173,3 +175,73 @@ def test_a_measurement_the_estimator_cannot_apply_is_counted_and_the_rest_is_fus
     assert fusion.counters.failed == 1
     assert est.counters.gnss_accepted + est.counters.gnss_rejected == sum(1 for t, _ in feed if t == "gnss") - 1
     assert isinstance(feed[0][1], m.PosePrior) and est.initialized
+
+
+class _CycleCounting(_Wrapped):
+    """A filter that counts the cycles it runs (a replay runs some again)."""
+
+    def __init__(self, inner: Filter) -> None:
+        super().__init__(inner)
+        self.cycles = 0
+
+    def handle(self, msg):
+        self.inner.handle(msg)
+
+    def cycle(self, t_us: int) -> None:
+        self.cycles += 1
+        self.inner.cycle(t_us)
+
+
+def _run_postponing(arrivals, end_us: int, scheduled) -> tuple[_CycleCounting, FusionHorizon]:
+    """As a lockstep vehicle: every late measurement is announced when its on-time slot comes; a cycle
+    at t is postponed while an announced measurement stamped <= t has not arrived, unless
+    ``scheduled(t)`` (something is sent then), and runs before the next cycle that is not postponed."""
+    est = _CycleCounting(_ekf())
+    fusion = FusionHorizon(est, horizon_us=500_000)
+    arrivals = sorted(arrivals, key=lambda a: a[0])
+    late = sorted((msg.stamp_us, arrival) for arrival, _, msg in arrivals if arrival > msg.stamp_us)
+    postponed, i = [], 0
+    for t in range(0, end_us + 1, PERIOD_US):
+        for stamp, _ in late:
+            if stamp == t:
+                fusion.expect(stamp)
+        while i < len(arrivals) and arrivals[i][0] <= t:
+            fusion.push(arrivals[i][1], arrivals[i][2])
+            i += 1
+        waiting = any(stamp <= t < arrival for stamp, arrival in late)
+        if waiting and not scheduled(t) and t < end_us:
+            postponed.append(t)
+            fusion.postpone(t)
+            continue
+        for earlier in postponed + [t]:
+            fusion.cycle(earlier)
+        postponed = []
+    return est, fusion
+
+
+@pytest.mark.parametrize(
+    "offset_us, schedule_us",
+    [(0, 100_000), (40_000, 200_000)],
+    ids=["fix at a scheduled cycle", "fix arriving before the next scheduled cycle"],
+)
+def test_postponed_cycles_give_the_replayed_result_with_fewer_cycles_run(offset_us, schedule_us):
+    """The V2V pattern (a fix every 200 ms, fused 100 ms late): the cycles a late fix will revise wait
+    for it instead of running twice. A fix stamped at a scheduled cycle (one that sends something)
+    still replays that one cycle; one that arrives before the next scheduled cycle replays nothing."""
+    feed = [
+        (t, msg if t != "gnss" else dataclasses.replace(msg, stamp_us=msg.stamp_us + offset_us))
+        for t, msg in _feed(4.0)
+        if t != "gnss" or msg.stamp_us % 200_000 == 0
+    ]
+    arrivals = [(msg.stamp_us + (100_000 if topic == "gnss" else 0), topic, msg) for topic, msg in feed]
+    replayed, before = _run_postponing(arrivals, 4_000_000, scheduled=lambda t: True)
+    postponed, after = _run_postponing(arrivals, 4_000_000, scheduled=lambda t: t % schedule_us == 0)
+    fixes = sum(1 for arrival, topic, _ in arrivals if topic == "gnss" and arrival <= 4_000_000)
+    assert fixes > 10 and before.counters.late_fused == after.counters.late_fused == fixes
+    np.testing.assert_array_equal(postponed.x, replayed.x)
+    np.testing.assert_array_equal(postponed.P, replayed.P)
+    assert postponed.cycles < replayed.cycles
+    if offset_us:
+        assert after.counters.replays == 0 and after.counters.checkpoints == 1  # the initial one only
+    else:
+        assert after.counters.replays == before.counters.replays == fixes

@@ -468,3 +468,38 @@ def test_realtime_vehicles_take_turns_to_fuse_an_epoch_and_lockstep_ones_do_not(
     assert turns(REALTIME) == [0, 1, 2, 3, 4, 0]  # 5 cycles of 50 Hz in half of the 0.2 s V2V period
     narrow = {**REALTIME, "vehicle": {"fusion_horizon_s": 0.15}}  # room for 2 turns beyond the wait
     assert turns(narrow) == [0, 1, 0, 1, 0, 1]
+
+
+def test_lockstep_cycles_a_waiting_fix_will_revise_run_once_and_send_the_same():
+    """A lockstep cycle whose estimate a ranging fix still waiting for its neighbour's broadcast will
+    revise, and that sends nothing on a schedule, runs with the next cycle that does: the MAVLink
+    stream is the same to the byte as with every cycle run at once (and replayed), with fewer
+    estimator cycles run."""
+    sent, cycles = {}, {}
+    for deferrable in (False, True):
+        node, hub = _node(1, {"world": {"vehicles": 2}})
+        keys = node.bus.keys
+        mavlink = queue.Queue()
+        hub.add_subscription(keys.mavlink(1), mavlink)
+        estimator, runs = node.estimator, []
+        inner = estimator.cycle
+        estimator.cycle = lambda t_us: (runs.append(t_us), inner(t_us))
+        node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+        seen = np.array([[2, np.hypot(1.0, 2.0) + 0.05, np.arctan2(2.0, 1.0) - 0.02, 0.09, 0.0, 0.0, 0.0004]] * 2)
+        ranging = {"ranging": (np.array([200_000, 600_000]), 0, seen)}  # the neighbour as _estimate puts it
+        node.take(Envelope(keys.feed(1), _batch(1, 1, 1_000_000, ranging)))
+        for stamp in (200_000, 600_000):
+            node.take(Envelope(keys.v2v(2), MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, stamp))))
+        for number, stamp in enumerate((0, 1_000_000)):
+            tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(number, stamp, 0, number == 1))))
+            for t in node.cycles_due(tick.stamp_us):
+                node.cycle(t, deferrable=deferrable and t < tick.stamp_us)
+                node.report(t)
+            node.finish_tick(tick)
+        assert node.estimator.counters.v2v_fused == 2 and node.fusion.counters.late_fused == 2
+        sent[deferrable] = [mavlink.get_nowait().payload for _ in range(mavlink.qsize())]
+        cycles[deferrable] = runs
+    assert sent[True] == sent[False] and len(sent[True]) == 2
+    assert sorted(set(cycles[True])) == sorted(set(cycles[False])) == list(range(0, 1_000_001, 20_000))
+    assert len(cycles[False]) == 51 + 2 * 5  # each fix replays its stamp's cycle and the 4 after it
+    assert len(cycles[True]) == 51 + 2  # the 4 after it waited for the fix
