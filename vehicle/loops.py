@@ -54,33 +54,33 @@ def _file_until(node: VehicleNode, done, later: deque, stop: threading.Event) ->
 
 def _wait_until_ready(node: VehicleNode, tick: m.ClockTick, later: deque, stop: threading.Event) -> None:
     """Keep filing mailbox items until the tick's inputs are complete (or time runs out)."""
-    _file_until(node, lambda: node.ready(tick), later, stop)
-    if not node.ready(tick):
+    _file_until(node, lambda: node.waits.ready(tick), later, stop)
+    if not node.waits.ready(tick):
         log.warning(
             "vehicle %d: inputs up to %d us incomplete after %g s (missing %s); cycling without them",
             node.vehicle_id,
             tick.stamp_us,
             READY_TIMEOUT_S,
-            node.missing_inputs(tick),
+            node.waits.missing_inputs(tick),
         )
-        node.write_off_missing(tick)
+        node.waits.write_off_missing(tick)
 
 
 def _wait_for_neighbours(node: VehicleNode, tick: m.ClockTick, t_us: int, later: deque, stop: threading.Event) -> None:
     """Keep filing mailbox items until the neighbours' broadcasts the cycle at ``t_us`` pairs ranging
     with have arrived (or time runs out: they are then written off as missing). What the cycle
     waits for is found once; each item filed then only crosses off what it brought."""
-    unheard = node.unheard_neighbours(tick, t_us)
+    unheard = node.waits.unheard_neighbours(tick, t_us)
     if not unheard:
         return
 
     def heard_all() -> bool:
         nonlocal unheard
-        unheard = node.still_unheard(unheard)
-        return not node.waited_for(unheard)
+        unheard = node.waits.still_unheard(unheard)
+        return not node.waits.waited_for(unheard)
 
     _file_until(node, heard_all, later, stop)
-    unheard = node.waited_for(node.still_unheard(unheard))
+    unheard = node.waits.waited_for(node.waits.still_unheard(unheard))
     if unheard:
         log.warning(
             "vehicle %d: broadcasts %s (neighbour, stamp us) not heard after %g s; fusing without them",
@@ -88,7 +88,7 @@ def _wait_for_neighbours(node: VehicleNode, tick: m.ClockTick, t_us: int, later:
             unheard,
             READY_TIMEOUT_S,
         )
-        node.write_off_unheard(unheard)
+        node.waits.write_off_unheard(unheard)
 
 
 def schedule_phase_s(vehicle_id: int, vehicles: int, period_s: float) -> float:

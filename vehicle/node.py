@@ -5,13 +5,13 @@ Zenoh callbacks only enqueue into bounded mailbox lanes (the world's feed and th
 neighbours' broadcasts in another, so a flood of one cannot crowd out the other). The loop thread
 (``vehicle.loops``) files every item through the bus layer (``vehicle.inbound``: parsing, link
 faults), hands samples to the fusion horizon, which fuses them in stamp order, and runs the cycles
-the clock allows; ``vehicle.outbound`` publishes the MAVLink stream, the V2V broadcast and the acks.
+the clock allows (in lockstep once what ``vehicle.lockstep_waits`` names has come);
+``vehicle.outbound`` publishes the MAVLink stream, the V2V broadcast and the acks.
 """
 
 from __future__ import annotations
 
 import logging
-from collections import deque
 
 from bus import messages as m
 from bus.config import VehicleProcessConfig
@@ -24,6 +24,7 @@ from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
 from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_PLAN_BYTES, MAX_V2V_BYTES, Delivery, Inbound, Kind
 from vehicle.inputs import ANNOUNCE_OFFSET_US
+from vehicle.lockstep_waits import LockstepWaits
 from vehicle.loop_stats import LoopStats
 from vehicle.models.cooperative import SeenFix
 from vehicle.outbound import Outbound
@@ -33,7 +34,6 @@ from vehicle.world_watch import WorldWatch
 
 log = logging.getLogger("swarmloc.vehicle")
 GS_LISTEN_WAIT_S = 2.0
-TICK_SPANS = 256  # lockstep ticks remembered for the V2V waits (a fix waits one V2V latency: 5 ticks of 20 ms)
 
 
 class VehicleNode:
@@ -97,13 +97,9 @@ class VehicleNode:
         self.sequences = SequenceTracker()
         self.stats = LoopStats()
         self.period_us = round(1e6 / vc.loop_rate_hz)
-        self.finished_us: int | None = None  # lockstep: the stamp of the last tick acknowledged
         self.next_cycle_us = 0
-        self.first_tick: m.ClockTick | None = None
         self.world_watch = WorldWatch(timeout_s=vc.world_timeout_s)
-        self._heard_floor: dict[int, int] = {}
-        # lockstep: (previous tick's stamp, stamp, running) of the ticks cycled, for the V2V waits
-        self._tick_spans: deque[tuple[int, int, frozenset[int]]] = deque(maxlen=TICK_SPANS)
+        self.waits = LockstepWaits(vehicle_id, config.vehicle.cooperative, self.inbound, self.v2v, self.world_watch)
         self._deferred: list[int] = []  # lockstep: cycles to run before the next one (``cycle``)
 
     def join(self, stop=None, *, v2v_wait_s: float = 30.0) -> None:
@@ -168,87 +164,11 @@ class VehicleNode:
     def _on_tick(self, tick: m.ClockTick) -> m.ClockTick:
         """A vehicle that joins a running swarm (a restart) starts from its first tick: what was
         published before it either arrived or never will."""
-        if self.first_tick is None:
-            self.first_tick = tick
+        if self.waits.first_tick is None:
+            self.waits.start(tick)
             if tick.tick > 0:
                 self.next_cycle_us = -(-tick.stamp_us // self.period_us) * self.period_us
-                self._heard_floor = {i + 1: n for i, n in enumerate(tick.v2v_published)}
         return tick
-
-    def ready(self, tick: m.ClockTick) -> bool:
-        """Lockstep: the tick's sensor batch has arrived, and every V2V broadcast the neighbours had
-        sent by their last acknowledgements (zenoh orders samples within a key, not across keys). The
-        world sends one batch per tick, in order on the vehicle's key, so the batches refused
-        (malformed, or too large) since the newest good one were the ticks after it: a tick whose
-        batch was refused runs without it at once instead of waiting for a batch not on its way."""
-        joined_late = tick is self.first_tick and tick.tick > 0  # a restart: earlier batches are gone
-        covered = self.inbound.received_tick + self.inbound.refused_since
-        if covered < tick.tick and not joined_late:
-            return False
-        if not self.config.vehicle.cooperative:
-            return True
-        heard = self.inbound.heard
-        return all(
-            heard.get(j, 0) + self._heard_floor.get(j, 0) >= n
-            for j, n in enumerate(tick.v2v_published, start=1)
-            if j != self.vehicle_id
-        )
-
-    def unheard_neighbours(self, tick: m.ClockTick, t_us: int) -> list[tuple[int, int]]:
-        """Lockstep, before the cycle at ``t_us``: (neighbour, stamp) of the broadcasts its maturing
-        ranging measurements pair with that have not arrived yet, from neighbours that ran every
-        cycle of the tick the stamp falls in (``running`` of that tick). Zenoh orders one
-        neighbour's frames to this vehicle, so having heard a later stamp means the wanted one came
-        (or the neighbour, which sends at every epoch to whoever ranges it, had none to send). Lets
-        a tick span several V2V latencies, and each frame go only to the vehicles that range its
-        sender, with what a cycle fuses still independent of the bus's timing. Not waited for: the
-        stamps up to this vehicle's first tick (a restart: what was sent before it may be lost), and
-        a neighbour that died meanwhile (its liveliness token is gone)."""
-        if not self.config.vehicle.cooperative or self.finished_us is None:
-            return []
-        spans = self._tick_spans
-        if not spans or spans[-1][1] != tick.stamp_us:
-            spans.append((self.finished_us, tick.stamp_us, frozenset(tick.running)))
-        return self.waited_for(self.still_unheard([(j, s) for j, s in self.v2v.awaited(t_us) if _ran(spans, j, s)]))
-
-    def still_unheard(self, awaited: list[tuple[int, int]]) -> list[tuple[int, int]]:
-        """Of ``awaited`` (``unheard_neighbours`` of one cycle), the broadcasts not heard yet, their
-        senders departed or not (a departed neighbour may come back while the cycle waits)."""
-        until = self.inbound.heard_until
-        return [(j, s) for j, s in awaited if until.get(j, -1) < s]
-
-    def waited_for(self, unheard: list[tuple[int, int]]) -> list[tuple[int, int]]:
-        """Of ``unheard``, those whose senders are alive (``unheard_neighbours``'s rule)."""
-        departed = self.world_watch.departed
-        return [(j, s) for j, s in unheard if j not in departed]
-
-    def write_off_unheard(self, unheard: list[tuple[int, int]]) -> None:
-        """After the wait for them timed out: count those broadcasts as heard (they are missing)."""
-        until = self.inbound.heard_until
-        for j, s in unheard:
-            until[j] = max(until.get(j, -1), s)
-
-    def missing_inputs(self, tick: m.ClockTick) -> str:
-        """What ``ready`` still waits for, in words (for the log)."""
-        parts = []
-        if self.inbound.received_tick < tick.tick:
-            parts.append(f"sensor batch {tick.tick} (latest {self.inbound.received_tick})")
-        heard = self.inbound.heard
-        parts += [
-            f"V2V of vehicle {j}: {heard.get(j, 0) + self._heard_floor.get(j, 0)} of {n}"
-            for j, n in enumerate(tick.v2v_published, start=1)
-            if j != self.vehicle_id and heard.get(j, 0) + self._heard_floor.get(j, 0) < n
-        ]
-        return "; ".join(parts)
-
-    def write_off_missing(self, tick: m.ClockTick) -> None:
-        """After the wait for ``tick`` timed out: V2V broadcasts that never came are written off, so
-        one lost frame costs one wait, not one per later tick."""
-        heard = self.inbound.heard
-        for j, n in enumerate(tick.v2v_published, start=1):
-            short = n - heard.get(j, 0) - self._heard_floor.get(j, 0)
-            if j != self.vehicle_id and short > 0:
-                self._heard_floor[j] = self._heard_floor.get(j, 0) + short
 
     def cycle(self, t_us: int, *, deferrable: bool = False) -> None:
         """One loop cycle at sim time t_us: fuse everything stamped <= t_us, encode the estimate.
@@ -337,7 +257,7 @@ class VehicleNode:
             self.publish_status(tick.stamp_us, final=True)
         self.outbound.flush()
         self.outbound.ack(tick.tick)
-        self.finished_us = tick.stamp_us
+        self.waits.finished_us = tick.stamp_us
 
     def cycles_due(self, stamp_us: int) -> list[int]:
         """The fixed-rate cycle times up to ``stamp_us`` that have not run yet."""
@@ -345,13 +265,3 @@ class VehicleNode:
         if due:
             self.next_cycle_us = due[-1] + self.period_us
         return due
-
-
-def _ran(spans: deque[tuple[int, int, frozenset[int]]], neighbour: int, stamp_us: int) -> bool:
-    """Whether ``neighbour`` ran every cycle of the tick (span) that ``stamp_us`` falls in."""
-    for start_us, end_us, running in reversed(spans):
-        if start_us < stamp_us <= end_us:
-            return neighbour in running
-        if end_us < stamp_us:
-            return False
-    return False

@@ -115,14 +115,14 @@ def test_a_tick_waits_for_its_batch_and_for_every_broadcast_the_neighbours_sent(
     keys = node.bus.keys
     node.take(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
     first = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, 0, False))))
-    assert node.ready(first)
+    assert node.waits.ready(first)
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 100_000, 0, False, (0, 2, 1)))))
-    assert not node.ready(tick)  # batch 1 still on its way
+    assert not node.waits.ready(tick)  # batch 1 still on its way
     node.take(Envelope(keys.feed(1), _batch(1, 1, 100_000, {})))
-    assert not node.ready(tick)  # vehicle 2 sent two broadcasts, vehicle 3 one
+    assert not node.waits.ready(tick)  # vehicle 2 sent two broadcasts, vehicle 3 one
     for vid, t in ((2, 0), (2, 200_000), (3, 0)):
         node.take(Envelope(keys.v2v(vid), MavlinkEncoder(vehicle_id=vid).odometry(_estimate(vid, t))))
-    assert node.ready(tick)
+    assert node.waits.ready(tick)
 
 
 def test_a_tick_whose_batch_was_refused_runs_without_it_and_only_that_tick():
@@ -134,20 +134,20 @@ def test_a_tick_whose_batch_was_refused_runs_without_it_and_only_that_tick():
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, 0, False))))
     node.finish_tick(tick)
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 100_000, 0, False))))
-    assert not node.ready(tick)  # batch 1 on its way
+    assert not node.waits.ready(tick)  # batch 1 on its way
     node.take(Envelope(keys.feed(1), b"\x93not a batch"))
-    assert node.ready(tick)  # it came, refused: nothing more is coming for tick 1
+    assert node.waits.ready(tick)  # it came, refused: nothing more is coming for tick 1
     node.finish_tick(tick)
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(2, 200_000, 0, False))))
-    assert not node.ready(tick)  # batch 2 is its own
+    assert not node.waits.ready(tick)  # batch 2 is its own
     node.take(Oversized(keys.feed(1), 10**7))
-    assert node.ready(tick)
+    assert node.waits.ready(tick)
     node.finish_tick(tick)
     node.take(Envelope(keys.feed(1), _batch(1, 3, 300_000, {})))
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(3, 300_000, 0, False))))
-    assert node.ready(tick) and node.inbound.refused_since == 0
+    assert node.waits.ready(tick) and node.inbound.refused_since == 0
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(4, 400_000, 0, False))))
-    assert not node.ready(tick)
+    assert not node.waits.ready(tick)
     assert counts_to_dict(node.rejections.as_counts()) == {"malformed": 1, "oversized": 1}
 
 
@@ -168,11 +168,11 @@ def test_a_cycle_inside_a_long_tick_waits_for_the_broadcasts_its_ranging_pairs_w
     node.finish_tick(first)
     node.take(Envelope(keys.feed(1), _batch(1, 1, 500_000, _ranging(1, [200_000, 200_000], [2, 3]))))
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 500_000, 0, False, (), (1, 2, 3), (1, 2)))))
-    assert node.ready(tick)
-    assert node.unheard_neighbours(tick, 280_000) == []  # not matured yet
-    assert node.unheard_neighbours(tick, 300_000) == [(2, 200_000)]  # 3 is rejoining: not waited for
+    assert node.waits.ready(tick)
+    assert node.waits.unheard_neighbours(tick, 280_000) == []  # not matured yet
+    assert node.waits.unheard_neighbours(tick, 300_000) == [(2, 200_000)]  # 3 is rejoining: not waited for
     node.take(Envelope(keys.v2v(2), MavlinkEncoder(vehicle_id=2).no_estimate(200_000)))
-    assert node.unheard_neighbours(tick, 300_000) == []
+    assert node.waits.unheard_neighbours(tick, 300_000) == []
     assert node.rejections.total == 0  # "no estimate" is a broadcast, not a fault
 
 
@@ -187,14 +187,14 @@ def test_a_cycle_waits_for_a_broadcast_of_the_previous_tick_from_a_neighbour_tha
     node.finish_tick(first)
     node.take(Envelope(keys.feed(1), _batch(1, 1, 400_000, _ranging(1, [400_000, 400_000], [2, 3]))))
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 400_000, 0, False, (), (1, 2, 3), (1, 2)))))
-    assert node.unheard_neighbours(tick, 400_000) == []  # matures at 500 ms, in the next tick
+    assert node.waits.unheard_neighbours(tick, 400_000) == []  # matures at 500 ms, in the next tick
     node.finish_tick(tick)
     node.take(Envelope(keys.feed(1), _batch(1, 2, 800_000, {})))
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(2, 800_000, 0, False, (), (1, 2, 3), (1, 2, 3)))))
-    assert node.ready(tick)  # nothing was broadcast to everyone: no count to wait for
-    assert node.unheard_neighbours(tick, 500_000) == [(2, 400_000)]  # 3 did not run tick 1
+    assert node.waits.ready(tick)  # nothing was broadcast to everyone: no count to wait for
+    assert node.waits.unheard_neighbours(tick, 500_000) == [(2, 400_000)]  # 3 did not run tick 1
     node.take(Envelope(keys.v2v_to(2, 1), MavlinkEncoder(vehicle_id=2).odometry(_estimate(2, 400_000))))
-    assert node.unheard_neighbours(tick, 500_000) == []
+    assert node.waits.unheard_neighbours(tick, 500_000) == []
 
 
 def test_a_neighbour_that_died_is_not_waited_for():
@@ -205,9 +205,9 @@ def test_a_neighbour_that_died_is_not_waited_for():
     node.finish_tick(first)
     node.take(Envelope(keys.feed(1), _batch(1, 1, 500_000, _ranging(1, [200_000], [2]))))
     tick = node.take(Envelope(keys.clock(), m.encode(m.ClockTick(1, 500_000, 0, False, (), (1, 2), (1, 2)))))
-    assert node.unheard_neighbours(tick, 300_000) == [(2, 200_000)]
+    assert node.waits.unheard_neighbours(tick, 300_000) == [(2, 200_000)]
     node.take(LivelinessEvent(keys.alive("vehicle", 2), alive=False))
-    assert node.unheard_neighbours(tick, 300_000) == []
+    assert node.waits.unheard_neighbours(tick, 300_000) == []
 
 
 def test_vehicle_subscriptions_never_reach_truth():
