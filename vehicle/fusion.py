@@ -12,7 +12,9 @@ taken only where a late measurement can land: ``expect(stamp)`` asks for one jus
 (the link-fault stage holding a delayed packet, a ranging measurement waiting for its neighbour's
 broadcast); ``every_cycles`` adds one every N cycles for links whose lateness nobody can foresee
 (realtime). A checkpoint with bound b holds the state after every measurement stamped < b and every
-cycle < b.
+cycle < b. A cycle may also be postponed (``postpone``: lockstep, while a ranging fix it will fuse is
+still on its way and nothing is sent at it): a measurement that arrives before it runs is late but
+needs no replay.
 """
 
 from __future__ import annotations
@@ -109,7 +111,7 @@ class FusionHorizon:
         """The cycle at ``t_us`` is due but will run later (before any later one): a measurement
         stamped at or before it that arrives meanwhile is late, and is fused in stamp order when the
         cycle runs, with no replay."""
-        self.due_us = t_us
+        self.due_us = t_us if self.due_us is None else max(self.due_us, t_us)
 
     def cycle(self, t_us: int) -> None:
         """Fuse everything stamped <= ``t_us`` (replaying for late arrivals), then run the cycle."""
