@@ -14,7 +14,12 @@ broadcast); ``every_cycles`` adds one every N cycles for links whose lateness no
 (realtime). A checkpoint with bound b holds the state after every measurement stamped < b and every
 cycle < b. A cycle may also be postponed (``postpone``: lockstep, while a ranging fix it will fuse is
 still on its way and nothing is sent at it): a measurement that arrives before it runs is late but
-needs no replay.
+needs no replay. And a measurement of an ``after_cycle`` topic (the vehicles' ranging fixes) stamped
+at the time of the last cycle, arriving after that cycle ran, is fused right after it, before
+anything later, instead of replaying it: the cycle's estimate went out without the fix by design
+(the V2V broadcast it pairs with), and what the cycle does at its own stamp (a propagation by zero,
+the GNSS monitor's clock, the divergence check) does not touch what a fix updates, so the mean and
+covariance are those of the replay; only the divergence check sees the state before the fix.
 """
 
 from __future__ import annotations
@@ -58,8 +63,16 @@ Entry = tuple[int, int, Topic, Any]  # (stamp, arrival order, topic, message)
 class FusionHorizon:
     """Orders measurements for one estimator; ``horizon_us`` is how late a measurement may be."""
 
-    def __init__(self, estimator: Estimator, *, horizon_us: int, every_cycles: int = 0) -> None:
+    def __init__(
+        self,
+        estimator: Estimator,
+        *,
+        horizon_us: int,
+        every_cycles: int = 0,
+        after_cycle: frozenset[Topic] = frozenset(),
+    ) -> None:
         self.estimator, self.horizon_us, self.every_cycles = estimator, horizon_us, every_cycles
+        self.after_cycle = after_cycle  # topics fused right after the cycle at their stamp (module docstring)
         self.counters = FusionCounters()
         self._pending: list[Entry] = []
         self._late: list[Entry] = []
@@ -87,7 +100,8 @@ class FusionHorizon:
             return
         self._seen[ident] = msg.stamp_us
         entry = (msg.stamp_us, next(self._arrival), topic, msg)
-        if self.cycle_us is None or msg.stamp_us > self.cycle_us:
+        at_last_cycle = msg.stamp_us == self.cycle_us and topic in self.after_cycle
+        if self.cycle_us is None or msg.stamp_us > self.cycle_us or at_last_cycle:
             if self.due_us is not None and msg.stamp_us <= self.due_us:  # late, but its cycle has not run
                 self.counters.late_fused += 1
                 self._arrived_before_checkpoint(msg.stamp_us)
@@ -133,10 +147,11 @@ class FusionHorizon:
     def _arrived_before_checkpoint(self, stamp_us: int) -> None:
         """An announced late measurement came before anything from its stamp on was applied: the
         checkpoint kept for it is not needed."""
-        if self._outstanding[stamp_us] > 0 and stamp_us in self._expected:
+        if self._outstanding[stamp_us] > 0:
             self._outstanding[stamp_us] -= 1
-            self._expected.remove(stamp_us)
-            heapq.heapify(self._expected)
+            if stamp_us in self._expected:
+                self._expected.remove(stamp_us)
+                heapq.heapify(self._expected)
 
     def _checkpoints_due(self, stamp_us: int) -> None:
         """Before anything stamped ``stamp_us`` is applied: a checkpoint with bound s for the earliest

@@ -77,7 +77,10 @@ class VehicleNode:
         # realtime: a checkpoint every 5 cycles for samples late beyond the allowance (every cycle
         # cost a fifth of a realtime cycle; a late sample replays at most 5 cycles more)
         self.fusion = FusionHorizon(
-            self.estimator, horizon_us=round(vc.fusion_horizon_s * 1e6), every_cycles=5 if realtime else 0
+            self.estimator,
+            horizon_us=round(vc.fusion_horizon_s * 1e6),
+            every_cycles=5 if realtime else 0,
+            after_cycle=frozenset({Topic.RANGING, Topic.SEEN}),
         )
         v2v_period_us, latency_us = round(1e6 / config.sensors.ranging_rate_hz), round(vc.v2v_latency_s * 1e6)
         if realtime:  # vehicles take turns to fuse an epoch

@@ -192,12 +192,14 @@ class _CycleCounting(_Wrapped):
         self.inner.cycle(t_us)
 
 
-def _run_postponing(arrivals, end_us: int, scheduled) -> tuple[_CycleCounting, FusionHorizon]:
+def _run_postponing(
+    arrivals, end_us: int, scheduled, after_cycle: frozenset = frozenset()
+) -> tuple[_CycleCounting, FusionHorizon]:
     """As a lockstep vehicle: every late measurement is announced when its on-time slot comes; a cycle
     at t is postponed while an announced measurement stamped <= t has not arrived, unless
     ``scheduled(t)`` (something is sent then), and runs before the next cycle that is not postponed."""
     est = _CycleCounting(_ekf())
-    fusion = FusionHorizon(est, horizon_us=500_000)
+    fusion = FusionHorizon(est, horizon_us=500_000, after_cycle=after_cycle)
     arrivals = sorted(arrivals, key=lambda a: a[0])
     late = sorted((msg.stamp_us, arrival) for arrival, _, msg in arrivals if arrival > msg.stamp_us)
     postponed, i = [], 0
@@ -220,14 +222,20 @@ def _run_postponing(arrivals, end_us: int, scheduled) -> tuple[_CycleCounting, F
 
 
 @pytest.mark.parametrize(
-    "offset_us, schedule_us",
-    [(0, 100_000), (40_000, 200_000)],
-    ids=["fix at a scheduled cycle", "fix arriving before the next scheduled cycle"],
+    "offset_us, schedule_us, after_cycle",
+    [(0, 100_000, False), (40_000, 200_000, False), (0, 100_000, True)],
+    ids=[
+        "fix at a scheduled cycle",
+        "fix arriving before the next scheduled cycle",
+        "fix at a scheduled cycle, fused after it",
+    ],
 )
-def test_postponed_cycles_give_the_replayed_result_with_fewer_cycles_run(offset_us, schedule_us):
+def test_postponed_cycles_give_the_replayed_result_with_fewer_cycles_run(offset_us, schedule_us, after_cycle):
     """The V2V pattern (a fix every 200 ms, fused 100 ms late): the cycles a late fix will revise wait
     for it instead of running twice. A fix stamped at a scheduled cycle (one that sends something)
-    still replays that one cycle; one that arrives before the next scheduled cycle replays nothing."""
+    still replays that one cycle, unless its topic is fused after the cycle at its stamp; one that
+    arrives before the next scheduled cycle replays nothing. The mean and covariance are the replay's
+    to the bit either way."""
     feed = [
         (t, msg if t != "gnss" else dataclasses.replace(msg, stamp_us=msg.stamp_us + offset_us))
         for t, msg in _feed(4.0)
@@ -235,7 +243,8 @@ def test_postponed_cycles_give_the_replayed_result_with_fewer_cycles_run(offset_
     ]
     arrivals = [(msg.stamp_us + (100_000 if topic == "gnss" else 0), topic, msg) for topic, msg in feed]
     replayed, before = _run_postponing(arrivals, 4_000_000, scheduled=lambda t: True)
-    postponed, after = _run_postponing(arrivals, 4_000_000, scheduled=lambda t: t % schedule_us == 0)
+    topics = frozenset({"gnss"}) if after_cycle else frozenset()
+    postponed, after = _run_postponing(arrivals, 4_000_000, lambda t: t % schedule_us == 0, topics)
     fixes = sum(1 for arrival, topic, _ in arrivals if topic == "gnss" and arrival <= 4_000_000)
     assert fixes > 10 and before.counters.late_fused == after.counters.late_fused == fixes
     np.testing.assert_array_equal(postponed.x, replayed.x)
@@ -243,5 +252,7 @@ def test_postponed_cycles_give_the_replayed_result_with_fewer_cycles_run(offset_
     assert postponed.cycles < replayed.cycles
     if offset_us:
         assert after.counters.replays == 0 and after.counters.checkpoints == 1  # the initial one only
+    elif after_cycle:
+        assert after.counters.replays == 0 and postponed.cycles == 4_000_000 // PERIOD_US + 1  # none twice
     else:
         assert after.counters.replays == before.counters.replays == fixes

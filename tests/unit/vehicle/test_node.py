@@ -472,9 +472,9 @@ def test_realtime_vehicles_take_turns_to_fuse_an_epoch_and_lockstep_ones_do_not(
 
 def test_lockstep_cycles_a_waiting_fix_will_revise_run_once_and_send_the_same():
     """A lockstep cycle whose estimate a ranging fix still waiting for its neighbour's broadcast will
-    revise, and that sends nothing on a schedule, runs with the next cycle that does: the MAVLink
-    stream is the same to the byte as with every cycle run at once (and replayed), with fewer
-    estimator cycles run."""
+    revise, and that sends nothing on a schedule, runs with the next cycle that does, and the fix is
+    fused right after the cycle at its stamp (which broadcast without it): the MAVLink stream is the
+    same to the byte as with every cycle run at once and replayed, and no cycle runs twice."""
     sent, cycles = {}, {}
     for deferrable in (False, True):
         node, hub = _node(1, {"world": {"vehicles": 2}})
@@ -502,4 +502,4 @@ def test_lockstep_cycles_a_waiting_fix_will_revise_run_once_and_send_the_same():
     assert sent[True] == sent[False] and len(sent[True]) == 2
     assert sorted(set(cycles[True])) == sorted(set(cycles[False])) == list(range(0, 1_000_001, 20_000))
     assert len(cycles[False]) == 51 + 2 * 5  # each fix replays its stamp's cycle and the 4 after it
-    assert len(cycles[True]) == 51 + 2  # the 4 after it waited for the fix
+    assert len(cycles[True]) == 51  # the 4 after it waited for the fix, which came right after its own
