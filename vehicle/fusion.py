@@ -11,8 +11,9 @@ Checkpoints cost a copy of the estimator, which for a SLAM map is an n x n covar
 taken only where a late measurement can land: ``expect(stamp)`` asks for one just before ``stamp``
 (the link-fault stage holding a delayed packet, a ranging measurement waiting for its neighbour's
 broadcast); ``every_cycles`` adds one every N cycles for links whose lateness nobody can foresee
-(realtime). A checkpoint with bound b holds the state after every measurement stamped < b and every
-cycle < b. A cycle may also be postponed (``postpone``: lockstep, while a ranging fix it will fuse is
+(realtime). Besides, there is one at least every horizon: what is kept for replays (everything since
+the newest checkpoint older than the horizon) stays bounded when nothing is announced. A checkpoint
+with bound b holds the state after every measurement stamped < b and every cycle < b. A cycle may also be postponed (``postpone``: lockstep, while a ranging fix it will fuse is
 still on its way and nothing is sent at it): a measurement that arrives before it runs is late but
 needs no replay. And a measurement of an ``after_cycle`` topic (the vehicles' ranging fixes) stamped
 at the time of the last cycle, arriving after that cycle ran, is fused right after it, before
@@ -142,6 +143,8 @@ class FusionHorizon:
         if self.every_cycles and len(self._cycles) % self.every_cycles == 0:
             self._checkpoint(t_us + 1)
             self._periodic.add(t_us + 1)
+        elif self.horizon_us > 0 and self._checkpoints[-1][0] <= t_us - self.horizon_us:
+            self._checkpoint(t_us + 1)  # at least one a horizon, so that the history kept stays bounded
         self._prune(t_us)
 
     def _arrived_before_checkpoint(self, stamp_us: int) -> None:

@@ -78,7 +78,18 @@ def test_checkpoints_are_taken_only_where_late_measurements_land():
     # the initial checkpoint (bound 0) serves the fix stamped 0
     assert fusion.counters.late_fused == late and fusion.counters.checkpoints == late
     _, on_time = _run([(msg.stamp_us, topic, msg) for topic, msg in feed], 500_000, 6_400_000, every_cycles=0)
-    assert on_time.counters.checkpoints == 1  # the initial one: nothing was ever announced
+    # nothing announced: the initial one and one a horizon (500 ms), so that the history kept is bounded
+    assert on_time.counters.checkpoints == 1 + 6_400_000 // 500_000
+
+
+def test_the_history_kept_for_replays_stays_bounded_when_nothing_is_announced():
+    """A lockstep vehicle that fuses no neighbour announces nothing: it still keeps a checkpoint every
+    horizon, so what it keeps for a replay is at most about two horizons' worth (a 10-minute run grew
+    a vehicle by 50 MB while it kept everything since the start)."""
+    feed = _feed(60.0)
+    _, fusion = _run([(msg.stamp_us, topic, msg) for topic, msg in feed], 500_000, 60_000_000, every_cycles=0)
+    per_s = len(feed) / 60.0
+    assert len(fusion._applied) <= 2 * 0.5 * per_s + 1 and len(fusion._cycles) <= 2 * 0.5 * 50 + 1
 
 
 def test_measurements_older_than_the_horizon_are_dropped_and_counted():
@@ -251,7 +262,9 @@ def test_postponed_cycles_give_the_replayed_result_with_fewer_cycles_run(offset_
     np.testing.assert_array_equal(postponed.P, replayed.P)
     assert postponed.cycles < replayed.cycles
     if offset_us:
-        assert after.counters.replays == 0 and after.counters.checkpoints == 1  # the initial one only
+        _, on_time = _run_postponing([(msg.stamp_us, t, msg) for t, msg in feed], 4_000_000, lambda t: True)
+        assert after.counters.replays == 0
+        assert after.counters.checkpoints == on_time.counters.checkpoints  # none for the fixes
     elif after_cycle:
         assert after.counters.replays == 0 and postponed.cycles == 4_000_000 // PERIOD_US + 1  # none twice
     else:
