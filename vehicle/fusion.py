@@ -13,9 +13,11 @@ taken only where a late measurement can land: ``expect(stamp)`` asks for one jus
 broadcast); ``every_cycles`` adds one every N cycles for links whose lateness nobody can foresee
 (realtime). Besides, there is one at least every horizon: what is kept for replays (everything since
 the newest checkpoint older than the horizon) stays bounded when nothing is announced. A checkpoint
-with bound b holds the state after every measurement stamped < b and every cycle < b. A cycle may also be postponed (``postpone``: lockstep, while a ranging fix it will fuse is
-still on its way and nothing is sent at it): a measurement that arrives before it runs is late but
-needs no replay. And a measurement of an ``after_cycle`` topic (the vehicles' ranging fixes) stamped
+with bound b holds the state after every measurement stamped < b and every cycle < b.
+
+A cycle may also be postponed (``postpone``: lockstep, while a ranging fix it will fuse is still on
+its way and nothing is sent at it): a measurement that arrives before it runs is late but needs no
+replay. And a measurement of an ``after_cycle`` topic (the vehicles' ranging fixes) stamped
 at the time of the last cycle, arriving after that cycle ran, is fused right after it, before
 anything later, instead of replaying it: the cycle's estimate went out without the fix by design
 (the V2V broadcast it pairs with), and what the cycle does at its own stamp (a propagation by zero,
