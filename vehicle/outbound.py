@@ -68,7 +68,7 @@ class Outbound:
                 self.encoder.system_time(notice.stamp_us),
                 self.encoder.statustext(notice.severity, notice.text[:50]),
             ]
-        on_v2v, on_mavlink = t_us % self._v2v_period_us == 0, t_us % self._mavlink_period_us == 0
+        on_v2v, on_mavlink = self._on_v2v(t_us), self._on_mavlink(t_us)
         if not estimator.initialized:
             if on_v2v:  # neighbours in lockstep wait for every epoch's broadcast: say there is none
                 self._send_v2v(self.encoder.no_estimate(t_us, reset_counter), listeners)
@@ -84,19 +84,28 @@ class Outbound:
                 accused = sorted(set(estimator.accused()) | false_accusations(behaviour, self.vehicle_id, t_us / 1e6))
                 accusations = b"".join(self._accuser.accusation(t_us, j) for j in accused[:MAX_ACCUSED])
                 self._send_v2v(self._v2v_frame(odometry, pose, t_us, reset_counter, behaviour) + accusations, listeners)
-        if t_us >= self._next_heartbeat_us:
+        if self._heartbeat_due(t_us):
             self._frames += [self.encoder.heartbeat(), self.encoder.estimator_status(status_of(estimator.health(t_us)))]
             self._next_heartbeat_us = t_us + self._heartbeat_us
 
     def quiet_at(self, t_us: int) -> bool:
         """Whether the cycle at ``t_us`` sends nothing on a schedule: no ODOMETRY, no V2V broadcast, no
         heartbeat and no loop statistics (notices aside)."""
-        return (
-            t_us % self._v2v_period_us != 0
-            and t_us % self._mavlink_period_us != 0
-            and t_us < self._next_heartbeat_us
-            and t_us < self._next_status_us
+        return not (
+            self._on_v2v(t_us) or self._on_mavlink(t_us) or self._heartbeat_due(t_us) or self._status_is_due(t_us)
         )
+
+    def _on_v2v(self, t_us: int) -> bool:
+        return t_us % self._v2v_period_us == 0
+
+    def _on_mavlink(self, t_us: int) -> bool:
+        return t_us % self._mavlink_period_us == 0
+
+    def _heartbeat_due(self, t_us: int) -> bool:
+        return t_us >= self._next_heartbeat_us
+
+    def _status_is_due(self, t_us: int) -> bool:
+        return t_us >= self._next_status_us
 
     def _v2v_frame(
         self, honest: bytes, estimate: PoseEstimate, t_us: int, reset_counter: int, behaviour: tuple
@@ -135,7 +144,9 @@ class Outbound:
             self._frames = []
 
     def status_due(self, t_us: int) -> bool:
-        if t_us >= self._next_status_us:
+        """Whether the loop statistics go out after the cycle at ``t_us`` (the next one is then due a
+        period later)."""
+        if self._status_is_due(t_us):
             self._next_status_us = t_us + self._status_period_us
             return True
         return False
