@@ -394,6 +394,14 @@ class VehicleConfig(_Strict):
     realtime_allowance_s: float = Field(
         0.005, ge=0, le=1, description="realtime: a cycle waits this long past its deadline for the tick's sensor batch"
     )
+    realtime_priority: int = Field(
+        10,
+        ge=0,
+        le=99,
+        description="realtime: the estimator loop runs under SCHED_FIFO at this priority when the kernel allows "
+        "it (root, CAP_SYS_NICE or `ulimit -r`), else under the fair scheduler; 0: always the fair scheduler "
+        "(vehicle.scheduling)",
+    )
     world_timeout_s: float = Field(60.0, gt=0, description="a vehicle whose world is gone this long gives up")
 
 

@@ -131,8 +131,8 @@ def swarm_table() -> str:
         set(),
         [
             "| case | vehicles | sim s | RTF | floor [s] | overruns | jitter p99 [ms] | cycle p99 [ms] "
-            "| vehicle RSS [MB] | swarm RMSE [m] | ANEES | target |",
-            "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |",
+            "| loop | vehicle RSS [MB] | swarm RMSE [m] | ANEES | target |",
+            "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: | ---: | --- |",
         ],
     )
     for row in json.loads(path.read_text())["rows"]:
@@ -142,11 +142,13 @@ def swarm_table() -> str:
             continue
         seen.add(key)
         floor = d.get("floor_wall_s")
-        jitter = "-" if d.get("mode") == "lockstep" else f"{d.get('jitter_p99_us', 0) / 1000:.2f}"
+        lockstep = d.get("mode") == "lockstep"
+        jitter = "-" if lockstep else f"{d.get('jitter_p99_us', 0) / 1000:.2f}"
+        loop = "-" if lockstep else f"SCHED_FIFO {d['loop_priority']}" if d.get("loop_priority") else "fair scheduler"
         lines.append(
             f"| {d['label']} | {d['vehicles']} | {d['sim_s']} | {d['real_time_factor']:.2f}x "
             f"| {'-' if floor is None else floor} | {100 * d['overrun_rate']:.2f}% | {jitter} "
-            f"| {d['cycle_p99_us'] / 1000:.2f} | {d['vehicle_rss_mb_max']} | {d['swarm_rmse_m']} "
+            f"| {d['cycle_p99_us'] / 1000:.2f} | {loop} | {d['vehicle_rss_mb_max']} | {d['swarm_rmse_m']} "
             f"| {d['swarm_anees']} | {d['target']} |"
         )
     return "\n".join(lines)

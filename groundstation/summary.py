@@ -111,7 +111,8 @@ def build_summary(
 def build_timing(
     statuses: dict[int, VehicleStatus], sim_s: float, wall_s: float, latency_us: Mapping[int, list[int]] | None = None
 ) -> dict[str, Any]:
-    """Wall-clock loop statistics per vehicle, the MAVLink latency in sim time (arrival tick minus
+    """Wall-clock loop statistics per vehicle (with the SCHED_FIFO priority its realtime loop was
+    granted, 0 under the fair scheduler), the MAVLink latency in sim time (arrival tick minus
     time_usec, so quantised to the clock tick) and the run's real-time factor (sim s per wall s):
     never reproducible, so kept out of summary.json."""
     latency_us = latency_us or {}
@@ -122,6 +123,7 @@ def build_timing(
             "overrun_rate": _round(st.overruns / st.cycles) if st.cycles else 0.0,
             "jitter_p99_us": _round(st.jitter_p99_us),
             "cycle_p99_us": _round(st.cycle_p99_us),
+            "loop_priority": st.loop_priority,
         }
         for vid, st in sorted(statuses.items())
     }

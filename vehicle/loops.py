@@ -14,6 +14,7 @@ from bus.config import VehicleProcessConfig
 from bus.process import Pacer
 from bus.session import Bus
 from vehicle.node import VehicleNode
+from vehicle.scheduling import ask_for_realtime_priority
 
 log = logging.getLogger("swarmloc.vehicle")
 READY_TIMEOUT_S = 5.0
@@ -107,7 +108,9 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
     loop); at the deadline it files until the sensor batch covering the cycle is in, waiting up to
     ``realtime_allowance_s`` for it, and runs the cycle (a late loop first files what the world sent:
     a batch may be queued behind). A flood of the neighbours' messages can delay filing, never a
-    cycle. The final clock tick ends the loop once the cycles up to its stamp have run."""
+    cycle. The final clock tick ends the loop once the cycles up to its stamp have run. The loop's
+    thread asks for real-time scheduling first (``vehicle.realtime_priority``, vehicle.scheduling)."""
+    node.loop_priority = ask_for_realtime_priority(node.config.vehicle.realtime_priority)
     pacer: Pacer | None = None
     final: m.ClockTick | None = None  # the world has ended the run at final.stamp_us
     allowance_s = node.config.vehicle.realtime_allowance_s

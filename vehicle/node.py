@@ -99,6 +99,7 @@ class VehicleNode:
             self.visual_odometry = VisualOdometry(vehicle_id, detector=vc.features, reject=self.rejections.reject)
         self.sequences = SequenceTracker()
         self.stats = LoopStats()
+        self.loop_priority = 0  # realtime: the SCHED_FIFO priority the loop was granted (vehicle.scheduling)
         self.period_us = round(1e6 / vc.loop_rate_hz)
         self.next_cycle_us = 0
         self.world_watch = WorldWatch(timeout_s=vc.world_timeout_s)
@@ -241,6 +242,7 @@ class VehicleNode:
                 landmarks_updated=c.landmarks_updated,
                 frames_used=c.frames_used,
                 nis=c.nis.values,
+                loop_priority=self.loop_priority,
             ),
             self._landmark_map(t_us),
         )

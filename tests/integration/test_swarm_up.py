@@ -141,6 +141,22 @@ def test_realtime_mode_runs_and_reports_loop_timing(tmp_path):
         # each one's V2V frames go to the other on its own key (30 epochs in 6 s; half, for a busy machine)
         assert summary["vehicles"][vid]["v2v_fused"] >= 15
     assert 1.0 < timing["real_time_factor"] < 3.0  # paced near the requested speed of 2
+    # the loops run under SCHED_FIFO at the default priority where this user may ask for it
+    granted = 10 if _may_use_fifo(10) else 0
+    assert [timing["vehicles"][vid]["loop_priority"] for vid in ("1", "2")] == [granted, granted]
+
+
+def _may_use_fifo(priority: int) -> bool:
+    """Whether this user may put a thread under SCHED_FIFO at ``priority``: asked from a throwaway thread."""
+    import threading
+
+    from vehicle.scheduling import ask_for_realtime_priority
+
+    granted = []
+    probe = threading.Thread(target=lambda: granted.append(ask_for_realtime_priority(priority)))
+    probe.start()
+    probe.join()
+    return granted == [priority]
 
 
 def test_swarm_up_writes_the_report(three_vehicle_runs):
