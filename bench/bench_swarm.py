@@ -59,7 +59,7 @@ def vehicle_rss_mb(marker: str) -> list[float]:
 
 def run_case(vehicles: int, mode: str, duration_s: float, out: Path, scenario: Path | None = None) -> dict:
     """`swarm up` (over ``scenario`` when given) with these settings, measured."""
-    name = f"{mode}-{vehicles}"
+    name = f"{mode}-{vehicles}" + (f"-{scenario.stem}" if scenario else "")  # one directory per case
     cmd = [
         sys.executable,
         "-m",
