@@ -64,6 +64,7 @@ class Inbound:
         self.links = LinkFaultStage(f"v{vehicle_id}", seed=fault_seed, faults=faults)
         self.behaviour = _own_behaviour(faults, vehicle_id)  # the plan's lies and accusations of it (bus.lies)
         self.plan_version = -1
+        self.run_end: m.RunEnd | None = None  # the world has ended the run (vehicle.loops.hand_over_end)
         self.received_tick = -1  # the newest sensor batch that arrived
         self.refused_since = 0  # batches on its feed refused since the newest that arrived
         self.received_stamp_us = -1  # and the end of the time it covers
@@ -87,6 +88,8 @@ class Inbound:
             return self._clock(item)
         if item.key == keys.fault_plan():
             return self._plan(item)
+        if item.key == keys.end():
+            return self._end(item)
         parsed = self._parsed.get(item.key) if isinstance(item.key, str) else None
         if parsed is None:
             parsed = keys.parse(item.key)
@@ -141,6 +144,13 @@ class Inbound:
             self.plan_version = plan.version
             self.links.set_plan(plan.faults)
             self.behaviour = _own_behaviour(plan.faults, self.vehicle_id)
+        return []
+
+    def _end(self, item: Envelope) -> list[Delivery]:
+        try:
+            self.run_end = m.decode(m.RunEnd, item.payload)
+        except DecodeError as exc:
+            self.rejections.reject("malformed", item.key, str(exc))
         return []
 
     def _batch(self, item: Envelope) -> list[Delivery]:

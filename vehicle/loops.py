@@ -18,6 +18,8 @@ from vehicle.scheduling import ask_for_realtime_priority
 
 log = logging.getLogger("swarmloc.vehicle")
 READY_TIMEOUT_S = 5.0
+END_WAIT_S = 10.0  # after the final ack: the world waits up to 5 s for every final ack, then ends the run
+ACK_REPEAT_S = 0.5
 
 
 def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
@@ -177,4 +179,28 @@ def run_vehicle(
     node = VehicleNode(bus, config, vehicle_id, restarts=restarts, signing_key=signing_key)
     node.join(stop)
     (run_lockstep if config.clock.mode == "lockstep" else run_realtime)(node, stop)
+    if not stop.is_set():
+        hand_over_end(node, stop)
     return node
+
+
+def hand_over_end(node: VehicleNode, stop: threading.Event) -> None:
+    """After the final tick's acknowledgement, keep the session open until the world ends the run
+    (its RunEnd comes once every final ack is in), saying the ack again every ``ACK_REPEAT_S``; at
+    most ``END_WAIT_S``, and not for a world that is gone. Closing the session right after the last
+    puts lost them now and then (20 vehicles ending together in realtime: a vehicle's final
+    estimate, status or ack in about one run in 25; the world then waited 5 s for the ack and named
+    the vehicle lost)."""
+    if node.outbound.acked_tick is None:
+        return
+    now = time.monotonic()
+    deadline, next_ack = now + END_WAIT_S, now + ACK_REPEAT_S
+    while node.inbound.run_end is None and not stop.is_set() and node.world_watch.gone_since is None:
+        now = time.monotonic()
+        if now >= deadline:
+            log.warning("the world did not end the run within %g s of the final ack", END_WAIT_S)
+            return
+        if now >= next_ack:
+            node.outbound.ack(node.outbound.acked_tick)
+            next_ack = now + ACK_REPEAT_S
+        node.take(node.mailbox.get(min(0.05, deadline - now)))

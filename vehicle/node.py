@@ -55,6 +55,7 @@ class VehicleNode:
         self.world_lane = world  # the feed, the clock, the fault plan and liveliness
         bus.subscribe(keys.clock(), world, MAX_CLOCK_BYTES)
         bus.subscribe(keys.fault_plan(), world, MAX_PLAN_BYTES)
+        bus.subscribe(keys.end(), world, MAX_CLOCK_BYTES)
         bus.subscribe(keys.feed(vehicle_id), world, MAX_BATCH_BYTES)
         if vc.cooperative:  # broadcasts, and (realtime simulation) frames addressed to this vehicle alone
             bus.subscribe(keys.v2v("*"), neighbours, MAX_V2V_BYTES)

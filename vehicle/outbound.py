@@ -50,6 +50,7 @@ class Outbound:
         self._frames: list[bytes] = []
         self._past: deque[PoseEstimate] = deque()  # the broadcast epochs' estimates a stale lie replays
         self.v2v_sent = 0
+        self.acked_tick: int | None = None  # the last tick acknowledged
 
     def cycle(
         self,
@@ -158,4 +159,5 @@ class Outbound:
         self._status.put(m.encode(status))
 
     def ack(self, tick: int) -> None:
+        self.acked_tick = tick
         self._ack.put(m.encode(m.TickAck(self.vehicle_id, tick, self.v2v_sent)))

@@ -50,6 +50,7 @@ def test_garbage_on_every_key_is_counted_by_reason_and_the_node_keeps_working():
         Envelope(keys.feed(1), b"\xc1garbage"),
         Envelope(keys.clock(), b"\x00"),
         Envelope(keys.fault_plan(), b"{"),
+        Envelope(keys.end(), b"\x93\x01"),
         Envelope("swarm/v/x/v2v", b"anything"),
         Envelope("swarm/v/\u00b2/v2v", b"x"),
         Envelope("swarm/v/9/v2v", b"x"),
@@ -63,7 +64,7 @@ def test_garbage_on_every_key_is_counted_by_reason_and_the_node_keeps_working():
     for item in items:
         assert node.take(item) is None
     assert counts_to_dict(node.rejections.as_counts()) == {
-        "malformed": 4,
+        "malformed": 5,
         "bad_key": 2,
         "unknown_vehicle": 1,
         "impersonation": 2,
@@ -83,6 +84,7 @@ def test_any_bytes_on_any_key_are_counted_never_raised(payload, topic, ident):
         f"swarm/v/{ident}/{topic}",
         "swarm/v/1/feed",
         "swarm/ctl/clock",
+        "swarm/ctl/end",
         "swarm/v/2/v2v",
         "swarm/v/2/v2v/1",
         f"swarm/v/2/v2v/{ident}",
