@@ -93,6 +93,7 @@ class GroundStation:
         self.events: Counter[str] = Counter()
         self.sim_time_us = 0
         self.previous_tick_us = -1
+        self.published_us = -1  # lockstep: every estimate up to here is published (the tick before the last)
         self.ended: m.RunEnd | None = None
         self.final_seen = False
         self.active: set[int] = set()  # vehicles alive on the bus
@@ -264,7 +265,8 @@ class GroundStation:
         for vid, frame in self.intake.release(tick.stamp_us, self._stream_passed):
             self.streams.frame(vid, frame, self.sim_time_us)
         if self.config.clock.mode == "lockstep" and self.previous_tick_us >= 0:
-            self.run.write_scores(self.scorer.release(self._lockstep_watermark()))
+            self.published_us = self.previous_tick_us  # tick k: every estimate up to tick k-1 is published
+            self._score_published()
         elif self.config.clock.mode == "realtime":
             self.run.write_scores(self.scorer.release(tick.stamp_us - REALTIME_LAG_US))
         self.previous_tick_us = tick.stamp_us
@@ -278,6 +280,8 @@ class GroundStation:
         is served first, so acknowledging on receipt would let a backlog of estimates grow without
         bound behind it (lockstep backpressure, and what a killed ground station loses)."""
         if self._ack_due is not None and self.mailbox.empty() and not self._pacing():
+            if self.published_us >= 0:  # the streams filed since the tick came may let more be scored
+                self._score_published()
             self.run.flush()  # what is scored is on disk before the world may move on: a crash loses only what is not
             self._ack_pub.put(m.encode(m.GroundStationAck(self._ack_due)))
             self._ack_due = None
@@ -304,6 +308,9 @@ class GroundStation:
             return True
         return self.streams.latest_estimate_us.get(vid, -1) >= round(self.config.clock.duration_s * 1e6)
 
+    def _score_published(self) -> None:
+        self.run.write_scores(self.scorer.release(self._lockstep_watermark()))
+
     def _lockstep_watermark(self) -> int:
         """Estimates up to here can be scored in (time, vehicle) order: every live vehicle has
         published past it, truth covers it, and no delay fault still holds an older estimate.
@@ -311,7 +318,7 @@ class GroundStation:
         vehicles counted are those the world's tick waited for, not those whose liveliness this
         process has heard: a token is another key, and when it arrives must not decide the order in
         which estimates are scored."""
-        marks = [self.previous_tick_us, self.latest_truth_us]
+        marks = [self.published_us, self.latest_truth_us]
         members = self.active if self.tick_members is None else self.tick_members
         marks += [self.streams.latest_estimate_us.get(vid, -1) for vid in members]
         held = self.intake.links.held_min_stamp()

@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -91,6 +92,9 @@ class WorldNode:
         self.tick_us = round(config.clock.tick_s * 1e6)
         self.final_tick = round(config.clock.duration_s * 1e6) // self.tick_us
         self._gs_gone_since: float | None = None
+        # the truth of the last ticks (payloads), sent again to a ground station that returns: its
+        # predecessor may have died before scoring what it covers
+        self._truth_sent: deque[bytes] = deque(maxlen=config.clock.gs_lag_ticks + 2)
         # a simulated world: each batch names who ranges the vehicle, and its V2V frames go to them
         # alone (bus.feed.SensorBatch.listeners); replays broadcast to every vehicle (a data set's
         # robots see each other, which the world does not turn into listeners)
@@ -211,6 +215,7 @@ class WorldNode:
         for key, payload in prepared.batches:
             self.publish(key, payload)
         self.publish(self.bus.keys.truth(), prepared.truth)
+        self._truth_sent.append(prepared.truth)
         self.members.acked = set()
         tick = m.ClockTick(
             prepared.tick,
@@ -315,8 +320,13 @@ class WorldNode:
                 if not self._groundstation_listens():  # its truth would be dropped
                     self.drain(0.02)
                     continue
-                # what the old one had not acknowledged is lost with it; the new one starts here
+                # the new one gets the truth of the last ticks again: its predecessor scores a tick's
+                # estimates only at the next tick, so the truth of the last one it acknowledged may
+                # be needed too (the vehicles hold their frames until they know the new one
+                # listens: vehicle.node.finish_tick). It starts here.
                 self.members.gs_returned = False
+                for truth in self._truth_sent:
+                    self.publish(self.bus.keys.truth(), truth)
                 self.members.gs_acked = max(self.members.gs_acked, tick - 1)
             if present and (not lockstep or self.members.gs_acked >= tick - clock.gs_lag_ticks):
                 return True
