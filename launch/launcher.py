@@ -32,9 +32,10 @@ WATCH_PERIOD_S = 0.1  # the supervisor looks at the fault plan this often (a chi
 # imported, OpenBLAS starts no thread pool at all (0.1 s of CPU less per process start); a user's
 # own setting wins
 CHILD_ENV = {"OPENBLAS_NUM_THREADS": "1"}
-# zenoh's runtimes folded into one worker thread in the swarm's own processes (a process of this
-# kind talks to one router over one link): 23 processes of 20 vehicles on two cores ran 5 % faster
-# and spent 5 % less CPU. Not for the router, which serves every link; a user's own ZENOH_RUNTIME wins.
+# lockstep: zenoh's runtimes folded into one worker thread in the swarm's own processes (each talks
+# to one router over one link): 23 processes of 20 vehicles on two cores ran 5 % faster and spent
+# 5 % less CPU. Not for the router, which serves every link, nor in realtime, where 32 vehicles'
+# worst jitter had outliers with it (19 ms); a user's own ZENOH_RUNTIME wins.
 ONE_ZENOH_RUNTIME = (
     "(rx: (handover: app), tx: (handover: app), net: (handover: app), acc: (handover: app), app: (worker_threads: 1))"
 )
@@ -156,7 +157,8 @@ class Swarm:
     def spawn(self, name: str, args: list[str], *, essential: bool, inherit_stdout: bool = False) -> Child:
         log_path = self.run_dir / "logs" / f"{name}.log"
         secrets = self.security.env(name) if name != "router" else {}
-        runtime = {} if name == "router" else {"ZENOH_RUNTIME": ONE_ZENOH_RUNTIME}
+        one_thread = name != "router" and self.config.clock.mode == "lockstep"
+        runtime = {"ZENOH_RUNTIME": ONE_ZENOH_RUNTIME} if one_thread else {}
         env = {**CHILD_ENV, **runtime, **os.environ, "PYTHONUNBUFFERED": "1", **secrets}
         process = children.start(args, env, log_path, inherit_stdout=inherit_stdout)
         child = Child(name, process, log_path, essential)
