@@ -94,6 +94,7 @@ class GroundStation:
         self.sim_time_us = 0
         self.previous_tick_us = -1
         self.published_us = -1  # lockstep: every estimate up to here is published (the tick before the last)
+        self.rejoined_us: dict[int, int] = {}  # lockstep: a restarted vehicle's estimates all come after this
         self.ended: m.RunEnd | None = None
         self.final_seen = False
         self.active: set[int] = set()  # vehicles alive on the bus
@@ -177,6 +178,8 @@ class GroundStation:
         joined, left = self.membership.change(tick.members)
         since_us = self.previous_tick_us if self.previous_tick_us >= 0 else tick.stamp_us
         for vid in joined:
+            if self.previous_tick_us >= 0:  # it cycles from its first tick on, past the previous one's stamp
+                self.rejoined_us[vid] = self.previous_tick_us
             self.events["vehicle_joined"] += 1
             self.run.event("vehicle_joined", since_us, vehicle=vid)
         for vid in left:
@@ -317,10 +320,14 @@ class GroundStation:
         Zenoh keeps order within a key, not across keys, so each stream's own progress counts. The
         vehicles counted are those the world's tick waited for, not those whose liveliness this
         process has heard: a token is another key, and when it arrives must not decide the order in
-        which estimates are scored."""
+        which estimates are scored. A vehicle that joined during the run (a restart) publishes only
+        estimates stamped after the tick before the one that first listed it, so the others' are
+        not held for it until its first frame comes (a ground station that died meanwhile lost
+        them all)."""
         marks = [self.published_us, self.latest_truth_us]
         members = self.active if self.tick_members is None else self.tick_members
-        marks += [self.streams.latest_estimate_us.get(vid, -1) for vid in members]
+        streams = self.streams.latest_estimate_us
+        marks += [max(streams.get(vid, -1), self.rejoined_us.get(vid, -1)) for vid in members]
         held = self.intake.links.held_min_stamp()
         return min(marks) if held is None else min(*marks, held - 1)
 
