@@ -78,6 +78,13 @@ class ClockConfig(_Strict):
         description="lockstep: how many ticks the ground station may lag "
         "(what a ground-station crash can lose: up to 1 s of scoring at the default tick)",
     )
+    background_niceness: int = Field(
+        19,
+        ge=0,
+        le=19,
+        description="lockstep: the niceness the world and the ground station run at, so that the vehicles' "
+        "cycles, the barrier's critical path, get the cores first (0: the default priority)",
+    )
 
     @model_validator(mode="after")
     def _default_tick(self) -> ClockConfig:

@@ -1,10 +1,15 @@
-"""Helpers every node process shares: stop on SIGINT/SIGTERM, and sim-time/wall-time pacing."""
+"""Helpers every node process shares: stop on SIGINT/SIGTERM, sim-time/wall-time pacing, and a lower
+CPU priority for the processes off a lockstep run's critical path."""
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 import time
+from pathlib import Path
+
+AUTOGROUP = Path("/proc/self/autogroup")
 
 
 def die_with_parent(sig: int = signal.SIGTERM) -> None:
@@ -21,6 +26,29 @@ def die_with_parent(sig: int = signal.SIGTERM) -> None:
         return
     if os.getppid() == 1:  # the parent died before the request took effect
         os.kill(os.getpid(), sig)
+
+
+def lower_cpu_priority(niceness: int, autogroup: Path = AUTOGROUP) -> int:
+    """Run this process at ``niceness`` (1-19; 0 asks for nothing): its calling thread, and so every
+    thread it starts afterwards (call it before the zenoh session opens), and, when the process leads
+    its own session, that session's autogroup. Linux groups each session's processes for the fair
+    scheduler (``kernel.sched_autogroup_enabled``) and shares the cores between the groups, whatever
+    nice value their threads have: every process `swarm up` starts leads a session of its own, so
+    the group's nice value is the one that counts. A process started from a shell shares the shell's
+    group and leaves it alone. Raising one's own niceness needs no privilege. Returns the niceness
+    applied (0: none, or not on this platform)."""
+    if niceness <= 0 or not hasattr(os, "setpriority"):
+        return 0
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, max(os.getpriority(os.PRIO_PROCESS, 0), niceness))
+    except OSError:
+        return 0
+    if os.getsid(0) == os.getpid():
+        try:
+            autogroup.write_text(f"{niceness}\n")
+        except OSError:
+            pass  # no autogroups on this kernel: the threads' own nice value is what the scheduler reads
+    return niceness
 
 
 def stop_on_signals() -> threading.Event:
