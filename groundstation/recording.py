@@ -205,11 +205,11 @@ class Recording:
 
     def _pose_channel(self, kind: str, vehicle_id: int):
         """A vehicle's channel: its ``estimate`` or ``truth`` poses, or its ``metrics``, ``health`` or
-        ``loop`` records."""
-        from foxglove.channels import PoseInFrameChannel
-
+        ``loop`` records (three lookups a score: the import only where a channel is made)."""
         key = (kind, vehicle_id)
         if key not in self._poses:
+            from foxglove.channels import PoseInFrameChannel
+
             topic = pose_topic(vehicle_id, kind)
             schema = {"metrics": METRICS_SCHEMA, "health": HEALTH_SCHEMA, "loop": LOOP_SCHEMA}.get(kind)
             self._poses[key] = (
