@@ -103,6 +103,7 @@ class GroundStation:
         self.world_alive = False
         self.world_seen = False
         self.latest_truth_us = -1
+        self.truth_tick = -1  # the newest tick whose truth batch arrived
         self.faults = FaultControl(config.faults, vehicles=config.world.vehicles, log=self._event_at)
         self.resumed = False
         self._resume(run_dir)
@@ -239,6 +240,7 @@ class GroundStation:
         self.run.recording.message(self.sim_time_us, f"rejected input ({reason}) on {where}: {detail or '-'}")
 
     def _on_truth(self, batch: feed.TruthBatch) -> None:
+        self.truth_tick = max(self.truth_tick, batch.tick)
         for k, stamp in enumerate(batch.stamps_us.tolist()):
             for n, vid in enumerate(batch.vehicle_ids.tolist()):
                 self.scorer.add_truth(vid, stamp, batch.rows[k, n, :3])
