@@ -23,7 +23,7 @@ def _run_node(config_path: Path, role: str, body: Callable, *, vehicle_config: b
     from threadpoolctl import threadpool_limits
 
     from bus.config import load_config, load_vehicle_config
-    from bus.process import stop_on_signals
+    from bus.process import lower_cpu_priority, stop_on_signals
     from bus.session import Transport, ZenohBus
 
     logging.basicConfig(level=logging.INFO, format=f"%(asctime)s {role} %(levelname)s %(message)s")
@@ -31,7 +31,8 @@ def _run_node(config_path: Path, role: str, body: Callable, *, vehicle_config: b
     try:
         config = (load_vehicle_config if vehicle_config else load_config)(config_path)
         config = config.model_copy(update={"bus": config.bus.with_env()})
-        _yield_to_vehicles(role, background_niceness(role, config))
+        if niceness := lower_cpu_priority(background_niceness(role, config)):  # before zenoh's threads start
+            log.info("%s runs at niceness %d: the vehicles' cycles get the cores first", role, niceness)
         # one BLAS thread: a swarm runs many single-loop processes per core, and OpenBLAS threads
         # spinning in each of them starved the others (camera vehicles: 30% loop overruns)
         with threadpool_limits(limits=1), ZenohBus(config.bus, role=role, transport=Transport.from_env()) as bus:
@@ -42,25 +43,12 @@ def _run_node(config_path: Path, role: str, body: Callable, *, vehicle_config: b
 
 def background_niceness(role: str, config) -> int:
     """The niceness ``role`` runs at: ``clock.background_niceness`` for the world and the ground
-    station in lockstep, where the vehicles' cycles are the critical path; 0 (the default priority)
-    otherwise (a realtime world's feeds are due on the wall clock)."""
+    station in lockstep, where the vehicles' cycles are the critical path (the world prepares the
+    next tick and the ground station scores while they cycle, on the cores they leave idle); 0 (the
+    default priority) otherwise (a realtime world's feeds are due on the wall clock)."""
     if role in BACKGROUND_ROLES and config.clock.mode == "lockstep":
         return config.clock.background_niceness
     return 0
-
-
-def _yield_to_vehicles(role: str, niceness: int) -> None:
-    """Lockstep: the world prepares the next tick's feeds, and the ground station scores, while the
-    vehicles cycle; at ``niceness`` they take the cores the vehicles leave idle instead of holding up
-    the start of a tick (bus.process.lower_cpu_priority; before the session opens, so that zenoh's
-    threads run at it too)."""
-    if niceness <= 0:
-        return
-    from bus.process import lower_cpu_priority
-
-    applied = lower_cpu_priority(niceness)
-    if applied:
-        log.info("%s runs at niceness %d: the vehicles' cycles get the cores first", role, applied)
 
 
 def router(
