@@ -19,29 +19,25 @@ def initial_gyro_bias(spec: SensorSpec, rng: np.random.Generator) -> np.ndarray:
     return rng.normal(0.0, spec.gyro_bias_sigma_radps, 3)
 
 
-def imu_sample(
-    speed_mps: float,
-    accel_fwd_mps2: float,
-    yaw_rate_radps: float,
+def imu_rows(
+    speed_mps: np.ndarray,
+    accel_fwd_mps2: np.ndarray,
+    yaw_rate_radps: np.ndarray,
     bias: np.ndarray,
     gyro_noise: np.ndarray,
     accel_noise: np.ndarray,
 ) -> np.ndarray:
-    """Body-frame (FRD) [gyro (3,) rad/s, specific force (3,) m/s^2] (6,) of a level unicycle, given
-    the gyro bias (3,) and this sample's white noise (3,) each (in floats: one small array per sample)."""
-    b0, b1, b2 = bias.tolist()
-    g0, g1, g2 = gyro_noise.tolist()
-    a0, a1, a2 = accel_noise.tolist()
-    return np.array(
-        [
-            (0.0 + b0) + g0,
-            (0.0 + b1) + g1,
-            (yaw_rate_radps + b2) + g2,
-            accel_fwd_mps2 + a0,
-            speed_mps * yaw_rate_radps + a1,
-            -GRAVITY_MPS2 + a2,
-        ]
-    )
+    """Body-frame (FRD) [gyro (3) rad/s, specific force (3) m/s^2] rows (N, 6) of N level unicycles
+    at one step, given their speeds, forward accelerations and yaw rates (N,), gyro biases (N, 3)
+    and this step's white noise (N, 3) each."""
+    rows = np.empty((len(speed_mps), 6))
+    rows[:, 0] = (0.0 + bias[:, 0]) + gyro_noise[:, 0]
+    rows[:, 1] = (0.0 + bias[:, 1]) + gyro_noise[:, 1]
+    rows[:, 2] = (yaw_rate_radps + bias[:, 2]) + gyro_noise[:, 2]
+    rows[:, 3] = accel_fwd_mps2 + accel_noise[:, 0]
+    rows[:, 4] = speed_mps * yaw_rate_radps + accel_noise[:, 1]
+    rows[:, 5] = -GRAVITY_MPS2 + accel_noise[:, 2]
+    return rows
 
 
 def pose_prior(pose: np.ndarray, spec: SensorSpec, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

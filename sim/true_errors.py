@@ -51,7 +51,6 @@ class TrueErrors:
     rng: np.random.Generator
     odom_scale: float
     gnss_walk_m: np.ndarray  # (2,) current Gauss-Markov GNSS error
-    slip_until_us: int = -1
     block: dict[str, np.ndarray] = field(default_factory=dict)
 
     @classmethod
@@ -74,18 +73,6 @@ class TrueErrors:
             "tail_ranging": student_scale(dof, rng, (steps, vehicles)),
         }
 
-    def odometry(
-        self, t_us: int, k: int, period_s: float, speed_mps: float, yaw_rate_radps: float, noise: np.ndarray
-    ) -> np.ndarray:
-        """The wheel odometry row [speed m/s, yaw rate rad/s] at step ``k`` of the block for the true
-        inputs and the datasheet's white noise (2,): scaled, slipping, heavy-tailed."""
-        truth = self.truth
-        if self.block["slip"][k] < truth.odom_slip_rate_hz * period_s:
-            self.slip_until_us = t_us + round(truth.odom_slip_s * 1e6)
-        slip = 1.0 + truth.odom_slip_fraction if t_us < self.slip_until_us else 1.0
-        reading = np.array([speed_mps * (1.0 + self.odom_scale) * slip, yaw_rate_radps])
-        return reading + noise * self.block["tail_odom"][k]
-
     def gnss_error(self, k: int, period_s: float, noise: np.ndarray) -> np.ndarray:
         """The fix's error (2,) in m at step ``k`` (called once per GNSS period, silenced or not):
         white noise (heavy-tailed), the Gauss-Markov part moved on by one period, and an outlier now and then."""
@@ -99,3 +86,35 @@ class TrueErrors:
                 [np.cos(angle), np.sin(angle)]
             )
         return error
+
+
+def odometry_rows(
+    truth: SensorTruth,
+    t_us: int,
+    period_s: float,
+    speed_mps: np.ndarray,
+    yaw_rate_radps: np.ndarray,
+    noise: np.ndarray,
+    draws: OdometryDraws,
+    slip_until_us: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The wheel odometry rows [speed m/s, yaw rate rad/s] (N, 2) of N vehicles at ``t_us`` for their
+    true inputs (N,) and the datasheet's white noise (N, 2): scaled, slipping, heavy-tailed; and when
+    each vehicle's slip ends (N,) us after this step (a slip starts where the step's draw is below
+    ``odom_slip_rate_hz`` x ``period_s`` and lasts ``odom_slip_s``)."""
+    starts = draws.slip < truth.odom_slip_rate_hz * period_s
+    slip_until_us = np.where(starts, t_us + round(truth.odom_slip_s * 1e6), slip_until_us)
+    slip = np.where(t_us < slip_until_us, 1.0 + truth.odom_slip_fraction, 1.0)
+    rows = np.empty((len(speed_mps), 2))
+    rows[:, 0] = speed_mps * (1.0 + draws.scale) * slip + noise[:, 0] * draws.tail
+    rows[:, 1] = yaw_rate_radps + noise[:, 1] * draws.tail
+    return rows, slip_until_us
+
+
+@dataclass(frozen=True)
+class OdometryDraws:
+    """N vehicles' wheel scale errors (N,) and one step's slip draws and Student-t factors (N,)."""
+
+    scale: np.ndarray
+    slip: np.ndarray
+    tail: np.ndarray

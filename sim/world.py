@@ -19,6 +19,7 @@ from bus.feed import CameraBlock
 from bus.pads import start_pads
 from bus.topics import Topic
 from sim import sensors
+from sim.high_rate import HighRateSensors, StepRows
 from sim.kinematics import unicycle_arcs
 from sim.physical_faults import PhysicalFaults
 from sim.trajectories import make_trajectory
@@ -28,6 +29,7 @@ if TYPE_CHECKING:
     from sim.terrain import Terrain
 
 BLOCK_STEPS = 100
+EMITTED = (Topic.PRIOR, Topic.IMU, Topic.ODOM, Topic.GNSS, Topic.CAMERA, Topic.RANGING)  # within a step
 
 
 @dataclass
@@ -35,11 +37,9 @@ class _Vehicle:
     vehicle_id: int
     trajectory: object
     rng: np.random.Generator
-    gyro_bias: np.ndarray
     ranging_rng: np.random.Generator
     camera_rng: np.random.Generator
     errors: TrueErrors
-    last_speed_mps: float = 0.0
     seq: dict[str, int] = field(default_factory=dict)
     noise: dict[str, np.ndarray] = field(default_factory=dict)
 
@@ -51,15 +51,19 @@ class _Vehicle:
 @dataclass
 class TickOutput:
     """What the world measured over one advance: ``rows[vid][topic]`` is a list of (stamp_us, seq,
-    row (w,)); ``truth_stamps`` (k,) and ``truth`` (k, N, 5) rows [x, y, theta, speed, yaw rate]."""
+    row (w,)) of the topics measured one vehicle at a time, ``streams[vid][topic]`` (stamps (k,),
+    first seq, rows (k, w)) of those measured for every vehicle at once (IMU, wheel odometry);
+    ``truth_stamps`` (k,) and ``truth`` (k, N, 5) rows [x, y, theta, speed, yaw rate]."""
 
     rows: dict[int, dict[str, list[tuple[int, int, np.ndarray]]]]
     truth_stamps: list[int]
     truth: list[np.ndarray]
+    streams: dict[int, dict[str, tuple[np.ndarray, int, np.ndarray]]] = field(default_factory=dict)
 
     def blocks(self, vehicle_id: int) -> dict[str, tuple[np.ndarray, int, np.ndarray]]:
-        """The bus.feed blocks of one vehicle: topic -> (stamps (k,), first seq, rows (k, w))."""
-        out = {}
+        """The bus.feed blocks of one vehicle: topic -> (stamps (k,), first seq, rows (k, w)), in the
+        order a step emits them (``EMITTED``) from the earliest first stamp on."""
+        out = dict(self.streams.get(vehicle_id, {}))
         for topic, samples in self.rows.get(vehicle_id, {}).items():
             if samples and topic != Topic.CAMERA:
                 out[topic] = (
@@ -67,7 +71,7 @@ class TickOutput:
                     samples[0][1],
                     np.array([s[2] for s in samples], dtype=np.float64),
                 )
-        return out
+        return dict(sorted(out.items(), key=lambda item: (int(item[1][0][0]), EMITTED.index(item[0]))))
 
     def listeners(self) -> dict[int, tuple[int, ...]]:
         """vehicle id -> the vehicles that ranged it in this advance (sorted): those that pair its
@@ -131,7 +135,7 @@ class World:
         spec, wc = config.sensors, config.world
         pads = start_pads(wc.vehicles, wc.spacing_m)
         self.vehicles: list[_Vehicle] = []
-        poses, tones = [], []
+        poses, tones, biases = [], [], []
         for index in range(wc.vehicles):
             vid = index + 1
             layout_rng = np.random.default_rng([wc.seed, vid, 1])
@@ -140,13 +144,13 @@ class World:
                 kind, centre_m=pads[index], speed_mps=wc.speed_mps, radius_m=wc.radius_m, rng=layout_rng
             )
             rng, errors_rng = np.random.default_rng([wc.seed, vid]), np.random.default_rng([wc.seed, vid, 4])
+            biases.append(sensors.initial_gyro_bias(spec, rng))
             tones.append(wobble_tones(wc.sensor_truth, errors_rng))
             self.vehicles.append(
                 _Vehicle(
                     vid,
                     trajectory,
                     rng,
-                    sensors.initial_gyro_bias(spec, rng),
                     np.random.default_rng([wc.seed, vid, 2]),
                     np.random.default_rng([wc.seed, vid, 3]),
                     TrueErrors.draw(wc.sensor_truth, errors_rng),
@@ -167,6 +171,10 @@ class World:
                 ("truth", spec.truth_rate_hz),
             )
         }
+        odom_scale = np.array([v.errors.odom_scale for v in self.vehicles])
+        self.high_rate = HighRateSensors(
+            np.array(biases), odom_scale, self.step_us, self._periods[Topic.ODOM], wc.sensor_truth
+        )
         self.terrain = make_terrain(config) if spec.camera_rate_hz else None
         if self.terrain is not None:
             import cv2
@@ -190,8 +198,15 @@ class World:
     def advance(self, until_us: int) -> TickOutput:
         """Run every step stamped in (now, until_us]."""
         out = TickOutput({v.vehicle_id: {} for v in self.vehicles}, [], [])
+        streams = {Topic.IMU: StepRows(), Topic.ODOM: StepRows()}
         while self.steps_done * self.step_us <= until_us:
-            self._step(out)
+            self._step(out, streams)
+        for topic, step_rows in streams.items():
+            for v, (stamps, rows) in zip(self.vehicles, step_rows.per_vehicle(len(self.vehicles))):
+                if len(stamps):
+                    seq0 = v.seq.get(topic, -1) + 1
+                    v.seq[topic] = seq0 + len(stamps) - 1
+                    out.streams.setdefault(v.vehicle_id, {})[topic] = (stamps, seq0, rows)
         return out
 
     def _draw_block(self, v: _Vehicle) -> None:
@@ -210,13 +225,14 @@ class World:
         }
         v.errors.draw_block(n, len(self.vehicles))
 
-    def _step(self, out: TickOutput) -> None:
+    def _step(self, out: TickOutput, streams: dict[str, StepRows]) -> None:
         """Sample every sensor at the step's stamp from the current poses, then move the poses."""
         t_us, k = self.steps_done * self.step_us, self.steps_done % BLOCK_STEPS
         spec, dt = self.config.sensors, self.step_us * 1e-6
         if k == 0:
             for v in self.vehicles:
                 self._draw_block(v)
+            self.high_rate.new_block([v.noise for v in self.vehicles], [v.errors.block for v in self.vehicles])
             if self._wobbles:
                 self._wobble_block = self._wobble_over(t_us)
         law = np.array([v.trajectory.inputs(t_us * 1e-6, pose) for v, pose in zip(self.vehicles, self.poses)])
@@ -224,9 +240,11 @@ class World:
         if t_us % self._periods["truth"] == 0:
             out.truth_stamps.append(t_us)
             out.truth.append(np.column_stack([self.poses, inputs]))
-        for v, pose, (speed, yaw_rate) in zip(self.vehicles, self.poses, inputs):
-            self._samples(out.rows[v.vehicle_id], v, t_us, k, pose, float(speed), float(yaw_rate))
-            v.gyro_bias = v.gyro_bias + v.noise["walk"][k]
+        self.high_rate.step(streams, t_us, k, inputs[:, 0], inputs[:, 1], self._silenced)
+        camera_due = self.terrain is not None and t_us % self._periods[Topic.CAMERA] == 0
+        if t_us == 0 or t_us % self._periods[Topic.GNSS] == 0 or camera_due:
+            for v, pose in zip(self.vehicles, self.poses):
+                self._samples(out.rows[v.vehicle_id], v, t_us, k, pose)
         if t_us % self._periods[Topic.RANGING] == 0 and spec.ranging_max_m > 0 and spec.ranging_max_peers > 0:
             self._ranging(out, t_us, k)
         self._move(law, k, dt)
@@ -251,24 +269,18 @@ class World:
     def _emit(self, rows: dict, v: _Vehicle, topic: str, t_us: int, row: np.ndarray) -> None:
         rows.setdefault(topic, []).append((t_us, v.next_seq(topic), row))
 
-    def _samples(
-        self, rows: dict, v: _Vehicle, t_us: int, k: int, pose: np.ndarray, speed: float, yaw_rate: float
-    ) -> None:
+    def _silenced(self, topic: str, t_us: int) -> np.ndarray | None:
+        """Which vehicles' ``topic`` produces nothing at ``t_us`` (N,); None: no fault silences any."""
+        if not self.faults.faults:
+            return None
+        return np.array([self.faults.silenced(v.vehicle_id, topic, t_us, p) for v, p in zip(self.vehicles, self.poses)])
+
+    def _samples(self, rows: dict, v: _Vehicle, t_us: int, k: int, pose: np.ndarray) -> None:
+        """One vehicle's prior (at 0), GNSS fix and camera frame when due."""
         spec, vid, silenced = self.config.sensors, v.vehicle_id, self.faults.silenced
         if t_us == 0:
             prior, cov = sensors.pose_prior(pose, spec, v.rng)
             self._emit(rows, v, Topic.PRIOR, t_us, np.concatenate([prior, cov.ravel()]))
-        accel_fwd = (speed - v.last_speed_mps) / (self.step_us * 1e-6) if t_us else 0.0
-        v.last_speed_mps = speed
-        imu = sensors.imu_sample(speed, accel_fwd, yaw_rate, v.gyro_bias, v.noise["gyro"][k], v.noise["accel"][k])
-        if not silenced(vid, Topic.IMU, t_us, pose):
-            self._emit(rows, v, Topic.IMU, t_us, imu)
-        if t_us % self._periods[Topic.ODOM] == 0:
-            reading = v.errors.odometry(
-                t_us, k, self._periods[Topic.ODOM] * 1e-6, speed, yaw_rate, v.noise[Topic.ODOM][k]
-            )
-            if not silenced(vid, Topic.ODOM, t_us, pose):
-                self._emit(rows, v, Topic.ODOM, t_us, reading)
         if t_us % self._periods[Topic.GNSS] == 0:
             error = v.errors.gnss_error(k, self._periods[Topic.GNSS] * 1e-6, v.noise[Topic.GNSS][k])
             if not silenced(vid, Topic.GNSS, t_us, pose):

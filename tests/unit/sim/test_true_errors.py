@@ -16,7 +16,7 @@ def _world(seconds: float, **truth) -> tuple[World, list]:
 
 
 def _rows(outputs: list, topic: str, vid: int = 1) -> np.ndarray:
-    return np.array([row for out in outputs for _, _, row in out.rows[vid].get(topic, [])])
+    return np.concatenate([out.blocks(vid)[topic][2] for out in outputs if topic in out.blocks(vid)])
 
 
 def _truth(outputs: list) -> np.ndarray:

@@ -150,3 +150,36 @@ def test_spoofed_fixes_drift_at_the_set_rate_and_jammed_ones_vanish():
     stamps = np.array([f.stamp_us for f in faulty]) * 1e-6
     np.testing.assert_allclose(offsets[:, 0], 0.0, atol=1e-9)
     np.testing.assert_allclose(offsets[:, 1], np.where(stamps >= 1.0, 2.0 * (stamps - 1.0), 0.0), atol=1e-9)
+
+
+def _imu_by_tick(faults: list, seconds: int = 3) -> dict[int, list[tuple]]:
+    """vehicle id -> per one-second advance, its IMU block (stamps, first seq, rows) or None."""
+    world = World(build_config({"world": {"vehicles": 3, "seed": 4}, "faults": faults}))
+    outputs = [world.advance(t * 1_000_000) for t in range(1, seconds + 1)]
+    return {v: [out.blocks(v).get("imu") for out in outputs] for v in world.vehicle_ids()}
+
+
+def test_a_silenced_imu_leaves_out_its_samples_only():
+    """The IMU is measured for every vehicle at once: a blackout of vehicle 2's IMU from 1.305 to 1.605 s
+    takes exactly those samples out of its feed, its sequence numbers go on without a gap (they count
+    what was sent), and every other sample of every vehicle is the same as without the blackout."""
+    blackout = {"kind": "blackout", "vehicle": 2, "sensor": "imu", "start_s": 1.305, "for_s": 0.3}
+    quiet, silenced = _imu_by_tick([]), _imu_by_tick([blackout])
+    for vid in (1, 3):
+        for (s0, q0, r0), (s1, q1, r1) in zip(quiet[vid], silenced[vid]):
+            assert q0 == q1 and np.array_equal(s0, s1) and np.array_equal(r0, r1)
+    heard = 0
+    for (stamps, _, rows), (kept, seq0, kept_rows) in zip(quiet[2], silenced[2]):
+        mask = (stamps < 1_305_000) | (stamps > 1_605_000)
+        assert np.array_equal(kept, stamps[mask]) and np.array_equal(kept_rows, rows[mask])
+        assert seq0 == heard  # numbered as sent
+        heard += len(kept)
+    assert heard == 301 - 30
+
+
+def test_a_batch_lists_its_topics_in_the_order_a_step_measures_them():
+    """Feeds name their topics in the order the world measures them within a step (the prior first,
+    at 0; then IMU, wheels, GNSS, ranging), whichever of them are measured one vehicle at a time."""
+    world = World(build_config({"world": {"vehicles": 3, "seed": 4}}))
+    assert list(world.advance(0).blocks(1)) == ["prior", "imu", "odom", "gnss", "ranging"]
+    assert list(world.advance(1_000_000).blocks(1)) == ["imu", "odom", "gnss", "ranging"]
