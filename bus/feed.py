@@ -85,6 +85,20 @@ class SensorBatch:
         out.sort(key=lambda item: item[1].stamp_us)  # stable: LAYOUT order among equal stamps
         return out
 
+    def message(self, topic: str, i: int) -> Any:
+        """The ``i``-th sample of ``topic`` (``Topic.CAMERA``: the ``i``-th frame) as its message."""
+        if topic == Topic.CAMERA:
+            c = self.camera
+            return m.CameraFrame(
+                self.vehicle_id, int(c.stamps[i]), c.seq0 + i, c.pixels[i], float(c.metres_per_pixel[i])
+            )
+        stamps, seq0, rows = self.blocks[topic]
+        return _MAKERS[topic](self.vehicle_id, int(stamps[i]), seq0 + i, rows[i])
+
+    def count(self) -> int:
+        """How many samples and camera frames the batch carries."""
+        return sum(len(b[0]) for b in self.blocks.values()) + (len(self.camera.stamps) if self.camera else 0)
+
 
 def _prior(vid: int, stamp: int, seq: int, r: np.ndarray) -> m.PosePrior:
     return m.PosePrior(vid, stamp, seq, r[:3].copy(), r[3:].reshape(3, 3).copy())

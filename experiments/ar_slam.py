@@ -135,6 +135,9 @@ class _Timed:
         self.done.add((msg.stamp_us, msg.seq))
         self.on_frame(msg, (time.perf_counter() - start) * 1e3, before)
 
+    def handle_row(self, *sample) -> None:
+        self.f.handle_row(*sample)
+
     def cycle(self, t_us: int) -> None:
         self.f.cycle(t_us)
 

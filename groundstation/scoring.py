@@ -7,6 +7,7 @@ covariance (3 degrees of freedom), so its mean should be 3 for a consistent esti
 from __future__ import annotations
 
 import bisect
+import functools
 import heapq
 import itertools
 import logging
@@ -34,12 +35,14 @@ class Score:
     estimate: StateEstimate
     truth_pose: np.ndarray  # (3,)
 
-    @property
+    # read by the run directory, the recording and the tallies (three or four times a score): worked
+    # out once (a frozen dataclass keeps a cached_property in its __dict__)
+    @functools.cached_property
     def sigma(self) -> np.ndarray:
         """(3,) standard deviations of x, y (m) and yaw (rad)."""
         return np.sqrt(np.diag(self.pose_covariance))
 
-    @property
+    @functools.cached_property
     def position_error_m(self) -> float:
         return float(np.hypot(self.error_m[0], self.error_m[1]))
 

@@ -32,10 +32,13 @@ import heapq
 import itertools
 import logging
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Protocol
 
 from bus.topics import Topic
+from vehicle.input_runs import InputRun
 
 log = logging.getLogger("swarmloc.vehicle")
 MAX_PENDING = 200_000
@@ -44,6 +47,7 @@ MAX_SEEN = 4_096  # (topic, seq) pairs remembered; pruned to the horizon beyond 
 
 class Estimator(Protocol):
     def handle(self, msg: Any) -> None: ...
+    def handle_row(self, topic: str, stamp_us: int, row: list[float], message: Callable[[], Any]) -> None: ...
     def cycle(self, t_us: int) -> None: ...
     def snapshot(self) -> Any: ...
     def restore(self, snapshot: Any) -> None: ...
@@ -60,7 +64,8 @@ class FusionCounters:
     dropped_full: int = 0  # refused at the bound of the pending buffer
 
 
-Entry = tuple[int, int, Topic, Any]  # (stamp, arrival order, topic, message)
+Entry = tuple[int, int, Topic, Any]  # (stamp, arrival order, topic, message or InputRun)
+RunSample = tuple[int, int, Topic, InputRun, int]  # (stamp, arrival order, topic, run, index in it)
 
 
 class FusionHorizon:
@@ -86,14 +91,22 @@ class FusionHorizon:
         self._outstanding: Counter[int] = Counter()  # announced late measurements not arrived yet, by stamp
         self._periodic: set[int] = set()  # bounds of the every_cycles checkpoints
         self._seen: dict[tuple[Topic, int], int] = {}  # (topic, seq) -> stamp
-        self._arrival = itertools.count()
+        self._arrival = 0  # the next arrival number
         self.cycle_us: int | None = None  # time of the last cycle
         self.due_us: int | None = None  # time of the last cycle due: the last run, or one postponed since
         if horizon_us > 0:
             self._checkpoint(0)
 
-    def push(self, topic: Topic, msg: Any) -> None:
-        """Buffer one decoded measurement (it has ``stamp_us`` and ``seq``)."""
+    def reserve(self, count: int) -> int:
+        """The first of ``count`` arrival numbers for measurements to be pushed with them (a batch's)."""
+        first, self._arrival = self._arrival, self._arrival + count
+        return first
+
+    def push(self, topic: Topic, msg: Any, arrival: int | None = None) -> None:
+        """Buffer one decoded measurement (it has ``stamp_us`` and ``seq``); ``arrival``: its number
+        from :meth:`reserve` (else the next)."""
+        if arrival is None:
+            arrival = self.reserve(1)
         ident = (topic, msg.seq)
         if ident in self._seen:
             self.counters.duplicates += 1
@@ -102,7 +115,7 @@ class FusionHorizon:
             self.counters.dropped_full += 1
             return
         self._seen[ident] = msg.stamp_us
-        entry = (msg.stamp_us, next(self._arrival), topic, msg)
+        entry = (msg.stamp_us, arrival, topic, msg)
         at_last_cycle = msg.stamp_us == self.cycle_us and topic in self.after_cycle
         if self.cycle_us is None or msg.stamp_us > self.cycle_us or at_last_cycle:
             if self.due_us is not None and msg.stamp_us <= self.due_us:  # late, but its cycle has not run
@@ -117,6 +130,28 @@ class FusionHorizon:
                 self._outstanding[msg.stamp_us] -= 1
         else:
             self.counters.dropped_stale += 1
+
+    def push_run(self, run: InputRun) -> None:
+        """Buffer a run of input samples (vehicle.input_runs), numbered from :meth:`reserve`. A run
+        whose samples are all new and later than every cycle due waits as one entry; any other goes
+        one message at a time, as :meth:`push` takes them."""
+        n, topic = len(run.stamps), run.topic
+        fresh = (self.cycle_us is None or run.stamps[0] > self.cycle_us) and (
+            self.due_us is None or run.stamps[0] > self.due_us
+        )
+        seen = self._seen
+        if (
+            not n
+            or not fresh
+            or len(self._pending) >= MAX_PENDING
+            or any((topic, run.seq0 + i) in seen for i in range(n))
+        ):
+            for i in range(n):
+                self.push(topic, run.message(i), run.arrivals[i])
+            return
+        for i, stamp in enumerate(run.stamps):
+            seen[(topic, run.seq0 + i)] = stamp
+        heapq.heappush(self._pending, (run.stamps[0], run.arrivals[0], topic, run))
 
     def expect(self, stamp_us: int) -> None:
         """A measurement stamped ``stamp_us`` will arrive late: keep a checkpoint just before it."""
@@ -137,6 +172,9 @@ class FusionHorizon:
             self._replay()
         while self._pending and self._pending[0][0] <= t_us:
             entry = heapq.heappop(self._pending)
+            if len(entry) == 4 and type(entry[3]) is InputRun:
+                self._apply_run(entry[3], t_us)
+                continue
             self._checkpoints_due(entry[0])
             self._apply(entry)
         self._checkpoints_due(t_us)
@@ -168,13 +206,31 @@ class FusionHorizon:
         if first is not None:
             self._checkpoint(first)
 
-    def _apply(self, entry: Entry) -> None:
+    def _apply(self, entry: Entry | RunSample) -> None:
         try:
-            self.estimator.handle(entry[3])
+            if len(entry) == 5:  # one sample of a run (a replay)
+                run, i = entry[3], entry[4]
+                self.estimator.handle_row(run.topic, entry[0], run.rows[i], partial(run.message, i))
+            else:
+                self.estimator.handle(entry[3])
         except (ArithmeticError, ValueError, IndexError) as exc:  # numpy's LinAlgError is a ValueError
             self.counters.failed += 1
             log.warning("estimator could not apply %s at %d us: %s: %s", entry[2], entry[0], type(exc).__name__, exc)
         self._applied.append(entry)
+
+    def _apply_run(self, run: InputRun, t_us: int) -> None:
+        """Apply a run's samples up to ``t_us`` that come before the next pending entry (by stamp, then
+        arrival), each as :meth:`_apply` would one message; the rest waits as the run's entry."""
+        nxt = self._pending[0] if self._pending else None
+        stamps, arrivals, n, i = run.stamps, run.arrivals, len(run.stamps), run.next
+        while i < n and stamps[i] <= t_us and (nxt is None or (stamps[i], arrivals[i]) < (nxt[0], nxt[1])):
+            if self._expected:
+                self._checkpoints_due(stamps[i])
+            self._apply((stamps[i], arrivals[i], run.topic, run, i))
+            i += 1
+        run.next = i
+        if i < n:
+            heapq.heappush(self._pending, (stamps[i], arrivals[i], run.topic, run))
 
     def _run_cycle(self, t_us: int) -> None:
         self.estimator.cycle(t_us)

@@ -41,6 +41,7 @@ class Kind(Enum):
     V2V = "v2v"  # a neighbour's ODOMETRY frame: ``payload`` = (sender, stamp us, frame bytes)
     TICK = "tick"  # a ClockTick
     HELD = "held"  # a sample of ``topic`` stamped ``stamp_us`` is held back by a link fault
+    BATCH = "batch"  # a whole SensorBatch (``payload``) no link fault touches: its samples in its order
 
 
 @dataclass(frozen=True)
@@ -168,11 +169,10 @@ class Inbound:
         self.received_stamp_us = max(self.received_stamp_us, batch.stamp_us)
         if batch.listeners is not None:
             self._listeners.append((batch.stamp_us, batch.listeners))
-        samples = batch.samples()
-        if self.links.untouched(item.key, len(samples)):
-            return [self._delivery(sample) for sample in samples]
+        if self.links.untouched(item.key, batch.count()):
+            return [Delivery(Kind.BATCH, payload=batch)]
         out = []
-        for topic, msg in samples:
+        for topic, msg in batch.samples():
             arrival = Arrival(item.key, f"v{self.vehicle_id}", topic, msg.stamp_us, (topic, msg))
             out += self._offer(arrival)
         return out

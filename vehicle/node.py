@@ -12,9 +12,11 @@ the clock allows (in lockstep once what ``vehicle.lockstep_waits`` names has com
 from __future__ import annotations
 
 import logging
+from functools import partial
 
 from bus import messages as m
 from bus.config import VehicleProcessConfig
+from bus.feed import SensorBatch
 from bus.landmark_map import LandmarkMap
 from bus.mailbox import Mailbox
 from bus.rejections import Rejections
@@ -23,6 +25,7 @@ from bus.topics import Topic
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
 from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_PLAN_BYTES, MAX_V2V_BYTES, Delivery, Inbound, Kind
+from vehicle.input_runs import InputRun, batch_order
 from vehicle.inputs import ANNOUNCE_OFFSET_US
 from vehicle.lockstep_waits import LockstepWaits
 from vehicle.loop_stats import LoopStats
@@ -140,8 +143,11 @@ class VehicleNode:
                 self._deliver(delivery)
         return tick
 
-    def _deliver(self, d: Delivery) -> None:
-        if d.kind is Kind.HELD:
+    def _deliver(self, d: Delivery, arrival: int | None = None) -> None:
+        """Hand one delivery on; ``arrival``: a batch sample's number (FusionHorizon.reserve)."""
+        if d.kind is Kind.BATCH:
+            self._deliver_batch(d.payload)
+        elif d.kind is Kind.HELD:
             self.fusion.expect(d.stamp_us)
         elif d.kind is Kind.V2V:
             self.v2v.hear(*d.payload)
@@ -154,7 +160,27 @@ class VehicleNode:
             if self.visual_odometry is not None and d.topic in (Topic.ODOM, Topic.CAMERA):
                 self._visual_odometry(d)
             else:
-                self.fusion.push(d.topic, d.payload)
+                self.fusion.push(d.topic, d.payload, arrival)
+
+    def _deliver_batch(self, batch: SensorBatch) -> None:
+        """A batch's samples, as one delivery each in ``SensorBatch.samples``' order would hand them on:
+        its IMU and wheel samples as runs (vehicle.input_runs), unless visual odometry takes the wheels."""
+        if self.visual_odometry is not None:
+            for topic, msg in batch.samples():
+                self._deliver(Delivery(Kind.SAMPLE, topic, msg, msg.stamp_us))
+            return
+        count, runs, others = batch_order(batch)
+        first = self.fusion.reserve(count)
+        for topic, places in runs.items():
+            stamps, seq0, rows = batch.blocks[topic]
+            self.sequences.see_range(topic, seq0, len(stamps))
+            run = InputRun(
+                topic, stamps.tolist(), (places + first).tolist(), rows.tolist(), partial(batch.message, topic), seq0
+            )
+            self.fusion.push_run(run)
+        for place, topic, i in others:
+            msg = batch.message(topic, i)
+            self._deliver(Delivery(Kind.SAMPLE, topic, msg, msg.stamp_us), first + place)
 
     def _visual_odometry(self, d: Delivery) -> None:
         """A vehicle on visual odometry has no wheels: its speed is the motion between camera frames,

@@ -32,6 +32,20 @@ class SequenceTracker:
             floor = self._highest[topic] - WINDOW
             self._recent[topic] = {s for s in recent if s >= floor}
 
+    def see_range(self, topic: str, seq0: int, count: int) -> None:
+        """``see`` for ``count`` consecutive sequence numbers from ``seq0`` (a batch's block), at once
+        while no pruning falls inside the block (else one by one, for the same outcome)."""
+        recent = self._recent.get(topic)
+        if count <= 0 or recent is None or len(recent) + count > 2 * WINDOW:
+            for seq in range(seq0, seq0 + count):
+                self.see(topic, seq)
+            return
+        before = len(recent)
+        recent.update(range(seq0, seq0 + count))
+        self._distinct[topic] += len(recent) - before
+        self._first[topic] = min(self._first[topic], seq0)
+        self._highest[topic] = max(self._highest[topic], seq0 + count - 1)
+
     @property
     def lost(self) -> int:
         """Samples missing between the first and highest sequence number, summed over topics."""

@@ -221,6 +221,19 @@ class Filter:
         elif isinstance(msg, m.CameraFrame) and self.sightings is not None:
             self.sightings.on_frame(self, msg)
 
+    def handle_row(self, topic: str, stamp_us: int, row: list[float], message: Callable[[], Any]) -> None:
+        """An IMU or wheel odometry sample as its feed row (bus.feed.LAYOUT, floats; vehicle.input_runs):
+        what :meth:`handle` does with its message, which ``message()`` makes where it is needed."""
+        s = self.state
+        if s.x is None or stamp_us < s.time_us:
+            self.handle(message())
+        elif topic == Topic.IMU:
+            s.gyro.sample(stamp_us, row[2])
+            s.slip.accelerometer(row[3])
+        else:
+            s.speed.sample(stamp_us, s.slip.correct(stamp_us, row[0]))
+            s.odom_yaw.sample(stamp_us, row[1])
+
     def initialise(self, pose: np.ndarray, covariance: np.ndarray, stamp_us: int, *, from_fixes: bool = False) -> None:
         """Start at ``pose`` (3,) with covariance (3, 3): the gyro bias from its datasheet spread, the
         GNSS error states (if any) as the GNSS model says, then the states the models add."""

@@ -1,0 +1,123 @@
+"""A batch's IMU and wheel samples reach the filter as runs (vehicle.input_runs): in exactly the order,
+and with exactly the result, that one message at a time gives, through late samples, replays from
+checkpoints, a batch that comes after its cycles and a batch that comes twice."""
+
+import numpy as np
+import pytest
+
+from bus import feed
+from bus.config import build_config
+from sim.world import World
+from vehicle.estimators import ekf
+from vehicle.fusion import FusionHorizon
+from vehicle.input_runs import InputRun, batch_order
+from vehicle.sequence import SequenceTracker
+
+PERIOD_US = 20_000
+
+
+class _Recorded:
+    """A filter that notes every sample it takes: (stamp, topic), whichever way it came."""
+
+    def __init__(self) -> None:
+        self.f = ekf.build(vehicle_id=1, spec=build_config({}).sensors, gate_probability=0.9995)
+        self.taken: list[tuple[int, str]] = []
+
+    def handle(self, msg) -> None:
+        self.taken.append((msg.stamp_us, type(msg).__name__))
+        self.f.handle(msg)
+
+    def handle_row(self, topic, stamp_us, row, message) -> None:
+        self.taken.append((stamp_us, {"imu": "ImuSample", "odom": "WheelOdometry"}[topic]))
+        self.f.handle_row(topic, stamp_us, row, message)
+
+    def cycle(self, t_us: int) -> None:
+        self.f.cycle(t_us)
+
+    def snapshot(self):
+        return self.f.snapshot()
+
+    def restore(self, snapshot) -> None:
+        self.f.restore(snapshot)
+
+
+def _batches(seconds: int) -> list[feed.SensorBatch]:
+    """Vehicle 1's batches, one a second, through the wire format (its ranging left out: no neighbours)."""
+    world, out = World(build_config({"world": {"vehicles": 2, "seed": 6}})), []
+    for k in range(seconds + 1):
+        batch = feed.SensorBatch(1, k, k * 1_000_000, world.advance(k * 1_000_000).blocks(1))
+        batch = feed.decode_batch(feed.encode_batch(batch))
+        out.append(feed.SensorBatch(1, k, batch.stamp_us, {t: b for t, b in batch.blocks.items() if t != "ranging"}))
+    return out
+
+
+def _push(fusion: FusionHorizon, batch: feed.SensorBatch, as_runs: bool, late_gnss: list) -> None:
+    """One batch, as messages or as runs; its GNSS fixes held back into ``late_gnss``."""
+    count, runs, others = batch_order(batch)
+    first = fusion.reserve(count)
+    if as_runs:
+        for topic, places in runs.items():
+            stamps, seq0, rows = batch.blocks[topic]
+            message = lambda i, topic=topic: batch.message(topic, i)  # noqa: E731
+            fusion.push_run(InputRun(topic, stamps.tolist(), (places + first).tolist(), rows.tolist(), message, seq0))
+    else:
+        others = sorted(others + [(p, t, i) for t, places in runs.items() for i, p in enumerate(places.tolist())])
+    for place, topic, i in others:
+        msg = batch.message(topic, i)
+        if topic == "gnss":
+            late_gnss.append((msg.stamp_us + 70_000, topic, msg, first + place))
+        else:
+            fusion.push(topic, msg, first + place)
+
+
+def _fly(as_runs: bool, *, every_cycles: int, late_batch: int | None = None, twice: int | None = None):
+    """Cycle every 20 ms over 5 s; batch k comes at k s (batch ``late_batch`` 60 ms after its first
+    cycle ran, batch ``twice`` a second time), every GNSS fix 70 ms late."""
+    est = _Recorded()
+    fusion = FusionHorizon(est, horizon_us=500_000, every_cycles=every_cycles)
+    ahead = 1_000_000  # a batch covers the second before its stamp: it comes before those cycles
+    waiting, late_gnss = [(b.stamp_us - ahead + (60_000 if b.tick == late_batch else 0), b) for b in _batches(5)], []
+    waiting += [(b.stamp_us - ahead + 30_000, b) for b in _batches(5) if b.tick == twice]
+    waiting.sort(key=lambda item: item[0])
+    for t in range(0, 5_000_001, PERIOD_US):
+        while waiting and waiting[0][0] <= t:
+            _push(fusion, waiting.pop(0)[1], as_runs, late_gnss)
+        for item in [g for g in late_gnss if g[0] <= t]:
+            late_gnss.remove(item)
+            fusion.push(item[1], item[2], item[3])
+        fusion.cycle(t)
+    return est, fusion
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        {"every_cycles": 5},
+        {"every_cycles": 1, "late_batch": 2},
+        {"every_cycles": 5, "twice": 3},
+    ],
+    ids=["late fixes replayed", "a batch after its cycles", "a batch twice"],
+)
+def test_runs_give_what_one_message_at_a_time_gives(case):
+    runs, fusion_runs = _fly(True, **case)
+    messages, fusion_messages = _fly(False, **case)
+    assert fusion_messages.counters.replays >= 10  # the late fixes replayed run samples
+    assert runs.taken == messages.taken  # the same samples in the same order, replays included
+    assert np.array_equal(runs.f.state.x, messages.f.state.x) and np.array_equal(runs.f.state.P, messages.f.state.P)
+    assert fusion_runs.counters == fusion_messages.counters
+    if "twice" in case:
+        assert fusion_runs.counters.duplicates > 100
+
+
+def test_a_range_of_sequence_numbers_counts_as_one_by_one():
+    rng = np.random.default_rng(2)
+    ranged, single = SequenceTracker(), SequenceTracker()
+    seq = 0
+    for _ in range(400):
+        seq += int(rng.integers(-30, 60))  # gaps, repeats and steps back
+        count = int(rng.integers(0, 120))
+        ranged.see_range("imu", seq, count)
+        for s in range(seq, seq + count):
+            single.see("imu", s)
+    assert (ranged.lost, ranged.received("imu")) == (single.lost, single.received("imu"))
+    assert ranged._recent == single._recent
