@@ -78,6 +78,7 @@ class VehicleNode:
         self.outbound = Outbound(bus, config, vehicle_id, signing_key=signing_key)
         self.estimator = get_estimator(config, vehicle_id, reject=self.rejections.reject)
         realtime = config.clock.mode == "realtime"
+        self._lockstep = config.clock.mode == "lockstep"
         # realtime: a checkpoint every 5 cycles for samples late beyond the allowance (every cycle
         # cost a fifth of a realtime cycle; a late sample replays at most 5 cycles more)
         self.fusion = FusionHorizon(
@@ -153,7 +154,7 @@ class VehicleNode:
             self.v2v.hear(*d.payload)
         elif d.topic in (Topic.RANGING, Topic.SEEN):
             self.sequences.see(d.topic, d.payload.seq)
-            if self.config.vehicle.cooperative and self.v2v.hold(d.payload):
+            if self.config.vehicle.cooperative and self.v2v.hold(d.payload) and self._fix_may_come_late():
                 self.fusion.expect(d.stamp_us)
         else:
             self.sequences.see(d.topic, d.payload.seq)
@@ -161,6 +162,14 @@ class VehicleNode:
                 self._visual_odometry(d)
             else:
                 self.fusion.push(d.topic, d.payload, arrival)
+
+    def _fix_may_come_late(self) -> bool:
+        """Whether a ranging fix may reach the fusion horizon after a cycle past its stamp has run, so
+        that a checkpoint is kept just before it: in realtime, or while link faults may hold broadcasts
+        back. In lockstep a cycle first waits for the broadcasts it pairs ranging with (vehicle.loops);
+        one written off after the wait and heard later still finds the checkpoint the horizon keeps at
+        least once a horizon (the replay then starts a little earlier, to the same result)."""
+        return not self._lockstep or bool(self.inbound.links.faults)
 
     def _deliver_batch(self, batch: SensorBatch) -> None:
         """A batch's samples, as one delivery each in ``SensorBatch.samples``' order would hand them on:
