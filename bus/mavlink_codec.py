@@ -33,8 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
+from bus import odometry_wire as ow
 from bus.errors import DecodeError
 from bus.estimate import Health, PoseEstimate
+from bus.odometry_wire import odometry_fields
 
 COMPONENT_ID = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
@@ -360,6 +362,14 @@ class MavlinkDecoder:
 
         Raises DecodeError for malformed frames, MavlinkRejected for failed authentication.
         """
+        fields = odometry_fields(frame)
+        if fields is not None:  # the common frame, read without pymavlink's message object (bus.odometry_wire)
+            try:
+                self._authenticate(bytes(frame), frame[5], frame[6])
+                return _estimate_of(frame[5], fields)
+            except MavlinkRejected as exc:
+                self.rejected[exc.reason] += 1
+                raise
         try:
             msg = self._mav.decode(bytearray(frame))
         except Exception as exc:  # pymavlink raises MAVError, struct.error, IndexError, ...
@@ -419,44 +429,43 @@ class MavlinkDecoder:
 
 
 def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate | NoEstimate:
-    sysid = msg.get_srcSystem()
-    if math.isnan(msg.pose_covariance[0]):
-        return NoEstimate(sysid, msg.time_usec)
-    values = [
-        msg.x,
-        msg.y,
-        msg.z,
-        *msg.q,
-        msg.vx,
-        msg.vy,
-        msg.vz,
-        msg.yawspeed,
-        *msg.pose_covariance,
-        *msg.velocity_covariance,
-    ]
-    if not all(map(math.isfinite, values)):
+    fields = (msg.time_usec, msg.x, msg.y, msg.z, *msg.q, msg.vx, msg.vy, msg.vz)
+    fields += (msg.rollspeed, msg.pitchspeed, msg.yawspeed, *msg.pose_covariance, *msg.velocity_covariance)
+    fields += (msg.frame_id, msg.child_frame_id, msg.reset_counter, msg.estimator_type, msg.quality)
+    return _estimate_of(msg.get_srcSystem(), fields)
+
+
+def _estimate_of(sysid: int, fields: tuple) -> StateEstimate | NoEstimate:
+    """The estimate an ODOMETRY frame of ``sysid`` carries, from its fields in wire order
+    (bus.odometry_wire), or MavlinkRejected."""
+    x, y, z, q = fields[ow.X], fields[ow.Y], fields[ow.Z], fields[ow.Q]
+    pose_upper, velocity_upper = fields[ow.POSE_COVARIANCE], fields[ow.VELOCITY_COVARIANCE]
+    if math.isnan(pose_upper[0]):
+        return NoEstimate(sysid, fields[ow.TIME_USEC])
+    values = (x, y, z, *q, fields[ow.VX], fields[ow.VY], fields[ow.VZ], fields[ow.YAWSPEED], *pose_upper)
+    if not all(map(math.isfinite, values + velocity_upper)):
         raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has non-finite fields")
-    if any(msg.pose_covariance[i] < 0 for i in _DIAGONAL) or any(msg.velocity_covariance[i] < 0 for i in _DIAGONAL):
+    if any(pose_upper[i] < 0 for i in _DIAGONAL) or any(velocity_upper[i] < 0 for i in _DIAGONAL):
         raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has negative variances")
-    if max(abs(msg.x), abs(msg.y), abs(msg.z)) > MAX_POSITION_M or abs(msg.q[0]) + abs(msg.q[3]) < 1e-6:
+    if max(abs(x), abs(y), abs(z)) > MAX_POSITION_M or abs(q[0]) + abs(q[3]) < 1e-6:
         raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has an absurd position or attitude")
-    pose_cov = _full_covariance(msg.pose_covariance)
+    pose_cov = _full_covariance(pose_upper)
     if not _usable_covariance(pose_cov[_POSE_BLOCK]):
         raise MavlinkRejected(
             "degenerate", f"ODOMETRY from sysid {sysid}: [x, y, yaw] covariance is zero, singular, indefinite or huge"
         )
-    w, _, _, z = msg.q
+    w, _, _, qz = q
     return StateEstimate(
         vehicle_id=sysid,
-        time_usec=msg.time_usec,
-        position_m=np.array([msg.x, msg.y, msg.z]),
-        yaw_rad=2.0 * math.atan2(z, w),
-        velocity_mps=np.array([msg.vx, msg.vy, msg.vz]),
-        yaw_rate_radps=float(msg.yawspeed),
+        time_usec=fields[ow.TIME_USEC],
+        position_m=np.array([x, y, z]),
+        yaw_rad=2.0 * math.atan2(qz, w),
+        velocity_mps=np.array([fields[ow.VX], fields[ow.VY], fields[ow.VZ]]),
+        yaw_rate_radps=float(fields[ow.YAWSPEED]),
         pose_covariance=pose_cov,
-        velocity_covariance=_full_covariance(msg.velocity_covariance),
-        reset_counter=msg.reset_counter,
-        estimator_type=msg.estimator_type,
+        velocity_covariance=_full_covariance(velocity_upper),
+        reset_counter=fields[ow.RESET_COUNTER],
+        estimator_type=fields[ow.ESTIMATOR_TYPE],
     )
 
 

@@ -1,0 +1,99 @@
+"""ODOMETRY frames read straight from the wire (bus.odometry_wire) decode to exactly what pymavlink's
+decoder gives: the same estimate, or the same refusal, for any fields, signed or not, and for any
+frame corrupted on the way."""
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bus import mavlink_codec, odometry_wire
+from bus.errors import DecodeError
+from bus.mavlink_codec import MavlinkDecoder, MavlinkEncoder, MavlinkRejected, StateEstimate
+
+KEY = bytes(range(32))
+nine = lambda elements: st.lists(elements, min_size=9, max_size=9)  # noqa: E731
+VALID = [0.1, 0.0, 0.0, 0.0, 0.0, 0.01, 0.1, 0.0, 0.0, 0.0, 0.01, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.2]
+floats = st.one_of(
+    st.floats(-1e3, 1e3),
+    st.sampled_from([0.0, -0.0, 1e-12, 1e9, math.inf, -math.inf, math.nan]),
+)
+
+
+def _frame(sysid: int, signed: bool, time_usec: int, values: list[float], cov: list[float], trailing: int) -> bytes:
+    """A raw ODOMETRY frame of these fields (pymavlink's encoder: it trims the payload's trailing zeros)."""
+    encoder = MavlinkEncoder(vehicle_id=sysid, signing_key=KEY if signed else None)
+    x, y, z, qw, qz, vx, vy, vz, yawspeed = values
+    msg = encoder._mav.odometry_encode(
+        time_usec, 1, 12, x, y, z, [qw, 0.0, 0.0, qz], vx, vy, vz, 0.0, 0.0, yawspeed, cov, cov[::-1], trailing, 2, 0
+    )
+    return encoder._pack(msg)
+
+
+def _outcome(decoder: MavlinkDecoder, frame: bytes):
+    try:
+        result = decoder.decode(frame)
+    except MavlinkRejected as exc:
+        return ("rejected", exc.reason)
+    except DecodeError:
+        return ("malformed",)
+    if isinstance(result, StateEstimate):
+        return tuple(np.asarray(v).tobytes() if isinstance(v, np.ndarray) else v for v in vars(result).values())
+    return result
+
+
+def _both(frame: bytes, signed: bool, monkeypatch) -> tuple:
+    """What the decoder gives with the wire reader, then with pymavlink alone (fresh decoders: the
+    signing timestamps of a stream are remembered)."""
+    make = lambda: MavlinkDecoder(key_for=lambda sysid: KEY) if signed else MavlinkDecoder()  # noqa: E731
+    fast = _outcome(make(), frame)
+    with monkeypatch.context() as patched:
+        patched.setattr(mavlink_codec, "odometry_fields", lambda frame: None)
+        slow = _outcome(make(), frame)
+    return fast, slow
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    sysid=st.integers(1, 250),
+    signed=st.booleans(),
+    time_usec=st.integers(0, 2**63 - 1),
+    values=st.one_of(
+        st.lists(st.floats(-100.0, 100.0), min_size=9, max_size=9), st.lists(floats, min_size=9, max_size=9)
+    ),
+    cov=st.one_of(st.just(VALID), st.lists(st.one_of(st.floats(1e-6, 10.0), floats), min_size=21, max_size=21)),
+    trailing=st.integers(0, 255),
+)
+def test_any_odometry_frame_decodes_as_pymavlink_decodes_it(sysid, signed, time_usec, values, cov, trailing):
+    import pytest
+
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        fast, slow = _both(_frame(sysid, signed, time_usec, values, cov, trailing), signed, monkeypatch)
+    assert fast == slow
+
+
+@settings(max_examples=300, deadline=None)
+@given(position=st.integers(0, 120), byte=st.integers(0, 255), cut=st.integers(0, 20), signed=st.booleans())
+def test_a_corrupted_odometry_frame_is_refused_as_pymavlink_refuses_it(position, byte, cut, signed):
+    import pytest
+
+    frame = bytearray(_frame(3, signed, 1_000_000, [1.0, 2.0, -30.0, 1.0, 0.1, 1.0, 0.0, 0.0, 0.1], VALID, 0))
+    frame[position % len(frame)] = byte
+    frame = bytes(frame[: len(frame) - cut])
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        fast, slow = _both(frame, signed, monkeypatch)
+    assert fast == slow
+
+
+def test_only_a_well_formed_odometry_frame_is_read_from_the_wire():
+    heartbeat = MavlinkEncoder(vehicle_id=2).heartbeat()
+    odometry = _frame(2, False, 5, [0.0] * 3 + [1.0] + [0.0] * 5, [1.0] * 21, 0)
+    assert odometry_wire.odometry_fields(heartbeat) is None
+    assert odometry_wire.odometry_fields(odometry[:-1]) is None  # its length no longer checks out
+    fields = odometry_wire.odometry_fields(odometry)
+    valid = _frame(2, True, 7, [1.0, 2.0, -30.0, 1.0, 0.1, 1.0, 0.0, 0.0, 0.1], VALID, 0)
+    estimate = MavlinkDecoder(key_for=lambda sysid: KEY).decode(valid)
+    assert isinstance(estimate, StateEstimate) and estimate.time_usec == 7 and estimate.position_m[2] == -30.0
+    assert fields[odometry_wire.TIME_USEC] == 5 and fields[odometry_wire.Q] == (1.0, 0.0, 0.0, 0.0)
+    assert fields[odometry_wire.ESTIMATOR_TYPE] == 2 and len(fields) == 61
