@@ -52,6 +52,7 @@ DISTRUST = "distrust"  # the NAMED_VALUE_INT name of an accusation
 _POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw in ODOMETRY's pose covariance
 NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch (constant altitude, level flight) and the lateral velocities
 _UPPER = np.triu_indices(6)
+_LOCAL_NED, _BODY_FRD = mavlink2.MAV_FRAME_LOCAL_NED, mavlink2.MAV_FRAME_BODY_FRD  # ODOMETRY's frames
 _DIAGONAL = (0, 6, 11, 15, 18, 20)  # positions of the variances in the 21-float upper triangle
 
 
@@ -238,51 +239,37 @@ class MavlinkEncoder:
         self._mav.seq = (self._mav.seq + 1) % 256  # pack() stamps the sequence number; send() would count it
         return frame
 
+    def _pack_odometry(self, fields: tuple) -> bytes:
+        """An ODOMETRY frame of ``fields`` in wire order (bus.odometry_wire), as ``_pack`` would pack it."""
+        mav, signing = self._mav, self._mav.signing
+        if signing.sign_outgoing:
+            signing.timestamp = max(signing.timestamp, signing_now())
+        frame = ow.odometry_frame(
+            fields, seq=mav.seq, sysid=mav.srcSystem, compid=mav.srcComponent, signing=signing.sign_outgoing and signing
+        )
+        mav.seq = (mav.seq + 1) % 256
+        return frame
+
     def odometry(self, est: StateEstimate) -> bytes:
         half = 0.5 * est.yaw_rad
-        quaternion = [float(np.cos(half)), 0.0, 0.0, float(np.sin(half))]  # w, x, y, z
-        msg = self._mav.odometry_encode(
-            est.time_usec,
-            mavlink2.MAV_FRAME_LOCAL_NED,
-            mavlink2.MAV_FRAME_BODY_FRD,
-            *map(float, est.position_m),
-            quaternion,
-            *map(float, est.velocity_mps),
-            0.0,
-            0.0,
-            float(est.yaw_rate_radps),
-            est.pose_covariance[_UPPER].tolist(),
-            est.velocity_covariance[_UPPER].tolist(),
-            est.reset_counter % 256,
-            est.estimator_type,
-            100,
+        quaternion = (float(np.cos(half)), 0.0, 0.0, float(np.sin(half)))  # w, x, y, z
+        return self._pack_odometry(
+            (est.time_usec, *map(float, est.position_m), *quaternion)
+            + (*map(float, est.velocity_mps), 0.0, 0.0, float(est.yaw_rate_radps))
+            + (*est.pose_covariance[_UPPER].tolist(), *est.velocity_covariance[_UPPER].tolist())
+            + (_LOCAL_NED, _BODY_FRD, est.reset_counter % 256, est.estimator_type, 100)
         )
-        return self._pack(msg)
 
     def no_estimate(self, time_usec: int, reset_counter: int = 0) -> bytes:
         """ODOMETRY saying "no estimate at ``time_usec``": NaN first pose covariance element, the rest zero."""
-        unknown = [math.nan] + [0.0] * 20
-        msg = self._mav.odometry_encode(
-            time_usec,
-            mavlink2.MAV_FRAME_LOCAL_NED,
-            mavlink2.MAV_FRAME_BODY_FRD,
-            0.0,
-            0.0,
-            0.0,
-            [1.0, 0.0, 0.0, 0.0],
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            unknown,
-            unknown,
-            reset_counter % 256,
-            mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS,
-            0,
+        unknown = (math.nan,) + (0.0,) * 20
+        return self._pack_odometry(
+            (time_usec, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+            + (0.0,) * 6
+            + unknown
+            + unknown
+            + (_LOCAL_NED, _BODY_FRD, reset_counter % 256, mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS, 0)
         )
-        return self._pack(msg)
 
     def estimator_status(self, status: EstimatorStatus) -> bytes:
         msg = self._mav.estimator_status_encode(

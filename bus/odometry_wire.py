@@ -9,11 +9,18 @@ ODOMETRY gets None, and goes to pymavlink (which decodes it or says what is wron
 
 from __future__ import annotations
 
+import hashlib
+import struct
+from typing import Any
+
 from pymavlink.dialects.v20 import common as mavlink2
 
 _ODOMETRY = mavlink2.MAVLink_odometry_message
 _PAYLOAD = _ODOMETRY.unpacker  # the wire order: time_usec, x, y, z, q (4), vx, vy, vz, rates (3), 21 + 21, 5 bytes
 _HEADER_BYTES, _CRC_BYTES = 10, 2
+_HEADER = struct.Struct("<BBBBBBBHB")  # marker, length, flags (2), seq, sysid, compid, msgid (3 bytes)
+_CRC = struct.Struct("<H")
+_SIGNATURE_HEAD = struct.Struct("<BQ")  # link id, 48-bit timestamp (the first 7 bytes)
 
 
 def odometry_fields(frame: bytes) -> tuple | None:
@@ -33,6 +40,26 @@ def odometry_fields(frame: bytes) -> tuple | None:
         return None
     payload = bytes(frame[_HEADER_BYTES:end]).ljust(_PAYLOAD.size, b"\0")[: _PAYLOAD.size]
     return _PAYLOAD.unpack(payload)
+
+
+def odometry_frame(fields: tuple, *, seq: int, sysid: int, compid: int, signing: Any = None) -> bytes:
+    """The MAVLink 2 ODOMETRY frame of ``fields`` in wire order, as pymavlink's ``pack`` makes it: the
+    payload's trailing zeros trimmed (one byte kept), CRC with the CRC extra, and signed when
+    ``signing`` (pymavlink's ``MAVLinkSigning``: key, link id, timestamp, which moves on by one)."""
+    payload = _PAYLOAD.pack(*fields)
+    payload = payload[: max(1, len(payload.rstrip(b"\0")))]
+    flags = mavlink2.MAVLINK_IFLAG_SIGNED if signing else 0
+    msgid = _ODOMETRY.id
+    frame = _HEADER.pack(
+        mavlink2.PROTOCOL_MARKER_V2, len(payload), flags, 0, seq, sysid, compid, msgid & 0xFFFF, msgid >> 16
+    )
+    frame += payload
+    frame += _CRC.pack(mavlink2.x25crc(frame[1:] + bytes((_ODOMETRY.crc_extra,))).crc)
+    if signing:
+        frame += _SIGNATURE_HEAD.pack(signing.link_id, signing.timestamp)[:7]
+        frame += hashlib.sha256(signing.secret_key + frame).digest()[:6]
+        signing.timestamp += 1
+    return frame
 
 
 # where each field sits in odometry_fields' tuple

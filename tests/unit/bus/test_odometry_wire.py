@@ -7,6 +7,7 @@ import math
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pymavlink.dialects.v20 import common as mavlink2
 
 from bus import mavlink_codec, odometry_wire
 from bus.errors import DecodeError
@@ -97,3 +98,71 @@ def test_only_a_well_formed_odometry_frame_is_read_from_the_wire():
     assert isinstance(estimate, StateEstimate) and estimate.time_usec == 7 and estimate.position_m[2] == -30.0
     assert fields[odometry_wire.TIME_USEC] == 5 and fields[odometry_wire.Q] == (1.0, 0.0, 0.0, 0.0)
     assert fields[odometry_wire.ESTIMATOR_TYPE] == 2 and len(fields) == 61
+
+
+def _pymavlink_odometry(encoder: MavlinkEncoder, est: StateEstimate) -> bytes:
+    """The frame pymavlink's own encoder packs for ``est`` (the reference)."""
+    half = 0.5 * est.yaw_rad
+    msg = encoder._mav.odometry_encode(
+        est.time_usec,
+        mavlink2.MAV_FRAME_LOCAL_NED,
+        mavlink2.MAV_FRAME_BODY_FRD,
+        *map(float, est.position_m),
+        [float(np.cos(half)), 0.0, 0.0, float(np.sin(half))],
+        *map(float, est.velocity_mps),
+        0.0,
+        0.0,
+        float(est.yaw_rate_radps),
+        est.pose_covariance[np.triu_indices(6)].tolist(),
+        est.velocity_covariance[np.triu_indices(6)].tolist(),
+        est.reset_counter % 256,
+        est.estimator_type,
+        100,
+    )
+    return encoder._pack(msg)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    sysid=st.integers(1, 250),
+    signed=st.booleans(),
+    link_id=st.integers(0, 255),
+    seq=st.integers(0, 255),
+    time_usec=st.integers(0, 2**63 - 1),
+    values=st.one_of(nine(st.floats(-100.0, 100.0)), nine(floats)),
+    cov=st.lists(st.one_of(st.just(0.0), floats), min_size=36, max_size=36),
+    reset_counter=st.integers(0, 1000),
+)
+def test_an_odometry_frame_is_packed_as_pymavlink_packs_it(
+    sysid, signed, link_id, seq, time_usec, values, cov, reset_counter
+):
+    """Byte for byte, two frames in a row (the sequence number and the signing timestamp move on),
+    and the "no estimate" frame too."""
+    import pytest
+
+    covariance = np.array(cov).reshape(6, 6)
+    est = StateEstimate(
+        sysid,
+        time_usec,
+        np.array(values[:3]),
+        values[3],
+        np.array(values[4:7]),
+        values[7],
+        covariance,
+        covariance.T,
+        reset_counter,
+        2,
+    )
+    with pytest.MonkeyPatch.context() as monkeypatch, np.errstate(invalid="ignore"):  # a yaw of inf or NaN
+        monkeypatch.setattr(mavlink_codec, "signing_now", lambda: 123_456_789)
+        fast, slow = (
+            MavlinkEncoder(vehicle_id=sysid, signing_key=KEY if signed else None, link_id=link_id) for _ in range(2)
+        )
+        fast._mav.seq = slow._mav.seq = seq
+        for _ in range(2):
+            assert fast.odometry(est) == _pymavlink_odometry(slow, est)
+        unknown = [math.nan] + [0.0] * 20
+        pose, rates = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0], [0.0] * 6  # x, y, z, q; velocities and rates
+        fields = [time_usec, 1, 12, *pose[:3], pose[3:], *rates, unknown, unknown, reset_counter % 256]
+        reference = slow._mav.odometry_encode(*fields, mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS, 0)
+        assert fast.no_estimate(time_usec, reset_counter) == slow._pack(reference)
