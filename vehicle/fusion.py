@@ -10,9 +10,10 @@ sequence number) is ignored and counted.
 Checkpoints cost a copy of the estimator, which for a SLAM map is an n x n covariance, so they are
 taken only where a late measurement can land: ``expect(stamp)`` asks for one just before ``stamp``
 (the link-fault stage holding a delayed packet, a ranging measurement waiting for its neighbour's
-broadcast); ``every_cycles`` adds one every N cycles for links whose lateness nobody can foresee
-(realtime). Besides, there is one at least every horizon: what is kept for replays (everything since
-the newest checkpoint older than the horizon) stays bounded when nothing is announced. A checkpoint
+broadcast where that can come after later cycles: realtime, link faults); ``every_cycles`` adds one
+every N cycles for links whose lateness nobody can foresee (realtime). Besides, there is one at
+least every horizon: what is kept for replays (everything since the newest checkpoint older than
+the horizon) stays bounded when nothing is announced. A checkpoint
 with bound b holds the state after every measurement stamped < b and every cycle < b.
 
 A cycle may also be postponed (``postpone``: lockstep, while a ranging fix it will fuse is still on

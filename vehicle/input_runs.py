@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -36,6 +37,18 @@ class InputRun:
     message: Callable[[int], Any]
     seq0: int
     next: int = 0
+
+
+def unpack(batch: SensorBatch, first: int) -> tuple[list[InputRun], list[tuple[int, str, Any]]]:
+    """``batch``'s input samples as runs and its other samples as (arrival number, topic, message) in
+    its order, numbered from ``first`` (``FusionHorizon.reserve`` of the batch's sample count)."""
+    _, places, others = batch_order(batch)
+    runs = []
+    for topic, place in places.items():
+        stamps, seq0, rows = batch.blocks[topic]
+        message = partial(batch.message, topic)
+        runs.append(InputRun(topic, stamps.tolist(), (place + first).tolist(), rows.tolist(), message, seq0))
+    return runs, [(first + p, topic, batch.message(topic, i)) for p, topic, i in others]
 
 
 def batch_order(batch: SensorBatch) -> tuple[int, dict[str, np.ndarray], list[tuple[int, str, int]]]:

@@ -12,7 +12,6 @@ the clock allows (in lockstep once what ``vehicle.lockstep_waits`` names has com
 from __future__ import annotations
 
 import logging
-from functools import partial
 
 from bus import messages as m
 from bus.config import VehicleProcessConfig
@@ -25,7 +24,7 @@ from bus.topics import Topic
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
 from vehicle.inbound import MAX_BATCH_BYTES, MAX_CLOCK_BYTES, MAX_PLAN_BYTES, MAX_V2V_BYTES, Delivery, Inbound, Kind
-from vehicle.input_runs import InputRun, batch_order
+from vehicle.input_runs import unpack
 from vehicle.inputs import ANNOUNCE_OFFSET_US
 from vehicle.lockstep_waits import LockstepWaits
 from vehicle.loop_stats import LoopStats
@@ -178,18 +177,12 @@ class VehicleNode:
             for topic, msg in batch.samples():
                 self._deliver(Delivery(Kind.SAMPLE, topic, msg, msg.stamp_us))
             return
-        count, runs, others = batch_order(batch)
-        first = self.fusion.reserve(count)
-        for topic, places in runs.items():
-            stamps, seq0, rows = batch.blocks[topic]
-            self.sequences.see_range(topic, seq0, len(stamps))
-            run = InputRun(
-                topic, stamps.tolist(), (places + first).tolist(), rows.tolist(), partial(batch.message, topic), seq0
-            )
+        runs, others = unpack(batch, self.fusion.reserve(batch.count()))
+        for run in runs:
+            self.sequences.see_range(run.topic, run.seq0, len(run.stamps))
             self.fusion.push_run(run)
-        for place, topic, i in others:
-            msg = batch.message(topic, i)
-            self._deliver(Delivery(Kind.SAMPLE, topic, msg, msg.stamp_us), first + place)
+        for arrival, topic, msg in others:
+            self._deliver(Delivery(Kind.SAMPLE, topic, msg, msg.stamp_us), arrival)
 
     def _visual_odometry(self, d: Delivery) -> None:
         """A vehicle on visual odometry has no wheels: its speed is the motion between camera frames,

@@ -10,7 +10,7 @@ from bus.config import build_config
 from sim.world import World
 from vehicle.estimators import ekf
 from vehicle.fusion import FusionHorizon
-from vehicle.input_runs import InputRun, batch_order
+from vehicle.input_runs import unpack
 from vehicle.sequence import SequenceTracker
 
 PERIOD_US = 20_000
@@ -52,22 +52,20 @@ def _batches(seconds: int) -> list[feed.SensorBatch]:
 
 
 def _push(fusion: FusionHorizon, batch: feed.SensorBatch, as_runs: bool, late_gnss: list) -> None:
-    """One batch, as messages or as runs; its GNSS fixes held back into ``late_gnss``."""
-    count, runs, others = batch_order(batch)
-    first = fusion.reserve(count)
+    """One batch, as runs (vehicle.input_runs.unpack) or one message at a time in its order
+    (``SensorBatch.samples``); its GNSS fixes held back into ``late_gnss``."""
+    first = fusion.reserve(batch.count())
     if as_runs:
-        for topic, places in runs.items():
-            stamps, seq0, rows = batch.blocks[topic]
-            message = lambda i, topic=topic: batch.message(topic, i)  # noqa: E731
-            fusion.push_run(InputRun(topic, stamps.tolist(), (places + first).tolist(), rows.tolist(), message, seq0))
+        runs, others = unpack(batch, first)
+        for run in runs:
+            fusion.push_run(run)
     else:
-        others = sorted(others + [(p, t, i) for t, places in runs.items() for i, p in enumerate(places.tolist())])
-    for place, topic, i in others:
-        msg = batch.message(topic, i)
+        others = [(first + place, topic, msg) for place, (topic, msg) in enumerate(batch.samples())]
+    for arrival, topic, msg in others:
         if topic == "gnss":
-            late_gnss.append((msg.stamp_us + 70_000, topic, msg, first + place))
+            late_gnss.append((msg.stamp_us + 70_000, topic, msg, arrival))
         else:
-            fusion.push(topic, msg, first + place)
+            fusion.push(topic, msg, arrival)
 
 
 def _fly(as_runs: bool, *, every_cycles: int, late_batch: int | None = None, twice: int | None = None):
