@@ -153,7 +153,9 @@ class VehicleNode:
             self.v2v.hear(*d.payload)
         elif d.topic in (Topic.RANGING, Topic.SEEN):
             self.sequences.see(d.topic, d.payload.seq)
-            if self.config.vehicle.cooperative and self.v2v.hold(d.payload) and self._fix_may_come_late():
+            # its fix may come after later cycles ran (a checkpoint then), unless lockstep waits for it
+            may_come_late = not self._lockstep or bool(self.inbound.links.faults)
+            if self.config.vehicle.cooperative and self.v2v.hold(d.payload) and may_come_late:
                 self.fusion.expect(d.stamp_us)
         else:
             self.sequences.see(d.topic, d.payload.seq)
@@ -161,14 +163,6 @@ class VehicleNode:
                 self._visual_odometry(d)
             else:
                 self.fusion.push(d.topic, d.payload, arrival)
-
-    def _fix_may_come_late(self) -> bool:
-        """Whether a ranging fix may reach the fusion horizon after a cycle past its stamp has run, so
-        that a checkpoint is kept just before it: in realtime, or while link faults may hold broadcasts
-        back. In lockstep a cycle first waits for the broadcasts it pairs ranging with (vehicle.loops);
-        one written off after the wait and heard later still finds the checkpoint the horizon keeps at
-        least once a horizon (the replay then starts a little earlier, to the same result)."""
-        return not self._lockstep or bool(self.inbound.links.faults)
 
     def _deliver_batch(self, batch: SensorBatch) -> None:
         """A batch's samples, as one delivery each in ``SensorBatch.samples``' order would hand them on:

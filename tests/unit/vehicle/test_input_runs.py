@@ -31,14 +31,8 @@ class _Recorded:
         self.taken.append((stamp_us, {"imu": "ImuSample", "odom": "WheelOdometry"}[topic]))
         self.f.handle_row(topic, stamp_us, row, message)
 
-    def cycle(self, t_us: int) -> None:
-        self.f.cycle(t_us)
-
-    def snapshot(self):
-        return self.f.snapshot()
-
-    def restore(self, snapshot) -> None:
-        self.f.restore(snapshot)
+    def __getattr__(self, name: str):  # cycle, snapshot, restore: the filter's own
+        return getattr(self.f, name)
 
 
 def _batches(seconds: int) -> list[feed.SensorBatch]:

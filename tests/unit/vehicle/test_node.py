@@ -504,7 +504,7 @@ def test_lockstep_cycles_a_waiting_fix_will_revise_run_once_and_send_the_same():
     assert sent[True] == sent[False] and len(sent[True]) == 2
     assert sorted(set(cycles[True])) == sorted(set(cycles[False])) == list(range(0, 1_000_001, 20_000))
     # run at once, each fix replays at least its stamp's cycle and the 4 after it (from the checkpoint
-    # the horizon keeps: in lockstep none is kept just before a fix, vehicle.node._fix_may_come_late)
+    # the horizon keeps: in lockstep none is kept just before a fix, vehicle.node._deliver)
     assert len(cycles[False]) >= 51 + 2 * 5
     assert len(cycles[True]) == 51  # the 4 after it waited for the fix, which came right after its own
 
