@@ -351,25 +351,17 @@ class MavlinkDecoder:
         """
         fields = odometry_fields(frame)
         if fields is not None:  # the common frame, read without pymavlink's message object (bus.odometry_wire)
-            try:
-                self._authenticate(bytes(frame), frame[5], frame[6])
-                return _estimate_of(frame[5], fields)
-            except MavlinkRejected as exc:
-                self.rejected[exc.reason] += 1
-                raise
+            return self._accepted(frame, frame[5], frame[6], fields)
         try:
             msg = self._mav.decode(bytearray(frame))
         except Exception as exc:  # pymavlink raises MAVError, struct.error, IndexError, ...
             raise DecodeError(f"malformed MAVLink frame: {exc}") from None
         if len(msg.get_msgbuf()) != len(frame) or frame[0] != mavlink2.PROTOCOL_MARKER_V2:
             raise DecodeError("payload is not exactly one MAVLink 2 frame")
-        try:
-            self._authenticate(bytes(frame), msg.get_srcSystem(), msg.get_srcComponent())
-            if isinstance(msg, mavlink2.MAVLink_odometry_message):
-                return _to_estimate(msg)
-        except MavlinkRejected as exc:
-            self.rejected[exc.reason] += 1
-            raise
+        odometry = _wire_fields(msg) if isinstance(msg, mavlink2.MAVLink_odometry_message) else None
+        estimate = self._accepted(frame, msg.get_srcSystem(), msg.get_srcComponent(), odometry)
+        if estimate is not None:
+            return estimate
         if isinstance(msg, mavlink2.MAVLink_heartbeat_message):
             return Heartbeat(msg.get_srcSystem(), msg.type, msg.system_status)
         if isinstance(msg, mavlink2.MAVLink_estimator_status_message):
@@ -385,6 +377,18 @@ class MavlinkDecoder:
         if isinstance(msg, mavlink2.MAVLink_named_value_int_message) and _text(msg.name) == DISTRUST:
             return Accusation(msg.get_srcSystem(), msg.time_boot_ms, msg.value)
         return None
+
+    def _accepted(
+        self, frame: bytes, sysid: int, compid: int, odometry: tuple | None
+    ) -> StateEstimate | NoEstimate | None:
+        """Authenticate ``frame``, then the estimate its ODOMETRY fields (wire order; None: not an
+        ODOMETRY) carry; a refusal is counted by reason and raised (MavlinkRejected)."""
+        try:
+            self._authenticate(bytes(frame), sysid, compid)
+            return None if odometry is None else _estimate_of(sysid, odometry)
+        except MavlinkRejected as exc:
+            self.rejected[exc.reason] += 1
+            raise
 
     def _authenticate(self, frame: bytes, sysid: int, compid: int) -> None:
         signed = bool(frame[2] & mavlink2.MAVLINK_IFLAG_SIGNED)
@@ -415,11 +419,11 @@ class MavlinkDecoder:
         self._stream_timestamps[stream] = stamp
 
 
-def _to_estimate(msg: mavlink2.MAVLink_odometry_message) -> StateEstimate | NoEstimate:
+def _wire_fields(msg: mavlink2.MAVLink_odometry_message) -> tuple:
+    """A decoded ODOMETRY's fields in wire order (bus.odometry_wire)."""
     fields = (msg.time_usec, msg.x, msg.y, msg.z, *msg.q, msg.vx, msg.vy, msg.vz)
     fields += (msg.rollspeed, msg.pitchspeed, msg.yawspeed, *msg.pose_covariance, *msg.velocity_covariance)
-    fields += (msg.frame_id, msg.child_frame_id, msg.reset_counter, msg.estimator_type, msg.quality)
-    return _estimate_of(msg.get_srcSystem(), fields)
+    return fields + (msg.frame_id, msg.child_frame_id, msg.reset_counter, msg.estimator_type, msg.quality)
 
 
 def _estimate_of(sysid: int, fields: tuple) -> StateEstimate | NoEstimate:

@@ -25,7 +25,7 @@ _SIGNATURE_HEAD = struct.Struct("<BQ")  # link id, 48-bit timestamp (the first 7
 
 def odometry_fields(frame: bytes) -> tuple | None:
     """The wire fields (61,) of a MAVLink 2 ODOMETRY ``frame`` whose length and CRC check out, in
-    wire order (``ODOMETRY_FIELDS`` names them), or None for any other frame."""
+    wire order (the constants at the end name their places), or None for any other frame."""
     n = len(frame)
     if n < _HEADER_BYTES + _CRC_BYTES or frame[0] != mavlink2.PROTOCOL_MARKER_V2:
         return None

@@ -42,7 +42,7 @@ class InputRun:
 def unpack(batch: SensorBatch, first: int) -> tuple[list[InputRun], list[tuple[int, str, Any]]]:
     """``batch``'s input samples as runs and its other samples as (arrival number, topic, message) in
     its order, numbered from ``first`` (``FusionHorizon.reserve`` of the batch's sample count)."""
-    _, places, others = batch_order(batch)
+    places, others = batch_order(batch)
     runs = []
     for topic, place in places.items():
         stamps, seq0, rows = batch.blocks[topic]
@@ -51,14 +51,14 @@ def unpack(batch: SensorBatch, first: int) -> tuple[list[InputRun], list[tuple[i
     return runs, [(first + p, topic, batch.message(topic, i)) for p, topic, i in others]
 
 
-def batch_order(batch: SensorBatch) -> tuple[int, dict[str, np.ndarray], list[tuple[int, str, int]]]:
-    """The number of samples of ``batch``, the place of every sample of each input topic (k,) in
-    ``SensorBatch.samples``' order, and the other samples as (place, topic, index), in that order
-    (``Topic.CAMERA`` for the camera frames)."""
+def batch_order(batch: SensorBatch) -> tuple[dict[str, np.ndarray], list[tuple[int, str, int]]]:
+    """The place of every sample of each input topic of ``batch`` (k,) in ``SensorBatch.samples``'
+    order, and the other samples as (place, topic, index), in that order (``Topic.CAMERA`` for the
+    camera frames)."""
     topics = list(batch.blocks) + ([Topic.CAMERA] if batch.camera is not None else [])
     stamps = [batch.blocks[t][0] for t in batch.blocks] + ([batch.camera.stamps] if batch.camera is not None else [])
     if not stamps:
-        return 0, {}, []
+        return {}, []
     order = np.argsort(np.concatenate(stamps), kind="stable")
     place = np.empty_like(order)
     place[order] = np.arange(len(order))
@@ -71,4 +71,4 @@ def batch_order(batch: SensorBatch) -> tuple[int, dict[str, np.ndarray], list[tu
         else:
             others += [(p, topic, i) for i, p in enumerate(places.tolist())]
     others.sort()
-    return len(order), runs, others
+    return runs, others

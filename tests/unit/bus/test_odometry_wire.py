@@ -5,6 +5,7 @@ frame corrupted on the way."""
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
@@ -44,12 +45,12 @@ def _outcome(decoder: MavlinkDecoder, frame: bytes):
     return result
 
 
-def _both(frame: bytes, signed: bool, monkeypatch) -> tuple:
+def _both(frame: bytes, signed: bool) -> tuple:
     """What the decoder gives with the wire reader, then with pymavlink alone (fresh decoders: the
     signing timestamps of a stream are remembered)."""
     make = lambda: MavlinkDecoder(key_for=lambda sysid: KEY) if signed else MavlinkDecoder()  # noqa: E731
     fast = _outcome(make(), frame)
-    with monkeypatch.context() as patched:
+    with pytest.MonkeyPatch.context() as patched:
         patched.setattr(mavlink_codec, "odometry_fields", lambda frame: None)
         slow = _outcome(make(), frame)
     return fast, slow
@@ -60,30 +61,22 @@ def _both(frame: bytes, signed: bool, monkeypatch) -> tuple:
     sysid=st.integers(1, 250),
     signed=st.booleans(),
     time_usec=st.integers(0, 2**63 - 1),
-    values=st.one_of(
-        st.lists(st.floats(-100.0, 100.0), min_size=9, max_size=9), st.lists(floats, min_size=9, max_size=9)
-    ),
+    values=st.one_of(nine(st.floats(-100.0, 100.0)), nine(floats)),
     cov=st.one_of(st.just(VALID), st.lists(st.one_of(st.floats(1e-6, 10.0), floats), min_size=21, max_size=21)),
     trailing=st.integers(0, 255),
 )
 def test_any_odometry_frame_decodes_as_pymavlink_decodes_it(sysid, signed, time_usec, values, cov, trailing):
-    import pytest
-
-    with pytest.MonkeyPatch.context() as monkeypatch:
-        fast, slow = _both(_frame(sysid, signed, time_usec, values, cov, trailing), signed, monkeypatch)
+    fast, slow = _both(_frame(sysid, signed, time_usec, values, cov, trailing), signed)
     assert fast == slow
 
 
 @settings(max_examples=300, deadline=None)
 @given(position=st.integers(0, 120), byte=st.integers(0, 255), cut=st.integers(0, 20), signed=st.booleans())
 def test_a_corrupted_odometry_frame_is_refused_as_pymavlink_refuses_it(position, byte, cut, signed):
-    import pytest
-
     frame = bytearray(_frame(3, signed, 1_000_000, [1.0, 2.0, -30.0, 1.0, 0.1, 1.0, 0.0, 0.0, 0.1], VALID, 0))
     frame[position % len(frame)] = byte
     frame = bytes(frame[: len(frame) - cut])
-    with pytest.MonkeyPatch.context() as monkeypatch:
-        fast, slow = _both(frame, signed, monkeypatch)
+    fast, slow = _both(frame, signed)
     assert fast == slow
 
 
@@ -138,8 +131,6 @@ def test_an_odometry_frame_is_packed_as_pymavlink_packs_it(
 ):
     """Byte for byte, two frames in a row (the sequence number and the signing timestamp move on),
     and the "no estimate" frame too."""
-    import pytest
-
     covariance = np.array(cov).reshape(6, 6)
     est = StateEstimate(
         sysid,
