@@ -19,3 +19,13 @@ class ConfigError(SwarmlocError):
 
 class BusUnavailable(SwarmlocError):
     """The zenoh session could not be opened: no router answers, or the login or TLS was refused."""
+
+
+class MavlinkRejected(DecodeError):
+    """A well-formed MAVLink frame that failed authentication or the content checks; ``reason`` is one
+    of bus.rejections.REASONS (unsigned, bad_signature, replay, stale_stream, future_timestamp,
+    unknown_sysid, degenerate)."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(f"MAVLink frame rejected ({reason}): {detail}")
+        self.reason = reason

@@ -33,78 +33,29 @@ from dataclasses import dataclass
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
-from bus import odometry_wire as ow
 from bus.errors import DecodeError
+from bus.errors import MavlinkRejected as MavlinkRejected
 from bus.estimate import Health, PoseEstimate
-from bus.odometry_wire import odometry_fields
+from bus.odometry_content import _BODY_FRD, _LOCAL_NED, _UPPER, estimate_of, planar_estimate_of, planar_fields
+from bus.odometry_content import MAX_POSITION_M as MAX_POSITION_M
+from bus.odometry_content import MAX_VARIANCE as MAX_VARIANCE
+from bus.odometry_content import NOT_ESTIMATED_VAR as NOT_ESTIMATED_VAR
+from bus.odometry_content import NoEstimate as NoEstimate
+from bus.odometry_content import StateEstimate as StateEstimate
+from bus.odometry_content import _usable_covariance as _usable_covariance
+from bus.odometry_content import odometry_of as odometry_of
+from bus.odometry_content import pose_of as pose_of
+from bus.odometry_wire import odometry_fields, odometry_frame
 
 COMPONENT_ID = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
 SIGNING_EPOCH_S = 1420070400  # 2015-01-01T00:00:00Z
 NEW_STREAM_TOLERANCE = 6_000_000  # 60 s in 10-us units, as in the MAVLink signing spec
 FUTURE_TOLERANCE = 6_000_000  # 60 s in 10-us units
-MAX_POSITION_M = 1e7
-MAX_VARIANCE = 1e8  # m^2, rad^2: beyond this an estimate carries no information
 MAX_FRAME_BYTES = 280  # MAVLink 2: 10 header + 255 payload + 2 CRC + 13 signature
 MAX_ACCUSED = 8  # neighbours one V2V broadcast may say its sender distrusts
 ACCUSATION_FRAME_BYTES = 43  # a signed NAMED_VALUE_INT: 10 header + 18 payload + 2 CRC + 13 signature
 MAX_V2V_BYTES = MAX_FRAME_BYTES + MAX_ACCUSED * ACCUSATION_FRAME_BYTES  # ODOMETRY and its accusations
 DISTRUST = "distrust"  # the NAMED_VALUE_INT name of an accusation
-_POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw in ODOMETRY's pose covariance
-NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch (constant altitude, level flight) and the lateral velocities
-_UPPER = np.triu_indices(6)
-_LOCAL_NED, _BODY_FRD = mavlink2.MAV_FRAME_LOCAL_NED, mavlink2.MAV_FRAME_BODY_FRD  # ODOMETRY's frames
-_DIAGONAL = (0, 6, 11, 15, 18, 20)  # positions of the variances in the 21-float upper triangle
-
-
-def _symmetric_index() -> np.ndarray:
-    """(6, 6) index into the 21-float upper triangle that rebuilds the full symmetric matrix."""
-    index = np.zeros((6, 6), dtype=np.intp)
-    index[_UPPER] = np.arange(21)
-    return np.maximum(index, index.T)
-
-
-_SYMMETRIC_INDEX = _symmetric_index()
-_POSE_BLOCK = np.ix_(_POSE_INDEX, _POSE_INDEX)
-
-
-class MavlinkRejected(DecodeError):
-    """A well-formed frame that failed authentication or the content checks; ``reason`` is one of
-    bus.rejections.REASONS (unsigned, bad_signature, replay, stale_stream, future_timestamp,
-    unknown_sysid, degenerate)."""
-
-    def __init__(self, reason: str, detail: str) -> None:
-        super().__init__(f"MAVLink frame rejected ({reason}): {detail}")
-        self.reason = reason
-
-
-@dataclass(frozen=True)
-class StateEstimate:
-    """One vehicle's state estimate as carried by ODOMETRY, in local NED.
-
-    position_m (3,), velocity_mps (3,) in the body frame, covariances (6, 6) over
-    [x, y, z, roll, pitch, yaw] and [vx, vy, vz, rollrate, pitchrate, yawrate].
-    """
-
-    vehicle_id: int
-    time_usec: int
-    position_m: np.ndarray
-    yaw_rad: float
-    velocity_mps: np.ndarray
-    yaw_rate_radps: float
-    pose_covariance: np.ndarray
-    velocity_covariance: np.ndarray
-    reset_counter: int = 0
-    estimator_type: int = mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS
-
-
-@dataclass(frozen=True)
-class NoEstimate:
-    """An ODOMETRY whose pose covariance starts with NaN: in MAVLink's words the covariance, and so the
-    estimate, is unknown. A vehicle that has no estimate yet still broadcasts one at each V2V epoch,
-    so its neighbours know it has passed ``time_usec`` (lockstep waits on that)."""
-
-    vehicle_id: int
-    time_usec: int
 
 
 @dataclass(frozen=True)
@@ -122,50 +73,6 @@ class Heartbeat:
     vehicle_id: int
     mav_type: int
     system_status: int
-
-
-def odometry_of(estimate: PoseEstimate, *, altitude_m: float, reset_counter: int) -> StateEstimate:
-    """ODOMETRY's contents for a planar estimate flown at ``altitude_m``: NED position (x, y, -altitude),
-    body-frame velocity (speed, 0, 0), the pose covariance at [0, 1, 5] of the 6 x 6 with the
-    not-estimated axes at ``NOT_ESTIMATED_VAR``."""
-    pose_cov = np.diag([0.0, 0.0, NOT_ESTIMATED_VAR, NOT_ESTIMATED_VAR, NOT_ESTIMATED_VAR, 0.0])
-    pose_cov[_POSE_BLOCK] = estimate.pose_cov
-    vel_cov = np.diag(
-        [
-            estimate.speed_var,
-            NOT_ESTIMATED_VAR,
-            NOT_ESTIMATED_VAR,
-            NOT_ESTIMATED_VAR,
-            NOT_ESTIMATED_VAR,
-            estimate.yaw_rate_var,
-        ]
-    )
-    x, y, yaw = estimate.pose
-    return StateEstimate(
-        vehicle_id=estimate.vehicle_id,
-        time_usec=estimate.stamp_us,
-        position_m=np.array([x, y, -altitude_m]),
-        yaw_rad=float(yaw),
-        velocity_mps=np.array([estimate.speed_mps, 0.0, 0.0]),
-        yaw_rate_radps=estimate.yaw_rate_radps,
-        pose_covariance=pose_cov,
-        velocity_covariance=vel_cov,
-        reset_counter=reset_counter,
-    )
-
-
-def pose_of(est: StateEstimate) -> PoseEstimate:
-    """The planar estimate an ODOMETRY carries (the inverse of :func:`odometry_of` on x, y, yaw)."""
-    return PoseEstimate(
-        vehicle_id=est.vehicle_id,
-        stamp_us=est.time_usec,
-        pose=np.array([est.position_m[0], est.position_m[1], est.yaw_rad]),
-        pose_cov=est.pose_covariance[_POSE_BLOCK],
-        speed_mps=float(est.velocity_mps[0]),
-        speed_var=float(est.velocity_covariance[0, 0]),
-        yaw_rate_radps=est.yaw_rate_radps,
-        yaw_rate_var=float(est.velocity_covariance[5, 5]),
-    )
 
 
 def status_of(health: Health) -> EstimatorStatus:
@@ -244,7 +151,7 @@ class MavlinkEncoder:
         mav, signing = self._mav, self._mav.signing
         if signing.sign_outgoing:
             signing.timestamp = max(signing.timestamp, signing_now())
-        frame = ow.odometry_frame(
+        frame = odometry_frame(
             fields, seq=mav.seq, sysid=mav.srcSystem, compid=mav.srcComponent, signing=signing.sign_outgoing and signing
         )
         mav.seq = (mav.seq + 1) % 256
@@ -259,6 +166,10 @@ class MavlinkEncoder:
             + (*est.pose_covariance[_UPPER].tolist(), *est.velocity_covariance[_UPPER].tolist())
             + (_LOCAL_NED, _BODY_FRD, est.reset_counter % 256, est.estimator_type, 100)
         )
+
+    def pose_odometry(self, estimate: PoseEstimate, *, altitude_m: float, reset_counter: int) -> bytes:
+        """``odometry(odometry_of(estimate, ...))``, the same frame, packed straight from the planar estimate."""
+        return self._pack_odometry(planar_fields(estimate, altitude_m=altitude_m, reset_counter=reset_counter))
 
     def no_estimate(self, time_usec: int, reset_counter: int = 0) -> bytes:
         """ODOMETRY saying "no estimate at ``time_usec``": NaN first pose covariance element, the rest zero."""
@@ -378,14 +289,24 @@ class MavlinkDecoder:
             return Accusation(msg.get_srcSystem(), msg.time_boot_ms, msg.value)
         return None
 
-    def _accepted(
-        self, frame: bytes, sysid: int, compid: int, odometry: tuple | None
-    ) -> StateEstimate | NoEstimate | None:
+    def decode_pose(
+        self, frame: bytes
+    ) -> PoseEstimate | NoEstimate | Heartbeat | EstimatorStatus | StatusText | SystemTime | Accusation | None:
+        """``decode``, with an ODOMETRY's estimate as the planar estimate ``pose_of`` makes of it (the
+        same checks and refusals; a neighbour's broadcast is read so)."""
+        fields = odometry_fields(frame)
+        if fields is not None:
+            return self._accepted(frame, frame[5], frame[6], fields, planar_estimate_of)
+        decoded = self.decode(frame)
+        return pose_of(decoded) if isinstance(decoded, StateEstimate) else decoded
+
+    def _accepted(self, frame: bytes, sysid: int, compid: int, odometry: tuple | None, read=estimate_of):
         """Authenticate ``frame``, then the estimate its ODOMETRY fields (wire order; None: not an
-        ODOMETRY) carry; a refusal is counted by reason and raised (MavlinkRejected)."""
+        ODOMETRY) carry, as ``read`` (estimate_of or planar_estimate_of) gives it; a refusal is counted
+        by reason and raised (MavlinkRejected)."""
         try:
             self._authenticate(bytes(frame), sysid, compid)
-            return None if odometry is None else _estimate_of(sysid, odometry)
+            return None if odometry is None else read(sysid, odometry)
         except MavlinkRejected as exc:
             self.rejected[exc.reason] += 1
             raise
@@ -426,70 +347,10 @@ def _wire_fields(msg: mavlink2.MAVLink_odometry_message) -> tuple:
     return fields + (msg.frame_id, msg.child_frame_id, msg.reset_counter, msg.estimator_type, msg.quality)
 
 
-def _estimate_of(sysid: int, fields: tuple) -> StateEstimate | NoEstimate:
-    """The estimate an ODOMETRY frame of ``sysid`` carries, from its fields in wire order
-    (bus.odometry_wire), or MavlinkRejected."""
-    x, y, z, q = fields[ow.X], fields[ow.Y], fields[ow.Z], fields[ow.Q]
-    pose_upper, velocity_upper = fields[ow.POSE_COVARIANCE], fields[ow.VELOCITY_COVARIANCE]
-    if math.isnan(pose_upper[0]):
-        return NoEstimate(sysid, fields[ow.TIME_USEC])
-    values = (x, y, z, *q, fields[ow.VX], fields[ow.VY], fields[ow.VZ], fields[ow.YAWSPEED], *pose_upper)
-    if not all(map(math.isfinite, values + velocity_upper)):
-        raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has non-finite fields")
-    if any(pose_upper[i] < 0 for i in _DIAGONAL) or any(velocity_upper[i] < 0 for i in _DIAGONAL):
-        raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has negative variances")
-    if max(abs(x), abs(y), abs(z)) > MAX_POSITION_M or abs(q[0]) + abs(q[3]) < 1e-6:
-        raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has an absurd position or attitude")
-    pose_cov = _full_covariance(pose_upper)
-    if not _usable_covariance(pose_cov[_POSE_BLOCK]):
-        raise MavlinkRejected(
-            "degenerate", f"ODOMETRY from sysid {sysid}: [x, y, yaw] covariance is zero, singular, indefinite or huge"
-        )
-    w, _, _, qz = q
-    return StateEstimate(
-        vehicle_id=sysid,
-        time_usec=fields[ow.TIME_USEC],
-        position_m=np.array([x, y, z]),
-        yaw_rad=2.0 * math.atan2(qz, w),
-        velocity_mps=np.array([fields[ow.VX], fields[ow.VY], fields[ow.VZ]]),
-        yaw_rate_radps=float(fields[ow.YAWSPEED]),
-        pose_covariance=pose_cov,
-        velocity_covariance=_full_covariance(velocity_upper),
-        reset_counter=fields[ow.RESET_COUNTER],
-        estimator_type=fields[ow.ESTIMATOR_TYPE],
-    )
-
-
 def _text(field: str | bytes) -> str:
     """A MAVLink char array as text, without its NUL padding."""
     raw = field if isinstance(field, str) else bytes(field).decode("utf-8", "replace")
     return raw.rstrip("\x00")
-
-
-def _usable_covariance(C: np.ndarray) -> bool:
-    """Positive definite with a sane condition (Cholesky succeeds) and no variance above MAX_VARIANCE.
-    C (3, 3) is symmetric by construction (rebuilt from the upper triangle). Written out: this runs
-    for every frame the ground station and the neighbours receive."""
-    (a, b, c), (_, d, e), (_, _, f) = C.tolist()
-    if not max(a, d, f) <= MAX_VARIANCE or not a > 0.0:
-        return False
-    l00 = math.sqrt(a)
-    l10, l20 = b / l00, c / l00
-    d1 = d - l10 * l10
-    if not d1 > 0.0:
-        return False
-    l11 = math.sqrt(d1)
-    l21 = (e - l20 * l10) / l11
-    d2 = f - l20 * l20 - l21 * l21
-    if not d2 > 0.0:
-        return False
-    diagonal = (l00, l11, math.sqrt(d2))
-    return min(diagonal) > 1e-9 * max(diagonal)
-
-
-def _full_covariance(upper: list[float]) -> np.ndarray:
-    """21 floats (upper-right triangle, row-major) -> symmetric (6, 6)."""
-    return np.asarray(upper, dtype=np.float64)[_SYMMETRIC_INDEX]
 
 
 def frame_header(frame: bytes) -> tuple[int, int, int, int | None] | None:

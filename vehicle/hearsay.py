@@ -49,6 +49,8 @@ def hear(
         book.accusations[accuser] = (t_us, accused)
     else:
         book.accusations.pop(accuser, None)
+        if not book.accusations and not any(r.hearsay or r.accusers for r in book.records.values()):
+            return []  # nobody accuses anyone and nobody stands accused: nothing below would change (every fix)
     since = t_us - round(spec.hearsay_memory_s * 1e6)
     for j in [j for j, (stamp, _) in book.accusations.items() if stamp <= since]:
         del book.accusations[j]

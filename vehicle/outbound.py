@@ -20,7 +20,7 @@ from bus.estimate import PoseEstimate
 from bus.faults import Accuse, Lie
 from bus.landmark_map import LandmarkMap, encode_map
 from bus.lies import active_lies, false_accusations, longest_stale_s, told
-from bus.mavlink_codec import MAX_ACCUSED, MavlinkEncoder, odometry_of, status_of
+from bus.mavlink_codec import MAX_ACCUSED, MavlinkEncoder, status_of
 from bus.session import Bus
 from vehicle.estimators.filter import Filter
 
@@ -78,7 +78,7 @@ class Outbound:
             self._frames.append(self.encoder.estimator_status(status_of(estimator.health(t_us))))
         if on_v2v or on_mavlink:
             pose = estimator.estimate(t_us)
-            odometry = self.encoder.odometry(odometry_of(pose, altitude_m=self.altitude_m, reset_counter=reset_counter))
+            odometry = self.encoder.pose_odometry(pose, altitude_m=self.altitude_m, reset_counter=reset_counter)
             if on_mavlink:
                 self._frames.append(odometry)
             if on_v2v:  # the V2V packet {id, x_hat, P, t}, and whom its monitor distrusts
@@ -121,9 +121,7 @@ class Outbound:
         if not active:
             return honest
         told_estimate = told(estimate, active, self._past)
-        return self._lie_encoder.odometry(
-            odometry_of(told_estimate, altitude_m=self.altitude_m, reset_counter=reset_counter)
-        )
+        return self._lie_encoder.pose_odometry(told_estimate, altitude_m=self.altitude_m, reset_counter=reset_counter)
 
     def _send_v2v(self, frame: bytes, listeners: tuple[int, ...] | None) -> None:
         """Broadcast (``listeners`` None: counted for lockstep's V2V barrier) or one copy per listener."""

@@ -36,14 +36,13 @@ import numpy as np
 from bus import messages as m
 from bus.angles import wrap_angle
 from bus.errors import DecodeError
+from bus.estimate import PoseEstimate
 from bus.mavlink_codec import (
     MAX_ACCUSED,
     Accusation,
     MavlinkDecoder,
     MavlinkRejected,
     NoEstimate,
-    StateEstimate,
-    pose_of,
     split_frames,
 )
 from bus.rejections import Rejections
@@ -159,7 +158,7 @@ class V2V:
         try:
             if not frames or trailing or len(frames) > 1 + MAX_ACCUSED:
                 raise DecodeError(f"{len(frames)} MAVLink frames and {trailing} trailing bytes")
-            est = self._decoder.decode(frames[0])
+            est = self._decoder.decode_pose(frames[0])
             accusations = [self._decoder.decode(frame) for frame in frames[1:]]
         except MavlinkRejected as exc:
             self.rejections.reject(exc.reason, f"v2v from {sender}", str(exc))
@@ -169,16 +168,15 @@ class V2V:
             return None
         if isinstance(est, NoEstimate) and est.vehicle_id == sender and est.time_usec == stamp_us:
             return None  # the neighbour had no estimate at that epoch
-        if not isinstance(est, StateEstimate) or est.vehicle_id != sender or est.time_usec != stamp_us:
+        if not isinstance(est, PoseEstimate) or est.vehicle_id != sender or est.stamp_us != stamp_us:
             self.rejections.reject("impersonation", f"v2v from {sender}", "sender or stamp differs from the frame's")
             return None
         accused = _accused(accusations, sender, stamp_us)
         if accused is None:
             self.rejections.reject("unexpected", f"v2v from {sender}", "not an accusation by the sender at its epoch")
             return None
-        pose = pose_of(est)
         return Broadcast(
-            pose.pose, pose.pose_cov, pose.speed_mps, pose.speed_var, pose.yaw_rate_radps, pose.yaw_rate_var, accused
+            est.pose, est.pose_cov, est.speed_mps, est.speed_var, est.yaw_rate_radps, est.yaw_rate_var, accused
         )
 
     def hold(self, measurement: m.RangeBearing | m.SeenBy) -> bool:

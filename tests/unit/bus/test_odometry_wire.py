@@ -12,7 +12,8 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from bus import mavlink_codec, odometry_wire
 from bus.errors import DecodeError
-from bus.mavlink_codec import MavlinkDecoder, MavlinkEncoder, MavlinkRejected, StateEstimate
+from bus.estimate import PoseEstimate
+from bus.mavlink_codec import MavlinkDecoder, MavlinkEncoder, MavlinkRejected, StateEstimate, odometry_of, pose_of
 
 KEY = bytes(range(32))
 nine = lambda elements: st.lists(elements, min_size=9, max_size=9)  # noqa: E731
@@ -157,3 +158,77 @@ def test_an_odometry_frame_is_packed_as_pymavlink_packs_it(
         fields = [time_usec, 1, 12, *pose[:3], pose[3:], *rates, unknown, unknown, reset_counter % 256]
         reference = slow._mav.odometry_encode(*fields, mavlink2.MAV_ESTIMATOR_TYPE_GPS_INS, 0)
         assert fast.no_estimate(time_usec, reset_counter) == slow._pack(reference)
+
+
+class _Given:
+    """A decoder that gives ``result`` (to describe an expected outcome as _planar_outcome does)."""
+
+    def __init__(self, result) -> None:
+        self.result = result
+
+    def decode_pose(self, frame: bytes):
+        return self.result
+
+
+def _planar_outcome(decoder: MavlinkDecoder, frame: bytes):
+    try:
+        result = decoder.decode_pose(frame)
+    except MavlinkRejected as exc:
+        return ("rejected", exc.reason)
+    except DecodeError:
+        return ("malformed",)
+    if isinstance(result, PoseEstimate):
+        return tuple(np.asarray(v).tobytes() if isinstance(v, np.ndarray) else v for v in vars(result).values())
+    return result
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    sysid=st.integers(1, 250),
+    signed=st.booleans(),
+    time_usec=st.integers(0, 2**63 - 1),
+    values=st.one_of(nine(st.floats(-100.0, 100.0)), nine(floats)),
+    cov=st.one_of(st.just(VALID), st.lists(st.one_of(st.floats(1e-6, 10.0), floats), min_size=21, max_size=21)),
+    trailing=st.integers(0, 255),
+    corrupt=st.one_of(st.none(), st.tuples(st.integers(0, 120), st.integers(0, 255))),
+)
+def test_a_broadcast_reads_as_the_planar_estimate_of_its_decoded_odometry(
+    sysid, signed, time_usec, values, cov, trailing, corrupt
+):
+    """A neighbour's broadcast read straight to its planar estimate (``decode_pose``) gives exactly
+    ``pose_of`` of what ``decode`` gives, or the same refusal, counted the same."""
+    frame = bytearray(_frame(sysid, signed, time_usec, values, cov, trailing))
+    if corrupt is not None:
+        frame[corrupt[0] % len(frame)] = corrupt[1]
+    make = lambda: MavlinkDecoder(key_for=lambda sysid: KEY) if signed else MavlinkDecoder()  # noqa: E731
+    planar, full = make(), make()
+    try:
+        decoded = full.decode(bytes(frame))
+        expected = _planar_outcome(_Given(pose_of(decoded) if isinstance(decoded, StateEstimate) else decoded), b"")
+    except MavlinkRejected as exc:
+        expected = ("rejected", exc.reason)
+    except DecodeError:
+        expected = ("malformed",)
+    assert _planar_outcome(planar, bytes(frame)) == expected
+    assert planar.rejected == full.rejected
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    sysid=st.integers(1, 250),
+    signed=st.booleans(),
+    time_usec=st.integers(0, 2**63 - 1),
+    values=st.one_of(nine(st.floats(-100.0, 100.0)), nine(floats)),
+    cov=st.lists(st.one_of(st.just(0.0), floats), min_size=9, max_size=9),
+    altitude=st.one_of(st.floats(0.0, 100.0), floats),
+    reset_counter=st.integers(0, 1000),
+)
+def test_a_planar_estimate_is_packed_as_its_odometry_is(sysid, signed, time_usec, values, cov, altitude, reset_counter):
+    """``pose_odometry`` packs byte for byte the frame ``odometry(odometry_of(...))`` packs, two in a row."""
+    est = PoseEstimate(sysid, time_usec, np.array(values[:3]), np.array(cov).reshape(3, 3), *values[3:7])
+    with pytest.MonkeyPatch.context() as monkeypatch, np.errstate(invalid="ignore"):  # a yaw of inf or NaN
+        monkeypatch.setattr(mavlink_codec, "signing_now", lambda: 123_456_789)
+        fast, slow = (MavlinkEncoder(vehicle_id=sysid, signing_key=KEY if signed else None) for _ in range(2))
+        for _ in range(2):
+            expected = slow.odometry(odometry_of(est, altitude_m=altitude, reset_counter=reset_counter))
+            assert fast.pose_odometry(est, altitude_m=altitude, reset_counter=reset_counter) == expected
