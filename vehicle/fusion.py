@@ -262,7 +262,8 @@ class FusionHorizon:
         oldest = self._checkpoints[0][0]
         if len(self._outstanding) > 64:  # announced but never came (lost on the way): forget them
             self._outstanding = Counter({s: n for s, n in self._outstanding.items() if n > 0 and s >= limit})
-        del self._applied[: bisect.bisect_left(self._applied, oldest, key=_stamp)]  # applied in stamp order
+        if self._applied and self._applied[0][0] < oldest:  # applied in stamp order
+            del self._applied[: bisect.bisect_left(self._applied, oldest, key=_stamp)]
         while self._cycles and self._cycles[0] < oldest:
             self._cycles.popleft()
         if len(self._seen) > MAX_SEEN:

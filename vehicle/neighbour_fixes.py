@@ -170,10 +170,17 @@ class FixWindow:
     few 1e-16 of the running sums). Fixes leave from the old end (``popleft``); a fix out of stamp
     order makes every later question take the one-pass reference (``window_stats``)."""
 
-    __slots__ = ("_base", "_entries", "_head", "_ordered")
+    __slots__ = ("_base", "_entries", "_head", "_ordered", "_stamps")
 
-    def __init__(self, entries: list | None = None, base: tuple = (0, 0, 0.0, 0.0, 0.0), ordered: bool = True) -> None:
+    def __init__(
+        self,
+        entries: list | None = None,
+        base: tuple = (0, 0, 0.0, 0.0, 0.0),
+        ordered: bool = True,
+        stamps: list[int] | None = None,
+    ) -> None:
         self._entries: list[tuple] = [] if entries is None else entries  # (stamp, finite, passed, nis, m0, m1, fix)
+        self._stamps: list[int] = [e[0] for e in self._entries] if stamps is None else stamps  # bisected keyless
         self._base = base  # the running (finite, passed, nis, m0, m1) before the first entry
         self._head = 0  # entries before it have left
         self._ordered = ordered
@@ -188,6 +195,7 @@ class FixWindow:
             if not fix.gated_out:
                 passed, nis = passed + 1, nis + fix.square
         self._entries.append((fix.stamp_us, finite, passed, nis, m0, m1, fix))
+        self._stamps.append(fix.stamp_us)
 
     def popleft(self) -> Fix:
         if self._head >= len(self._entries):
@@ -197,6 +205,7 @@ class FixWindow:
         if self._head >= 64 and 2 * self._head >= len(self._entries):
             self._base = self._running(self._head)
             del self._entries[: self._head]
+            del self._stamps[: self._head]
             self._head = 0
         return fix
 
@@ -210,7 +219,8 @@ class FixWindow:
         self._entries[-1] = (*last[:6], fix)
 
     def copy(self) -> FixWindow:
-        return FixWindow(self._entries[self._head :], self._running(self._head), self._ordered)
+        head = self._head
+        return FixWindow(self._entries[head:], self._running(head), self._ordered, self._stamps[head:])
 
     def latest(self, n: int) -> list[Fix]:
         """The newest ``n`` fixes (fewer when there are fewer), oldest first."""
@@ -236,7 +246,7 @@ class FixWindow:
         if not self._ordered:
             return window_stats(list(self), since_us, decorrelation_s)
         entries, end = self._entries, len(self._entries)
-        start = bisect.bisect_right(entries, since_us, lo=self._head, key=_stamp)
+        start = bisect.bisect_right(self._stamps, since_us, self._head)
         fixes = end - start
         before, last = self._running(start), self._running(end)
         passed = last[1] - before[1]
@@ -247,15 +257,14 @@ class FixWindow:
         m0 = (last[3] - before[3]) / finite
         m1 = (last[4] - before[4]) / finite
         n_eff = float(finite)
-        if decorrelation_s > 0.0:
-            first_us = next(entries[i][0] for i in range(start, end) if entries[i][6].finite)
-            last_us = next(entries[i][0] for i in range(end - 1, start - 1, -1) if entries[i][6].finite)
-            n_eff = min(finite, 1.0 + (last_us - first_us) * 1e-6 / decorrelation_s)
+        if decorrelation_s > 0.0:  # the first and the last finite fix (a passed fix is finite: there is one)
+            first, last_finite = start, end - 1
+            while not entries[first][6].finite:
+                first += 1
+            while not entries[last_finite][6].finite:
+                last_finite -= 1
+            n_eff = min(finite, 1.0 + (entries[last_finite][0] - entries[first][0]) * 1e-6 / decorrelation_s)
         return WindowStats(fixes, fixes - passed, nis / passed, n_eff * (m0 * m0 + m1 * m1))
-
-
-def _stamp(entry: tuple) -> int:
-    return entry[0]
 
 
 def effective_count(fixes: list[Fix], decorrelation_s: float) -> float:
