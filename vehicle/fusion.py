@@ -140,18 +140,12 @@ class FusionHorizon:
         fresh = (self.cycle_us is None or run.stamps[0] > self.cycle_us) and (
             self.due_us is None or run.stamps[0] > self.due_us
         )
-        seen = self._seen
-        if (
-            not n
-            or not fresh
-            or len(self._pending) >= MAX_PENDING
-            or any((topic, run.seq0 + i) in seen for i in range(n))
-        ):
+        idents = list(zip(itertools.repeat(topic), range(run.seq0, run.seq0 + n)))  # (topic, seq) of each sample
+        if not n or not fresh or len(self._pending) >= MAX_PENDING or not self._seen.keys().isdisjoint(idents):
             for i in range(n):
                 self.push(topic, run.message(i), run.arrivals[i])
             return
-        for i, stamp in enumerate(run.stamps):
-            seen[(topic, run.seq0 + i)] = stamp
+        self._seen.update(zip(idents, run.stamps))
         heapq.heappush(self._pending, (run.stamps[0], run.arrivals[0], topic, run))
 
     def expect(self, stamp_us: int) -> None:
