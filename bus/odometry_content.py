@@ -9,6 +9,7 @@ bus.mavlink_codec frames, signs and authenticates."""
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +25,7 @@ _POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw in ODOMETRY's pose covariance
 NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch (constant altitude, level flight) and the lateral velocities
 _UPPER = np.triu_indices(6)
 _LOCAL_NED, _BODY_FRD = mavlink2.MAV_FRAME_LOCAL_NED, mavlink2.MAV_FRAME_BODY_FRD  # ODOMETRY's frames
-_DIAGONAL = (0, 6, 11, 15, 18, 20)  # positions of the variances in the 21-float upper triangle
+_VARIANCES = operator.itemgetter(0, 6, 11, 15, 18, 20)  # the variances' places in the 21-float upper triangle
 
 
 def _symmetric_index() -> np.ndarray:
@@ -145,7 +146,7 @@ def _check_fields(sysid: int, fields: tuple) -> None:
     values = (x, y, z, *q, fields[ow.VX], fields[ow.VY], fields[ow.VZ], fields[ow.YAWSPEED], *pose_upper)
     if not all(map(math.isfinite, values + velocity_upper)):
         raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has non-finite fields")
-    if any(pose_upper[i] < 0 for i in _DIAGONAL) or any(velocity_upper[i] < 0 for i in _DIAGONAL):
+    if min(_VARIANCES(pose_upper)) < 0 or min(_VARIANCES(velocity_upper)) < 0:  # all finite by now
         raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has negative variances")
     if max(abs(x), abs(y), abs(z)) > MAX_POSITION_M or abs(q[0]) + abs(q[3]) < 1e-6:
         raise MavlinkRejected("degenerate", f"ODOMETRY from sysid {sysid} has an absurd position or attitude")

@@ -223,7 +223,7 @@ class VehicleNode:
             t_us,
             self.estimator,
             self.reset_counter,
-            listeners=self.inbound.listeners_at(t_us),
+            listeners=self.inbound.listeners_at(t_us) if self.outbound.broadcasts_at(t_us) else None,
             behaviour=self.inbound.behaviour,
         )
 

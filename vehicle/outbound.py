@@ -69,7 +69,7 @@ class Outbound:
                 self.encoder.system_time(notice.stamp_us),
                 self.encoder.statustext(notice.severity, notice.text[:50]),
             ]
-        on_v2v, on_mavlink = self._on_v2v(t_us), self._on_mavlink(t_us)
+        on_v2v, on_mavlink = self.broadcasts_at(t_us), self._on_mavlink(t_us)
         if not estimator.initialized:
             if on_v2v:  # neighbours in lockstep wait for every epoch's broadcast: say there is none
                 self._send_v2v(self.encoder.no_estimate(t_us, reset_counter), listeners)
@@ -93,10 +93,11 @@ class Outbound:
         """Whether the cycle at ``t_us`` sends nothing on a schedule: no ODOMETRY, no V2V broadcast, no
         heartbeat and no loop statistics (notices aside)."""
         return not (
-            self._on_v2v(t_us) or self._on_mavlink(t_us) or self._heartbeat_due(t_us) or self._status_is_due(t_us)
+            self.broadcasts_at(t_us) or self._on_mavlink(t_us) or self._heartbeat_due(t_us) or self._status_is_due(t_us)
         )
 
-    def _on_v2v(self, t_us: int) -> bool:
+    def broadcasts_at(self, t_us: int) -> bool:
+        """Whether the cycle at ``t_us`` is a V2V epoch (its broadcast goes out)."""
         return t_us % self._v2v_period_us == 0
 
     def _on_mavlink(self, t_us: int) -> bool:
