@@ -136,17 +136,16 @@ class FusionHorizon:
         """Buffer a run of input samples (vehicle.input_runs), numbered from :meth:`reserve`. A run
         whose samples are all new and later than every cycle due waits as one entry; any other goes
         one message at a time, as :meth:`push` takes them."""
-        n, topic = len(run.stamps), run.topic
+        n = len(run.stamps)
         fresh = (self.cycle_us is None or run.stamps[0] > self.cycle_us) and (
             self.due_us is None or run.stamps[0] > self.due_us
         )
-        idents = list(zip(itertools.repeat(topic), range(run.seq0, run.seq0 + n)))  # (topic, seq) of each sample
-        if not n or not fresh or len(self._pending) >= MAX_PENDING or not self._seen.keys().isdisjoint(idents):
+        if not n or not fresh or len(self._pending) >= MAX_PENDING or not self._seen.keys().isdisjoint(run.idents):
             for i in range(n):
-                self.push(topic, run.message(i), run.arrivals[i])
+                self.push(run.topics[i], run.message(i), run.arrivals[i])
             return
-        self._seen.update(zip(idents, run.stamps))
-        heapq.heappush(self._pending, (run.stamps[0], run.arrivals[0], topic, run))
+        self._seen.update(zip(run.idents, run.stamps))
+        heapq.heappush(self._pending, (run.stamps[0], run.arrivals[0], run.topics[0], run))
 
     def expect(self, stamp_us: int) -> None:
         """A measurement stamped ``stamp_us`` will arrive late: keep a checkpoint just before it."""
@@ -205,7 +204,7 @@ class FusionHorizon:
         try:
             if len(entry) == 5:  # one sample of a run (a replay)
                 run, i = entry[3], entry[4]
-                self.estimator.handle_row(run.topic, entry[0], run.rows[i], partial(run.message, i))
+                self.estimator.handle_row(entry[2], entry[0], run.rows[i], partial(run.message, i))
             else:
                 self.estimator.handle(entry[3])
         except (ArithmeticError, ValueError, IndexError) as exc:  # numpy's LinAlgError is a ValueError
@@ -221,11 +220,11 @@ class FusionHorizon:
         while i < n and stamps[i] <= t_us and (nxt is None or (stamps[i], arrivals[i]) < (nxt[0], nxt[1])):
             if self._expected:
                 self._checkpoints_due(stamps[i])
-            self._apply((stamps[i], arrivals[i], run.topic, run, i))
+            self._apply((stamps[i], arrivals[i], run.topics[i], run, i))
             i += 1
         run.next = i
         if i < n:
-            heapq.heappush(self._pending, (stamps[i], arrivals[i], run.topic, run))
+            heapq.heappush(self._pending, (stamps[i], arrivals[i], run.topics[i], run))
 
     def _run_cycle(self, t_us: int) -> None:
         self.estimator.cycle(t_us)

@@ -173,7 +173,8 @@ class VehicleNode:
             return
         runs, others = unpack(batch, self.fusion.reserve(batch.count()))
         for run in runs:
-            self.sequences.see_range(run.topic, run.seq0, len(run.stamps))
+            for topic, seq0, count in run.blocks:
+                self.sequences.see_range(topic, seq0, count)
             self.fusion.push_run(run)
         for arrival, topic, msg in others:
             self._deliver(Delivery(Kind.SAMPLE, topic, msg, msg.stamp_us), arrival)
