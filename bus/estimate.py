@@ -1,6 +1,6 @@
 """What a vehicle's estimator says about itself, in its own frame and units, before any wire format:
 the pose with its covariance and the inputs it moves with (``PoseEstimate``), and its health
-(``Health``). ``bus.mavlink_codec`` is the one module that maps them to MAVLink ODOMETRY and
+(``Health``). ``bus.odometry_content`` and ``bus.mavlink_codec`` map them to MAVLink ODOMETRY and
 ESTIMATOR_STATUS and back (the filter does not know MAVLink's NED 6 x 6 layout)."""
 
 from __future__ import annotations

@@ -3,11 +3,11 @@ STATUSTEXT (#253) and a vehicle's accusations (NAMED_VALUE_INT #252 named "distr
 neighbour's id: what the vehicle's neighbour monitor distrusts, sent after its V2V ODOMETRY), with
 message signing.
 
-This is the one module that knows MAVLink's layout of a planar estimate: an estimator's
-``bus.estimate.PoseEstimate`` [x, y, yaw] with its 3 x 3 covariance sits at rows and columns
-[0, 1, 5] of ODOMETRY's 6 x 6 pose covariance (local NED, z = -altitude, roll and pitch level and
-not estimated), its speed and yaw rate at [0] and [5] of the velocity covariance
-(``odometry_of`` / ``pose_of``); ``Health`` becomes ESTIMATOR_STATUS (``status_of``).
+Where a planar ``bus.estimate.PoseEstimate`` sits in an ODOMETRY, and what an ODOMETRY must say to
+be accepted, is ``bus.odometry_content``'s (``odometry_of`` / ``pose_of``, re-exported here); a
+vehicle packs its estimate (``MavlinkEncoder.pose_odometry``) and reads its neighbours' broadcasts
+(``MavlinkDecoder.decode_pose``) straight between the planar estimate and the wire. ``Health``
+becomes ESTIMATOR_STATUS (``status_of``).
 
 Signing (MAVLink 2, 32-byte key, one per vehicle): outgoing frames carry a 48-bit timestamp in units
 of 10 us since 2015-01-01 and a truncated SHA-256 signature. Incoming frames are verified here rather
@@ -16,8 +16,9 @@ signature: one forged frame with a far-future timestamp would make every genuine
 replay. We check the signature first, refuse timestamps more than 60 s ahead of our clock (so even a
 key holder cannot freeze a stream), and only then advance the stream's timestamp.
 
-Contents are checked too: an ODOMETRY whose [x, y, yaw] covariance is not symmetric positive
-definite, or is absurdly large, or whose values are not finite, is rejected as degenerate.
+Contents are checked too (``bus.odometry_content``): an ODOMETRY whose [x, y, yaw] covariance is not
+symmetric positive definite, or is absurdly large, or whose values are not finite, is rejected as
+degenerate.
 """
 
 from __future__ import annotations

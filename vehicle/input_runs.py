@@ -50,7 +50,7 @@ def unpack(batch: SensorBatch, first: int) -> tuple[list[InputRun], list[tuple[i
     batch's sample count)."""
     places, others = batch_order(batch)
     others = [(first + p, topic, batch.message(topic, i)) for p, topic, i in others]
-    if not places:
+    if not sum(len(place) for place in places.values()):  # no input samples (a blackout's batch)
         return [], others
     topics, idents, rows, which, blocks = [], [], [], [], []
     for topic, place in places.items():
@@ -64,7 +64,7 @@ def unpack(batch: SensorBatch, first: int) -> tuple[list[InputRun], list[tuple[i
     place = np.concatenate(list(places.values()))
     order = np.argsort(place, kind="stable").tolist()  # the batch's order: by stamp, then topic
     stamps = np.concatenate([batch.blocks[t][0] for t in places])
-    pick = operator.itemgetter(*order) if len(order) > 1 else (lambda seq: (seq[order[0]],))
+    pick = operator.itemgetter(*order) if len(order) > 1 else (lambda seq: (seq[order[0]],))  # a tuple always
     run = InputRun(
         stamps[order].tolist(),
         (place[order] + first).tolist(),

@@ -113,3 +113,28 @@ def test_a_range_of_sequence_numbers_counts_as_one_by_one():
             single.see("imu", s)
     assert (ranged.lost, ranged.received("imu")) == (single.lost, single.received("imu"))
     assert ranged._recent == single._recent
+
+
+def test_a_batch_makes_one_run_in_its_order_or_none_without_input_samples():
+    """Both input topics in one run, each sample in its place in the batch's order; a batch whose IMU
+    and wheels were blacked out for the whole tick (empty blocks) gives no run, and one sample one."""
+    batch = _batches(1)[1]
+    (run,), others = unpack(batch, 100)
+    order = [(topic, msg.stamp_us) for topic, msg in batch.samples()]
+    assert [(t, s) for t, s in zip(run.topics, run.stamps)] == [p for p in order if p[0] in ("imu", "odom")]
+    assert (
+        run.arrivals == sorted(run.arrivals)
+        and [100 + order.index(p) for p in zip(run.topics, run.stamps)] == run.arrivals
+    )
+    assert {t for t, _, _ in run.blocks} == {"imu", "odom"} and len(run.stamps) + len(others) == batch.count()
+    empty = {
+        t: (s[:0], seq0, rows[:0]) if t in ("imu", "odom") else (s, seq0, rows)
+        for t, (s, seq0, rows) in batch.blocks.items()
+    }
+    assert unpack(feed.SensorBatch(1, 1, batch.stamp_us, empty), 0)[0] == []
+    one = {
+        t: (s[:1], seq0, rows[:1]) if t == "imu" else (s[:0], seq0, rows[:0])
+        for t, (s, seq0, rows) in batch.blocks.items()
+    }
+    (single,), _ = unpack(feed.SensorBatch(1, 1, batch.stamp_us, one), 0)
+    assert single.topics == ["imu"] and single.idents == [("imu", batch.blocks["imu"][1])]
