@@ -134,7 +134,10 @@ class Scorer:
     bounds: tuple[float, float] = field(default_factory=lambda: statistics.chi2_band(statistics.POSE_NEES_DOF))
 
     def add_truth(self, vehicle_id: int, stamp_us: int, pose: np.ndarray) -> None:
-        self.truth.setdefault(vehicle_id, TruthTrack()).add(stamp_us, pose)
+        track = self.truth.get(vehicle_id)
+        if track is None:
+            track = self.truth[vehicle_id] = TruthTrack()
+        track.add(stamp_us, pose)
 
     def add_estimate(self, est: StateEstimate) -> bool:
         """Queue an estimate for scoring; a second copy (same vehicle and stamp) is counted and
@@ -176,7 +179,10 @@ class Scorer:
             except np.linalg.LinAlgError:  # the intake rejects degenerate covariances; never fatal here
                 self.unscored += 1
                 continue
-            self.tallies.setdefault(est.vehicle_id, Tally()).add(result, self.bounds)
+            tally = self.tallies.get(est.vehicle_id)
+            if tally is None:
+                tally = self.tallies[est.vehicle_id] = Tally()
+            tally.add(result, self.bounds)
             self.last_scored_us[est.vehicle_id] = est.time_usec
             scores.append(result)
         if watermark_us != float("inf"):

@@ -240,7 +240,9 @@ def consistent_here(book: NeighbourBook, spec: MonitorSpec, neighbour: int, now_
 def see(book: NeighbourBook, spec: MonitorSpec, neighbour: int, fix: Fix) -> Verdict | None:
     """Record one fix of ``neighbour``; a Verdict when the vehicle's own verdict on it changes, or
     when its own evidence clears a neighbour distrusted on the word of others."""
-    record = book.records.setdefault(neighbour, NeighbourRecord())
+    record = book.records.get(neighbour)
+    if record is None:  # (setdefault would build a record for every fix)
+        record = book.records[neighbour] = NeighbourRecord()
     record.fixes.append(fix)
     now = fix.stamp_us
     horizon = now - round(max(spec.window_s, spec.long_window_s) * 1e6)

@@ -130,7 +130,9 @@ class V2V:
 
     def hear(self, sender: int, stamp_us: int, frame: bytes) -> None:
         """A neighbour's ODOMETRY frame (after link faults): kept by stamp until a measurement needs it."""
-        history = self._heard.setdefault(sender, OrderedDict())
+        history = self._heard.get(sender)
+        if history is None:
+            history = self._heard[sender] = OrderedDict()
         epoch = history.get(stamp_us)
         if epoch is None:
             history[stamp_us] = _Epoch([frame])
