@@ -23,6 +23,15 @@ floats = st.one_of(
     st.sampled_from([0.0, -0.0, 1e-12, 1e9, math.inf, -math.inf, math.nan]),
 )
 
+FRAME_FIELDS = dict(  # any ODOMETRY frame's fields (_frame)
+    sysid=st.integers(1, 250),
+    signed=st.booleans(),
+    time_usec=st.integers(0, 2**63 - 1),
+    values=st.one_of(nine(st.floats(-100.0, 100.0)), nine(floats)),
+    cov=st.one_of(st.just(VALID), st.lists(st.one_of(st.floats(1e-6, 10.0), floats), min_size=21, max_size=21)),
+    trailing=st.integers(0, 255),
+)
+
 
 def _frame(sysid: int, signed: bool, time_usec: int, values: list[float], cov: list[float], trailing: int) -> bytes:
     """A raw ODOMETRY frame of these fields (pymavlink's encoder: it trims the payload's trailing zeros)."""
@@ -34,14 +43,15 @@ def _frame(sysid: int, signed: bool, time_usec: int, values: list[float], cov: l
     return encoder._pack(msg)
 
 
-def _outcome(decoder: MavlinkDecoder, frame: bytes):
+def _outcome(read, frame: bytes):
+    """What ``read`` (a decoder's decode or decode_pose) makes of ``frame``, comparable by value."""
     try:
-        result = decoder.decode(frame)
+        result = read(frame)
     except MavlinkRejected as exc:
         return ("rejected", exc.reason)
     except DecodeError:
         return ("malformed",)
-    if isinstance(result, StateEstimate):
+    if isinstance(result, (StateEstimate, PoseEstimate)):
         return tuple(np.asarray(v).tobytes() if isinstance(v, np.ndarray) else v for v in vars(result).values())
     return result
 
@@ -50,22 +60,15 @@ def _both(frame: bytes, signed: bool) -> tuple:
     """What the decoder gives with the wire reader, then with pymavlink alone (fresh decoders: the
     signing timestamps of a stream are remembered)."""
     make = lambda: MavlinkDecoder(key_for=lambda sysid: KEY) if signed else MavlinkDecoder()  # noqa: E731
-    fast = _outcome(make(), frame)
+    fast = _outcome(make().decode, frame)
     with pytest.MonkeyPatch.context() as patched:
         patched.setattr(mavlink_codec, "odometry_fields", lambda frame: None)
-        slow = _outcome(make(), frame)
+        slow = _outcome(make().decode, frame)
     return fast, slow
 
 
 @settings(max_examples=300, deadline=None)
-@given(
-    sysid=st.integers(1, 250),
-    signed=st.booleans(),
-    time_usec=st.integers(0, 2**63 - 1),
-    values=st.one_of(nine(st.floats(-100.0, 100.0)), nine(floats)),
-    cov=st.one_of(st.just(VALID), st.lists(st.one_of(st.floats(1e-6, 10.0), floats), min_size=21, max_size=21)),
-    trailing=st.integers(0, 255),
-)
+@given(**FRAME_FIELDS)
 def test_any_odometry_frame_decodes_as_pymavlink_decodes_it(sysid, signed, time_usec, values, cov, trailing):
     fast, slow = _both(_frame(sysid, signed, time_usec, values, cov, trailing), signed)
     assert fast == slow
@@ -160,36 +163,14 @@ def test_an_odometry_frame_is_packed_as_pymavlink_packs_it(
         assert fast.no_estimate(time_usec, reset_counter) == slow._pack(reference)
 
 
-class _Given:
-    """A decoder that gives ``result`` (to describe an expected outcome as _planar_outcome does)."""
-
-    def __init__(self, result) -> None:
-        self.result = result
-
-    def decode_pose(self, frame: bytes):
-        return self.result
-
-
-def _planar_outcome(decoder: MavlinkDecoder, frame: bytes):
-    try:
-        result = decoder.decode_pose(frame)
-    except MavlinkRejected as exc:
-        return ("rejected", exc.reason)
-    except DecodeError:
-        return ("malformed",)
-    if isinstance(result, PoseEstimate):
-        return tuple(np.asarray(v).tobytes() if isinstance(v, np.ndarray) else v for v in vars(result).values())
-    return result
+def _planar(decoded):
+    """``decode``'s result with an estimate made planar (``pose_of``)."""
+    return pose_of(decoded) if isinstance(decoded, StateEstimate) else decoded
 
 
 @settings(max_examples=300, deadline=None)
 @given(
-    sysid=st.integers(1, 250),
-    signed=st.booleans(),
-    time_usec=st.integers(0, 2**63 - 1),
-    values=st.one_of(nine(st.floats(-100.0, 100.0)), nine(floats)),
-    cov=st.one_of(st.just(VALID), st.lists(st.one_of(st.floats(1e-6, 10.0), floats), min_size=21, max_size=21)),
-    trailing=st.integers(0, 255),
+    **FRAME_FIELDS,
     corrupt=st.one_of(st.none(), st.tuples(st.integers(0, 120), st.integers(0, 255))),
 )
 def test_a_broadcast_reads_as_the_planar_estimate_of_its_decoded_odometry(
@@ -202,14 +183,8 @@ def test_a_broadcast_reads_as_the_planar_estimate_of_its_decoded_odometry(
         frame[corrupt[0] % len(frame)] = corrupt[1]
     make = lambda: MavlinkDecoder(key_for=lambda sysid: KEY) if signed else MavlinkDecoder()  # noqa: E731
     planar, full = make(), make()
-    try:
-        decoded = full.decode(bytes(frame))
-        expected = _planar_outcome(_Given(pose_of(decoded) if isinstance(decoded, StateEstimate) else decoded), b"")
-    except MavlinkRejected as exc:
-        expected = ("rejected", exc.reason)
-    except DecodeError:
-        expected = ("malformed",)
-    assert _planar_outcome(planar, bytes(frame)) == expected
+    expected = _outcome(lambda raw: _planar(full.decode(raw)), bytes(frame))
+    assert _outcome(planar.decode_pose, bytes(frame)) == expected
     assert planar.rejected == full.rejected
 
 
