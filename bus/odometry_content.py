@@ -190,9 +190,11 @@ def planar_fields(estimate: PoseEstimate, *, altitude_m: float, reset_counter: i
     x, y, yaw = estimate.pose.tolist()
     half = 0.5 * yaw
     ne = NOT_ESTIMATED_VAR
-    pose_upper = (c00, c01, 0.0, 0.0, 0.0, c02, c11, 0.0, 0.0, 0.0, c12, ne, 0.0, 0.0, 0.0, ne, 0.0, 0.0, ne, 0.0, c22)
-    velocity_upper = (float(estimate.speed_var),) + (0.0,) * 5 + (ne, 0.0, 0.0, 0.0, 0.0, ne, 0.0, 0.0, 0.0, ne)
-    velocity_upper += (0.0, 0.0, ne, 0.0, float(estimate.yaw_rate_var))
+    # the upper triangles row by row: [x, y, z, roll, pitch, yaw] and [vx, vy, vz, roll, pitch, yaw rate]
+    pose_upper = (c00, c01, 0.0, 0.0, 0.0, c02) + (c11, 0.0, 0.0, 0.0, c12) + (ne, 0.0, 0.0, 0.0)
+    pose_upper += (ne, 0.0, 0.0) + (ne, 0.0) + (c22,)
+    velocity_upper = (float(estimate.speed_var), 0.0, 0.0, 0.0, 0.0, 0.0) + (ne, 0.0, 0.0, 0.0, 0.0)
+    velocity_upper += (ne, 0.0, 0.0, 0.0) + (ne, 0.0, 0.0) + (ne, 0.0) + (float(estimate.yaw_rate_var),)
     return (
         (estimate.stamp_us, x, y, float(-altitude_m), float(np.cos(half)), 0.0, 0.0, float(np.sin(half)))
         + (float(estimate.speed_mps), 0.0, 0.0, 0.0, 0.0, float(estimate.yaw_rate_radps))
