@@ -142,10 +142,10 @@ class FusionHorizon:
         )
         if not n or not fresh or len(self._pending) >= MAX_PENDING or not self._seen.keys().isdisjoint(run.idents):
             for i in range(n):
-                self.push(run.topics[i], run.message(i), run.arrivals[i])
+                self.push(run.idents[i][0], run.message(i), run.arrivals[i])
             return
         self._seen.update(zip(run.idents, run.stamps))
-        heapq.heappush(self._pending, (run.stamps[0], run.arrivals[0], run.topics[0], run))
+        heapq.heappush(self._pending, (run.stamps[0], run.arrivals[0], run.idents[0][0], run))
 
     def expect(self, stamp_us: int) -> None:
         """A measurement stamped ``stamp_us`` will arrive late: keep a checkpoint just before it."""
@@ -220,11 +220,11 @@ class FusionHorizon:
         while i < n and stamps[i] <= t_us and (nxt is None or (stamps[i], arrivals[i]) < (nxt[0], nxt[1])):
             if self._expected:
                 self._checkpoints_due(stamps[i])
-            self._apply((stamps[i], arrivals[i], run.topics[i], run, i))
+            self._apply((stamps[i], arrivals[i], run.idents[i][0], run, i))
             i += 1
         run.next = i
         if i < n:
-            heapq.heappush(self._pending, (stamps[i], arrivals[i], run.topics[i], run))
+            heapq.heappush(self._pending, (stamps[i], arrivals[i], run.idents[i][0], run))
 
     def _run_cycle(self, t_us: int) -> None:
         self.estimator.cycle(t_us)

@@ -29,14 +29,13 @@ INPUT_TOPICS = (Topic.IMU, Topic.ODOM)
 @dataclass
 class InputRun:
     """A batch's input samples (IMU and wheel odometry together) in the batch's order: their stamps
-    (us), arrival numbers, topics, (topic, seq) and rows (bus.feed LAYOUT, floats), and, for the rare
-    paths, the ``i``-th one as its message; ``blocks``: (topic, first seq, count) of each topic;
+    (us), arrival numbers, (topic, seq) and rows (bus.feed LAYOUT, floats), and, for the rare paths,
+    the ``i``-th one as its message; ``blocks``: (topic, first seq, count) of each topic;
     ``next``: the first not yet applied. One run for both topics: the fusion horizon applies the
     gyro and the wheels as they interleave without taking turns through its queue."""
 
     stamps: list[int]
     arrivals: list[int]
-    topics: list[str]
     idents: list[tuple[str, int]]
     rows: list[list[float]]
     message: Callable[[int], Any]
@@ -44,42 +43,41 @@ class InputRun:
     next: int = 0
 
 
-def unpack(batch: SensorBatch, first: int) -> tuple[list[InputRun], list[tuple[int, str, Any]]]:
-    """``batch``'s input samples as a run (none when it has none) and its other samples as (arrival
+def unpack(batch: SensorBatch, first: int) -> tuple[InputRun | None, list[tuple[int, str, Any]]]:
+    """``batch``'s input samples as a run (None when it has none) and its other samples as (arrival
     number, topic, message) in its order, numbered from ``first`` (``FusionHorizon.reserve`` of the
     batch's sample count)."""
     places, others = batch_order(batch)
     others = [(first + p, topic, batch.message(topic, i)) for p, topic, i in others]
     if not sum(len(place) for place in places.values()):  # no input samples (a blackout's batch)
-        return [], others
-    topics, idents, rows, which, blocks = [], [], [], [], []
+        return None, others
+    idents, rows, blocks = [], [], []
     for topic, place in places.items():
         stamps, seq0, block_rows = batch.blocks[topic]
         n = len(place)
-        topics += [topic] * n
         idents += zip(itertools.repeat(topic), range(seq0, seq0 + n))
         rows += block_rows.tolist()
-        which += zip(itertools.repeat(topic), range(n))
         blocks.append((topic, seq0, n))
     place = np.concatenate(list(places.values()))
     order = np.argsort(place, kind="stable").tolist()  # the batch's order: by stamp, then topic
     stamps = np.concatenate([batch.blocks[t][0] for t in places])
     pick = operator.itemgetter(*order) if len(order) > 1 else (lambda seq: (seq[order[0]],))  # a tuple always
+    idents = list(pick(idents))
     run = InputRun(
         stamps[order].tolist(),
         (place[order] + first).tolist(),
-        list(pick(topics)),
-        list(pick(idents)),
+        idents,
         list(pick(rows)),
-        partial(_message, batch, list(pick(which))),
+        partial(_message, batch, idents),
         blocks,
     )
-    return [run], others
+    return run, others
 
 
-def _message(batch: SensorBatch, which: list[tuple[str, int]], i: int) -> Any:
-    """The run's ``i``-th sample as its message (``which``: its topic and index in its block)."""
-    return batch.message(*which[i])
+def _message(batch: SensorBatch, idents: list[tuple[str, int]], i: int) -> Any:
+    """The run's ``i``-th sample (``idents``: the run's (topic, seq)) as its message."""
+    topic, seq = idents[i]
+    return batch.message(topic, seq - batch.blocks[topic][1])
 
 
 def batch_order(batch: SensorBatch) -> tuple[dict[str, np.ndarray], list[tuple[int, str, int]]]:

@@ -166,13 +166,13 @@ class VehicleNode:
 
     def _deliver_batch(self, batch: SensorBatch) -> None:
         """A batch's samples, as one delivery each in ``SensorBatch.samples``' order would hand them on:
-        its IMU and wheel samples as runs (vehicle.input_runs), unless visual odometry takes the wheels."""
+        its IMU and wheel samples as one run (vehicle.input_runs), unless visual odometry takes the wheels."""
         if self.visual_odometry is not None:
             for topic, msg in batch.samples():
                 self._deliver(Delivery(Kind.SAMPLE, topic, msg, msg.stamp_us))
             return
-        runs, others = unpack(batch, self.fusion.reserve(batch.count()))
-        for run in runs:
+        run, others = unpack(batch, self.fusion.reserve(batch.count()))
+        if run is not None:
             for topic, seq0, count in run.blocks:
                 self.sequences.see_range(topic, seq0, count)
             self.fusion.push_run(run)

@@ -50,8 +50,8 @@ def _push(fusion: FusionHorizon, batch: feed.SensorBatch, as_runs: bool, late_gn
     (``SensorBatch.samples``); its GNSS fixes held back into ``late_gnss``."""
     first = fusion.reserve(batch.count())
     if as_runs:
-        runs, others = unpack(batch, first)
-        for run in runs:
+        run, others = unpack(batch, first)
+        if run is not None:
             fusion.push_run(run)
     else:
         others = [(first + place, topic, msg) for place, (topic, msg) in enumerate(batch.samples())]
@@ -119,22 +119,27 @@ def test_a_batch_makes_one_run_in_its_order_or_none_without_input_samples():
     """Both input topics in one run, each sample in its place in the batch's order; a batch whose IMU
     and wheels were blacked out for the whole tick (empty blocks) gives no run, and one sample one."""
     batch = _batches(1)[1]
-    (run,), others = unpack(batch, 100)
+    run, others = unpack(batch, 100)
+    topics = [topic for topic, _ in run.idents]
     order = [(topic, msg.stamp_us) for topic, msg in batch.samples()]
-    assert [(t, s) for t, s in zip(run.topics, run.stamps)] == [p for p in order if p[0] in ("imu", "odom")]
+    assert [(t, s) for t, s in zip(topics, run.stamps)] == [p for p in order if p[0] in ("imu", "odom")]
     assert (
-        run.arrivals == sorted(run.arrivals)
-        and [100 + order.index(p) for p in zip(run.topics, run.stamps)] == run.arrivals
+        run.arrivals == sorted(run.arrivals) and [100 + order.index(p) for p in zip(topics, run.stamps)] == run.arrivals
     )
     assert {t for t, _, _ in run.blocks} == {"imu", "odom"} and len(run.stamps) + len(others) == batch.count()
     empty = {
         t: (s[:0], seq0, rows[:0]) if t in ("imu", "odom") else (s, seq0, rows)
         for t, (s, seq0, rows) in batch.blocks.items()
     }
-    assert unpack(feed.SensorBatch(1, 1, batch.stamp_us, empty), 0)[0] == []
+    assert unpack(feed.SensorBatch(1, 1, batch.stamp_us, empty), 0)[0] is None
     one = {
         t: (s[:1], seq0, rows[:1]) if t == "imu" else (s[:0], seq0, rows[:0])
         for t, (s, seq0, rows) in batch.blocks.items()
     }
-    (single,), _ = unpack(feed.SensorBatch(1, 1, batch.stamp_us, one), 0)
-    assert single.topics == ["imu"] and single.idents == [("imu", batch.blocks["imu"][1])]
+    single, _ = unpack(feed.SensorBatch(1, 1, batch.stamp_us, one), 0)
+    assert single.idents == [("imu", batch.blocks["imu"][1])]
+    made = [run.message(i) for i in range(len(run.stamps))]  # the rare path's messages, sample by sample
+    assert [(type(m).__name__, m.stamp_us, m.seq) for m in made] == [
+        ({"imu": "ImuSample", "odom": "WheelOdometry"}[topic], stamp, seq)
+        for (topic, seq), stamp in zip(run.idents, run.stamps)
+    ]
