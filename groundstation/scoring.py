@@ -7,7 +7,6 @@ covariance (3 degrees of freedom), so its mean should be 3 for a consistent esti
 from __future__ import annotations
 
 import bisect
-import functools
 import heapq
 import itertools
 import logging
@@ -19,6 +18,7 @@ from bus import statistics
 from bus.angles import wrap_angle as wrap
 from bus.consistency import ConsistencyTally
 from bus.mavlink_codec import StateEstimate, pose_of
+from bus.once import computed_once
 
 log = logging.getLogger("swarmloc.groundstation")
 MAX_PENDING = 500_000  # estimates waiting for the watermark; beyond, they are counted and dropped
@@ -36,13 +36,13 @@ class Score:
     truth_pose: np.ndarray  # (3,)
 
     # read by the run directory, the recording and the tallies (three or four times a score): worked
-    # out once (a frozen dataclass keeps a cached_property in its __dict__)
-    @functools.cached_property
+    # out once (kept in the frozen dataclass's __dict__: bus.once)
+    @computed_once
     def sigma(self) -> np.ndarray:
         """(3,) standard deviations of x, y (m) and yaw (rad)."""
         return np.sqrt(np.diag(self.pose_covariance))
 
-    @functools.cached_property
+    @computed_once
     def position_error_m(self) -> float:
         return float(np.hypot(self.error_m[0], self.error_m[1]))
 

@@ -3,7 +3,9 @@ odometry at its period (sim.sensors.imu_rows, sim.true_errors.odometry_rows), fr
 in the same order and with the same arithmetic as one vehicle at a time would (pure given the draws).
 
 Per step, a few array operations for the whole swarm instead of a few dozen Python calls per
-vehicle; each vehicle's rows are cut from the step rows at the end of an advance (``StepRows``).
+vehicle; each vehicle's rows are cut from the step rows at the end of an advance (``StepRows``). The
+IMU rows of an advance are worked out at its end, every step at once, from what each step kept
+(``ImuSteps``: the same element-wise arithmetic on the same values).
 """
 
 from __future__ import annotations
@@ -38,11 +40,36 @@ class StepRows:
         """For each of the ``vehicles``: the stamps (k,) us and rows (k, w) it was not silenced at."""
         if not self._stamps:
             return [(np.zeros(0, np.int64), np.zeros((0, 0)))] * vehicles
-        stamps, rows = np.array(self._stamps, dtype=np.int64), np.stack(self._rows)  # (S,), (S, N, w)
+        stamps, rows = np.array(self._stamps, dtype=np.int64), self._stacked()  # (S,), (S, N, w)
         if all(s is None for s in self._silenced):
             return [(stamps, np.ascontiguousarray(rows[:, n])) for n in range(vehicles)]
         heard = ~np.array([np.zeros(vehicles, bool) if s is None else s for s in self._silenced])  # (S, N)
         return [(stamps[heard[:, n]], rows[heard[:, n], n]) for n in range(vehicles)]
+
+    def _stacked(self) -> np.ndarray:
+        """Every step's rows (S, N, w)."""
+        return np.stack(self._rows)
+
+
+class ImuSteps(StepRows):
+    """The IMU's rows over an advance, kept per step as what ``sensors.imu_rows`` needs (each (N,) or
+    (N, 3)) and worked out for every step at once when the advance ends."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._inputs: list[tuple[np.ndarray, ...]] = []
+
+    def add_inputs(self, stamp_us: int, inputs: tuple[np.ndarray, ...], silenced: np.ndarray | None = None) -> None:
+        """Step ``stamp_us``'s speeds, forward accelerations and yaw rates (N,), gyro biases, gyro and
+        accelerometer noise (N, 3), in ``sensors.imu_rows``' order."""
+        self._stamps.append(stamp_us)
+        self._inputs.append(inputs)
+        self._silenced.append(silenced)
+
+    def _stacked(self) -> np.ndarray:
+        steps, vehicles = len(self._inputs), len(self._inputs[0][0])
+        columns = [np.stack(column).reshape(steps * vehicles, *column[0].shape[1:]) for column in zip(*self._inputs)]
+        return sensors.imu_rows(*columns).reshape(steps, vehicles, 6)
 
 
 class HighRateSensors:
@@ -73,7 +100,7 @@ class HighRateSensors:
 
     def step(
         self,
-        streams: dict[str, StepRows],
+        streams: dict[str, ImuSteps | StepRows],
         t_us: int,
         k: int,
         speed: np.ndarray,
@@ -85,8 +112,8 @@ class HighRateSensors:
         block = self.block
         accel_fwd = (speed - self.last_speed) / (self.step_us * 1e-6) if t_us else np.zeros(len(speed))
         self.last_speed = speed
-        imu = sensors.imu_rows(speed, accel_fwd, yaw_rate, self.gyro_bias, block["gyro"][:, k], block["accel"][:, k])
-        streams[Topic.IMU].add(t_us, imu, silenced(Topic.IMU, t_us))
+        imu = (speed, accel_fwd, yaw_rate, self.gyro_bias, block["gyro"][:, k], block["accel"][:, k])
+        streams[Topic.IMU].add_inputs(t_us, imu, silenced(Topic.IMU, t_us))
         self.gyro_bias = self.gyro_bias + block["walk"][:, k]
         if t_us % self.odom_period_us == 0:
             draws = OdometryDraws(self.odom_scale, block["slip"][:, k], block["tail_odom"][:, k])

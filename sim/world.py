@@ -19,7 +19,7 @@ from bus.feed import CameraBlock
 from bus.pads import start_pads
 from bus.topics import Topic
 from sim import sensors
-from sim.high_rate import HighRateSensors, StepRows
+from sim.high_rate import HighRateSensors, ImuSteps, StepRows
 from sim.kinematics import unicycle_arcs
 from sim.physical_faults import PhysicalFaults
 from sim.trajectories import make_trajectory
@@ -198,7 +198,7 @@ class World:
     def advance(self, until_us: int) -> TickOutput:
         """Run every step stamped in (now, until_us]."""
         out = TickOutput({v.vehicle_id: {} for v in self.vehicles}, [], [])
-        streams = {Topic.IMU: StepRows(), Topic.ODOM: StepRows()}
+        streams = {Topic.IMU: ImuSteps(), Topic.ODOM: StepRows()}
         while self.steps_done * self.step_us <= until_us:
             self._step(out, streams)
         for topic, step_rows in streams.items():

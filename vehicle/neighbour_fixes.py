@@ -11,10 +11,10 @@ import bisect
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
+from bus.once import computed_once
 from vehicle.kalman import UpdateResult
 
 BIAS_CLIP = 4.0  # whitened innovations longer than this count as this long in the bias test
@@ -36,16 +36,16 @@ class Fix:
     range_m: float = 0.0  # the measured range
 
     # what every window over the fix needs, computed once (a fix is in some 100 windows)
-    @cached_property
+    @computed_once
     def finite(self) -> bool:
         return math.isfinite(self.whitened[0]) and math.isfinite(self.whitened[1])
 
-    @cached_property
+    @computed_once
     def clipped(self) -> tuple[float, float]:
         """The whitened innovation shortened to at most BIAS_CLIP (the bias test's)."""
         return _clip(self.whitened)
 
-    @cached_property
+    @computed_once
     def square(self) -> float:
         """|w|^2: the NIS as whitened."""
         return self.whitened[0] ** 2 + self.whitened[1] ** 2

@@ -165,7 +165,11 @@ def _inv_sym(a: float, b: float, d: float) -> Sym2:
 
 
 def _add_sym(*terms: Sym2) -> Sym2:
-    return sum(t[0] for t in terms), sum(t[1] for t in terms), sum(t[2] for t in terms)
+    """The sum of symmetric 2 x 2 matrices, entry by entry in ``sum``'s order (from 0.0)."""
+    a = b = d = 0.0
+    for t0, t1, t2 in terms:
+        a, b, d = a + t0, b + t1, d + t2
+    return a, b, d
 
 
 def _array(a: Sym2) -> np.ndarray:
@@ -238,7 +242,7 @@ class CooperativeRule:
         m00, m01, m11 = _inv_sym(*M)
         i00, i01, i11 = self._fix_information(R, S, w)
         a, b, d = w * m00 + i00, w * m01 + i01, w * m11 + i11
-        return float(w[int(np.argmax(a * d - b * b))])
+        return float(w[int((a * d - b * b).argmax())])
 
     def fuse(
         self,
