@@ -73,6 +73,7 @@ class Inbound:
         self.heard_until: dict[int, int] = {}  # the newest stamp heard per sender (before link faults)
         self._listeners: deque[tuple[int, tuple[int, ...]]] = deque(maxlen=LISTENER_BATCHES)
         self._parsed: dict[str, ParsedKey] = {}  # keys seen, as KeySpace.parse read them
+        self._control = {keys.clock(): self._clock, keys.fault_plan(): self._plan, keys.end(): self._end}
 
     def take(self, item: Any) -> list[Delivery]:
         """File one mailbox item; returns what passes on (possibly nothing)."""
@@ -84,16 +85,12 @@ class Inbound:
         if not isinstance(item, Envelope):
             self.rejections.reject("unexpected", "mailbox", type(item).__name__)
             return []
-        keys = self.keys
-        if item.key == keys.clock():
-            return self._clock(item)
-        if item.key == keys.fault_plan():
-            return self._plan(item)
-        if item.key == keys.end():
-            return self._end(item)
+        control = self._control.get(item.key) if isinstance(item.key, str) else None
+        if control is not None:  # the clock, the fault plan, the run's end
+            return control(item)
         parsed = self._parsed.get(item.key) if isinstance(item.key, str) else None
         if parsed is None:
-            parsed = keys.parse(item.key)
+            parsed = self.keys.parse(item.key)
             if parsed is not None and len(self._parsed) < MAX_PARSED_KEYS:  # bounded against a flood of made-up keys
                 self._parsed[item.key] = parsed
         if parsed is None or parsed.kind != "vehicle":

@@ -198,6 +198,8 @@ class V2V:
     def awaited(self, now_us: int) -> list[tuple[int, int]]:
         """(neighbour, stamp) of every ranging measurement that matures by ``now_us``: whose
         broadcasts the cycle at ``now_us`` pairs them with."""
+        if not self._waiting or self._waiting[0][0] + self.latency_us > now_us:  # the heap's earliest: none matures
+            return []
         return [(_peer(msg), self.epoch(stamp)) for stamp, _, msg in self._waiting if stamp + self.latency_us <= now_us]
 
     def epoch(self, stamp_us: int) -> int:
