@@ -21,7 +21,8 @@ from bus.link_faults import Arrival, LinkFaultStage
 from experiments.harness import vehicle_feed
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
-from vehicle.models.cooperative import CooperativeFix, CooperativeRule, cooperative_update
+from vehicle.models.cooperative import CooperativeRule, cooperative_update
+from vehicle.models.cooperative_fixes import CooperativeFix
 
 
 def _stage_rows() -> list[Row]:

@@ -20,7 +20,7 @@ from bus.topics import Topic
 from sim.world import World
 from vehicle.estimators import get_estimator
 from vehicle.fusion import FusionHorizon
-from vehicle.models.cooperative import CooperativeFix
+from vehicle.models.cooperative_fixes import CooperativeFix
 
 
 @dataclass

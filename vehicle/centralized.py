@@ -38,7 +38,8 @@ from vehicle.estimators.filter import Filter
 from vehicle.estimators.state import FilterState
 from vehicle.kalman import UpdateResult, gated_update
 from vehicle.models import added_states
-from vehicle.models.cooperative import Correction, relative_model
+from vehicle.models.cooperative import Correction
+from vehicle.models.cooperative_fixes import relative_model
 
 
 class JointBlock:

@@ -28,7 +28,7 @@ from vehicle.input_runs import unpack
 from vehicle.inputs import ANNOUNCE_OFFSET_US
 from vehicle.lockstep_waits import LockstepWaits
 from vehicle.loop_stats import LoopStats
-from vehicle.models.cooperative import SeenFix
+from vehicle.models.cooperative_fixes import SeenFix
 from vehicle.outbound import Outbound
 from vehicle.sequence import SequenceTracker
 from vehicle.v2v import V2V, fusion_turn_us

@@ -46,7 +46,7 @@ from bus.mavlink_codec import (
     split_frames,
 )
 from bus.rejections import Rejections
-from vehicle.models.cooperative import CooperativeFix, SeenFix
+from vehicle.models.cooperative_fixes import CooperativeFix, SeenFix
 
 HISTORY = 64  # broadcasts kept per neighbour (12 s at 5 Hz)
 MAX_COPIES = 4  # frames kept per neighbour and epoch (a link fault duplicates; more is a flood)

@@ -47,7 +47,8 @@ from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 from vehicle.inputs import HeldInput, VisualMotion, swept
 from vehicle.kalman import UpdateResult
 from vehicle.models import unicycle
-from vehicle.models.cooperative import CooperativeFix, CooperativeRule, SeenFix
+from vehicle.models.cooperative import CooperativeRule
+from vehicle.models.cooperative_fixes import CooperativeFix, SeenFix
 from vehicle.neighbours import MonitorSpec
 from vehicle.wheel_slip import SlipGuard
 

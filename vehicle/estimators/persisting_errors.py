@@ -29,7 +29,7 @@ import numpy as np
 from bus.config import SensorSpec
 from vehicle.estimators.state import FilterState, frozen
 from vehicle.models import added_states
-from vehicle.models.cooperative import CooperativeFix, SeenFix
+from vehicle.models.cooperative_fixes import CooperativeFix, SeenFix
 
 if TYPE_CHECKING:
     from vehicle.estimators.filter import Filter

@@ -18,7 +18,7 @@ from bus.statistics import gate_threshold
 from vehicle.estimators.state import SEVERITY_INFO, SEVERITY_WARNING, Notice
 from vehicle.hearsay import Contradiction, hear
 from vehicle.kalman import UpdateResult
-from vehicle.models.cooperative import CooperativeFix, SeenFix
+from vehicle.models.cooperative_fixes import CooperativeFix, SeenFix
 from vehicle.neighbour_fixes import fix_of, pull_m2, smallest_variance
 from vehicle.neighbours import MonitorSpec, Verdict, plausible, refused, see
 from vehicle.reset_say import disagreement

@@ -10,15 +10,8 @@ from scipy.stats import chi2
 
 from bus.config import build_config
 from experiments.harness import swarm_in_memory
-from vehicle.models.cooperative import (
-    WEIGHT_GRID,
-    CooperativeFix,
-    CooperativeRule,
-    SeenFix,
-    cooperative_update,
-    relative_model,
-    with_persisting_errors,
-)
+from vehicle.models.cooperative import WEIGHT_GRID, CooperativeRule, cooperative_update
+from vehicle.models.cooperative_fixes import CooperativeFix, SeenFix, relative_model, with_persisting_errors
 from vehicle.models.landmarks import apply_correction_in_place
 
 pytestmark = pytest.mark.monte_carlo

@@ -7,7 +7,8 @@ from bus import messages as m
 from bus.config import build_config
 from vehicle.estimators import get_estimator
 from vehicle.models import unscented as ut
-from vehicle.models.cooperative import CooperativeFix, cooperative_update
+from vehicle.models.cooperative import cooperative_update
+from vehicle.models.cooperative_fixes import CooperativeFix
 
 RNG = np.random.default_rng(3)
 A = RNG.normal(size=(4, 4)) * 0.3

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from bus import messages as m
 from bus.mavlink_codec import MAX_ACCUSED, MAX_V2V_BYTES, MavlinkEncoder, StateEstimate
 from bus.rejections import Rejections
-from vehicle.models.cooperative import SeenFix
+from vehicle.models.cooperative_fixes import SeenFix
 from vehicle.v2v import V2V
 
 PERIOD_US = 200_000
