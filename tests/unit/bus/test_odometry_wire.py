@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
-from bus import mavlink_codec, odometry_wire
+from bus import mavlink_codec, mavlink_decoder, odometry_wire
 from bus.errors import DecodeError
 from bus.estimate import PoseEstimate
 from bus.mavlink_codec import MavlinkDecoder, MavlinkEncoder, MavlinkRejected, StateEstimate, odometry_of, pose_of
@@ -62,7 +62,7 @@ def _both(frame: bytes, signed: bool) -> tuple:
     make = lambda: MavlinkDecoder(key_for=lambda sysid: KEY) if signed else MavlinkDecoder()  # noqa: E731
     fast = _outcome(make().decode, frame)
     with pytest.MonkeyPatch.context() as patched:
-        patched.setattr(mavlink_codec, "odometry_fields", lambda frame: None)
+        patched.setattr(mavlink_decoder, "odometry_fields", lambda frame: None)
         slow = _outcome(make().decode, frame)
     return fast, slow
 
