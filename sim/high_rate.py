@@ -59,6 +59,9 @@ class ImuSteps(StepRows):
         super().__init__()
         self._inputs: list[tuple[np.ndarray, ...]] = []
 
+    def add(self, stamp_us: int, rows: np.ndarray, silenced: np.ndarray | None = None) -> None:
+        raise TypeError("ImuSteps keeps each step's inputs (add_inputs), not its rows")
+
     def add_inputs(self, stamp_us: int, inputs: tuple[np.ndarray, ...], silenced: np.ndarray | None = None) -> None:
         """Step ``stamp_us``'s speeds, forward accelerations and yaw rates (N,), gyro biases, gyro and
         accelerometer noise (N, 3), in ``sensors.imu_rows``' order."""
