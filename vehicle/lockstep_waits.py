@@ -45,14 +45,19 @@ class LockstepWaits:
         covered = self.inbound.received_tick + self.inbound.refused_since
         if covered < tick.tick and not joined_late:
             return False
+        return not self.unheard_senders(tick)
+
+    def unheard_senders(self, tick: m.ClockTick) -> list[int]:
+        """The neighbours of whose V2V broadcasts, sent by their last acknowledgements before
+        ``tick``, some have not arrived yet (``ready``'s rule)."""
         if not self.cooperative:
-            return True
-        heard = self.inbound.heard
-        return all(
-            heard.get(j, 0) + self.heard_floor.get(j, 0) >= n
+            return []
+        heard, floor = self.inbound.heard, self.heard_floor
+        return [
+            j
             for j, n in enumerate(tick.v2v_published, start=1)
-            if j != self.vehicle_id
-        )
+            if j != self.vehicle_id and heard.get(j, 0) + floor.get(j, 0) < n
+        ]
 
     def unheard_neighbours(self, tick: m.ClockTick, t_us: int) -> list[tuple[int, int]]:
         """Lockstep, before the cycle at ``t_us``: (neighbour, stamp) of the broadcasts its maturing

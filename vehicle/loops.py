@@ -8,6 +8,7 @@ import logging
 import threading
 import time
 from collections import deque
+from collections.abc import Callable, Iterable
 
 from bus import messages as m
 from bus.config import VehicleProcessConfig
@@ -28,7 +29,7 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
     while not stop.is_set():
         if not ticks:
             node.world_watch.check()
-            tick = node.take(node.mailbox.get(0.2))
+            tick = node.take(node.mailbox.get(0.2, quiet_lane=node.neighbour_lane))  # the clock wakes it
             if tick is not None:
                 ticks.append(tick)
             continue
@@ -45,19 +46,23 @@ def run_lockstep(node: VehicleNode, stop: threading.Event) -> None:
             return
 
 
-def _file_until(node: VehicleNode, done, later: deque, stop: threading.Event) -> None:
+def _file_until(
+    node: VehicleNode, done, later: deque, stop: threading.Event, awaited: Callable[[], Iterable[int]]
+) -> None:
     """Keep filing mailbox items (clock ticks that come meanwhile go to ``later``) until ``done()``
-    or READY_TIMEOUT_S is over."""
+    or READY_TIMEOUT_S is over. The neighbours' frames wake the loop only once every neighbour it
+    still waits for (``awaited()``) has sent one; the others' are filed once it is awake."""
     deadline = time.monotonic() + READY_TIMEOUT_S
     while not done() and not stop.is_set() and time.monotonic() < deadline:
-        newer = node.take(node.mailbox.get(0.05))
+        senders = node.v2v_senders_by_key(awaited())
+        newer = node.take(node.mailbox.get(0.05, quiet_lane=node.neighbour_lane, senders_by_key=senders))
         if newer is not None:
             later.append(newer)
 
 
 def _wait_until_ready(node: VehicleNode, tick: m.ClockTick, later: deque, stop: threading.Event) -> None:
     """Keep filing mailbox items until the tick's inputs are complete (or time runs out)."""
-    _file_until(node, lambda: node.waits.ready(tick), later, stop)
+    _file_until(node, lambda: node.waits.ready(tick), later, stop, lambda: node.waits.unheard_senders(tick))
     if not node.waits.ready(tick):
         log.warning(
             "vehicle %d: inputs up to %d us incomplete after %g s (missing %s); cycling without them",
@@ -82,7 +87,7 @@ def _wait_for_neighbours(node: VehicleNode, tick: m.ClockTick, t_us: int, later:
         unheard = node.waits.still_unheard(unheard)
         return not node.waits.waited_for(unheard)
 
-    _file_until(node, heard_all, later, stop)
+    _file_until(node, heard_all, later, stop, lambda: {j for j, _ in unheard})
     unheard = node.waits.waited_for(node.waits.still_unheard(unheard))
     if unheard:
         log.warning(
