@@ -16,16 +16,18 @@ import os
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, model_validator
 
 from bus.errors import ConfigError
-from bus.estimators import ESTIMATORS, EstimatorName
 from bus.faults import BEHAVIOUR_KINDS, LINK_KINDS, Fault, check_fault, named
 from bus.replay_config import ReplayConfig
-
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+from bus.sensor_config import HONEST_DATASHEET as HONEST_DATASHEET
+from bus.sensor_config import HONEST_WORLD as HONEST_WORLD
+from bus.sensor_config import SensorSpec as SensorSpec
+from bus.sensor_config import SensorTruth as SensorTruth
+from bus.strict_model import Strict as _Strict
+from bus.vehicle_config import ArSlamConfig as ArSlamConfig
+from bus.vehicle_config import VehicleConfig as VehicleConfig
 
 
 class BusConfig(_Strict):
@@ -94,175 +96,6 @@ class ClockConfig(_Strict):
         return self
 
 
-class SensorSpec(_Strict):
-    """Rates and noise of the simulated sensors (also the vehicles' datasheet noise model)."""
-
-    imu_rate_hz: float = Field(100.0, gt=0, le=1000)
-    gyro_sigma_radps: float = Field(0.01, ge=0)
-    gyro_bias_sigma_radps: float = Field(0.005, ge=0, description="initial gyro bias spread")
-    gyro_bias_walk_radps_rtsec: float = Field(0.0005, ge=0)
-    accel_sigma_mps2: float = Field(0.05, ge=0)
-    odom_rate_hz: float = Field(50.0, gt=0, le=1000)
-    odom_speed_sigma_mps: float = Field(0.05, ge=0)
-    odom_yaw_rate_sigma_radps: float = Field(0.02, ge=0)
-    odom_turn_sigma_rad: float = Field(
-        0.0,
-        ge=0,
-        le=1.0,
-        description="odometry heading error per square root of "
-        "the angle turned (rad/sqrt(rad)): wheels that slip in turns. Replays only "
-        "(calibrated); the simulated world makes no such error",
-    )
-    odom_travel_sigma_m: float = Field(
-        0.0,
-        ge=0,
-        le=1.0,
-        description="odometry along-track error per square root of "
-        "the distance travelled (m/sqrt(m)). Replays only, as above",
-    )
-    gnss_rate_hz: float = Field(5.0, gt=0, le=100)
-    gnss_sigma_m: float = Field(1.5, gt=0)
-    gnss_correlated_sigma_m: float = Field(
-        0.0,
-        ge=0,
-        description="of gnss_sigma_m, the part that wanders slowly "
-        "(per axis; 0: white). ekf and ukf then estimate it as two "
-        "Gauss-Markov states; ekf-slam treats all of it as white",
-    )
-    gnss_correlation_s: float = Field(60.0, gt=0, le=1e5, description="correlation time of that part")
-    truth_rate_hz: float = Field(50.0, gt=0, le=1000)
-    ranging_rate_hz: float = Field(5.0, gt=0, le=100, description="vehicle-to-vehicle radio ranging")
-    ranging_max_m: float = Field(150.0, ge=0, description="ranging reaches vehicles this close (0: no ranging)")
-    ranging_max_peers: int = Field(4, ge=0, le=249, description="the radio ranges at most this many peers, the nearest")
-    range_sigma_m: float = Field(0.3, gt=0)
-    bearing_sigma_rad: float = Field(0.02, gt=0)
-    range_correlated_sigma_per_m: float = Field(
-        0.0,
-        ge=0,
-        le=0.5,
-        description="of a camera's landmark range "
-        "error, the part that persists in time, per metre of range "
-        "(0.03: 3 %; 0: white). known-map estimates it per landmark",
-    )
-    range_correlation_s: float = Field(5.0, gt=0, le=1e4, description="correlation time of that part")
-    bearing_correlated_fraction: float = Field(
-        0.0,
-        ge=0,
-        le=0.95,
-        description="of a camera's landmark bearing "
-        "error variance, the part that persists in time (0: white); "
-        "known-map and slam estimate it per landmark",
-    )
-    bearing_correlation_s: float = Field(5.0, gt=0, le=1e4, description="correlation time of that part")
-    range_scale_prior_sigma: float = Field(
-        0.0,
-        ge=0,
-        le=0.5,
-        description="how far a camera's range scale may "
-        "be off (0.05: 5 %, every landmark read that much long or short); "
-        "known-map then estimates it (0: taken as exact)",
-    )
-    odom_scale_prior_sigma: float = Field(
-        0.0,
-        ge=0,
-        le=0.5,
-        description="how far the wheel odometry's speed "
-        "and yaw-rate scales may be off (0.1: 10 %); known-map then "
-        "estimates both (0: taken as exact)",
-    )
-    prior_sigma_m: float = Field(0.5, gt=0, description="launch-pad survey of the start position")
-    unmodelled_sigma_m: float = Field(
-        0.0,
-        ge=0,
-        le=10,
-        description="how far, per axis, a replayed robot may lie from where its filter puts it beyond the "
-        "filter's own covariance (what no sighting sees, what a calibration cannot know): added to the "
-        "published position covariance, not to the filter's own (measured out of sample by the "
-        "calibration, launch.unmodelled; the simulated world has no such error)",
-    )
-    prior_heading_sigma_rad: float = Field(0.05, gt=0)
-    camera_rate_hz: float = Field(0.0, ge=0, le=100, description="down-looking camera frames (0: no camera)")
-    camera_size_px: int = Field(80, ge=16, le=1024, description="square frame side (the paper's 80 px)")
-    camera_noise_grey: float = Field(2.0, ge=0, le=100, description="pixel noise, grey levels (world)")
-    keypoint_sigma_px: float = Field(0.7, gt=0, le=20, description="keypoint position noise the filter assumes")
-
-    @model_validator(mode="after")
-    def _correlated_part_is_a_part(self) -> SensorSpec:
-        if self.gnss_correlated_sigma_m >= self.gnss_sigma_m:
-            raise ValueError(
-                f"gnss_correlated_sigma_m ({self.gnss_correlated_sigma_m} m) must be below "
-                f"gnss_sigma_m ({self.gnss_sigma_m} m): it is a part of the total"
-            )
-        return self
-
-
-class SensorTruth(_Strict):
-    """How the world really is next to the datasheet (``sensors``), which is all the vehicles are
-    told. The defaults are the idealized world (the filters' own models); ``HONEST_WORLD`` is a
-    world richer than any filter: finer truth steps with inputs that vary inside a step, wheel scale
-    error and slip, a time-correlated GNSS error with outliers, heavy-tailed noise."""
-
-    gnss_sigma_factor: float = Field(1.0, gt=0, le=100, description="true GNSS white noise / datasheet")
-    range_sigma_factor: float = Field(1.0, gt=0, le=100, description="true ranging noise / datasheet")
-    substeps: int = Field(1, ge=1, le=100, description="truth integrated at the IMU period / substeps")
-    wobble_speed_mps: float = Field(
-        0.0,
-        ge=0,
-        le=10,
-        description="RMS of a smooth speed variation (0.05-1.5 Hz) "
-        "on top of the trajectory's law, varying inside a step",
-    )
-    wobble_yaw_rate_radps: float = Field(0.0, ge=0, le=2, description="RMS of the same for the yaw rate")
-    odom_scale_sigma: float = Field(
-        0.0, ge=0, le=0.5, description="spread of each vehicle's constant wheel scale error (0.01: 1 %)"
-    )
-    odom_slip_rate_hz: float = Field(0.0, ge=0, le=10, description="wheel slip episodes per second")
-    odom_slip_s: float = Field(0.5, gt=0, le=60, description="length of a slip episode")
-    odom_slip_fraction: float = Field(0.2, ge=-1, le=5, description="odometry reads speed x (1 + this) while slipping")
-    gnss_walk_sigma_m: float = Field(
-        0.0,
-        ge=0,
-        le=100,
-        description="time-correlated GNSS error per axis: stationary sigma of a first-order Gauss-Markov process",
-    )
-    gnss_walk_tau_s: float = Field(60.0, gt=0, le=1e5, description="its correlation time")
-    gnss_outlier_probability: float = Field(0.0, ge=0, le=1, description="share of fixes that are outliers")
-    gnss_outlier_m: float = Field(20.0, ge=0, le=1e4, description="typical outlier size (0.5-1.5 x this)")
-    heavy_tail_dof: float = Field(
-        0.0,
-        ge=0,
-        le=1000,
-        description="0: Gaussian white noise; > 2: Student-t "
-        "with this many degrees of freedom and the same sigma (odometry, GNSS, ranging)",
-    )
-
-    @model_validator(mode="after")
-    def _tail_has_a_variance(self) -> SensorTruth:
-        if 0 < self.heavy_tail_dof <= 2:
-            raise ValueError("heavy_tail_dof must be 0 (Gaussian) or above 2 (a Student-t with a variance)")
-        return self
-
-
-# A world richer than the filters (issue 13; `swarm experiment cooperative`, the staged tests): the
-# datasheet's GNSS sigma (1.5 m) is split into 1.2 m white and 0.9 m Gauss-Markov (60 s), so the total
-# matches the datasheet but half of it no longer averages out.
-HONEST_WORLD = {
-    "gnss_sigma_factor": 0.8,
-    "substeps": 5,
-    "wobble_speed_mps": 0.2,
-    "wobble_yaw_rate_radps": 0.03,
-    "odom_scale_sigma": 0.005,
-    "odom_slip_rate_hz": 0.02,
-    "gnss_walk_sigma_m": 0.9,
-    "gnss_walk_tau_s": 60.0,
-    "gnss_outlier_probability": 0.002,
-    "heavy_tail_dof": 5.0,
-}
-# What the filters are told in that world (the datasheet, rounded: the world's Gauss-Markov part is
-# 0.9 m over 60 s, the datasheet says 1 m and a minute).
-HONEST_DATASHEET = {"gnss_correlated_sigma_m": 1.0, "gnss_correlation_s": 60.0}
-
-
 class WorldConfig(_Strict):
     vehicles: int = Field(5, ge=1, le=250)
     seed: int = Field(0, ge=0)
@@ -288,128 +121,6 @@ class WorldConfig(_Strict):
         "(repetitive texture: every keypoint has look-alikes a period away)",
     )
     sensor_truth: SensorTruth = SensorTruth()
-
-
-class ArSlamConfig(_Strict):
-    """``ar-ekf-slam``'s adaptive observation range (the AR-EKF-SLAM paper's values as defaults)."""
-
-    r0_m: float = Field(25.0, gt=0, le=10_000, description="the range R a flight starts with (m)")
-    r_max_m: float = Field(35.0, gt=0, le=10_000, description="R grows no further than this (m)")
-    n_min: int = Field(8, ge=1, le=100_000, description="fewer landmarks in the local map: R grows")
-    n_max: int = Field(50, ge=2, le=100_000, description="more landmarks in the local map: R shrinks")
-    dr_m: float = Field(0.1, gt=0, le=1_000, description="how much R changes per camera frame (m)")
-    reentry: Literal["reinit", "ci", "naive"] = Field(
-        "reinit",
-        description="a retired landmark seen again: reinit (initialised as new), ci (and its old marginal "
-        "fused by Covariance Intersection) or naive (its old marginal put back uncorrelated: over-confident)",
-    )
-
-    @model_validator(mode="after")
-    def _a_range_that_can_settle(self) -> ArSlamConfig:
-        if self.r0_m > self.r_max_m:
-            raise ValueError(f"r0_m {self.r0_m:g} is above r_max_m {self.r_max_m:g}")
-        if self.n_min >= self.n_max:
-            raise ValueError(f"n_min {self.n_min} must be below n_max {self.n_max}")
-        if self.dr_m >= self.r_max_m:
-            raise ValueError(f"dr_m {self.dr_m:g} must be below r_max_m {self.r_max_m:g}")
-        return self
-
-
-class VehicleConfig(_Strict):
-    estimator: EstimatorName = Field(
-        "ekf",
-        description="the estimator every vehicle runs: "
-        + "; ".join(f"{name}: {entry.summary}" for name, entry in ESTIMATORS.items()),
-    )
-    landmarks: tuple[tuple[int, float, float], ...] = Field(
-        (), max_length=10_000, description="known-map: the surveyed landmarks, (id, x m, y m)"
-    )
-    features: Literal["sift", "orb"] = Field("sift", description="ekf-slam, ar-ekf-slam: keypoint detector")
-    ar: ArSlamConfig = Field(default_factory=ArSlamConfig, description="ar-ekf-slam: the adaptive range")
-    association: Literal["descriptor", "nn", "jcbb", "aco"] = Field(
-        "descriptor",
-        description="ekf-slam, ar-ekf-slam: which keypoint is which landmark: descriptor match with a rigid "
-        "consensus, or among each landmark's descriptor shortlist Mahalanobis nearest neighbour (nn), joint "
-        "compatibility branch and bound (jcbb) or the ant colony (aco)",
-    )
-    odometry: Literal["wheel", "visual"] = Field(
-        "wheel",
-        description="where every vehicle's speed comes from: its wheels, or visual odometry from consecutive "
-        "camera frames (a vehicle without wheels; needs sensors.camera_rate_hz)",
-    )
-    visual_odometry_vehicles: tuple[int, ...] = Field(
-        (), max_length=1000, description="these vehicles use visual odometry whatever `odometry` says"
-    )
-    loop_rate_hz: float = Field(50.0, gt=0, le=1000)
-    gate_probability: float = Field(0.9995, gt=0.5, lt=1.0, description="chi-square gate for GNSS")
-    heartbeat_period_s: float = Field(1.0, gt=0)
-    status_period_s: float = Field(1.0, gt=0)
-    fusion_horizon_s: float = Field(
-        0.5, ge=0, le=10, description="late measurements up to this old are still fused in order"
-    )
-    cooperative: bool = Field(True, description="fuse ranging to neighbours with their broadcast estimates (CI)")
-    cooperative_fusion: Literal["split-ci", "ci", "paper", "naive"] = Field(
-        "split-ci",
-        description="split-ci: Covariance Intersection scaling only the neighbour's share, the radio's "
-        "own noise kept whole (consistent whatever the correlation); ci: plain CI; paper: CI of the position "
-        "the fix implies (paper eq. 4.10); naive: a plain Kalman update that treats the neighbour's estimate as "
-        "independent (double counts)",
-    )
-    ci_weight: Literal["optimal", "closed-form"] = Field(
-        "optimal",
-        description="CI weight: optimal (maximum "
-        "pose information, w = 1 skips the fix) or closed-form "
-        "(plain CI's best weight in closed form)",
-    )
-    adaptive_noise: bool = Field(
-        False,
-        description="IAE: estimate the GNSS and ranging noise covariances from the "
-        "innovations of the last adaptive_window fixes instead of trusting the datasheet (never below it: "
-        "a CI-fused covariance is a bound, so a quieter-looking sensor is its slack)",
-    )
-    adaptive_window: int = Field(40, ge=5, le=10_000, description="IAE window, fixes per sensor")
-    neighbour_monitor: bool = Field(
-        True,
-        description="judge each neighbour's fixes for consistency and stop fusing a neighbour that lies "
-        "(vehicle.neighbours; docs: liars)",
-    )
-    max_compromised: int = Field(
-        1,
-        ge=0,
-        le=250,
-        description="f: how many vehicles may be compromised (their own keys, any lie or accusation); a "
-        "neighbour a vehicle cannot judge itself is distrusted on the word of more than f (docs: security)",
-    )
-    trust_rule: Literal["evidence", "quorum-only"] = Field(
-        "evidence",
-        description="evidence: the others' word never outweighs a vehicle's own evidence and accusers are "
-        "judged; quorum-only: the rule before, a quorum's word decides (a control; docs: security)",
-    )
-
-    def visual_odometry(self, vehicle_id: int) -> bool:
-        """Does this vehicle take its speed from visual odometry?"""
-        return self.odometry == "visual" or vehicle_id in self.visual_odometry_vehicles
-
-    v2v_latency_s: float = Field(0.1, ge=0, le=5, description="ranging waits this long for the neighbour's estimate")
-    mavlink_rate_hz: float = Field(
-        10.0,
-        gt=0,
-        le=1000,
-        description="ODOMETRY to the ground station (<= loop rate; "
-        "a telemetry rate: the ground station scores every estimate it receives)",
-    )
-    realtime_allowance_s: float = Field(
-        0.005, ge=0, le=1, description="realtime: a cycle waits this long past its deadline for the tick's sensor batch"
-    )
-    realtime_priority: int = Field(
-        10,
-        ge=0,
-        le=99,
-        description="realtime: the estimator loop runs under SCHED_FIFO at this priority when the kernel allows "
-        "it (root, CAP_SYS_NICE or `ulimit -r`), else under the fair scheduler; 0: always the fair scheduler "
-        "(vehicle.scheduling)",
-    )
-    world_timeout_s: float = Field(60.0, gt=0, description="a vehicle whose world is gone this long gives up")
 
 
 class ViewConfig(_Strict):
