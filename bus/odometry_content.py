@@ -21,7 +21,7 @@ from bus.estimate import PoseEstimate
 
 MAX_POSITION_M = 1e7
 MAX_VARIANCE = 1e8  # m^2, rad^2: beyond this an estimate carries no information
-_POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw in ODOMETRY's pose covariance
+POSE_INDEX = np.array([0, 1, 5])  # x, y, yaw in ODOMETRY's pose covariance
 NOT_ESTIMATED_VAR = 1e-6  # z, roll, pitch (constant altitude, level flight) and the lateral velocities
 _UPPER = np.triu_indices(6)
 _LOCAL_NED, _BODY_FRD = mavlink2.MAV_FRAME_LOCAL_NED, mavlink2.MAV_FRAME_BODY_FRD  # ODOMETRY's frames
@@ -36,7 +36,7 @@ def _symmetric_index() -> np.ndarray:
 
 
 _SYMMETRIC_INDEX = _symmetric_index()
-_POSE_BLOCK = np.ix_(_POSE_INDEX, _POSE_INDEX)
+_POSE_BLOCK = np.ix_(POSE_INDEX, POSE_INDEX)
 
 
 @dataclass(frozen=True)

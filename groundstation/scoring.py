@@ -10,6 +10,7 @@ import bisect
 import heapq
 import itertools
 import logging
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,6 +19,7 @@ from bus import statistics
 from bus.angles import wrap_angle as wrap
 from bus.consistency import ConsistencyTally
 from bus.mavlink_codec import StateEstimate, pose_of
+from bus.odometry_content import POSE_INDEX
 from bus.once import computed_once
 
 log = logging.getLogger("swarmloc.groundstation")
@@ -89,7 +91,7 @@ class TruthTrack:
         """``stamp_us`` (covered) touches a truth sample of NaN: the data set has no truth there."""
         i = bisect.bisect_left(self.stamps, stamp_us)
         near = [self.poses[i]] if self.stamps[i] == stamp_us else [self.poses[i - 1], self.poses[i]]
-        return any(np.isnan(p[0]) for p in near)
+        return any(math.isnan(p[0]) for p in near)
 
     def at(self, stamp_us: int) -> np.ndarray:
         i = bisect.bisect_left(self.stamps, stamp_us)
@@ -113,6 +115,35 @@ def score(est: StateEstimate, truth_pose: np.ndarray) -> Score:
     return Score(
         est.vehicle_id, est.time_usec, error, cov, statistics.nees(error, cov), est.reset_counter, est, truth_pose
     )
+
+
+def score_all(ests: list[StateEstimate], truth_poses: list[np.ndarray]) -> list[Score | None]:
+    """``score`` of each estimate against its truth pose (3,), the poses, errors and NEES worked out
+    for all at once (one solve over the stacked covariances: LAPACK's same solve of each, so each
+    score is ``score``'s to the bit). None where a covariance is singular."""
+    if not ests:
+        return []
+    poses = np.array([(e.position_m[0], e.position_m[1], e.yaw_rad) for e in ests])  # (n, 3)
+    covs = np.stack([e.pose_covariance for e in ests])[:, POSE_INDEX][:, :, POSE_INDEX]  # (n, 3, 3)
+    truths = np.array(truth_poses)  # (n, 3)
+    errors = poses - truths
+    for row in errors:
+        row[2] = wrap(row[2])  # pose_error's wrap, as it wraps one
+    try:
+        solved = np.linalg.solve(covs, errors[:, :, None])[:, :, 0]  # (n, 3)
+    except np.linalg.LinAlgError:  # one singular covariance: each on its own
+        return [_score_or_none(e, t) for e, t in zip(ests, truth_poses, strict=True)]
+    return [
+        Score(e.vehicle_id, e.time_usec, errors[i], covs[i], float(errors[i] @ solved[i]), e.reset_counter, e, t)
+        for i, (e, t) in enumerate(zip(ests, truth_poses, strict=True))
+    ]
+
+
+def _score_or_none(est: StateEstimate, truth_pose: np.ndarray) -> Score | None:
+    try:
+        return score(est, truth_pose)
+    except np.linalg.LinAlgError:  # the intake rejects degenerate covariances; never fatal here
+        return None
 
 
 @dataclass
@@ -158,7 +189,7 @@ class Scorer:
 
     def release(self, watermark_us: float) -> list[Score]:
         """Score every pending estimate stamped <= watermark_us, in (stamp, vehicle) order."""
-        scores = []
+        ests, truth_poses = [], []
         while self.pending and self.pending[0][0] <= watermark_us:
             est = heapq.heappop(self.pending)[3]
             track = self.truth.get(est.vehicle_id)
@@ -174,16 +205,18 @@ class Scorer:
             if track.in_gap(est.time_usec):
                 self.in_truth_gaps += 1
                 continue
-            try:
-                result = score(est, track.at(est.time_usec))
-            except np.linalg.LinAlgError:  # the intake rejects degenerate covariances; never fatal here
+            ests.append(est)
+            truth_poses.append(track.at(est.time_usec))
+        scores = []
+        for result in score_all(ests, truth_poses):
+            if result is None:
                 self.unscored += 1
                 continue
-            tally = self.tallies.get(est.vehicle_id)
+            tally = self.tallies.get(result.vehicle_id)
             if tally is None:
-                tally = self.tallies[est.vehicle_id] = Tally()
+                tally = self.tallies[result.vehicle_id] = Tally()
             tally.add(result, self.bounds)
-            self.last_scored_us[est.vehicle_id] = est.time_usec
+            self.last_scored_us[result.vehicle_id] = result.stamp_us
             scores.append(result)
         if watermark_us != float("inf"):
             for track in self.truth.values():

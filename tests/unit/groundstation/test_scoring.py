@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from bus.mavlink_codec import StateEstimate
-from groundstation.scoring import Scorer, TruthTrack, score
+from groundstation.scoring import Scorer, TruthTrack, score, score_all
 
 
 def _est(vid: int, t_us: int, x: float, y: float, yaw: float = 0.0, var: float = 1.0) -> StateEstimate:
@@ -25,6 +25,42 @@ def test_nees_of_a_known_error():
     result = score(_est(1, 0, 3.0, 4.0, var=4.0), np.array([0.0, 0.0, 0.0]))
     assert result.position_error_m == pytest.approx(5.0)
     assert result.nees == pytest.approx(25.0 / 4.0)
+
+
+def _random_estimates(rng: np.random.Generator, n: int) -> tuple[list[StateEstimate], list[np.ndarray]]:
+    ests, truths = [], []
+    for k in range(n):
+        a = rng.normal(size=(6, 6)) * rng.uniform(1e-3, 10)
+        yaw, true_yaw = rng.uniform(-np.pi, np.pi, 2)  # errors across the wrap too
+        ests.append(StateEstimate(k % 7, k, rng.normal(size=3) * 100, yaw, np.zeros(3), 0.0, a @ a.T, np.eye(6), k % 3))
+        truths.append(np.array([*rng.normal(size=2) * 100, true_yaw]))
+    return ests, truths
+
+
+def test_scoring_many_at_once_gives_each_score_to_the_bit():
+    ests, truths = _random_estimates(np.random.default_rng(7), 300)
+    for one, together in zip([score(e, t) for e, t in zip(ests, truths)], score_all(ests, truths), strict=True):
+        assert together.nees == one.nees and together.reset_counter == one.reset_counter
+        assert together.error_m.tobytes() == one.error_m.tobytes()
+        assert together.pose_covariance.tobytes() == one.pose_covariance.tobytes()
+        assert together.estimate is one.estimate and together.truth_pose is one.truth_pose
+
+
+def test_a_singular_covariance_leaves_only_its_estimate_unscored():
+    ests, truths = _random_estimates(np.random.default_rng(8), 5)
+    singular = StateEstimate(9, 2, np.zeros(3), 0.0, np.zeros(3), 0.0, np.zeros((6, 6)), np.eye(6))
+    ests.insert(2, singular)
+    truths.insert(2, np.zeros(3))
+    scores = score_all(ests, truths)
+    assert scores[2] is None and all(s is not None for i, s in enumerate(scores) if i != 2)
+    assert [s.nees for s in scores if s is not None] == [
+        score(e, t).nees for e, t in zip(ests, truths) if e is not singular
+    ]
+    scorer = Scorer()
+    for e, t in zip(ests, truths):
+        scorer.add_truth(e.vehicle_id, e.time_usec, t)
+        scorer.add_estimate(e)
+    assert len(scorer.release(float("inf"))) == 5 and scorer.unscored == 1
 
 
 def test_release_orders_by_time_then_vehicle_and_waits_for_truth():
