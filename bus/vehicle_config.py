@@ -120,6 +120,13 @@ class VehicleConfig(_Strict):
         description="ODOMETRY to the ground station (<= loop rate; "
         "a telemetry rate: the ground station scores every estimate it receives)",
     )
+    realtime_feed_lead_s: float = Field(
+        0.01,
+        ge=0,
+        le=1,
+        description="realtime: a vehicle's cycle at sim time t is due this long (wall time) after the world's "
+        "tick at t, plus its own phase of the period: the time the world's sensor batch is given to reach it",
+    )
     realtime_allowance_s: float = Field(
         0.005, ge=0, le=1, description="realtime: a cycle waits this long past its deadline for the tick's sensor batch"
     )

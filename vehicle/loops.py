@@ -108,8 +108,10 @@ def schedule_phase_s(vehicle_id: int, vehicles: int, period_s: float) -> float:
 
 
 def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
-    """Cycles run on wall-clock deadlines mapped from sim time by the world's first clock tick, each
-    vehicle at its own phase of the period (``schedule_phase_s``). After a cycle the loop files what
+    """Cycles run on wall-clock deadlines mapped from sim time by the world's schedule (the wall time
+    the first clock tick heard was due), each vehicle ``vehicle.realtime_feed_lead_s`` after the
+    world's tick (the time its sensor batch is given to arrive) plus its own phase of the period
+    (``schedule_phase_s``). After a cycle the loop files what
     has arrived, one item at a time, until the mailbox is empty or the next deadline comes, then
     sleeps to the deadline (zenoh's thread only queues what arrives meanwhile, it does not wake the
     loop); at the deadline it files until the sensor batch covering the cycle is in, waiting up to
@@ -122,7 +124,8 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
     final: m.ClockTick | None = None  # the world has ended the run at final.stamp_us
     allowance_s = node.config.vehicle.realtime_allowance_s
     speed = node.config.clock.speed
-    phase_ns = round(schedule_phase_s(node.vehicle_id, node.config.vehicles, node.period_us * 1e-6) / speed * 1e9)
+    phase_s = schedule_phase_s(node.vehicle_id, node.config.vehicles, node.period_us * 1e-6) / speed
+    phase_ns = round((node.config.vehicle.realtime_feed_lead_s + phase_s) * 1e9)
     while not stop.is_set():
         if final is not None and node.next_cycle_us > final.stamp_us:
             node.publish_status(final.stamp_us, final=True)

@@ -340,6 +340,36 @@ def test_realtime_a_flood_of_messages_delays_filing_never_a_cycle():
     assert queued_at_first_cycle == [5000]
 
 
+def test_realtime_a_cycle_is_due_the_feed_lead_and_its_phase_after_the_worlds_schedule():
+    """Realtime: the clock tick says when the world's tick was due (its schedule, not when the tick
+    arrived); the vehicle's cycle at that stamp is due ``realtime_feed_lead_s`` after it, plus the
+    vehicle's phase of the period, and never runs before (a tick due 0.1 s ago, a lead of 0.3 s)."""
+    import threading
+    import time as wall
+
+    from vehicle.loops import run_realtime, schedule_phase_s
+
+    lead_s = 0.3
+    node, _ = _node(1, {"clock": {"mode": "realtime"}, "vehicle": {"realtime_feed_lead_s": lead_s}})
+    keys = node.bus.keys
+    world, _neighbours = node.mailbox.lanes
+    due_ns = wall.time_ns() - 100_000_000
+    world.put(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, due_ns, False))))
+    world.put(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+    stop, cycled_at = threading.Event(), []
+    cycle = node.cycle
+
+    def first_cycle(t_us: int) -> None:
+        cycled_at.append(wall.time_ns())
+        stop.set()
+        cycle(t_us)
+
+    node.cycle = first_cycle
+    run_realtime(node, stop)
+    phase_s = schedule_phase_s(1, node.config.vehicles, node.period_us * 1e-6)
+    assert cycled_at and cycled_at[0] >= due_ns + round((lead_s + phase_s) * 1e9)
+
+
 def test_realtime_the_final_tick_ends_the_loop_after_the_cycles_up_to_its_stamp():
     """Realtime: the final clock tick can overtake the last sensor batch (different keys); the loop
     still runs its cycles up to the final stamp, with that batch, before its final status and ack."""
