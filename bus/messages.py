@@ -158,9 +158,7 @@ class ClockTick:
     """World clock: every vehicle's sensor batch for this tick (stamps up to ``stamp_us``) has been
     published before it.
 
-    ``wall_ns``: in realtime the wall time the tick is due (the world's schedule, which every
-    vehicle's own follows, however late its first tick reached it), in lockstep the world's wall
-    clock at publication; ``final`` marks the end of the run.
+    ``wall_ns`` is the world's wall clock at publication; ``final`` marks the end of the run.
     ``v2v_published`` counts, per vehicle (entry id - 1), the V2V broadcasts to every vehicle it had
     sent by its last acknowledgement: in lockstep a vehicle waits until it has heard them all before
     it cycles on, so what it fuses never depends on how the bus interleaves keys (frames sent to the

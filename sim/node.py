@@ -95,7 +95,6 @@ class WorldNode:
         # the truth of the last ticks (payloads), sent again to a ground station that returns: its
         # predecessor may have died before scoring what it covers
         self._truth_sent: deque[bytes] = deque(maxlen=config.clock.gs_lag_ticks + 2)
-        self.schedule: Pacer | None = None  # realtime: when each tick is due (run_world sets it)
         # a simulated world: each batch names who ranges the vehicle, and its V2V frames go to them
         # alone (bus.feed.SensorBatch.listeners); replays broadcast to every vehicle (a data set's
         # robots see each other, which the world does not turn into listeners)
@@ -221,7 +220,7 @@ class WorldNode:
         tick = m.ClockTick(
             prepared.tick,
             prepared.stamp_us,
-            time.time_ns() if self.schedule is None else self.schedule.wall_ns(prepared.stamp_us),
+            time.time_ns(),
             final,
             self.members.v2v_published(self.config.world.vehicles),
             tuple(sorted(self.members.alive | self.members.joining)),
@@ -342,8 +341,7 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
     lockstep = config.clock.mode == "lockstep"
     ack_timeout = config.clock.ack_timeout_s
     prepared = node.prepare(0)
-    pacer = Pacer(sim0_us=0, wall0_ns=time.time_ns(), speed=config.clock.speed)  # tick 0 is due now
-    node.schedule = None if lockstep else pacer
+    pacer = Pacer(sim0_us=0, wall0_ns=time.time_ns(), speed=config.clock.speed)  # tick 0 is due now, prepared
     for tick in range(node.final_tick + 1):
         if stop.is_set():
             node.status = "interrupted"

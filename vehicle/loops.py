@@ -108,9 +108,9 @@ def schedule_phase_s(vehicle_id: int, vehicles: int, period_s: float) -> float:
 
 
 def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
-    """Cycles run on wall-clock deadlines mapped from sim time by the world's schedule (the wall time
-    the first clock tick heard was due), each vehicle ``vehicle.realtime_feed_lead_s`` after the
-    world's tick (the time its sensor batch is given to arrive) plus its own phase of the period
+    """Cycles run on wall-clock deadlines mapped from sim time by the world's first clock tick (the
+    wall time it was sent), each vehicle ``vehicle.realtime_feed_lead_s`` after the world's tick
+    (the time its sensor batch is given to arrive) plus its own phase of the period
     (``schedule_phase_s``). After a cycle the loop files what
     has arrived, one item at a time, until the mailbox is empty or the next deadline comes, then
     sleeps to the deadline (zenoh's thread only queues what arrives meanwhile, it does not wake the

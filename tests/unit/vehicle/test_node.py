@@ -340,10 +340,10 @@ def test_realtime_a_flood_of_messages_delays_filing_never_a_cycle():
     assert queued_at_first_cycle == [5000]
 
 
-def test_realtime_a_cycle_is_due_the_feed_lead_and_its_phase_after_the_worlds_schedule():
-    """Realtime: the clock tick says when the world's tick was due (its schedule, not when the tick
-    arrived); the vehicle's cycle at that stamp is due ``realtime_feed_lead_s`` after it, plus the
-    vehicle's phase of the period, and never runs before (a tick due 0.1 s ago, a lead of 0.3 s)."""
+def test_realtime_a_cycle_is_due_the_feed_lead_and_its_phase_after_the_worlds_tick():
+    """Realtime: the vehicle's cycle at the stamp of the world's first tick is due
+    ``realtime_feed_lead_s`` after the tick's wall time, plus the vehicle's phase of the period, and
+    never runs before (a tick sent 0.1 s ago, a lead of 0.3 s)."""
     import threading
     import time as wall
 
