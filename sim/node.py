@@ -341,7 +341,7 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
     lockstep = config.clock.mode == "lockstep"
     ack_timeout = config.clock.ack_timeout_s
     prepared = node.prepare(0)
-    pacer = Pacer(sim0_us=0, wall0_ns=time.time_ns(), speed=config.clock.speed)  # tick 0 is due now, prepared
+    pacer = Pacer(sim0_us=0, wall0_ns=time.time_ns(), speed=config.clock.speed)  # the clock starts with tick 0 ready
     for tick in range(node.final_tick + 1):
         if stop.is_set():
             node.status = "interrupted"

@@ -6,8 +6,10 @@ what was waited for in vain is written off, so that one lost frame costs one wai
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Iterable
 
 from bus import messages as m
+from bus.keys import KeySpace
 from vehicle.inbound import Inbound
 from vehicle.v2v import V2V
 from vehicle.world_watch import WorldWatch
@@ -19,8 +21,11 @@ class LockstepWaits:
     """One vehicle's waits, over what its bus layer has filed (``inbound``), its ranging measurements
     (``v2v``) and its watch on the other processes (``world_watch``)."""
 
-    def __init__(self, vehicle_id: int, cooperative: bool, inbound: Inbound, v2v: V2V, world_watch: WorldWatch) -> None:
-        self.vehicle_id, self.cooperative = vehicle_id, cooperative
+    def __init__(
+        self, vehicle_id: int, cooperative: bool, inbound: Inbound, v2v: V2V, world_watch: WorldWatch, keys: KeySpace
+    ) -> None:
+        self.vehicle_id, self.cooperative, self.keys = vehicle_id, cooperative, keys
+        self._v2v_keys: dict[int, tuple[str, str]] = {}  # sender -> the keys its frames to this vehicle come on
         self.inbound, self.v2v, self.world_watch = inbound, v2v, world_watch
         self.first_tick: m.ClockTick | None = None
         self.finished_us: int | None = None  # the stamp of the last tick acknowledged
@@ -50,14 +55,28 @@ class LockstepWaits:
     def unheard_senders(self, tick: m.ClockTick) -> list[int]:
         """The neighbours of whose V2V broadcasts, sent by their last acknowledgements before
         ``tick``, some have not arrived yet (``ready``'s rule)."""
-        if not self.cooperative:
-            return []
-        heard, floor = self.inbound.heard, self.heard_floor
-        return [
-            j
-            for j, n in enumerate(tick.v2v_published, start=1)
-            if j != self.vehicle_id and heard.get(j, 0) + floor.get(j, 0) < n
-        ]
+        return list(self._shortfall(tick)) if self.cooperative else []
+
+    def _shortfall(self, tick: m.ClockTick) -> dict[int, int]:
+        """Neighbour -> how many of the V2V broadcasts it had sent by its last acknowledgement before
+        ``tick`` have not arrived (only those short of some)."""
+        heard, floor, short = self.inbound.heard, self.heard_floor, {}
+        for j, n in enumerate(tick.v2v_published, start=1):
+            missing = n - heard.get(j, 0) - floor.get(j, 0)
+            if j != self.vehicle_id and missing > 0:
+                short[j] = missing
+        return short
+
+    def senders_by_key(self, senders: Iterable[int]) -> dict[str, int]:
+        """The keys the V2V frames of ``senders`` reach this vehicle on (broadcast and addressed),
+        each to its sender: what wakes a loop waiting for them (bus.mailbox)."""
+        known, by_key = self._v2v_keys, {}
+        for j in senders:
+            if j not in known:
+                known[j] = (self.keys.v2v(j), self.keys.v2v_to(j, self.vehicle_id))
+            broadcast, addressed = known[j]
+            by_key[broadcast] = by_key[addressed] = j
+        return by_key
 
     def unheard_neighbours(self, tick: m.ClockTick, t_us: int) -> list[tuple[int, int]]:
         """Lockstep, before the cycle at ``t_us``: (neighbour, stamp) of the broadcasts its maturing
@@ -98,22 +117,18 @@ class LockstepWaits:
         parts = []
         if self.inbound.received_tick < tick.tick:
             parts.append(f"sensor batch {tick.tick} (latest {self.inbound.received_tick})")
-        heard = self.inbound.heard
+        published = tick.v2v_published
         parts += [
-            f"V2V of vehicle {j}: {heard.get(j, 0) + self.heard_floor.get(j, 0)} of {n}"
-            for j, n in enumerate(tick.v2v_published, start=1)
-            if j != self.vehicle_id and heard.get(j, 0) + self.heard_floor.get(j, 0) < n
+            f"V2V of vehicle {j}: {published[j - 1] - short} of {published[j - 1]}"
+            for j, short in self._shortfall(tick).items()
         ]
         return "; ".join(parts)
 
     def write_off_missing(self, tick: m.ClockTick) -> None:
         """After the wait for ``tick`` timed out: V2V broadcasts that never came are written off, so
         one lost frame costs one wait, not one per later tick."""
-        heard = self.inbound.heard
-        for j, n in enumerate(tick.v2v_published, start=1):
-            short = n - heard.get(j, 0) - self.heard_floor.get(j, 0)
-            if j != self.vehicle_id and short > 0:
-                self.heard_floor[j] = self.heard_floor.get(j, 0) + short
+        for j, short in self._shortfall(tick).items():
+            self.heard_floor[j] = self.heard_floor.get(j, 0) + short
 
 
 def _ran(spans: deque[tuple[int, int, frozenset[int]]], neighbour: int, stamp_us: int) -> bool:

@@ -54,7 +54,7 @@ def _file_until(
     still waits for (``awaited()``) has sent one; the others' are filed once it is awake."""
     deadline = time.monotonic() + READY_TIMEOUT_S
     while not done() and not stop.is_set() and time.monotonic() < deadline:
-        senders = node.v2v_senders_by_key(awaited())
+        senders = node.waits.senders_by_key(awaited())
         newer = node.take(node.mailbox.get(0.05, quiet_lane=node.neighbour_lane, senders_by_key=senders))
         if newer is not None:
             later.append(newer)

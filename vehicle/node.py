@@ -12,7 +12,6 @@ the clock allows (in lockstep once what ``vehicle.lockstep_waits`` names has com
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable
 
 from bus import messages as m
 from bus.config import VehicleProcessConfig
@@ -57,7 +56,6 @@ class VehicleNode:
         world, neighbours = self.mailbox.lane("world", max_items=20_000), self.mailbox.lane("v2v", max_items=20_000)
         self.world_lane = world  # the feed, the clock, the fault plan and liveliness
         self.neighbour_lane = neighbours  # the neighbours' V2V frames
-        self._v2v_keys: dict[int, tuple[str, str]] = {}  # sender -> the keys its frames to this vehicle come on
         bus.subscribe(keys.clock(), world, MAX_CLOCK_BYTES)
         bus.subscribe(keys.fault_plan(), world, MAX_PLAN_BYTES)
         bus.subscribe(keys.end(), world, MAX_CLOCK_BYTES)
@@ -110,7 +108,9 @@ class VehicleNode:
         self.period_us = round(1e6 / vc.loop_rate_hz)
         self.next_cycle_us = 0
         self.world_watch = WorldWatch(timeout_s=vc.world_timeout_s)
-        self.waits = LockstepWaits(vehicle_id, config.vehicle.cooperative, self.inbound, self.v2v, self.world_watch)
+        self.waits = LockstepWaits(
+            vehicle_id, config.vehicle.cooperative, self.inbound, self.v2v, self.world_watch, bus.keys
+        )
         self._deferred: list[int] = []  # lockstep: cycles to run before the next one (``cycle``)
 
     def join(self, stop=None, *, v2v_wait_s: float = 30.0) -> None:
@@ -130,18 +130,6 @@ class VehicleNode:
                     "vehicle %d: no neighbour listens after %g s; it goes on alone", self.vehicle_id, v2v_wait_s
                 )
         self.bus.declare_token(self.bus.keys.alive("vehicle", self.vehicle_id))
-
-    def v2v_senders_by_key(self, senders: Iterable[int]) -> dict[str, int]:
-        """The keys the V2V frames of ``senders`` reach this vehicle on (broadcast and addressed),
-        each to its sender."""
-        keys, known = self.bus.keys, self._v2v_keys
-        by_key = {}
-        for j in senders:
-            if j not in known:
-                known[j] = (keys.v2v(j), keys.v2v_to(j, self.vehicle_id))
-            broadcast, addressed = known[j]
-            by_key[broadcast] = by_key[addressed] = j
-        return by_key
 
     def take(self, item: object) -> m.ClockTick | None:
         """File one mailbox item (None: nothing came); a clock tick is returned to the loop."""
