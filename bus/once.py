@@ -25,3 +25,10 @@ class computed_once(Generic[T]):  # noqa: N801 (a decorator, named like the one 
             return self
         value = obj.__dict__[self.name] = self.func(obj)
         return value
+
+
+def known(obj: Any, **values: Any) -> None:
+    """Keep ``values`` as ``obj``'s computed_once properties of those names, as if they had been read:
+    for a caller that works them out for many objects at once. Each must be what the property
+    would give."""
+    obj.__dict__.update(values)

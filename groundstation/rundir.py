@@ -21,11 +21,6 @@ METRICS_HEADER = (
 )
 
 
-def tum_line(stamp_us: int, x: float, y: float, z: float, yaw: float) -> str:
-    """One TUM trajectory line: ``timestamp tx ty tz qx qy qz qw`` (yaw-only attitude)."""
-    return f"{stamp_us * 1e-6:.6f} {x:.6f} {y:.6f} {z:.6f} 0 0 {np.sin(yaw / 2):.9f} {np.cos(yaw / 2):.9f}\n"
-
-
 def drop_partial_line(path: Path) -> None:
     """Cut a half-written last line (a killed writer) so that appended lines stay well formed."""
     if not path.exists() or path.stat().st_size == 0:
@@ -64,16 +59,29 @@ class RunDirectory:
         return self._tum[name]
 
     def write_scores(self, scores: list[Score]) -> None:
-        for s in scores:
-            e, sg = s.error_m, s.sigma
+        """A metrics row and an estimate and a truth TUM line per score. The numbers are read out of
+        numpy once per score (``tolist``) and the half-yaw sines and cosines worked out for the whole
+        list at once: the same text as formatting each numpy scalar, at a third of the cost."""
+        half_yaws = np.array([(s.estimate.yaw_rad, s.truth_pose[2]) for s in scores], dtype=float).reshape(-1, 2) / 2
+        for s, (sin_est, sin_truth), (cos_est, cos_truth) in zip(
+            scores, np.sin(half_yaws).tolist(), np.cos(half_yaws).tolist()
+        ):
+            ex, ey, eyaw = s.error_m.tolist()
+            sx, sy, syaw = s.sigma.tolist()
+            x, y, z = s.estimate.position_m.tolist()
+            tx, ty = s.truth_pose[:2].tolist()
+            t_s = s.stamp_us * 1e-6
             self._metrics.write(
-                f"{s.stamp_us * 1e-6:.6f},{s.vehicle_id},{e[0]:.6f},{e[1]:.6f},"
-                f"{s.position_error_m:.6f},{e[2]:.6f},{sg[0]:.6f},{sg[1]:.6f},"
-                f"{sg[2]:.6f},{s.nees:.6f},{s.reset_counter},{s.pose_covariance[0, 1]:.9f}\n"
+                f"{t_s:.6f},{s.vehicle_id},{ex:.6f},{ey:.6f},{s.position_error_m:.6f},{eyaw:.6f},{sx:.6f},"
+                f"{sy:.6f},{syaw:.6f},{s.nees:.6f},{s.reset_counter},{s.pose_covariance[0, 1].item():.9f}\n"
             )
-            est, tp = s.estimate, s.truth_pose
-            self._tum_file("est", s.vehicle_id).write(tum_line(s.stamp_us, *est.position_m, est.yaw_rad))
-            self._tum_file("truth", s.vehicle_id).write(tum_line(s.stamp_us, tp[0], tp[1], est.position_m[2], tp[2]))
+            # TUM: timestamp tx ty tz qx qy qz qw (a yaw-only attitude)
+            self._tum_file("est", s.vehicle_id).write(
+                f"{t_s:.6f} {x:.6f} {y:.6f} {z:.6f} 0 0 {sin_est:.9f} {cos_est:.9f}\n"
+            )
+            self._tum_file("truth", s.vehicle_id).write(
+                f"{t_s:.6f} {tx:.6f} {ty:.6f} {z:.6f} 0 0 {sin_truth:.9f} {cos_truth:.9f}\n"
+            )
         if self.recording is not None and scores:
             self.recording.scores(scores)
         self.maybe_flush(scores[-1].stamp_us if scores else None)

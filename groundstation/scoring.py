@@ -20,7 +20,7 @@ from bus.angles import wrap_angle as wrap
 from bus.consistency import ConsistencyTally
 from bus.mavlink_codec import StateEstimate, pose_of
 from bus.odometry_content import POSE_INDEX
-from bus.once import computed_once
+from bus.once import computed_once, known
 
 log = logging.getLogger("swarmloc.groundstation")
 MAX_PENDING = 500_000  # estimates waiting for the watermark; beyond, they are counted and dropped
@@ -133,10 +133,16 @@ def score_all(ests: list[StateEstimate], truth_poses: list[np.ndarray]) -> list[
         solved = np.linalg.solve(covs, errors[:, :, None])[:, :, 0]  # (n, 3)
     except np.linalg.LinAlgError:  # one singular covariance: each on its own
         return [_score_or_none(e, t) for e, t in zip(ests, truth_poses, strict=True)]
-    return [
+    scores = [
         Score(e.vehicle_id, e.time_usec, errors[i], covs[i], float(errors[i] @ solved[i]), e.reset_counter, e, t)
         for i, (e, t) in enumerate(zip(ests, truth_poses, strict=True))
     ]
+    # the properties every score is read for, worked out for all at once (the same values: sqrt and
+    # hypot are elementwise): kept where computed_once keeps them
+    sigmas = np.sqrt(np.diagonal(covs, axis1=1, axis2=2))
+    for s, sigma, position_error_m in zip(scores, sigmas, np.hypot(errors[:, 0], errors[:, 1]).tolist()):
+        known(s, sigma=sigma, position_error_m=position_error_m)
+    return scores
 
 
 def _score_or_none(est: StateEstimate, truth_pose: np.ndarray) -> Score | None:

@@ -44,6 +44,9 @@ def test_scoring_many_at_once_gives_each_score_to_the_bit():
         assert together.error_m.tobytes() == one.error_m.tobytes()
         assert together.pose_covariance.tobytes() == one.pose_covariance.tobytes()
         assert together.estimate is one.estimate and together.truth_pose is one.truth_pose
+        assert together.sigma.tobytes() == one.sigma.tobytes()  # worked out for all at once
+        assert repr(together.position_error_m) == repr(one.position_error_m)
+        assert type(together.position_error_m) is float
 
 
 def test_a_singular_covariance_leaves_only_its_estimate_unscored():
