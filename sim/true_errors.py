@@ -60,9 +60,13 @@ class TrueErrors:
         )
 
     def draw_block(self, steps: int, vehicles: int) -> None:
+        """Draw the next ``steps`` steps (:meth:`next_block`) and use them from now on."""
+        self.block = self.next_block(steps, vehicles)
+
+    def next_block(self, steps: int, vehicles: int) -> dict[str, np.ndarray]:
         """The next ``steps`` steps' draws (the same number whatever is used or silenced)."""
         rng, dof = self.rng, self.truth.heavy_tail_dof
-        self.block = {
+        return {
             "walk": rng.normal(0.0, 1.0, (steps, 2)),
             "outlier": rng.random(steps),
             "outlier_dir": rng.uniform(0.0, 2.0 * np.pi, steps),

@@ -4,7 +4,10 @@
 per vehicle the sensor rows of each topic (``bus.feed`` layout) and the truth of every vehicle. The
 node publishes them as one batch per vehicle per tick; tests and Monte Carlo runs use the world with
 no bus. Noise comes from each vehicle's own generator in blocks of ``BLOCK_STEPS`` steps, so the
-output never depends on how time is cut into ticks, and faults never shift the noise streams.
+output never depends on how time is cut into ticks, and faults never shift the noise streams. Each
+vehicle's next block is drawn ahead, at a step of the current block of its own (``draw_ahead_step``),
+so that a realtime world's tick at a block's start is not every vehicle's draws at once; each
+generator gives the same draws in the same order either way.
 """
 
 from __future__ import annotations
@@ -29,6 +32,15 @@ if TYPE_CHECKING:
     from sim.terrain import Terrain
 
 BLOCK_STEPS = 100
+
+
+def draw_ahead_step(index: int, vehicles: int) -> int:
+    """The step of every block at which vehicle ``index`` (0-based) of ``vehicles`` draws its next
+    block: spread evenly over steps 1 to BLOCK_STEPS - 1 (step 0 of the first block draws the
+    vehicles' priors from the same generators, after the block)."""
+    return 1 + index * (BLOCK_STEPS - 1) // vehicles
+
+
 EMITTED = (Topic.PRIOR, Topic.IMU, Topic.ODOM, Topic.GNSS, Topic.CAMERA, Topic.RANGING)  # within a step
 
 
@@ -42,6 +54,7 @@ class _Vehicle:
     errors: TrueErrors
     seq: dict[str, int] = field(default_factory=dict)
     noise: dict[str, np.ndarray] = field(default_factory=dict)
+    ahead: tuple[dict, dict] | None = None  # the next block's (noise, error draws), drawn ahead
 
     def next_seq(self, topic: str) -> int:
         self.seq[topic] = self.seq.get(topic, -1) + 1
@@ -162,6 +175,9 @@ class World:
         self._wobbles = bool(wc.sensor_truth.wobble_speed_mps or wc.sensor_truth.wobble_yaw_rate_radps)
         self._wobble_block: np.ndarray | None = None  # the current block's wobble (_wobble_over), when wobbling
         self.faults = PhysicalFaults(config.faults)
+        self._ahead_at: dict[int, list[_Vehicle]] = {}  # step of a block -> the vehicles that draw ahead then
+        for index, v in enumerate(self.vehicles):
+            self._ahead_at.setdefault(draw_ahead_step(index, len(self.vehicles)), []).append(v)
         self._periods = {
             topic: _period_us(rate)
             for topic, rate in (
@@ -210,9 +226,14 @@ class World:
         return out
 
     def _draw_block(self, v: _Vehicle) -> None:
-        """The next BLOCK_STEPS steps of every noise source of one vehicle, from its generator."""
+        """One vehicle's noise for the block starting now: drawn ahead, or drawn now (the first block)."""
+        v.noise, v.errors.block = v.ahead or self._next_block(v)
+        v.ahead = None
+
+    def _next_block(self, v: _Vehicle) -> tuple[dict, dict]:
+        """The next BLOCK_STEPS steps of every noise source of one vehicle, from its generators."""
         spec, n, truth = self.config.sensors, BLOCK_STEPS, self.config.world.sensor_truth
-        v.noise = {
+        noise = {
             "gyro": v.rng.normal(0.0, spec.gyro_sigma_radps, (n, 3)),
             "accel": v.rng.normal(0.0, spec.accel_sigma_mps2, (n, 3)),
             "walk": v.rng.normal(0.0, spec.gyro_bias_walk_radps_rtsec * np.sqrt(self.step_us * 1e-6), (n, 3)),
@@ -223,7 +244,7 @@ class World:
             )
             * truth.range_sigma_factor,
         }
-        v.errors.draw_block(n, len(self.vehicles))
+        return noise, v.errors.next_block(n, len(self.vehicles))
 
     def _step(self, out: TickOutput, streams: dict[str, StepRows]) -> None:
         """Sample every sensor at the step's stamp from the current poses, then move the poses."""
@@ -235,6 +256,8 @@ class World:
             self.high_rate.new_block([v.noise for v in self.vehicles], [v.errors.block for v in self.vehicles])
             if self._wobbles:
                 self._wobble_block = self._wobble_over(t_us)
+        for v in self._ahead_at.get(k, ()):
+            v.ahead = self._next_block(v)
         law = np.array([v.trajectory.inputs(t_us * 1e-6, pose) for v, pose in zip(self.vehicles, self.poses)])
         inputs = law + self._wobble_block[k, 0] if self._wobbles else law
         if t_us % self._periods["truth"] == 0:
