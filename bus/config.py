@@ -65,7 +65,9 @@ class ClockConfig(_Strict):
         "with cameras, a live view, kill faults or a truth batch too large for 1 s",
     )
     duration_s: float = Field(60.0, gt=0, le=86400)
-    ack_timeout_s: float = Field(10.0, gt=0, description="lockstep: wall time before a silent vehicle is dead")
+    ack_timeout_s: float = Field(
+        10.0, gt=0, description="lockstep (realtime: the first tick): wall time before a silent vehicle is dead"
+    )
     start_timeout_s: float = Field(60.0, gt=0, description="wall time to wait for every process to join")
     gone_timeout_s: float = Field(
         30.0,

@@ -4,8 +4,10 @@ the run.
 Lockstep: tick k is published only after every live vehicle acknowledged tick k-1 and the ground
 station is at most ``gs_lag_ticks`` behind; a vehicle whose liveliness token disappears, or that stays
 silent for ``ack_timeout_s``, is dropped from the set and the run goes on. A ground station that is
-gone for ``gone_timeout_s`` ends the run (status ``groundstation-lost``). Realtime: ticks follow the
-wall clock times the speed factor. The next tick's feeds are computed while vehicles work.
+gone for ``gone_timeout_s`` ends the run (status ``groundstation-lost``). Realtime: the first tick
+waits for every vehicle's acknowledgement as in lockstep (their first cycle: vehicle.loops), then
+ticks follow the wall clock times the speed factor. The next tick's feeds are computed while
+vehicles work.
 """
 
 from __future__ import annotations
@@ -341,7 +343,7 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
     lockstep = config.clock.mode == "lockstep"
     ack_timeout = config.clock.ack_timeout_s
     prepared = node.prepare(0)
-    pacer = Pacer(sim0_us=0, wall0_ns=time.time_ns(), speed=config.clock.speed)  # the clock starts with tick 0 ready
+    pacer: Pacer | None = None  # realtime: paced from the second tick on, once every vehicle acked the first
     for tick in range(node.final_tick + 1):
         if stop.is_set():
             node.status = "interrupted"
@@ -349,13 +351,16 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
         if not node.await_groundstation(tick, stop, lockstep):
             node.status = "groundstation-lost"
             break
-        if not lockstep:
+        if pacer is not None:
             time.sleep(max(0.0, pacer.seconds_until(tick * node.tick_us)))
         node.send(prepared, final=False)
         prepared = node.prepare(tick + 1)  # the next tick's feeds, while the vehicles work
         if lockstep:
             node.await_acks(tick, stop, ack_timeout)
             node.hold_for_kills(tick * node.tick_us, stop)
+        elif pacer is None:  # every vehicle's first cycle (vehicle.loops) is done before the clock starts
+            node.await_acks(tick, stop, ack_timeout)
+            pacer = Pacer(sim0_us=(tick + 1) * node.tick_us, wall0_ns=time.time_ns(), speed=config.clock.speed)
         else:
             node.drain(0.0)
     if node.status == "complete":

@@ -39,10 +39,12 @@ class LoopStats:
         self._jitter_us = _Ring(window)
         self._cycle_us = _Ring(window)
 
-    def record(self, *, jitter_us: float, cycle_us: float, overran: bool) -> None:
+    def record(self, *, jitter_us: float | None, cycle_us: float, overran: bool) -> None:
+        """One cycle; ``jitter_us`` None for a cycle that had no deadline (realtime's first)."""
         self.cycles += 1
         self.overruns += int(overran)
-        self._jitter_us.append(jitter_us)
+        if jitter_us is not None:
+            self._jitter_us.append(jitter_us)
         self._cycle_us.append(cycle_us)
 
     def jitter_p99_us(self) -> float:

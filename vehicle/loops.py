@@ -1,6 +1,6 @@
-"""The vehicle's loop thread, in lockstep (cycles follow the world's ticks) or in realtime (cycles on
-wall-clock deadlines mapped from sim time by the world's first clock tick, at the vehicle's own phase
-of the period)."""
+"""The vehicle's loop thread, in lockstep (cycles follow the world's ticks) or in realtime (the first
+cycle on the world's first tick, the others on wall-clock deadlines mapped from sim time by the
+world's second clock tick, at the vehicle's own phase of the period)."""
 
 from __future__ import annotations
 
@@ -108,10 +108,12 @@ def schedule_phase_s(vehicle_id: int, vehicles: int, period_s: float) -> float:
 
 
 def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
-    """Cycles run on wall-clock deadlines mapped from sim time by the world's first clock tick (the
+    """The run's first cycle runs on the world's first tick (``_first_cycle``); the others on
+    wall-clock deadlines mapped from sim time by the next clock tick, the first the world paces (the
     wall time it was sent), each vehicle ``vehicle.realtime_feed_lead_s`` after the world's tick
     (the time its sensor batch is given to arrive) plus its own phase of the period
-    (``schedule_phase_s``). After a cycle the loop files what
+    (``schedule_phase_s``). A vehicle that joins a running swarm (a restart) maps them by the first
+    tick it sees. After a cycle the loop files what
     has arrived, one item at a time, until the mailbox is empty or the next deadline comes, then
     sleeps to the deadline (zenoh's thread only queues what arrives meanwhile, it does not wake the
     loop); at the deadline it files until the sensor batch covering the cycle is in, waiting up to
@@ -126,6 +128,7 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
     speed = node.config.clock.speed
     phase_s = schedule_phase_s(node.vehicle_id, node.config.vehicles, node.period_us * 1e-6) / speed
     phase_ns = round((node.config.vehicle.realtime_feed_lead_s + phase_s) * 1e9)
+    early: deque[m.ClockTick] = deque()  # ticks filed while the first cycle waited for its batch
     while not stop.is_set():
         if final is not None and node.next_cycle_us > final.stamp_us:
             node.publish_status(final.stamp_us, final=True)
@@ -133,12 +136,30 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
             node.outbound.ack(final.tick)
             return
         node.world_watch.check()
-        tick = node.take(node.mailbox.get(0.2)) if pacer is None else _realtime_step(node, pacer, allowance_s)
+        if early:
+            tick = early.popleft()
+        else:
+            tick = node.take(node.mailbox.get(0.2)) if pacer is None else _realtime_step(node, pacer, allowance_s)
         if tick is None:
+            continue
+        if pacer is None and tick.tick == 0 and not tick.final:
+            _first_cycle(node, tick, early, stop)
             continue
         pacer = pacer or Pacer(sim0_us=tick.stamp_us, wall0_ns=tick.wall_ns + phase_ns, speed=speed)
         if tick.final:
             final = tick  # the cycles up to its stamp still run (its batch may come after it: keys are not ordered)
+
+
+def _first_cycle(node: VehicleNode, tick: m.ClockTick, early: deque, stop: threading.Event) -> None:
+    """The run's first cycle, on the world's first tick, once the tick's sensor batch is in (or
+    READY_TIMEOUT_S is over; ticks filed meanwhile go to ``early``): it has no deadline, so it counts
+    no jitter; then the tick is acknowledged. The world starts pacing its clock once every vehicle
+    has done so: what a process does once (its first batch, the estimator's start, its first
+    estimate out) costs 3-4 times a later cycle, and 20 vehicles doing it at their first deadlines
+    held the world's next ticks back by tens of milliseconds (docs/decisions/performance.md)."""
+    _file_until(node, lambda: node.inbound.received_stamp_us >= tick.stamp_us, early, stop, tuple)
+    _realtime_cycle(node, None)
+    node.outbound.ack(tick.tick)
 
 
 def _realtime_step(node: VehicleNode, pacer: Pacer, allowance_s: float) -> m.ClockTick | None:
@@ -163,15 +184,17 @@ def _realtime_step(node: VehicleNode, pacer: Pacer, allowance_s: float) -> m.Clo
     return node.take(item)
 
 
-def _realtime_cycle(node: VehicleNode, pacer: Pacer) -> None:
+def _realtime_cycle(node: VehicleNode, pacer: Pacer | None) -> None:
+    """The next cycle, timed against ``pacer``'s deadlines (None: a cycle with none)."""
     t_us = node.next_cycle_us
     node.next_cycle_us += node.period_us
-    jitter_us = -pacer.seconds_until(t_us) * 1e6
+    jitter_us = None if pacer is None else -pacer.seconds_until(t_us) * 1e6
     start = time.perf_counter()
     node.cycle(t_us)
     node.outbound.flush()
     cycle_us = (time.perf_counter() - start) * 1e6
-    node.stats.record(jitter_us=jitter_us, cycle_us=cycle_us, overran=pacer.seconds_until(node.next_cycle_us) < 0)
+    overran = pacer is not None and pacer.seconds_until(node.next_cycle_us) < 0
+    node.stats.record(jitter_us=jitter_us, cycle_us=cycle_us, overran=overran)
     node.report(t_us)
 
 

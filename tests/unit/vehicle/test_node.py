@@ -324,24 +324,54 @@ def test_realtime_a_flood_of_messages_delays_filing_never_a_cycle():
     node, hub = _node(1, REALTIME)
     keys = node.bus.keys
     world, neighbours = node.mailbox.lanes
-    world.put(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, wall.time_ns() - 10**9, False))))  # cycle 0 is long due
+    long_ago = wall.time_ns() - 10**9
+    world.put(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, long_ago, False))))
+    world.put(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+    world.put(Envelope(keys.clock(), m.encode(m.ClockTick(1, 20_000, long_ago, False))))  # cycle 1 is long due
     for _ in range(5000):
         neighbours.put(Envelope(keys.v2v(2), b"junk"))
-    stop, queued_at_first_cycle = threading.Event(), []
+    stop, queued_at_due_cycle = threading.Event(), []
     cycle = node.cycle
 
-    def first_cycle(t_us: int) -> None:
-        queued_at_first_cycle.append(len(neighbours.items))
-        stop.set()
+    def due_cycle(t_us: int) -> None:
+        if t_us > 0:  # the first cycle has no deadline
+            queued_at_due_cycle.append(len(neighbours.items))
+            stop.set()
         cycle(t_us)
 
-    node.cycle = first_cycle
+    node.cycle = due_cycle
     run_realtime(node, stop)
-    assert queued_at_first_cycle == [5000]
+    # none of the junk filed (the first cycle's own broadcast may be queued too)
+    assert len(queued_at_due_cycle) == 1 and queued_at_due_cycle[0] >= 5000
+
+
+def test_realtime_the_first_cycle_runs_on_the_first_tick_and_is_acknowledged():
+    """Realtime: the run's first cycle runs as soon as the world's first tick and its batch are in,
+    whatever the tick's wall time, counts no jitter, and is acknowledged (the world starts its clock
+    then: sim.node); the cycles after it wait for the next tick."""
+    import threading
+    import time as wall
+
+    from vehicle.loops import run_realtime
+
+    node, hub = _node(1, REALTIME)
+    keys = node.bus.keys
+    acks = queue.Queue()
+    hub.add_subscription(keys.ack(1), acks)
+    node.world_lane.put(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, wall.time_ns(), False))))
+    node.world_lane.put(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+    stop = threading.Event()
+    loop = threading.Thread(target=run_realtime, args=(node, stop))
+    loop.start()
+    ack = m.decode(m.TickAck, acks.get(timeout=10).payload)
+    stop.set()
+    loop.join()
+    assert ack.tick == 0 and node.stats.cycles == 1 and node.estimator.initialized
+    assert node.stats.jitter_p99_us() == 0.0  # no jitter sample: the ring is empty
 
 
 def test_realtime_a_cycle_is_due_the_feed_lead_and_its_phase_after_the_worlds_tick():
-    """Realtime: the vehicle's cycle at the stamp of the world's first tick is due
+    """Realtime: the vehicle's cycle at the stamp of the world's first paced tick (the second) is due
     ``realtime_feed_lead_s`` after the tick's wall time, plus the vehicle's phase of the period, and
     never runs before (a tick sent 0.1 s ago, a lead of 0.3 s)."""
     import threading
@@ -354,17 +384,20 @@ def test_realtime_a_cycle_is_due_the_feed_lead_and_its_phase_after_the_worlds_ti
     keys = node.bus.keys
     world, _neighbours = node.mailbox.lanes
     due_ns = wall.time_ns() - 100_000_000
-    world.put(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, due_ns, False))))
+    world.put(Envelope(keys.clock(), m.encode(m.ClockTick(0, 0, due_ns - 20_000_000, False))))
     world.put(Envelope(keys.feed(1), _batch(1, 0, 0, PRIOR)))
+    world.put(Envelope(keys.clock(), m.encode(m.ClockTick(1, 20_000, due_ns, False))))
+    world.put(Envelope(keys.feed(1), _batch(1, 1, 20_000, {})))
     stop, cycled_at = threading.Event(), []
     cycle = node.cycle
 
-    def first_cycle(t_us: int) -> None:
-        cycled_at.append(wall.time_ns())
-        stop.set()
+    def paced_cycle(t_us: int) -> None:
+        if t_us > 0:
+            cycled_at.append(wall.time_ns())
+            stop.set()
         cycle(t_us)
 
-    node.cycle = first_cycle
+    node.cycle = paced_cycle
     run_realtime(node, stop)
     phase_s = schedule_phase_s(1, node.config.vehicles, node.period_us * 1e-6)
     assert cycled_at and cycled_at[0] >= due_ns + round((lead_s + phase_s) * 1e9)
@@ -392,7 +425,7 @@ def test_realtime_the_final_tick_ends_the_loop_after_the_cycles_up_to_its_stamp(
         world.put(item)
     run_realtime(node, threading.Event())
     assert node.stats.cycles == 2 and node.estimator.initialized and node.estimator.state.time_us == 20_000
-    assert m.decode(m.TickAck, acks.get_nowait().payload).tick == 1
+    assert [m.decode(m.TickAck, acks.get_nowait().payload).tick for _ in range(2)] == [0, 1]  # the first, the final
 
 
 def test_realtime_a_late_loop_files_the_queued_batches_before_cycling():
