@@ -363,10 +363,16 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
             pacer = Pacer(sim0_us=(tick + 1) * node.tick_us, wall0_ns=time.time_ns(), speed=config.clock.speed)
         else:
             node.drain(0.0)
+    _end_run(node, prepared, stop, min(ack_timeout, 5.0))
+    return node
+
+
+def _end_run(node: WorldNode, prepared: _Prepared, stop: threading.Event, final_ack_timeout_s: float) -> None:
+    """The final tick (the next one prepared), the final acks of a complete run, and the run's end."""
     if node.status == "complete":
         finishing = set(node.members.alive)
         node.send(prepared, final=True)
-        node.await_final_acks(prepared.tick, finishing, stop, min(ack_timeout, 5.0))
+        node.await_final_acks(prepared.tick, finishing, stop, final_ack_timeout_s)
     else:
         log.error("world ends the run early: %s", node.status)
         node.send(prepared, final=True)  # vehicles finish instead of waiting for ticks that never come
@@ -380,4 +386,3 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
         completed,
     )
     node.hand_over_end(end, stop)
-    return node

@@ -3,11 +3,8 @@
 ``World.advance(until_us)`` runs every IMU step up to ``until_us`` and returns what was measured:
 per vehicle the sensor rows of each topic (``bus.feed`` layout) and the truth of every vehicle. The
 node publishes them as one batch per vehicle per tick; tests and Monte Carlo runs use the world with
-no bus. Noise comes from each vehicle's own generator in blocks of ``BLOCK_STEPS`` steps, so the
-output never depends on how time is cut into ticks, and faults never shift the noise streams. Each
-vehicle's next block is drawn ahead, at a step of the current block of its own (``draw_ahead_step``),
-so that a realtime world's tick at a block's start is not every vehicle's draws at once; each
-generator gives the same draws in the same order either way.
+no bus. Noise comes from each vehicle's own generators in blocks (``sim.noise_blocks``), so the
+output never depends on how time is cut into ticks, and faults never shift the noise streams.
 """
 
 from __future__ import annotations
@@ -24,22 +21,13 @@ from bus.topics import Topic
 from sim import sensors
 from sim.high_rate import HighRateSensors, ImuSteps, StepRows
 from sim.kinematics import unicycle_arcs
+from sim.noise_blocks import BLOCK_STEPS, ahead_schedule, next_block
 from sim.physical_faults import PhysicalFaults
 from sim.trajectories import make_trajectory
 from sim.true_errors import TrueErrors, wobble, wobble_tones
 
 if TYPE_CHECKING:
     from sim.terrain import Terrain
-
-BLOCK_STEPS = 100
-
-
-def draw_ahead_step(index: int, vehicles: int) -> int:
-    """The step of every block at which vehicle ``index`` (0-based) of ``vehicles`` draws its next
-    block: spread evenly over steps 1 to BLOCK_STEPS - 1 (step 0 of the first block draws the
-    vehicles' priors from the same generators, after the block)."""
-    return 1 + index * (BLOCK_STEPS - 1) // vehicles
-
 
 EMITTED = (Topic.PRIOR, Topic.IMU, Topic.ODOM, Topic.GNSS, Topic.CAMERA, Topic.RANGING)  # within a step
 
@@ -175,9 +163,7 @@ class World:
         self._wobbles = bool(wc.sensor_truth.wobble_speed_mps or wc.sensor_truth.wobble_yaw_rate_radps)
         self._wobble_block: np.ndarray | None = None  # the current block's wobble (_wobble_over), when wobbling
         self.faults = PhysicalFaults(config.faults)
-        self._ahead_at: dict[int, list[_Vehicle]] = {}  # step of a block -> the vehicles that draw ahead then
-        for index, v in enumerate(self.vehicles):
-            self._ahead_at.setdefault(draw_ahead_step(index, len(self.vehicles)), []).append(v)
+        self._ahead_at = {k: [self.vehicles[i] for i in ids] for k, ids in ahead_schedule(len(self.vehicles)).items()}
         self._periods = {
             topic: _period_us(rate)
             for topic, rate in (
@@ -231,20 +217,10 @@ class World:
         v.ahead = None
 
     def _next_block(self, v: _Vehicle) -> tuple[dict, dict]:
-        """The next BLOCK_STEPS steps of every noise source of one vehicle, from its generators."""
-        spec, n, truth = self.config.sensors, BLOCK_STEPS, self.config.world.sensor_truth
-        noise = {
-            "gyro": v.rng.normal(0.0, spec.gyro_sigma_radps, (n, 3)),
-            "accel": v.rng.normal(0.0, spec.accel_sigma_mps2, (n, 3)),
-            "walk": v.rng.normal(0.0, spec.gyro_bias_walk_radps_rtsec * np.sqrt(self.step_us * 1e-6), (n, 3)),
-            Topic.ODOM: v.rng.normal(0.0, [spec.odom_speed_sigma_mps, spec.odom_yaw_rate_sigma_radps], (n, 2)),
-            Topic.GNSS: v.rng.normal(0.0, spec.gnss_sigma_m, (n, 2)) * truth.gnss_sigma_factor,
-            Topic.RANGING: v.ranging_rng.normal(
-                0.0, [spec.range_sigma_m, spec.bearing_sigma_rad], (n, len(self.vehicles), 2)
-            )
-            * truth.range_sigma_factor,
-        }
-        return noise, v.errors.next_block(n, len(self.vehicles))
+        wc = self.config.world
+        return next_block(
+            self.config.sensors, wc.sensor_truth, self.step_us, wc.vehicles, v.rng, v.ranging_rng, v.errors
+        )
 
     def _step(self, out: TickOutput, streams: dict[str, StepRows]) -> None:
         """Sample every sensor at the step's stamp from the current poses, then move the poses."""

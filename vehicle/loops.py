@@ -136,10 +136,7 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
             node.outbound.ack(final.tick)
             return
         node.world_watch.check()
-        if early:
-            tick = early.popleft()
-        else:
-            tick = node.take(node.mailbox.get(0.2)) if pacer is None else _realtime_step(node, pacer, allowance_s)
+        tick = _next_tick(node, pacer, early, allowance_s)
         if tick is None:
             continue
         if pacer is None and tick.tick == 0 and not tick.final:
@@ -150,6 +147,14 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
             final = tick  # the cycles up to its stamp still run (its batch may come after it: keys are not ordered)
 
 
+def _next_tick(node: VehicleNode, pacer: Pacer | None, early: deque, allowance_s: float) -> m.ClockTick | None:
+    """The clock tick the loop handles next, if any: one kept while the first cycle waited, else what
+    filing (before the clock is known) or a realtime step (after) brings."""
+    if early:
+        return early.popleft()
+    return node.take(node.mailbox.get(0.2)) if pacer is None else _realtime_step(node, pacer, allowance_s)
+
+
 def _first_cycle(node: VehicleNode, tick: m.ClockTick, early: deque, stop: threading.Event) -> None:
     """The run's first cycle, on the world's first tick, once the tick's sensor batch is in (or
     READY_TIMEOUT_S is over; ticks filed meanwhile go to ``early``): it has no deadline, so it counts
@@ -157,7 +162,7 @@ def _first_cycle(node: VehicleNode, tick: m.ClockTick, early: deque, stop: threa
     has done so: what a process does once (its first batch, the estimator's start, its first
     estimate out) costs 3-4 times a later cycle, and 20 vehicles doing it at their first deadlines
     held the world's next ticks back by tens of milliseconds (docs/decisions/performance.md)."""
-    _file_until(node, lambda: node.inbound.received_stamp_us >= tick.stamp_us, early, stop, tuple)
+    _file_until(node, lambda: node.inbound.received_stamp_us >= tick.stamp_us, early, stop, lambda: ())
     _realtime_cycle(node, None)
     node.outbound.ack(tick.tick)
 

@@ -5,8 +5,7 @@ import numpy as np
 from bus import feed
 from bus.config import build_config
 from experiments.harness import samples_of
-from sim import kinematics
-from sim import world as world_module
+from sim import kinematics, noise_blocks
 from sim.kinematics import unicycle_arcs
 from sim.world import World
 
@@ -59,7 +58,7 @@ def test_same_seed_same_bytes_other_seed_other_noise():
 def test_when_a_vehicle_draws_its_next_block_changes_nothing_the_world_measures(monkeypatch):
     cfg = build_config({"world": {"vehicles": 3, "seed": 7}})
     spread = _encoded(World(cfg), 2_500_000, 100_000)  # three blocks of noise; truth included
-    monkeypatch.setattr(world_module, "draw_ahead_step", lambda index, vehicles: world_module.BLOCK_STEPS - 1 - index)
+    monkeypatch.setattr(noise_blocks, "draw_ahead_step", lambda index, vehicles: noise_blocks.BLOCK_STEPS - 1 - index)
     late = _encoded(World(cfg), 2_500_000, 100_000)
     assert spread[0] == late[0]
     assert all(np.array_equal(a, b) for a, b in zip(spread[1], late[1], strict=True))
