@@ -15,13 +15,15 @@ from experiments.registry import EXPERIMENTS
 
 OUT_HELP = "parent folder of the experiment's folder (<out>/<experiment>: the same command resumes it)"
 
-LIVE_HELP = "serve each run's Foxglove WebSocket live view in turn, at real time (docs: live view)"
+LIVE_HELP = "serve each run's Foxglove WebSocket live view in turn, at --live-speed (docs: live view)"
+LIVE_SPEED_HELP = "with --live: each lockstep run at most this many times real time (1: real time)"
 
 
-def live_view(live: bool, host: str, port: int):
+def live_view(live: bool, host: str, port: int, speed: float = 1.0):
     """The runs' view with the live view on (its address checked now, a one-line error), or None. A
-    lockstep run with a viewer is paced at real time (``view.live_speed``), so that each run of an
-    experiment can be watched rather than flash by in seconds."""
+    lockstep run with a viewer is paced at ``speed`` times real time (``view.live_speed``; real time
+    unless asked otherwise), so that each run of an experiment can be watched rather than flash by in
+    seconds."""
     if not live:
         return None
     from bus.config import ViewConfig
@@ -31,7 +33,7 @@ def live_view(live: bool, host: str, port: int):
         check_live_address(host, port)
     except SwarmlocError as exc:
         fail(str(exc))
-    return ViewConfig(live=True, live_host=host, live_port=port, live_speed=1.0)
+    return ViewConfig(live=True, live_host=host, live_port=port, live_speed=speed)
 
 
 experiment_app = typer.Typer(
@@ -54,8 +56,10 @@ def _experiment_command(name: str, entry) -> None:
     experiment_app.command(name)(command)
 
 
-def _option(name: str, default: Any, help_text: str, minimum: float | None = None) -> inspect.Parameter:
-    option = typer.Option(default, help=help_text, min=minimum)
+def _option(
+    name: str, default: Any, help_text: str, minimum: float | None = None, maximum: float | None = None
+) -> inspect.Parameter:
+    option = typer.Option(default, help=help_text, min=minimum, max=maximum)
     annotation = type(default) if default is not None else Optional[str]
     return inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=annotation)
 
@@ -77,6 +81,7 @@ CAMPAIGN_OPTIONS = [
     _option("live", False, LIVE_HELP),
     _option("live_host", "127.0.0.1", "the live view's address"),
     _option("live_port", 8765, "the live view's port", 1),
+    _option("live_speed", 1.0, LIVE_SPEED_HELP, 0.01, 10_000.0),
 ]
 
 
@@ -98,7 +103,7 @@ def _fly_experiment(name: str, options: dict[str, Any]) -> None:
         shared=options["shared"],
     )
     try:
-        view = live_view(options["live"], options["live_host"], options["live_port"])
+        view = live_view(options["live"], options["live_host"], options["live_port"], options["live_speed"])
         folder, rows, lines = run_experiment(name, own, options["out"], how, stop=stop_on_signals(), view=view, say=say)
     except SwarmlocError as exc:
         fail(str(exc))
