@@ -127,6 +127,27 @@ def test_well_formed_msgpack_with_wrong_values_raises_decode_error(msg, field, v
 
 
 @pytest.mark.parametrize(
+    "field, value",
+    [
+        ("v2v_published", [1, True, 3]),
+        ("v2v_published", [1, -1]),
+        ("v2v_published", [2**53 + 1]),
+        ("v2v_published", [1, 2.0]),
+        ("v2v_published", ["1"]),
+        ("v2v_published", [1, None]),
+        ("members", [1, 251]),
+        ("running", [[1]]),
+    ],
+)
+def test_a_tick_list_that_is_not_one_of_counts_is_refused_by_name(field, value):
+    """The clock's lists (a count per vehicle, vehicle ids): plain integers in range, nothing else."""
+    body = _body(m.ClockTick(9, 180_000, 1, False, (1, 2, 3), (1, 3), (1,)))
+    body[field] = value
+    with pytest.raises(DecodeError, match=f"ClockTick.{field}: entries must be integers"):
+        m.decode(m.ClockTick, _pack(body))
+
+
+@pytest.mark.parametrize(
     "nis, why",
     [
         ([1.0] * 15, "list of 0 or 16 numbers"),
