@@ -24,19 +24,17 @@ import numpy as np
 from bus import feed
 from bus import messages as m
 from bus.config import SwarmConfig
-from bus.errors import DecodeError, SwarmlocError
+from bus.errors import SwarmlocError
 from bus.kill_schedule import KillSchedule
-from bus.mailbox import Mailbox, Oversized
-from bus.plan import FaultPlan, decode_json
+from bus.plan import FaultPlan
 from bus.process import Pacer
 from bus.rejections import Rejections
-from bus.session import Bus, Envelope, LivelinessEvent, await_subscribers
+from bus.session import Bus, await_subscribers
+from sim.intake import WorldIntake
 from sim.membership import Membership
 from sim.world import World
 
 log = logging.getLogger("swarmloc.world")
-MAX_ACK_BYTES = 256
-MAX_PLAN_BYTES = 1 << 20
 
 
 class StartTimeout(SwarmlocError):
@@ -77,17 +75,12 @@ class WorldNode:
         self.bus, self.config, keys = bus, config, bus.keys
         self.world = make_world(config)
         self.rejections = Rejections(log, "world")
-        self.mailbox = Mailbox()
-        control, acks = self.mailbox.lane("control", max_items=10_000), self.mailbox.lane("acks", max_items=100_000)
-        bus.watch_liveliness(keys.every_token(), control)
-        bus.subscribe(keys.fault_plan(), control, MAX_PLAN_BYTES)
-        bus.subscribe(keys.ack("*"), acks, MAX_ACK_BYTES)
-        self.plan_version = -1
         self.kills = KillSchedule()
         self.kills.set_plan(config.faults)  # the plan's first kills held from the start, as the supervisor acts on them
+        self.members = Membership(expected=set(self.world.vehicle_ids()))
+        self.intake = WorldIntake(bus, self.members, self._apply_plan, self.rejections)
         self.status = "complete"
         bus.declare_token(keys.alive("world", 0))
-        self.members = Membership(expected=set(self.world.vehicle_ids()))
         self._publishers: dict[str, object] = {
             key: bus.publisher(key) for key in [keys.clock(), keys.truth(), *map(keys.feed, self.members.expected)]
         }
@@ -109,66 +102,13 @@ class WorldNode:
         pub.put(payload)
 
     def drain(self, timeout_s: float, tick: int | None = None) -> None:
-        """Handle mailbox items (liveliness, plan, acks of ``tick``) for up to ``timeout_s``."""
-        item = self.mailbox.get(timeout_s)
-        while item is not None:
-            self._handle(item, tick)
-            item = self.mailbox.get_nowait()
+        """Handle what the world hears (sim.intake) for up to ``timeout_s``; acks count for ``tick``."""
+        self.intake.drain(timeout_s, tick)
 
-    def _handle(self, item: object, tick: int | None) -> None:
-        if isinstance(item, LivelinessEvent):
-            parsed = self.bus.keys.parse(item.key)
-            if parsed is None or parsed.kind != "alive":
-                self.rejections.reject("bad_key", "liveliness", repr(item.key))
-            else:
-                self.members.on_token(parsed.role, parsed.vehicle_id, item.alive)
-        elif isinstance(item, Oversized):
-            self.rejections.reject("oversized", item.key, f"{item.size} bytes")
-        elif isinstance(item, Envelope) and item.key == self.bus.keys.fault_plan():
-            self._on_plan(item)
-        elif isinstance(item, Envelope):
-            self._on_ack(item, tick)
-
-    def _on_plan(self, envelope: Envelope) -> None:
+    def _apply_plan(self, plan: FaultPlan) -> None:
         """A new fault plan from the ground station: the world applies its physical faults."""
-        try:
-            plan = decode_json(FaultPlan, envelope.payload)
-        except DecodeError as exc:
-            self.rejections.reject("malformed", envelope.key, str(exc))
-            return
-        if plan.version > self.plan_version:
-            self.plan_version = plan.version
-            self.world.faults.replace(plan.faults)
-            self.kills.set_plan(plan.faults)
-
-    def _on_ack(self, envelope: Envelope, tick: int | None) -> None:
-        parsed = self.bus.keys.parse(envelope.key)
-        if parsed is None or parsed.kind != "ack":
-            self.rejections.reject("bad_key", "acks", repr(envelope.key))
-            return
-        try:
-            if parsed.ident == "gs":
-                self.members.gs_acked = max(self.members.gs_acked, m.decode(m.GroundStationAck, envelope.payload).tick)
-                return
-            ack = m.decode(m.TickAck, envelope.payload)
-        except DecodeError as exc:
-            self.rejections.reject("malformed", envelope.key, str(exc))
-            return
-        if ack.vehicle_id != parsed.vehicle_id:
-            self.rejections.reject("impersonation", envelope.key, f"ack names vehicle {ack.vehicle_id}")
-            return
-        if ack.vehicle_id not in self.members.expected:
-            self.rejections.reject("unknown_vehicle", envelope.key, f"vehicle {ack.vehicle_id}")
-            return
-        self.members.on_v2v_count(ack.vehicle_id, ack.v2v_sent)
-        if ack.vehicle_id in self.members.joining:
-            # a restarted vehicle is in lockstep from its first ack, whichever tick it is for: one
-            # that starts slower than the swarm acks ticks the world has left behind, and the clock
-            # must wait for it to catch up, or it would never ack the current tick in time to join
-            self.members.joining.discard(ack.vehicle_id)
-            self.members.alive.add(ack.vehicle_id)
-        if ack.tick == tick:
-            self.members.acked.add(ack.vehicle_id)
+        self.world.faults.replace(plan.faults)
+        self.kills.set_plan(plan.faults)
 
     def wait_for_members(self, stop: threading.Event) -> None:
         """Until every vehicle and the ground station are alive and listen to what the world sends

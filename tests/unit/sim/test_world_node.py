@@ -20,7 +20,7 @@ def test_hostile_acks_tokens_and_plans_are_counted_and_never_count_for_anyone():
     node = _world()
     keys = node.bus.keys
     for vid in (1, 2, 3):
-        node._handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
+        node.intake.handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
     for item in (
         LivelinessEvent("swarm/alive/vehicle/\u00b2", True),
         LivelinessEvent("swarm/alive/vehicle/0", True),
@@ -31,7 +31,7 @@ def test_hostile_acks_tokens_and_plans_are_counted_and_never_count_for_anyone():
         Envelope(keys.fault_plan(), b"{}"),
         Envelope(keys.ack("gs"), b"junk"),
     ):
-        node._handle(item, 0)
+        node.intake.handle(item, 0)
     assert counts_to_dict(node.rejections.as_counts()) == {
         "bad_key": 3,
         "malformed": 3,
@@ -39,7 +39,7 @@ def test_hostile_acks_tokens_and_plans_are_counted_and_never_count_for_anyone():
         "unknown_vehicle": 1,
     }
     assert node.members.alive == {1, 2, 3} and node.members.acked == set()
-    node._handle(Envelope(keys.ack(1), m.encode(m.TickAck(1, 0, 4))), 0)
+    node.intake.handle(Envelope(keys.ack(1), m.encode(m.TickAck(1, 0, 4))), 0)
     assert node.members.acked == {1} and node.members.v2v_published(3) == (4, 0, 0)
 
 
@@ -47,10 +47,10 @@ def test_hostile_acks_tokens_and_plans_are_counted_and_never_count_for_anyone():
 @given(st.binary(max_size=300), st.text(max_size=8))
 def test_any_bytes_on_any_ack_key_are_never_fatal(payload, ident):
     node = _world()
-    node._handle(Envelope(f"swarm/ctl/ack/{ident}", payload), 0)
-    node._handle(Envelope("swarm/ctl/ack/1", payload), 0)
-    node._handle(Envelope("swarm/ctl/faults/plan", payload), 0)
-    node._handle(LivelinessEvent(f"swarm/alive/{ident}/{ident}", True), 0)
+    node.intake.handle(Envelope(f"swarm/ctl/ack/{ident}", payload), 0)
+    node.intake.handle(Envelope("swarm/ctl/ack/1", payload), 0)
+    node.intake.handle(Envelope("swarm/ctl/faults/plan", payload), 0)
+    node.intake.handle(LivelinessEvent(f"swarm/alive/{ident}/{ident}", True), 0)
 
 
 def test_a_restarted_vehicle_keeps_its_broadcast_count_growing():
@@ -67,14 +67,14 @@ def test_a_vehicle_that_leaves_before_its_final_ack_arrives_still_completed_the_
     node = _world()
     keys = node.bus.keys
     for vid in (1, 2, 3):
-        node._handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
+        node.intake.handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
     finishing = set(node.members.alive)
     node.members.acked = set()
     for vid in (1, 2, 3):
-        node.mailbox.lanes[0].put(LivelinessEvent(keys.alive("vehicle", vid), False))  # gone first
+        node.intake.mailbox.lanes[0].put(LivelinessEvent(keys.alive("vehicle", vid), False))  # gone first
     late = threading.Timer(
         0.3,
-        lambda: [node.mailbox.lanes[1].put(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 7)))) for vid in (1, 2, 3)],
+        lambda: [node.intake.mailbox.lanes[1].put(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 7)))) for vid in (1, 2, 3)],
     )  # the acks after
     late.start()
     node.await_final_acks(7, finishing, threading.Event(), timeout_s=5.0)
@@ -89,15 +89,15 @@ def test_a_restarted_vehicle_that_acks_an_older_tick_is_waited_for_until_it_catc
     node = _world()
     keys = node.bus.keys
     for vid in (1, 2, 3):
-        node._handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
-    node._handle(LivelinessEvent(keys.alive("vehicle", 2), False), None)  # killed
-    node._handle(LivelinessEvent(keys.alive("vehicle", 2), True), None)  # restarted
+        node.intake.handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
+    node.intake.handle(LivelinessEvent(keys.alive("vehicle", 2), False), None)  # killed
+    node.intake.handle(LivelinessEvent(keys.alive("vehicle", 2), True), None)  # restarted
     assert node.members.alive == {1, 3} and node.members.joining == {2}
     node.members.acked = set()
-    node._handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 29))), 31)  # behind: tick 29 while the world is at 31
+    node.intake.handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 29))), 31)  # behind: tick 29 while the world is at 31
     assert node.members.alive == {1, 2, 3} and node.members.acked == set()
     for vid in (1, 3):
-        node._handle(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 31))), 31)
+        node.intake.handle(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 31))), 31)
     assert not node.members.alive <= node.members.acked  # the clock waits for vehicle 2
-    node._handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 31))), 31)
+    node.intake.handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 31))), 31)
     assert node.members.alive <= node.members.acked
