@@ -158,10 +158,15 @@ def _read_datasheet(choice: ReplayChoice, frozen) -> Datasheet:
 
 
 def calibrated_datasheet(choice: ReplayChoice, data) -> Datasheet:
-    """The datasheet calibrated now on ``choice.calibration_s`` of ``data`` (:func:`calibration`)."""
+    """The datasheet calibrated on ``choice.calibration_s`` of ``data`` (:func:`calibration`), now or
+    by an earlier replay of the same data and code (launch.calibration_cache)."""
+    from launch.calibration_cache import cache_folder, remembered
     from sim.mrclam_calibration_file import dataset_name
 
-    frozen = calibration(choice, data, dataset_name(choice.dataset))
+    name = dataset_name(choice.dataset)
+    frozen = remembered(
+        data, name, choice.robots, choice.calibration_s, lambda: calibration(choice, data, name), cache_folder()
+    )
     return _read_datasheet(choice, frozen)
 
 

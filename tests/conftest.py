@@ -7,7 +7,12 @@ seeded ekf-slam runs took 39 s side by side, 8 s with one thread each).
 
 The long files (integration, monte_carlo) are collected first: the suite's two workers take a file at
 a time in collection order (`--no-loadscope-reorder`), so the long ones start early and the many
-short ones fill in at the end instead of one worker finishing a long file alone."""
+short ones fill in at the end instead of one worker finishing a long file alone.
+
+Replays keep their calibrations (launch.calibration_cache) in a folder of this run's own, shared by
+its workers: the suite neither reads nor fills the user's cache."""
+
+import os
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -30,3 +35,16 @@ def _one_blas_thread():
 
     with threadpool_limits(limits=1):
         yield
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _calibrations_of_this_run(tmp_path_factory):
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # xdist: one base per worker
+    before = os.environ.get("SWARMLOC_CACHE")
+    os.environ["SWARMLOC_CACHE"] = str(shared / "swarmloc-cache")  # the replays this suite starts inherit it
+    yield
+    if before is None:
+        os.environ.pop("SWARMLOC_CACHE", None)
+    else:
+        os.environ["SWARMLOC_CACHE"] = before

@@ -1,0 +1,97 @@
+"""A replay's calibration is kept under a key of everything it depends on: the same data, robots,
+interval and code read it back (no calibration run), anything else calibrates again; a kept file
+that does not read back, or a folder that cannot be written, costs a calibration and nothing else."""
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from launch.calibration_cache import cache_folder, calibration_key, remembered
+from sim.mrclam_calibration_file import read_calibration
+from tests.synthetic_mrclam import synthetic
+
+FROZEN = Path(__file__).resolve().parents[3] / "calibrations" / "mrclam-set6-first-half.json"
+
+
+class Calibrations:
+    """A stand-in calibration: the repository's frozen file, counted each time it is asked for."""
+
+    def __init__(self) -> None:
+        self.runs = 0
+        self.result = read_calibration(FROZEN)
+
+    def __call__(self):
+        self.runs += 1
+        return self.result
+
+
+@pytest.fixture
+def data():
+    return synthetic(np.random.default_rng(4), robots=2, duration_s=30.0)
+
+
+def test_the_second_replay_of_the_same_data_reads_the_calibration_back(tmp_path, data):
+    calibrate = Calibrations()
+    first = remembered(data, "set", (1, 2), (0.0, 20.0), calibrate, tmp_path)
+    again = remembered(data, "set", (1, 2), (0.0, 20.0), calibrate, tmp_path)
+    assert calibrate.runs == 1 and first == again == calibrate.result
+    assert len(list(tmp_path.glob("*.json"))) == 1 and not list(tmp_path.glob("*.tmp"))
+
+
+def test_other_robots_another_interval_name_or_data_calibrate_again(tmp_path, data):
+    calibrate = Calibrations()
+    remembered(data, "set", (1, 2), (0.0, 20.0), calibrate, tmp_path)
+    moved = dataclasses.replace(data, start_s=data.start_s + 1.0)
+    robot = data.robots[1]
+    nudged = robot.odometry.copy()
+    nudged[5, 1] += 1e-9  # one odometry reading, in its last bits
+    other_log = dataclasses.replace(data, robots={**data.robots, 1: dataclasses.replace(robot, odometry=nudged)})
+    for args in (
+        (data, "set", (1,), (0.0, 20.0)),
+        (data, "set", (1, 2), (0.0, 10.0)),
+        (data, "other", (1, 2), (0.0, 20.0)),
+        (moved, "set", (1, 2), (0.0, 20.0)),
+        (other_log, "set", (1, 2), (0.0, 20.0)),
+    ):
+        remembered(*args, calibrate, tmp_path)
+    assert calibrate.runs == 6 and len(list(tmp_path.glob("*.json"))) == 6
+
+
+def test_a_kept_file_that_does_not_read_back_is_calibrated_again_and_replaced(tmp_path, data, caplog):
+    calibrate = Calibrations()
+    remembered(data, "set", (1, 2), (0.0, 20.0), calibrate, tmp_path)
+    (kept,) = tmp_path.glob("*.json")
+    kept.write_text('{"format": "swarmloc/mrclam-calibration", "vers')  # cut short
+    assert remembered(data, "set", (1, 2), (0.0, 20.0), calibrate, tmp_path) == calibrate.result
+    assert calibrate.runs == 2 and "calibrating again" in caplog.text
+    assert read_calibration(kept) == calibrate.result
+
+
+def test_a_folder_that_cannot_be_written_still_gives_the_calibration(tmp_path, data, caplog):
+    blocked = tmp_path / "file"
+    blocked.write_text("a file where the folder would be")
+    calibrate = Calibrations()
+    for _ in range(2):
+        assert remembered(data, "set", (1, 2), (0.0, 20.0), calibrate, blocked / "calibrations") == calibrate.result
+    assert calibrate.runs == 2 and "not kept" in caplog.text
+
+
+def test_off_calibrates_every_time(data):
+    calibrate = Calibrations()
+    for _ in range(2):
+        remembered(data, "set", (1, 2), (0.0, 20.0), calibrate, cache_folder({"SWARMLOC_CACHE": "off"}))
+    assert calibrate.runs == 2
+
+
+def test_the_folder_follows_the_environment(tmp_path):
+    assert cache_folder({"SWARMLOC_CACHE": str(tmp_path)}) == tmp_path / "calibrations"
+    assert cache_folder({"XDG_CACHE_HOME": str(tmp_path)}) == tmp_path / "swarmloc" / "calibrations"
+    assert cache_folder({}) == Path.home() / ".cache" / "swarmloc" / "calibrations"
+    assert cache_folder({"SWARMLOC_CACHE": "OFF"}) is None
+
+
+def test_equal_data_and_an_interval_given_in_integers_have_the_same_key(data):
+    copy = dataclasses.replace(data, robots={r: dataclasses.replace(log) for r, log in data.robots.items()})
+    assert calibration_key(data, "set", (1, 2), (0, 20)) == calibration_key(copy, "set", (1, 2), (0.0, 20.0))
