@@ -1,15 +1,18 @@
 """Start-up benchmarks (issue 44): what each process role loads and costs before its loop
 (bench/startup.py), and the CPU a whole 10-vehicle swarm spends to start and stop, against the code
 the issue was filed on (``BEFORE``, built from the repository's history by bench/baseline.py), the
-two interleaved in one sitting (medians of ``ROUNDS``)."""
+two interleaved in one sitting (medians of ``ROUNDS``); and a one-minute MRCLAM replay with its
+calibration kept from an earlier replay against calibrating (launch.calibration_cache)."""
 
 from __future__ import annotations
 
+import os
 import resource
 import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from bench.baseline import baseline_python, checkout_of, swarm_of
@@ -19,6 +22,7 @@ from bench.startup import ROLES, probe
 BEFORE = "4abe413"  # main when issue 44 was filed
 ROUNDS = 3
 VEHICLE_RSS_MB = 65.0
+EXCERPT = Path(__file__).resolve().parents[1] / "tests" / "data" / "MRCLAM_Dataset6_first240s.tar.xz"
 
 
 def swarm_cpu_s(python: Path | str, vehicles: int, duration_s: float, out: Path, name: str) -> float:
@@ -69,4 +73,40 @@ def run(quick: bool) -> list[Row]:
             {"cpu_s": round(now, 2), "cpu_s_before": round(then, 2), "rounds": len(cpu["now"])},
         )
     )
+    rows.append(replay_row(1 if quick else ROUNDS))
     return rows
+
+
+def replay_wall_s(out: Path, name: str, cache: str) -> float:
+    """Wall seconds of `swarm replay mrclam` on the first minute after the default calibration
+    interval of the data set 6 excerpt, with ``SWARMLOC_CACHE`` = ``cache``."""
+    start = time.perf_counter()
+    subprocess.run(
+        [sys.executable, "-m", "cli", "replay", "mrclam", str(EXCERPT), "--duration", "60", "--quiet",
+         "--no-report", "--out", str(out), "--name", name],
+        check=True, capture_output=True, env={**os.environ, "SWARMLOC_CACHE": cache},
+    )  # fmt: skip
+    return time.perf_counter() - start
+
+
+def replay_row(rounds: int) -> Row:
+    """Each round: a replay that calibrates (the cache off), then one that reads the calibration a
+    first replay kept in a fresh folder (that first one not timed)."""
+    walls: dict[str, list[float]] = {"calibrating": [], "kept": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(rounds):
+            walls["calibrating"].append(replay_wall_s(Path(tmp), f"cold-{k}", "off"))
+            cache = str(Path(tmp) / f"cache-{k}")
+            replay_wall_s(Path(tmp), f"first-{k}", cache)
+            walls["kept"].append(replay_wall_s(Path(tmp), f"kept-{k}", cache))
+    kept, calibrating = statistics.median(walls["kept"]), statistics.median(walls["calibrating"])
+    return Row(
+        "startup",
+        "MRCLAM replay, 5 robots, 60 s: calibration kept from an earlier replay",
+        "wall against calibrating",
+        round(kept / calibrating, 3),
+        "x",
+        "-",
+        None,
+        {"wall_s": round(kept, 2), "wall_s_calibrating": round(calibrating, 2), "rounds": rounds},
+    )
