@@ -10,17 +10,21 @@ its name, the robots and the interval, every source file of the packages the cal
 (bus, sim, vehicle, launch), and the versions of Python, numpy and scipy. Any change to one of
 them is another key; a file that does not read back is calibrated again. The folder is
 ``$SWARMLOC_CACHE/calibrations`` (default ``$XDG_CACHE_HOME/swarmloc``, else ``~/.cache/swarmloc``);
-``SWARMLOC_CACHE=off`` calibrates every time.
+``SWARMLOC_CACHE=off`` calibrates every time. Replays that start together (a campaign's runs) take
+turns on a lock per key: the first calibrates, the others read what it kept.
 """
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import functools
 import hashlib
 import logging
 import os
 import sys
 import tempfile
+import time
 from collections.abc import Callable, Mapping
 from importlib.metadata import version
 from pathlib import Path
@@ -33,6 +37,7 @@ from sim.mrclam_calibration_file import CalibrationFile, read_calibration, write
 
 log = logging.getLogger("swarmloc.replay")
 PACKAGES = ("bus", "sim", "vehicle", "launch")  # what a calibration runs (held-out replays in process)
+LOCK_WAIT_S = 600.0  # how long a replay waits for another that calibrates the same key
 
 
 def cache_folder(environ: Mapping[str, str] = os.environ) -> Path | None:
@@ -55,28 +60,53 @@ def remembered(
     folder: Path | None,
 ) -> CalibrationFile:
     """The calibration of ``robots`` on ``interval_s`` of ``data`` (named ``dataset``): read from
-    ``folder`` under its key, else ``calibrate()`` and kept there (None: not kept). A folder that
-    cannot be written costs the next run a calibration, nothing else."""
+    ``folder`` under its key, else ``calibrate()`` and kept there (None: not kept), one replay at a
+    time per key. A folder that cannot be written costs the next run a calibration, nothing else."""
     if folder is None:
         return calibrate()
-    path = folder / f"{calibration_key(data, dataset, robots, interval_s)}.json"
-    if path.is_file():
+    key = calibration_key(data, dataset, robots, interval_s)
+    path = folder / f"{key}.json"
+    with _exclusive(folder / f"{key}.lock"):  # the replays of a campaign that start together: one calibrates
+        if path.is_file():
+            try:
+                kept = read_calibration(path)
+                log.info("calibration of robots %s on %s s: kept in %s", list(robots), list(interval_s), path)
+                return kept
+            except ConfigError as exc:
+                log.warning("%s; calibrating again", exc)
+        calibration = calibrate()
         try:
-            kept = read_calibration(path)
-            log.info("calibration of robots %s on %s s: kept in %s", list(robots), list(interval_s), path)
-            return kept
-        except ConfigError as exc:
-            log.warning("%s; calibrating again", exc)
-    calibration = calibrate()
+            with tempfile.NamedTemporaryFile("w", dir=folder, suffix=".tmp", delete=False) as handle:
+                partial = Path(handle.name)
+            write_calibration(partial, calibration)
+            os.replace(partial, path)  # whole or not at all
+        except OSError as exc:
+            log.warning("calibration not kept in %s (%s): the next replay calibrates again", folder, exc)
+        return calibration
+
+
+@contextlib.contextmanager
+def _exclusive(lock: Path, wait_s: float = LOCK_WAIT_S):
+    """Hold ``lock`` (an flock, released when the holder ends however it ends) while the block runs;
+    after ``wait_s`` without it, or where it cannot be taken, the block runs all the same."""
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile("w", dir=folder, suffix=".tmp", delete=False) as handle:
-            partial = Path(handle.name)
-        write_calibration(partial, calibration)
-        os.replace(partial, path)  # whole or not at all, whoever else writes the same key meanwhile
-    except OSError as exc:
-        log.warning("calibration not kept in %s (%s): the next replay calibrates again", folder, exc)
-    return calibration
+        lock.parent.mkdir(parents=True, exist_ok=True)
+        handle = lock.open("a")
+    except OSError:
+        yield
+        return
+    with handle:
+        deadline = time.monotonic() + wait_s
+        while True:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    log.warning("%s still held after %g s: calibrating alongside its holder", lock, wait_s)
+                    break
+                time.sleep(0.1)
+        yield  # the lock goes with the handle's close
 
 
 def calibration_key(data: MrclamData, dataset: str, robots: tuple[int, ...], interval_s: tuple[float, float]) -> str:

@@ -3,13 +3,15 @@ interval and code read it back (no calibration run), anything else calibrates ag
 that does not read back, or a folder that cannot be written, costs a calibration and nothing else."""
 
 import dataclasses
+import fcntl
+import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from launch.calibration_cache import cache_folder, calibration_key, remembered
-from sim.mrclam_calibration_file import read_calibration
+from sim.mrclam_calibration_file import read_calibration, write_calibration
 from tests.synthetic_mrclam import synthetic
 
 FROZEN = Path(__file__).resolve().parents[3] / "calibrations" / "mrclam-set6-first-half.json"
@@ -95,3 +97,22 @@ def test_the_folder_follows_the_environment(tmp_path):
 def test_equal_data_and_an_interval_given_in_integers_have_the_same_key(data):
     copy = dataclasses.replace(data, robots={r: dataclasses.replace(log) for r, log in data.robots.items()})
     assert calibration_key(data, "set", (1, 2), (0, 20)) == calibration_key(copy, "set", (1, 2), (0.0, 20.0))
+
+
+def test_a_replay_that_starts_while_another_calibrates_waits_and_reads_what_it_kept(tmp_path, data):
+    """The lock of the key held (as by a campaign's first replay, calibrating): the next replay
+    waits instead of calibrating too, and takes the calibration the first one keeps."""
+    calibrate = Calibrations()
+    key = calibration_key(data, "set", (1, 2), (0.0, 20.0))
+    got = []
+    with (tmp_path / f"{key}.lock").open("a") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        waiting = threading.Thread(
+            target=lambda: got.append(remembered(data, "set", (1, 2), (0.0, 20.0), calibrate, tmp_path))
+        )
+        waiting.start()
+        waiting.join(timeout=0.5)
+        assert waiting.is_alive()  # it cannot go on while the lock is held
+        write_calibration(tmp_path / f"{key}.json", calibrate.result)  # what the first one keeps
+    waiting.join(timeout=30)
+    assert got == [calibrate.result] and calibrate.runs == 0
