@@ -72,9 +72,9 @@ def test_a_vehicle_that_leaves_before_its_final_ack_arrives_still_completed_the_
     node.members.acked = set()
     for vid in (1, 2, 3):
         node.intake.mailbox.lanes[0].put(LivelinessEvent(keys.alive("vehicle", vid), False))  # gone first
+    acks = node.intake.mailbox.lanes[1]
     late = threading.Timer(
-        0.3,
-        lambda: [node.intake.mailbox.lanes[1].put(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 7)))) for vid in (1, 2, 3)],
+        0.3, lambda: [acks.put(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 7)))) for vid in (1, 2, 3)]
     )  # the acks after
     late.start()
     node.await_final_acks(7, finishing, threading.Event(), timeout_s=5.0)
@@ -94,7 +94,8 @@ def test_a_restarted_vehicle_that_acks_an_older_tick_is_waited_for_until_it_catc
     node.intake.handle(LivelinessEvent(keys.alive("vehicle", 2), True), None)  # restarted
     assert node.members.alive == {1, 3} and node.members.joining == {2}
     node.members.acked = set()
-    node.intake.handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 29))), 31)  # behind: tick 29 while the world is at 31
+    behind = Envelope(keys.ack(2), m.encode(m.TickAck(2, 29)))  # tick 29 while the world is at 31
+    node.intake.handle(behind, 31)
     assert node.members.alive == {1, 2, 3} and node.members.acked == set()
     for vid in (1, 3):
         node.intake.handle(Envelope(keys.ack(vid), m.encode(m.TickAck(vid, 31))), 31)
