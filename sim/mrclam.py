@@ -15,6 +15,7 @@ Every problem is a ``DataError`` naming the file and, for a bad line, its number
 from __future__ import annotations
 
 import dataclasses
+import math
 import tarfile
 import tempfile
 from dataclasses import dataclass
@@ -63,24 +64,37 @@ class MrclamData:
 
 def read_table(path: Path, width: int) -> np.ndarray:
     """The numbers of a data file as (k, width) floats; a missing file, a line of another width or a
-    non-number is a DataError with the file name, the line number and the line."""
+    non-number is a DataError with the file name, the line number and the line. Blank lines and
+    lines starting with ``#`` are skipped."""
     if not path.is_file():
         raise DataError(f"{path.name} is missing from {path.parent}")
-    rows = []
     with path.open("r", encoding="utf-8", errors="replace") as handle:
-        for number, line in enumerate(handle, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            fields = text.split()
-            try:
-                values = [float(f) for f in fields]
-            except ValueError:
-                values = []
-            if len(values) != width or not all(np.isfinite(values)):
-                shown = text if len(text) <= MAX_LINE_SHOWN else text[:MAX_LINE_SHOWN] + "..."
-                raise DataError(f"{path.name} line {number}: expected {width} numbers, got {shown!r}")
-            rows.append(values)
+        lines = handle.read().split("\n")  # the lines iterating the file gives (newlines translated)
+    data = [line for line in lines if line.strip() and not line.lstrip().startswith("#")]
+    try:  # numpy's parser (C): a data set's 600,000 lines in a tenth of the time of the loop below
+        table = np.loadtxt(data, dtype=float, comments=None, ndmin=2) if data else None
+    except ValueError:
+        table = None
+    if table is None or table.shape[1] != width or not np.isfinite(table).all():
+        return _read_line_by_line(path, lines, width)  # the same rule, and the error names the line
+    return table
+
+
+def _read_line_by_line(path: Path, lines: list[str], width: int) -> np.ndarray:
+    """``read_table`` one line at a time with Python's float: what numpy's parser does not take."""
+    rows = []
+    for number, line in enumerate(lines, start=1):
+        text = line.strip()
+        if not text or text.startswith("#"):
+            continue
+        try:
+            values = [float(f) for f in text.split()]
+        except ValueError:
+            values = []
+        if len(values) != width or not all(math.isfinite(v) for v in values):
+            shown = text if len(text) <= MAX_LINE_SHOWN else text[:MAX_LINE_SHOWN] + "..."
+            raise DataError(f"{path.name} line {number}: expected {width} numbers, got {shown!r}")
+        rows.append(values)
     return np.array(rows, dtype=float).reshape(-1, width)
 
 

@@ -1,14 +1,19 @@
 """Reading MRCLAM data sets (Leung et al., IJRR 2011): a tiny excerpt round-trips (directory and
 .tar.xz), barcodes become subjects and unknown ones are skipped and counted, every malformed case is
-one clear error naming the file (and the line); data set 6 itself when it is on this machine."""
+one clear error naming the file (and the line); data set 6 itself when it is on this machine; any
+table reads as Python's float reads each of its lines."""
 
+import math
+import re
 import tarfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from sim.mrclam import DataError, load_mrclam
+from sim.mrclam import DataError, load_mrclam, read_table
 
 HEADER = "# UTIAS Multi-Robot Cooperative Localization and Mapping Dataset\n# excerpt\n# format\n# columns\n"
 T0 = 1248444175.0
@@ -105,3 +110,48 @@ def test_data_set_6():
     assert data.landmarks.shape == (15, 5) and round(data.duration_s) == 900
     assert [data.robots[r].unknown_barcodes for r in range(1, 6)] == [1, 0, 2, 3, 0]
     assert round(float(data.robots[1].groundtruth[-1, 0])) == 772  # robot 1's ground truth ends early
+
+
+number = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False, width=64).map(repr),
+    st.integers(-(10**12), 10**12).map(str),
+    st.floats(-1e6, 1e6).map(lambda v: f"{v:.6e}"),
+    st.sampled_from(["+1.5", "-0.0", "1e-320", "2.", ".5", "1_0", "nan", "inf", "-Infinity", "0x10", "1,5", "abc"]),
+)
+line = st.one_of(
+    st.lists(number, min_size=1, max_size=4).flatmap(
+        lambda fields: st.sampled_from([" ", "\t", "  ", " \t "]).map(lambda gap: gap.join(fields))
+    ),
+    st.sampled_from(["", "   ", "# a comment", "  # indented comment", "1 2 # trailing", "\u00a01 2", "1\x0c2 3"]),
+)
+
+
+@settings(max_examples=300)
+@given(st.lists(line, max_size=12), st.sampled_from([2, 3]))
+def test_a_table_reads_as_python_reads_each_line(tmp_path_factory, lines, width):
+    """numpy's parser, taken where it reads every line, gives what Python's float gives line by line,
+    to the bit; what it does not take is read line by line: the same table or the same error."""
+    path = tmp_path_factory.mktemp("table") / "Robot1_Odometry.dat"
+    path.write_text("\n".join(lines) + "\n")
+    expected, refused = None, None
+    rows = []
+    for k, text in enumerate(lines, start=1):
+        text = text.strip()
+        if not text or text.startswith("#"):
+            continue
+        try:
+            values = [float(f) for f in text.split()]
+        except ValueError:
+            values = []
+        if len(values) != width or not all(math.isfinite(v) for v in values):
+            refused = f"Robot1_Odometry.dat line {k}: expected {width} numbers"
+            break
+        rows.append(values)
+    else:
+        expected = np.array(rows, dtype=float).reshape(-1, width)
+    if refused:
+        with pytest.raises(DataError, match=re.escape(refused)):
+            read_table(path, width)
+    else:
+        got = read_table(path, width)
+        assert got.shape == expected.shape and got.tobytes() == expected.tobytes()
