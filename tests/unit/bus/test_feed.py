@@ -75,6 +75,16 @@ def _mutate_gnss(fn):
         (lambda b: b["imu"].update(stamp=np.arange(11, dtype="<i8")[::-1].tobytes()), "ordered"),
         (lambda b: b["imu"].update(stamp=(np.arange(11, dtype="<i8") * 10_000 + 10**7).tobytes()), "inside the tick"),
         (lambda b: b["imu"].update(stamp=np.zeros(11, dtype="<i8").tobytes()), "one stamp"),
+        (  # two faults: the stamps' order is said first, then the values, then two alike
+            lambda b: b["imu"].update(
+                stamp=np.arange(11, dtype="<i8")[::-1].tobytes(), data=np.full(66, math.nan).tobytes()
+            ),
+            "ordered",
+        ),
+        (
+            lambda b: b["imu"].update(stamp=np.zeros(11, dtype="<i8").tobytes(), data=np.full(66, math.nan).tobytes()),
+            "finite",
+        ),
         (_mutate_gnss(lambda r: r.__setitem__((0, 0), math.nan)), "finite"),
         (_mutate_gnss(lambda r: r.__setitem__((0, 0), 1e9)), "within"),
         (_mutate_gnss(lambda r: r.__setitem__((0, slice(2, 6)), [0.0, 0.0, 0.0, 0.0])), "positive definite"),
