@@ -3,11 +3,12 @@ data set before it replays (sim.mrclam_calibration, then four known-map replays 
 interval for the unmodelled sigma: launch.replay_setup.held_out_sigma), 10-15 s for five robots and
 two minutes, on every run of a campaign's grid as on the first.
 
-The calibration is a function of the data, the robots, the interval and the code alone, so it is
-kept as the calibration file ``swarm replay calibrate`` would write (sim.mrclam_calibration_file:
-it reads back to the same numbers, bit for bit) under a key of all of them: the data set's arrays,
-its name, the robots and the interval, every source file of the packages the calibration runs
-(bus, sim, vehicle, launch), and the versions of Python, numpy and scipy. Any change to one of
+The calibration is a function of the data, what it is asked (the robots, the interval, and the
+seed of the held-out replays' launch priors: launch.replay_setup.calibration_inputs) and the code
+alone, so it is kept as the calibration file ``swarm replay calibrate`` would write
+(sim.mrclam_calibration_file: it reads back to the same numbers, bit for bit) under a key of all of
+them: the data set's arrays, what it is asked, every source file of the packages the calibration
+runs (bus, sim, vehicle, launch), and the versions of Python, numpy and scipy. Any change to one of
 them is another key; a file that does not read back is calibrated again. The folder is
 ``$SWARMLOC_CACHE/calibrations`` (default ``$XDG_CACHE_HOME/swarmloc``, else ``~/.cache/swarmloc``);
 ``SWARMLOC_CACHE=off`` calibrates every time. Replays that start together (a campaign's runs) take
@@ -52,25 +53,21 @@ def cache_folder(environ: Mapping[str, str] = os.environ) -> Path | None:
 
 
 def remembered(
-    data: MrclamData,
-    dataset: str,
-    robots: tuple[int, ...],
-    interval_s: tuple[float, float],
-    calibrate: Callable[[], CalibrationFile],
-    folder: Path | None,
+    data: MrclamData, asked: str, calibrate: Callable[[], CalibrationFile], folder: Path | None
 ) -> CalibrationFile:
-    """The calibration of ``robots`` on ``interval_s`` of ``data`` (named ``dataset``): read from
-    ``folder`` under its key, else ``calibrate()`` and kept there (None: not kept), one replay at a
-    time per key. A folder that cannot be written costs the next run a calibration, nothing else."""
+    """The calibration of ``data`` for ``asked`` (a text naming everything else ``calibrate`` reads):
+    read from ``folder`` under its key, else ``calibrate()`` and kept there (None: not kept), one
+    replay at a time per key. A folder that cannot be written costs the next run a calibration,
+    nothing else."""
     if folder is None:
         return calibrate()
-    key = calibration_key(data, dataset, robots, interval_s)
+    key = calibration_key(data, asked)
     path = folder / f"{key}.json"
     with _exclusive(folder / f"{key}.lock"):  # the replays of a campaign that start together: one calibrates
         if path.is_file():
             try:
                 kept = read_calibration(path)
-                log.info("calibration of robots %s on %s s: kept in %s", list(robots), list(interval_s), path)
+                log.info("calibration kept in %s (%s)", path, asked)
                 return kept
             except ConfigError as exc:
                 log.warning("%s; calibrating again", exc)
@@ -109,10 +106,9 @@ def _exclusive(lock: Path, wait_s: float = LOCK_WAIT_S):
         yield  # the lock goes with the handle's close
 
 
-def calibration_key(data: MrclamData, dataset: str, robots: tuple[int, ...], interval_s: tuple[float, float]) -> str:
+def calibration_key(data: MrclamData, asked: str) -> str:
     """A hex digest of everything a calibration depends on (module docstring)."""
-    digest = hashlib.sha256()
-    digest.update(repr((dataset, tuple(robots), tuple(map(float, interval_s)))).encode())
+    digest = hashlib.sha256(asked.encode())
     digest.update(data_fingerprint(data).encode())
     digest.update(code_fingerprint().encode())
     return digest.hexdigest()[:32]

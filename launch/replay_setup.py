@@ -164,10 +164,26 @@ def calibrated_datasheet(choice: ReplayChoice, data) -> Datasheet:
     from sim.mrclam_calibration_file import dataset_name
 
     name = dataset_name(choice.dataset)
-    frozen = remembered(
-        data, name, choice.robots, choice.calibration_s, lambda: calibration(choice, data, name), cache_folder()
-    )
+    frozen = remembered(data, repr(calibration_inputs(choice)), lambda: calibration(choice, data, name), cache_folder())
     return _read_datasheet(choice, frozen)
+
+
+def calibration_inputs(choice: ReplayChoice) -> ReplayChoice:
+    """What of ``choice`` :func:`calibration` reads: the choice with the fields it does not read made
+    the same for every replay (the estimator and its variant: the held-out replays are known-map
+    alone; the window: theirs are inside the interval; the data set's path: its name is kept). The
+    robots, the interval, the seed of the launch priors and the relay of sightings stay."""
+    from sim.mrclam_calibration_file import dataset_name
+
+    return dataclasses.replace(
+        choice,
+        dataset=dataset_name(choice.dataset),
+        estimator="known-map",
+        cooperative=False,
+        start_s=None,
+        duration_s=None,
+        withhold_landmarks=(),
+    )
 
 
 def calibration(choice: ReplayChoice, data, dataset: str):
