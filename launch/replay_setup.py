@@ -170,9 +170,10 @@ def calibrated_datasheet(choice: ReplayChoice, data) -> Datasheet:
 
 def calibration_inputs(choice: ReplayChoice) -> ReplayChoice:
     """What of ``choice`` :func:`calibration` reads: the choice with the fields it does not read made
-    the same for every replay (the estimator and its variant: the held-out replays are known-map
-    alone; the window: theirs are inside the interval; the data set's path: its name is kept). The
-    robots, the interval, the seed of the launch priors and the relay of sightings stay."""
+    the same for every replay (the estimator and its variant, which :func:`_known_map_config` sets
+    for the held-out replays; the window: theirs are inside the interval; the data set's path,
+    which they only record: its name is kept). The robots, the interval, the seed of the launch
+    priors, the relay of sightings, and any field added later stay."""
     from sim.mrclam_calibration_file import dataset_name
 
     return dataclasses.replace(
