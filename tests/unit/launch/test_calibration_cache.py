@@ -130,4 +130,3 @@ def test_a_replay_that_starts_while_another_calibrates_waits_and_reads_what_it_k
         write_calibration(tmp_path / f"{key}.json", calibrate.result)  # what the first one keeps
     waiting.join(timeout=30)
     assert got == [calibrate.result] and calibrate.runs == 0
-
