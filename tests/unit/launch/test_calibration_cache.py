@@ -17,7 +17,7 @@ from sim.mrclam_calibration_file import read_calibration, write_calibration
 from tests.synthetic_mrclam import synthetic
 
 FROZEN = Path(__file__).resolve().parents[3] / "calibrations" / "mrclam-set6-first-half.json"
-CHOICE = ReplayChoice(dataset="data/set.tar.xz", robots=(1, 2), calibration_s=(0.0, 100.0))
+CHOICE = ReplayChoice(dataset="data/set.tar.xz", robots=(1, 2), calibration_s=(0.0, 20.0))
 ASKED = repr(calibration_inputs(CHOICE))
 
 
@@ -56,7 +56,7 @@ def test_other_robots_interval_seed_name_or_data_calibrate_again(tmp_path, data)
     other_log = dataclasses.replace(data, robots={**data.robots, 1: dataclasses.replace(robot, odometry=nudged)})
     for other in (
         dataclasses.replace(CHOICE, robots=(1,)),
-        dataclasses.replace(CHOICE, calibration_s=(0.0, 100.0)),
+        dataclasses.replace(CHOICE, calibration_s=(0.0, 10.0)),
         dataclasses.replace(CHOICE, seed=1),
         dataclasses.replace(CHOICE, dataset="other.tar.xz"),
     ):
