@@ -72,14 +72,22 @@ def remembered(
             except ConfigError as exc:
                 log.warning("%s; calibrating again", exc)
         calibration = calibrate()
-        try:
-            with tempfile.NamedTemporaryFile("w", dir=folder, suffix=".tmp", delete=False) as handle:
-                partial = Path(handle.name)
-            write_calibration(partial, calibration)
-            os.replace(partial, path)  # whole or not at all
-        except OSError as exc:
-            log.warning("calibration not kept in %s (%s): the next replay calibrates again", folder, exc)
+        _keep(calibration, path)
         return calibration
+
+
+def _keep(calibration: CalibrationFile, path: Path) -> None:
+    """Write ``calibration`` to ``path`` whole or not at all (a partial file never stays behind)."""
+    partial = None
+    try:
+        with tempfile.NamedTemporaryFile("w", dir=path.parent, suffix=".tmp", delete=False) as handle:
+            partial = Path(handle.name)
+        write_calibration(partial, calibration)
+        os.replace(partial, path)
+    except OSError as exc:
+        log.warning("calibration not kept in %s (%s): the next replay calibrates again", path.parent, exc)
+        if partial is not None:
+            partial.unlink(missing_ok=True)
 
 
 @contextlib.contextmanager

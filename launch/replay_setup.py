@@ -161,10 +161,9 @@ def calibrated_datasheet(choice: ReplayChoice, data) -> Datasheet:
     """The datasheet calibrated on ``choice.calibration_s`` of ``data`` (:func:`calibration`), now or
     by an earlier replay of the same data and code (launch.calibration_cache)."""
     from launch.calibration_cache import cache_folder, remembered
-    from sim.mrclam_calibration_file import dataset_name
 
-    name = dataset_name(choice.dataset)
-    frozen = remembered(data, repr(calibration_inputs(choice)), lambda: calibration(choice, data, name), cache_folder())
+    asked = calibration_inputs(choice)
+    frozen = remembered(data, repr(asked), lambda: calibration(choice, data, asked.dataset), cache_folder())
     return _read_datasheet(choice, frozen)
 
 

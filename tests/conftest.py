@@ -41,10 +41,6 @@ def _one_blas_thread():
 def _calibrations_of_this_run(tmp_path_factory):
     base = tmp_path_factory.getbasetemp()
     shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # xdist: one base per worker
-    before = os.environ.get("SWARMLOC_CACHE")
-    os.environ["SWARMLOC_CACHE"] = str(shared / "swarmloc-cache")  # the replays this suite starts inherit it
-    yield
-    if before is None:
-        os.environ.pop("SWARMLOC_CACHE", None)
-    else:
-        os.environ["SWARMLOC_CACHE"] = before
+    with pytest.MonkeyPatch.context() as env:
+        env.setenv("SWARMLOC_CACHE", str(shared / "swarmloc-cache"))  # the replays this suite starts inherit it
+        yield
