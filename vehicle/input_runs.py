@@ -12,13 +12,10 @@ samples, and with anything pushed later, exactly as one message at a time would.
 from __future__ import annotations
 
 import itertools
-import operator
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
-
-import numpy as np
 
 from bus.feed import SensorBatch
 from bus.topics import Topic
@@ -46,32 +43,23 @@ class InputRun:
 def unpack(batch: SensorBatch, first: int) -> tuple[InputRun | None, list[tuple[int, str, Any]]]:
     """``batch``'s input samples as a run (None when it has none) and its other samples as (arrival
     number, topic, message) in its order, numbered from ``first`` (``FusionHorizon.reserve`` of the
-    batch's sample count)."""
-    places, others = batch_order(batch)
-    others = [(first + p, topic, batch.message(topic, i)) for p, topic, i in others]
-    if not sum(len(place) for place in places.values()):  # no input samples (a blackout's batch)
+    batch's sample count). Plain Python: a realtime batch holds a few rows, and numpy's per-call cost
+    was most of unpacking one."""
+    keyed, topics = batch_order(batch)
+    stamps, arrivals, idents, rows, others = [], [], [], [], []
+    for arrival, (stamp, t, i) in enumerate(keyed, first):
+        topic, seq0, block_rows = topics[t]
+        if block_rows is None:  # not an input sample
+            others.append((arrival, topic, batch.message(topic, i)))
+            continue
+        stamps.append(stamp)
+        arrivals.append(arrival)
+        idents.append((topic, seq0 + i))
+        rows.append(block_rows[i])
+    if not stamps:  # no input samples (a blackout's batch)
         return None, others
-    idents, rows, blocks = [], [], []
-    for topic, place in places.items():
-        stamps, seq0, block_rows = batch.blocks[topic]
-        n = len(place)
-        idents += zip(itertools.repeat(topic), range(seq0, seq0 + n))
-        rows += block_rows.tolist()
-        blocks.append((topic, seq0, n))
-    place = np.concatenate(list(places.values()))
-    order = np.argsort(place, kind="stable").tolist()  # the batch's order: by stamp, then topic
-    stamps = np.concatenate([batch.blocks[t][0] for t in places])
-    pick = operator.itemgetter(*order) if len(order) > 1 else (lambda seq: (seq[order[0]],))  # a tuple always
-    idents = list(pick(idents))
-    run = InputRun(
-        stamps[order].tolist(),
-        (place[order] + first).tolist(),
-        idents,
-        list(pick(rows)),
-        partial(_message, batch, idents),
-        blocks,
-    )
-    return run, others
+    blocks = [(topic, seq0, len(block_rows)) for topic, seq0, block_rows in topics if block_rows is not None]
+    return InputRun(stamps, arrivals, idents, rows, partial(_message, batch, idents), blocks), others
 
 
 def _message(batch: SensorBatch, idents: list[tuple[str, int]], i: int) -> Any:
@@ -80,24 +68,17 @@ def _message(batch: SensorBatch, idents: list[tuple[str, int]], i: int) -> Any:
     return batch.message(topic, seq - batch.blocks[topic][1])
 
 
-def batch_order(batch: SensorBatch) -> tuple[dict[str, np.ndarray], list[tuple[int, str, int]]]:
-    """The place of every sample of each input topic of ``batch`` (k,) in ``SensorBatch.samples``'
-    order, and the other samples as (place, topic, index), in that order (``Topic.CAMERA`` for the
-    camera frames)."""
-    topics = list(batch.blocks) + ([Topic.CAMERA] if batch.camera is not None else [])
-    stamps = [batch.blocks[t][0] for t in batch.blocks] + ([batch.camera.stamps] if batch.camera is not None else [])
-    if not stamps:
-        return {}, []
-    order = np.argsort(np.concatenate(stamps), kind="stable")
-    place = np.empty_like(order)
-    place[order] = np.arange(len(order))
-    runs, others, start = {}, [], 0
-    for topic, block in zip(topics, stamps):
-        places = place[start : start + len(block)]
-        start += len(block)
-        if topic in INPUT_TOPICS:
-            runs[topic] = places
-        else:
-            others += [(p, topic, i) for i, p in enumerate(places.tolist())]
-    others.sort()
-    return runs, others
+def batch_order(batch: SensorBatch) -> tuple[list[tuple[int, int, int]], list[tuple[str, int, list | None]]]:
+    """Every sample of ``batch`` as (stamp us, topic number, index in its block) in
+    ``SensorBatch.samples``' order (by stamp, then the batch's topic order, camera frames last), and
+    per topic number (topic, first seq, its rows as lists of floats: None where it is not an input,
+    ``Topic.CAMERA`` for the frames)."""
+    keyed, topics = [], []
+    for topic, (stamps, seq0, rows) in batch.blocks.items():
+        keyed += zip(stamps.tolist(), itertools.repeat(len(topics)), itertools.count())
+        topics.append((topic, seq0, rows.tolist() if topic in INPUT_TOPICS else None))
+    if batch.camera is not None:
+        keyed += zip(batch.camera.stamps.tolist(), itertools.repeat(len(topics)), itertools.count())
+        topics.append((Topic.CAMERA, batch.camera.seq0, None))
+    keyed.sort()  # a block's stamps never decrease: the stable order of the stamps
+    return keyed, topics

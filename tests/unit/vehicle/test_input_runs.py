@@ -4,13 +4,15 @@ checkpoints, a batch that comes after its cycles and a batch that comes twice.""
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bus import feed
 from bus.config import build_config
 from sim.world import World
 from vehicle.estimators import ekf
 from vehicle.fusion import FusionHorizon
-from vehicle.input_runs import unpack
+from vehicle.input_runs import INPUT_TOPICS, unpack
 from vehicle.sequence import SequenceTracker
 
 PERIOD_US = 20_000
@@ -143,3 +145,49 @@ def test_a_batch_makes_one_run_in_its_order_or_none_without_input_samples():
         ({"imu": "ImuSample", "odom": "WheelOdometry"}[topic], stamp, seq)
         for (topic, seq), stamp in zip(run.idents, run.stamps)
     ]
+
+
+@st.composite
+def _any_batch(draw) -> feed.SensorBatch:
+    """A batch of any of the feed's topics (rows of their widths), stamps drawn from a few values so
+    that topics share stamps (sightings several per stamp), and now and then camera frames."""
+    blocks = {}
+    for topic in draw(st.lists(st.sampled_from(feed.TOPICS), unique=True, max_size=5)):
+        width = feed.LAYOUT[topic][0]
+        stamps = draw(st.lists(st.integers(0, 40), max_size=12, unique=topic not in feed.SIGHTINGS))
+        seq0 = draw(st.integers(0, 1000))
+        rows = np.arange(len(stamps) * width, dtype=float).reshape(len(stamps), width) + seq0
+        blocks[topic] = (np.array(sorted(stamps), np.int64), seq0, rows)
+    camera = None
+    frames = draw(st.lists(st.integers(0, 40), max_size=3, unique=True))
+    if frames:
+        k = len(frames)
+        camera = feed.CameraBlock(np.array(sorted(frames), np.int64), 7, np.ones(k), np.zeros((k, 8, 8), np.uint8))
+    return feed.SensorBatch(1, 0, 40, blocks, camera)
+
+
+def _described(msg) -> tuple:
+    return (type(msg).__name__, msg.stamp_us, msg.seq)
+
+
+@settings(max_examples=300, deadline=None)
+@given(_any_batch(), st.integers(0, 10**6))
+def test_unpack_keeps_the_batch_order_of_every_sample(batch, first):
+    """Input samples in the run and the others as messages, each numbered by its place in
+    ``SensorBatch.samples``' order (stamp, then topic order, camera frames last): whatever the topics,
+    shared stamps and block sizes."""
+    run, others = unpack(batch, first)
+    expected = [(first + place, topic, msg) for place, (topic, msg) in enumerate(batch.samples())]
+    inputs = [(arrival, topic, msg) for arrival, topic, msg in expected if topic in INPUT_TOPICS]
+    assert [(a, t, _described(msg)) for a, t, msg in others] == [
+        (a, t, _described(msg)) for a, t, msg in expected if t not in INPUT_TOPICS
+    ]
+    if not inputs:
+        assert run is None
+        return
+    assert run.arrivals == [a for a, _, _ in inputs]
+    assert run.stamps == [msg.stamp_us for _, _, msg in inputs]
+    assert run.idents == [(t, msg.seq) for _, t, msg in inputs]
+    assert run.rows == [batch.blocks[t][2][msg.seq - batch.blocks[t][1]].tolist() for _, t, msg in inputs]
+    assert [_described(run.message(i)) for i in range(len(inputs))] == [_described(msg) for _, _, msg in inputs]
+    assert run.blocks == [(t, seq0, len(s)) for t, (s, seq0, _) in batch.blocks.items() if t in INPUT_TOPICS]
