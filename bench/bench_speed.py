@@ -22,6 +22,11 @@ from bench.baseline import A0FCCEE, baseline_python, checkout_of, swarm_of
 from bench.common import Row
 
 ROUNDS = 5
+# Issue 44 sets its real-time factors "on a quiet machine" and measured a0fccee there at 22.7x (5
+# vehicles x 60 s, lockstep). This machine's speed swings by more than 2x from one hour to the next
+# (a0fccee alone: 12.6x to 31.2x in the benchmark's sittings), so each round's factors are also
+# given on that machine: scaled by 22.7 over a0fccee's factor in the same round.
+QUIET_A0FCCEE_RTF = 22.7
 DEMO = ("--vehicles", "5", "--duration", "60", "--mode", "lockstep", "--seed", "5")
 ROLES = ("vehicle", "sim", "gs", "router")
 HZ = os.sysconf("SC_CLK_TCK")
@@ -101,6 +106,12 @@ def run(quick: bool) -> list[Row]:
             for n in (5, 20, 50)
         }
     med = {side: {k: statistics.median(r[k] for r in rs) for k in rs[0]} for side, rs in results.items()}
+    quiet = {  # each round's factor on the issue's quiet machine, by a0fccee's factor in the same round
+        side: statistics.median(
+            r["rtf"] * QUIET_A0FCCEE_RTF / then["rtf"] for r, then in zip(results[side], results["then"])
+        )
+        for side in ("now", "twenty")
+    }
     twenty = med.pop("twenty")
     ratio = med["now"]["wall_s"] / med["then"]["wall_s"]
     details = {side: {k: round(v, 3) for k, v in m.items()} for side, m in med.items()}
@@ -143,6 +154,22 @@ def run(quick: bool) -> list[Row]:
             twenty["rtf"] >= 8.0,
             {k: round(v, 2) for k, v in twenty.items()},
         ),  # fmt: skip
+        *(
+            Row(
+                "speed",
+                case,
+                f"real-time factor on the quiet machine ({A0FCCEE} at {QUIET_A0FCCEE_RTF:g}x)",
+                round(quiet[side], 1),
+                "x",
+                f">= {target:g}x",
+                quiet[side] >= target,
+                {"a0fccee_rtf_median": round(med["then"]["rtf"], 2), "rounds": rounds},
+            )
+            for side, case, target in (
+                ("now", "lockstep 5 vehicles x 60 s", 30.0),
+                ("twenty", "lockstep 20 vehicles x 20 s", 8.0),
+            )
+        ),
     ]
     short, long = GROWTH_S
     per_vs = {  # the marginal CPU of a simulated second (start-up and shutdown cancel out), median of repetitions
