@@ -5,8 +5,12 @@ so the world cannot run ahead of a viewer. The wall clock is injected: the rule,
 import queue
 import socket
 
+import numpy as np
+
+from bus import feed
 from bus import messages as m
 from bus.config import build_config
+from bus.mavlink_codec import MavlinkEncoder, StateEstimate
 from bus.memory import MemoryHub
 from bus.session import Envelope
 from groundstation import node as node_module
@@ -38,11 +42,20 @@ def test_a_paced_live_view_holds_each_ack_until_the_wall_clock_catches_up(tmp_pa
     tick_us = round(config.clock.tick_s * 1e6)
 
     def tick(k: int) -> None:
-        gs.handle(Envelope(gs.bus.keys.clock(), m.encode(m.ClockTick(k, k * tick_us, 0, False, (0,), (1,)))))
+        gs.handle(
+            Envelope(
+                gs.bus.keys.clock(), m.encode(m.ClockTick(k, k * tick_us, 0, False, (0,), (1,), (1,) if k else ()))
+            )
+        )
         gs.ack_if_drained()
 
     tick(0)  # the run starts: nothing ahead yet
     assert acknowledged() == [0]
+    # tick 0's truth and estimate are in (a tick's acknowledgement also waits for the tick before's)
+    truth = feed.TruthBatch(0, 0, np.array([0]), np.array([1]), np.zeros((1, 1, 5)))
+    gs.handle(Envelope(gs.bus.keys.truth(), feed.encode_truth(truth)))
+    est = StateEstimate(1, 0, np.array([1.0, 2.0, -30.0]), 0.0, np.zeros(3), 0.0, np.eye(6) * 0.5, np.eye(6))
+    gs.handle(Envelope(gs.bus.keys.mavlink(1), MavlinkEncoder(vehicle_id=1).odometry(est)))
     tick(1)  # one tick of sim at 2x real time wants half a tick of wall; none has passed
     assert acknowledged() == [0]
     wall[0] += config.clock.tick_s / 2.0 - 0.01
