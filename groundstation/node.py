@@ -37,6 +37,7 @@ from groundstation.resume import resume_events, resume_tallies
 from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
 from groundstation.summary import build_summary, build_timing
+from groundstation.tick_ack import TickAck, paced_ahead
 from groundstation.vehicle_reports import VehicleReports
 from groundstation.vehicle_streams import VehicleStreams
 
@@ -44,7 +45,6 @@ log = logging.getLogger("swarmloc.groundstation")
 REALTIME_LAG_US = 1_000_000
 PLAN_REPEAT_S = 1.0
 MAX_CONTROL_BYTES = 8 << 10
-ACK_HOLD_S = 1.0  # lockstep: the longest a tick's acknowledgement waits for the tick before's estimates
 
 
 class GroundStation:
@@ -100,7 +100,6 @@ class GroundStation:
         self.final_seen = False
         self.active: set[int] = set()  # vehicles alive on the bus
         self.tick_members: set[int] | None = None  # lockstep: the vehicles the world's last tick waited for
-        self.tick_running: set[int] = set()  # lockstep: the members that acknowledged the tick before it
         self.departed: set[int] = set()
         self.world_alive = False
         self.world_seen = False
@@ -111,9 +110,7 @@ class GroundStation:
         self._resume(run_dir)
         self.membership = MembershipLog(resumed=self.resumed)
         self._plan_sent_at = 0.0
-        self._ack_due: int | None = None
-        self._tick_came = 0.0  # monotonic time the tick to acknowledge came
-        self._kept_up_us = -1  # lockstep: the estimates every vehicle that keeps up had sent by the last ack
+        self._ack = TickAck()
         self.wall_start: float | None = None
         self.wall_end: float | None = None
         self.on_progress = lambda gs: None
@@ -263,7 +260,6 @@ class GroundStation:
         self.final_seen = self.final_seen or tick.final
         self.sim_time_us = max(self.sim_time_us, tick.stamp_us)
         self.tick_members = set(tick.members) or None  # none listed: liveliness decides
-        self.tick_running = set(tick.running)  # they acknowledged the tick before: its frames are out
         if self.config.clock.mode == "lockstep":
             self._log_membership(tick)
         self.faults.advance(tick.stamp_us)
@@ -282,50 +278,27 @@ class GroundStation:
         self.previous_tick_us = tick.stamp_us
         if time.monotonic() - self._plan_sent_at > PLAN_REPEAT_S:
             self.publish_plan()  # repeated, so that restarted processes learn it
-        self._ack_due, self._tick_came = tick.tick, time.monotonic()
+        self._ack.came(tick.tick, tick.running)
         self.on_progress(self)
 
     def ack_if_drained(self) -> None:
-        """Acknowledge the newest clock tick once nothing is waiting in the mailbox: the clock's lane
-        is served first, so acknowledging on receipt would let a backlog of estimates grow without
-        bound behind it (lockstep backpressure, and what a killed ground station loses)."""
-        if self._ack_due is not None and self.mailbox.empty() and not self._pacing() and self._previous_tick_in():
-            if self.published_us >= 0:  # the streams filed since the tick came may let more be scored
-                self._score_published()
-            self.run.flush()  # what is scored is on disk before the world may move on: a crash loses only what is not
-            self._ack_pub.put(m.encode(m.GroundStationAck(self._ack_due)))
-            self._ack_due = None
-
-    def _previous_tick_in(self) -> bool:
-        """Lockstep: whether the previous tick's truth and the estimates up to its stamp of every
-        vehicle that acknowledged it (``ClockTick.running``: each published them before) and kept up
-        so far have come, so that they are scored and on disk before the tick is acknowledged and the
-        world may move on (zenoh keeps the order of a key, not across keys: a tick can come before
-        the frames its vehicles published ahead of it, and a ground station killed then lost them as
-        well). A vehicle whose estimates stopped short of the tick acknowledged before (restarted,
-        or without an estimate yet) is not waited for; the wait is at most ``ACK_HOLD_S``."""
-        if self.config.clock.mode != "lockstep" or self.published_us < 0:
-            return True
-        period_us = round(1e6 / self.config.vehicle.mavlink_rate_hz)
-        due_us = self.published_us - self.published_us % period_us  # the last ODOMETRY stamp it covers
-        streams = self.intake.stream_stamp_us
-        behind = sorted(vid for vid in self.tick_running if self._kept_up_us <= streams.get(vid, -2) < due_us)
-        caught_up = not behind and self.latest_truth_us >= self.published_us
-        if not caught_up and time.monotonic() - self._tick_came <= ACK_HOLD_S:
-            return False
-        if not caught_up:
-            missing = f"the estimates of vehicles {behind}" if behind else "the truth"
-            log.warning("tick %d acknowledged %g s after it came without %s", self._ack_due, ACK_HOLD_S, missing)
-        self._kept_up_us = due_us
-        return True
-
-    def _pacing(self) -> bool:
-        """Lockstep with a paced live view (``view.live_speed``): whether the run is ahead of that many
-        times real time, so the tick's acknowledgement waits (the loop comes back within 0.2 s)."""
-        view = self.config.view
-        if not (view.live and view.live_speed and self.config.clock.mode == "lockstep" and self.wall_start):
-            return False
-        return time.perf_counter() - self.wall_start < self.sim_time_us * 1e-6 / view.live_speed
+        """Acknowledge the newest clock tick once nothing is waiting in the mailbox and, in lockstep,
+        a paced live view is not ahead and the tick before is in (groundstation.tick_ack): the clock's
+        lane is served first, so acknowledging on receipt would let a backlog of estimates grow
+        without bound behind it (lockstep backpressure, and what a killed ground station loses)."""
+        if self._ack.due is None or not self.mailbox.empty():
+            return
+        if self.config.clock.mode == "lockstep":
+            view, period_us = self.config.view, round(1e6 / self.config.vehicle.mavlink_rate_hz)
+            if paced_ahead(view.live_speed if view.live else None, self.wall_start, self.sim_time_us):
+                return
+            stamps = self.intake.stream_stamp_us
+            if not self._ack.previous_tick_in(self.published_us, period_us, stamps, self.latest_truth_us):
+                return
+        if self.published_us >= 0:  # the streams filed since the tick came may let more be scored
+            self._score_published()
+        self.run.flush()  # what is scored is on disk before the world may move on: a crash loses only what is not
+        self._ack_pub.put(m.encode(m.GroundStationAck(self._ack.sent())))
 
     def _stream_passed(self, arrival: Arrival, due_us: int) -> bool:
         """A held frame comes out once its stream has delivered a frame stamped at or after its due

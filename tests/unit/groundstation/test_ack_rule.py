@@ -14,7 +14,8 @@ from bus.mavlink_codec import MavlinkEncoder, StateEstimate
 from bus.memory import MemoryHub
 from bus.session import Envelope
 from groundstation import node as node_module
-from groundstation.node import ACK_HOLD_S, GroundStation
+from groundstation.node import GroundStation
+from groundstation.tick_ack import ACK_HOLD_S
 
 TICK_US = 1_000_000
 VEHICLES = (1, 2)
