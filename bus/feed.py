@@ -4,9 +4,10 @@ message (``SensorBatch`` on ``v/<id>/feed``), and the truth of every vehicle in 
 
 Columnar msgpack: per topic a block ``{"stamp": <i8 bytes (k,)>, "seq0": int, "data": <f8 bytes (k, w)>}``
 (sequence numbers of a topic are consecutive, so the first one is enough). Decoding validates
-everything with numpy (shapes, finite values, ranges, stamps ordered and inside the tick, symmetric
-positive-definite covariances) and raises DecodeError on any fault; receivers unpack the rows into
-the per-sample messages of ``bus.messages`` and judge each sample on its own (link faults).
+everything (shapes, finite values, ranges, stamps ordered and inside the tick, symmetric
+positive-definite covariances; a block's checks in bus.feed_blocks) and raises DecodeError on any
+fault; receivers unpack the rows into the per-sample messages of ``bus.messages`` and judge each
+sample on its own (link faults).
 """
 
 from __future__ import annotations
@@ -19,24 +20,21 @@ import numpy as np
 
 from bus import messages as m
 from bus.errors import DecodeError
+from bus.feed_blocks import (  # noqa: F401 (the layout is part of this module's interface)
+    LAYOUT,
+    MAX_LANDMARK_ID,
+    MAX_SEQ,
+    MAX_TICK_US,
+    SIGHTINGS,
+    TOPICS,
+    block,
+    column,
+    int_field,
+    outside_tick,
+)
 from bus.schema import WIRE_VERSION, unpack_tagged
 from bus.topics import Topic
 
-MAX_TICK_US = 1_000_000
-MAX_SEQ = 2**62
-# topic: (row width, max rows per batch, max |value|)
-LAYOUT = {
-    Topic.PRIOR: (12, 1, m.MAX_POSITION_M),  # pose (3), covariance (3, 3)
-    Topic.IMU: (6, 1000, 1000.0),  # gyro (3) rad/s, accel (3) m/s^2
-    Topic.ODOM: (2, 1000, 1000.0),  # speed m/s, yaw rate rad/s
-    Topic.GNSS: (6, 100, m.MAX_POSITION_M),  # position (2), covariance (2, 2)
-    Topic.RANGING: (7, 2500, 1e6),  # target id, range m, bearing rad, covariance (2, 2)
-    Topic.SEEN: (7, 2500, 1e6),  # observer id, range m, bearing rad, covariance (2, 2)
-    Topic.LANDMARK: (7, 2500, 1e6),  # landmark id, range m, bearing rad, covariance (2, 2)
-}
-SIGHTINGS = (Topic.RANGING, Topic.SEEN, Topic.LANDMARK)  # several per stamp (one camera frame sees many)
-MAX_LANDMARK_ID = 999_999
-TOPICS = tuple(LAYOUT)
 CAMERA_SIZES_PX = (8, 1024)  # frame side, inclusive bounds
 MAX_CAMERA_FRAMES = 100  # per batch
 MAX_METRES_PER_PIXEL = 100.0
@@ -167,91 +165,15 @@ def encode_batch(batch: SensorBatch) -> bytes:
     return msgpack.packb(body, use_bin_type=True)
 
 
-def _int(body: dict, name: str, lo: int, hi: int) -> int:
-    value = body.get(name)
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise DecodeError(f"{name}: expected an integer in [{lo}, {hi}]")
-    return value
-
-
-def _column(raw: Any, dtype: str, name: str) -> np.ndarray:
-    if not isinstance(raw, bytes) or len(raw) % 8:
-        raise DecodeError(f"{name}: expected raw 8-byte values")
-    return np.frombuffer(raw, dtype=dtype)
-
-
-def _spd2(c: np.ndarray) -> bool:
-    """All rows (k, 4) are symmetric positive-definite 2x2 matrices (row-major)."""
-    a, b, cc, d = c[:, 0], c[:, 1], c[:, 2], c[:, 3]
-    return bool(
-        (np.abs(b - cc) <= 1e-9 * np.maximum(np.abs(b), 1e-300)).all() and (a > 0).all() and (a * d - b * cc > 0).all()
-    )
-
-
-def _spd3(c: np.ndarray) -> bool:
-    """All rows (k, 9) are symmetric positive-definite 3x3 matrices (Sylvester's criterion)."""
-    M = c.reshape(-1, 3, 3)
-    if not np.allclose(M, np.transpose(M, (0, 2, 1)), rtol=1e-9, atol=0.0):
-        return False
-    return bool((M[:, 0, 0] > 0).all() and (np.linalg.det(M[:, :2, :2]) > 0).all() and (np.linalg.det(M) > 0).all())
-
-
-def _outside_tick(stamps: np.ndarray, stamp_us: int, *, strictly: bool) -> bool:
-    """Stamps (k,) us not all inside the tick ending at ``stamp_us``, or out of order (``strictly``:
-    also two equal). Compared, never subtracted: int64 differences wrap."""
-    if not len(stamps):
-        return False
-    earlier, later = stamps[:-1], stamps[1:]
-    backwards = (later <= earlier) if strictly else (later < earlier)
-    return bool(stamps[0] < max(0, stamp_us - MAX_TICK_US) or stamps[-1] > stamp_us or backwards.any())
-
-
-def _block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.ndarray, int, np.ndarray]:
-    width, max_rows, max_abs = LAYOUT[topic]
-    if not isinstance(raw, dict) or raw.keys() != {"stamp", "seq0", "data"}:
-        raise DecodeError(f"{topic}: expected a block with stamp, seq0 and data")
-    stamps = _column(raw["stamp"], "<i8", f"{topic}.stamp")
-    rows = _column(raw["data"], "<f8", f"{topic}.data")
-    k = len(stamps)
-    if k > max_rows or len(rows) != k * width:
-        raise DecodeError(f"{topic}: {k} stamps need {k * width} values (at most {max_rows} rows), got {len(rows)}")
-    seq0 = _int(raw, "seq0", 0, MAX_SEQ)
-    rows = rows.reshape(k, width)
-    once = topic not in SIGHTINGS  # one sample per stamp: strictly increasing
-    outside = _outside_tick(stamps, stamp_us, strictly=once)  # one pass where all is well
-    if outside and (not once or _outside_tick(stamps, stamp_us, strictly=False)):
-        raise DecodeError(f"{topic}: stamps must be ordered and inside the tick ending at {stamp_us} us")
-    if k and not np.abs(rows).max() <= max_abs:  # also rejects NaN and inf
-        raise DecodeError(f"{topic}: values must be finite and within +-{max_abs:g}")
-    if outside:  # ordered and inside the tick, but two alike
-        raise DecodeError(f"{topic}: two samples with one stamp")
-    if topic in (Topic.GNSS, *SIGHTINGS) and k and not _spd2(rows[:, -4:]):
-        raise DecodeError(f"{topic}: covariance is not symmetric positive definite")
-    if topic is Topic.PRIOR and k and not _spd3(rows[:, 3:]):
-        raise DecodeError("prior: covariance is not symmetric positive definite")
-    if topic in (Topic.RANGING, Topic.SEEN) and k:
-        peer = rows[:, 0]
-        if ((peer != np.round(peer)) | (peer < 1) | (peer > 250) | (peer == vehicle_id)).any():
-            who = "target" if topic is Topic.RANGING else "observer"
-            raise DecodeError(f"{topic}: {who} ids must be other vehicles, 1-250")
-    if topic is Topic.LANDMARK and k:
-        ident = rows[:, 0]
-        if ((ident != np.round(ident)) | (ident < 0) | (ident > MAX_LANDMARK_ID)).any():
-            raise DecodeError(f"landmark: ids must be integers 0-{MAX_LANDMARK_ID}")
-    if topic in SIGHTINGS and k and ((rows[:, 1] < 0) | (np.abs(rows[:, 2]) > 10.0)).any():
-        raise DecodeError(f"{topic}: range must be >= 0 and the bearing within +-10 rad")
-    return stamps, seq0, rows
-
-
 def _camera_block(raw: Any, stamp_us: int) -> CameraBlock:
     """Shape checks only (square frames of a sane size, one scale per frame, stamps in the tick):
     what a frame shows is for the vehicle's front end to judge."""
     if not isinstance(raw, dict) or raw.keys() != {"stamp", "seq0", "size", "scale", "pixels"}:
         raise DecodeError("camera: expected a block with stamp, seq0, size, scale and pixels")
-    stamps = _column(raw["stamp"], "<i8", "camera.stamp")
-    scale = _column(raw["scale"], "<f8", "camera.scale")
-    size = _int(raw, "size", *CAMERA_SIZES_PX)
-    seq0 = _int(raw, "seq0", 0, MAX_SEQ)
+    stamps = column(raw["stamp"], "<i8", "camera.stamp")
+    scale = column(raw["scale"], "<f8", "camera.scale")
+    size = int_field(raw, "size", *CAMERA_SIZES_PX)
+    seq0 = int_field(raw, "seq0", 0, MAX_SEQ)
     pixels = raw["pixels"]
     k = len(stamps)
     if not isinstance(pixels, bytes) or k > MAX_CAMERA_FRAMES or len(scale) != k or len(pixels) != k * size * size:
@@ -259,7 +181,7 @@ def _camera_block(raw: Any, stamp_us: int) -> CameraBlock:
             f"camera: {k} frames of {size} x {size} px need {k} scales and {k * size * size} "
             f"pixel bytes (at most {MAX_CAMERA_FRAMES} frames)"
         )
-    if _outside_tick(stamps, stamp_us, strictly=True):
+    if outside_tick(stamps, stamp_us, strictly=True):
         raise DecodeError(f"camera: stamps must be increasing and inside the tick ending at {stamp_us} us")
     if not np.all((scale > 0) & (scale <= MAX_METRES_PER_PIXEL)):
         raise DecodeError(f"camera: ground scale must be in (0, {MAX_METRES_PER_PIXEL:g}] m per pixel")
@@ -272,10 +194,10 @@ def decode_batch(payload: bytes) -> SensorBatch:
     allowed = {"type", "v", "vehicle_id", "tick", "stamp_us", Topic.CAMERA, "listeners", *TOPICS}
     if not set(body) <= allowed or not {"vehicle_id", "tick", "stamp_us"} <= set(body):
         raise DecodeError(f"SensorBatch: fields must be {sorted(allowed)}")
-    vid = _int(body, "vehicle_id", 1, 250)
-    tick = _int(body, "tick", 0, 2**53)
-    stamp_us = _int(body, "stamp_us", 0, 2**53)
-    blocks = {t: _block(t, body[t], vid, stamp_us) for t in TOPICS if t in body}
+    vid = int_field(body, "vehicle_id", 1, 250)
+    tick = int_field(body, "tick", 0, 2**53)
+    stamp_us = int_field(body, "stamp_us", 0, 2**53)
+    blocks = {t: block(t, body[t], vid, stamp_us) for t in TOPICS if t in body}
     camera = _camera_block(body[Topic.CAMERA], stamp_us) if Topic.CAMERA in body else None
     listeners = _listeners(body["listeners"], vid) if "listeners" in body else None
     return SensorBatch(vid, tick, stamp_us, blocks, camera, listeners)
@@ -341,21 +263,21 @@ def decode_truth(payload: bytes) -> TruthBatch:
     body = unpack_tagged(payload, "TruthBatch")
     if set(body) != {"type", "v", "tick", "stamp_us", "stamps", "ids", "data", "pairs"}:
         raise DecodeError("TruthBatch: fields must be type, v, tick, stamp_us, stamps, ids, data, pairs")
-    tick, stamp_us = _int(body, "tick", 0, 2**53), _int(body, "stamp_us", 0, 2**53)
-    stamps, ids = _column(body["stamps"], "<i8", "stamps"), _column(body["ids"], "<i8", "ids")
-    data = _column(body["data"], "<f8", "data")
+    tick, stamp_us = int_field(body, "tick", 0, 2**53), int_field(body, "stamp_us", 0, 2**53)
+    stamps, ids = column(body["stamps"], "<i8", "stamps"), column(body["ids"], "<i8", "ids")
+    data = column(body["data"], "<f8", "data")
     k, n = len(stamps), len(ids)
     if n > 250 or k > 1000 or len(data) != k * n * TRUTH_WIDTH:
         raise DecodeError(f"TruthBatch: {k} stamps x {n} vehicles need {k * n * TRUTH_WIDTH} values")
     if np.any(ids < 1) or np.any(ids > 250) or len(set(ids.tolist())) != n:
         raise DecodeError("TruthBatch: vehicle ids must be distinct, 1-250")
-    if _outside_tick(stamps, stamp_us, strictly=True):
+    if outside_tick(stamps, stamp_us, strictly=True):
         raise DecodeError("TruthBatch: stamps must increase inside the tick")
     rows = data.reshape(k, n, TRUTH_WIDTH)
     gap = np.all(np.isnan(rows), axis=2, keepdims=True)  # no truth for that vehicle at that stamp
     if not np.all((np.abs(rows) <= m.MAX_POSITION_M) | gap):
         raise DecodeError("TruthBatch: values must be finite (no truth at a stamp: a whole row of NaN)")
-    pairs = _column(body["pairs"], "<i8", "pairs")
+    pairs = column(body["pairs"], "<i8", "pairs")
     if len(pairs) % 2 or len(pairs) > 2 * n * n:
         raise DecodeError(f"TruthBatch: pairs must be (observer, target) pairs of the {n} vehicles")
     pairs = pairs.reshape(-1, 2)
