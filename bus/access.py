@@ -5,7 +5,7 @@ the default is allow, because a router that connects to another router cannot au
 must still forward the swarm's traffic to it. A router only admits logins listed in its credentials
 file, so the default reaches authenticated processes and peer routers only.
 
-- only the world publishes sensor feeds, truth, the clock and the end of the run;
+- only the world publishes sensor feeds, truth, the clock (and its pace) and the end of the run;
 - only the ground station publishes the fault plan and its lockstep ack, and answers fault requests
   and id claims;
 - nobody but the ground station (and routers, which carry it) subscribes to or receives truth;
@@ -42,7 +42,7 @@ def _deny(rule_id: str, messages: list[str], key_exprs: list[str], flows: tuple[
 def _shared_rules(k: KeySpace) -> list[dict]:
     return [
         _deny("no-truth", ["declare_subscriber", "put"], [k.truth()], ("ingress", "egress")),
-        _deny("no-world-output", SEND, [k.feed("*"), k.truth(), k.clock(), k.end()]),
+        _deny("no-world-output", SEND, [k.feed("*"), k.truth(), k.clock(), k.pace(), k.end()]),
         _deny("no-world-token", ["liveliness_token"], [k.alive("world", "**")]),
         _deny(
             "no-fault-control",

@@ -9,6 +9,7 @@ Layout under a configurable prefix (default ``swarm``)::
     <prefix>/v/<id>/status           vehicle loop statistics
     <prefix>/truth                   ground truth of every vehicle, one batch per tick (world -> ground station)
     <prefix>/ctl/clock               simulation clock ticks
+    <prefix>/ctl/pace                the ticks a realtime vehicle needs (the first two, one a second, the final)
     <prefix>/ctl/ack/<id>            lockstep acknowledgements of vehicle <id>; ``gs`` for the ground station
     <prefix>/ctl/end                 end of run
     <prefix>/ctl/faults/plan         the fault plan (published by the ground station only)
@@ -42,7 +43,7 @@ def parse_vehicle_id(text: str) -> int | None:
 
 @dataclass(frozen=True)
 class ParsedKey:
-    """What a concrete key names: ``kind`` (vehicle, truth, clock, ack, end, plan, request, claim,
+    """What a concrete key names: ``kind`` (vehicle, truth, clock, pace, ack, end, plan, request, claim,
     alive), the vehicle id when there is one, the topic of a vehicle key, the role of a token, and
     the vehicle a V2V frame is addressed to (``recipient``; None: broadcast to all)."""
 
@@ -54,7 +55,14 @@ class ParsedKey:
     recipient: int | None = None
 
 
-_CTL = {"clock": "clock", "end": "end", "faults/plan": "plan", "faults/request": "request", "claim": "claim"}
+_CTL = {
+    "clock": "clock",
+    "pace": "pace",
+    "end": "end",
+    "faults/plan": "plan",
+    "faults/request": "request",
+    "claim": "claim",
+}
 
 
 @dataclass(frozen=True)
@@ -84,6 +92,9 @@ class KeySpace:
 
     def clock(self) -> str:
         return f"{self.prefix}/ctl/clock"
+
+    def pace(self) -> str:
+        return f"{self.prefix}/ctl/pace"
 
     def ack(self, vehicle_id: int | str) -> str:
         return f"{self.prefix}/ctl/ack/{vehicle_id}"

@@ -32,6 +32,7 @@ from bus.rejections import Rejections
 from bus.session import Bus, await_subscribers
 from sim.intake import WorldIntake
 from sim.membership import Membership
+from sim.pace import on_pace
 from sim.world import World
 
 log = logging.getLogger("swarmloc.world")
@@ -81,8 +82,10 @@ class WorldNode:
         self.intake = WorldIntake(bus, self.members, self._apply_plan, self.rejections)
         self.status = "complete"
         bus.declare_token(keys.alive("world", 0))
+        self.realtime = config.clock.mode == "realtime"  # realtime vehicles hear the clock's pace (sim.pace)
+        control = [keys.clock(), keys.pace()] if self.realtime else [keys.clock()]
         self._publishers: dict[str, object] = {
-            key: bus.publisher(key) for key in [keys.clock(), keys.truth(), *map(keys.feed, self.members.expected)]
+            key: bus.publisher(key) for key in [*control, keys.truth(), *map(keys.feed, self.members.expected)]
         }
         self.tick_us = round(config.clock.tick_s * 1e6)
         self.final_tick = round(config.clock.duration_s * 1e6) // self.tick_us
@@ -168,7 +171,10 @@ class WorldNode:
             tuple(sorted(self.members.alive | self.members.joining)),
             tuple(sorted(self.members.alive)),
         )
-        self.publish(self.bus.keys.clock(), m.encode(tick))
+        payload = m.encode(tick)
+        self.publish(self.bus.keys.clock(), payload)
+        if self.realtime and on_pace(prepared.tick, final=final, ticks_per_second=round(1e6 / self.tick_us)):
+            self.publish(self.bus.keys.pace(), payload)
 
     def await_acks(self, tick: int, stop: threading.Event, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s

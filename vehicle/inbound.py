@@ -73,7 +73,12 @@ class Inbound:
         self.heard_until: dict[int, int] = {}  # the newest stamp heard per sender (before link faults)
         self._listeners: deque[tuple[int, tuple[int, ...]]] = deque(maxlen=LISTENER_BATCHES)
         self._parsed: dict[str, ParsedKey] = {}  # keys seen, as KeySpace.parse read them
-        self._control = {keys.clock(): self._clock, keys.fault_plan(): self._plan, keys.end(): self._end}
+        self._control = {
+            keys.clock(): self._clock,
+            keys.pace(): self._clock,
+            keys.fault_plan(): self._plan,
+            keys.end(): self._end,
+        }
 
     def take(self, item: Any) -> list[Delivery]:
         """File one mailbox item; returns what passes on (possibly nothing)."""

@@ -56,7 +56,8 @@ class VehicleNode:
         world, neighbours = self.mailbox.lane("world", max_items=20_000), self.mailbox.lane("v2v", max_items=20_000)
         self.world_lane = world  # the feed, the clock, the fault plan and liveliness
         self.neighbour_lane = neighbours  # the neighbours' V2V frames
-        bus.subscribe(keys.clock(), world, MAX_CLOCK_BYTES)
+        # a realtime vehicle hears the ticks it needs (sim.pace), a lockstep one every tick
+        bus.subscribe(keys.pace() if config.clock.mode == "realtime" else keys.clock(), world, MAX_CLOCK_BYTES)
         bus.subscribe(keys.fault_plan(), world, MAX_PLAN_BYTES)
         bus.subscribe(keys.end(), world, MAX_CLOCK_BYTES)
         bus.subscribe(keys.feed(vehicle_id), world, MAX_BATCH_BYTES)

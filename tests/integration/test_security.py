@@ -72,6 +72,7 @@ def test_router_refuses_bad_logins_and_enforces_access_control(tmp_path):
             vehicle.subscribe("swarm/truth", at_vehicle)
             vehicle.subscribe("swarm/ctl/faults/plan", at_vehicle)
             vehicle.subscribe("swarm/v/1/feed", at_vehicle)
+            vehicle.subscribe("swarm/ctl/pace", at_vehicle)
             gs.subscribe("swarm/truth", at_gs)
             gs.subscribe("swarm/ctl/faults/plan", at_gs)
             gs.subscribe("swarm/v/*/mavlink", at_gs)
@@ -80,11 +81,13 @@ def test_router_refuses_bad_logins_and_enforces_access_control(tmp_path):
             time.sleep(0.5)
             world.publisher("swarm/truth").put(b"truth")
             world.publisher("swarm/v/1/feed").put(b"feed")
+            world.publisher("swarm/ctl/pace").put(b"pace")
             for bus in (rogue, world, enroll):
                 bus.publisher("swarm/ctl/faults/plan").put(b"forged plan")
             for bus in (rogue, enroll):
                 bus.publisher("swarm/v/1/feed").put(b"forged feed")
             rogue.publisher("swarm/v/1/mavlink").put(b"vehicle 2 speaking as 1")
+            rogue.publisher("swarm/ctl/pace").put(b"vehicle 2 as the clock")
             rogue.publisher("swarm/ctl/ack/1").put(b"vehicle 2 acking for 1")
             enroll.publisher("swarm/v/3/mavlink").put(b"enroll speaking as 3")
             rogue.declare_token("swarm/alive/vehicle/1")
@@ -95,7 +98,7 @@ def test_router_refuses_bad_logins_and_enforces_access_control(tmp_path):
             gs.publisher("swarm/ctl/faults/plan").put(b"plan")
             # nothing forged reached the ground station; vehicle 2 may speak only as itself
             assert sorted(_received(at_gs)) == [b"plan", b"truth", b"vehicle 2 acks", b"vehicle 2 as itself"]
-            assert sorted(_received(at_vehicle)) == [b"feed", b"plan"]  # vehicles get the plan, never truth
+            assert sorted(_received(at_vehicle)) == [b"feed", b"pace", b"plan"]  # the plan, never truth
             tokens = []
             while not alive.empty():
                 tokens.append(alive.get().key)

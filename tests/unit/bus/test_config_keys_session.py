@@ -99,6 +99,7 @@ def test_keys_parse_to_what_they_name():
     assert keys.parse(keys.ack("gs")) == ParsedKey("ack", ident="gs")
     assert keys.parse(keys.alive("vehicle", 4)) == ParsedKey("alive", 4, role="vehicle", ident="4")
     assert keys.parse(keys.truth()).kind == "truth" and keys.parse(keys.clock()).kind == "clock"
+    assert keys.parse(keys.pace()).kind == "pace"
     for bad in (
         "swarm/v/x/v2v",
         "swarm/v/²/mavlink",

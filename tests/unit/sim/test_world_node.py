@@ -1,6 +1,8 @@
 """The world node survives anything on the keys it listens to (acks, liveliness, the fault plan):
 counted by reason, never fatal; an ack counts only for the vehicle whose key it came on."""
 
+import queue
+
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -102,3 +104,24 @@ def test_a_restarted_vehicle_that_acks_an_older_tick_is_waited_for_until_it_catc
     assert not node.members.alive <= node.members.acked  # the clock waits for vehicle 2
     node.intake.handle(Envelope(keys.ack(2), m.encode(m.TickAck(2, 31))), 31)
     assert node.members.alive <= node.members.acked
+
+
+def test_a_realtime_world_paces_its_vehicles_with_the_ticks_they_need_and_tells_the_ground_station_every_one():
+    hub = MemoryHub()
+    config = build_config({"world": {"vehicles": 2}, "clock": {"mode": "realtime", "duration_s": 2.5}})
+    node = WorldNode(hub.connect("world"), config)
+    keys, listener = node.bus.keys, hub.connect("listener")
+    clock, pace = queue.SimpleQueue(), queue.SimpleQueue()
+    listener.subscribe(keys.clock(), clock, 1 << 16)
+    listener.subscribe(keys.pace(), pace, 1 << 16)
+    for tick in range(node.final_tick + 1):
+        node.send(node.prepare(tick), final=tick == node.final_tick)
+
+    def heard(q: queue.SimpleQueue) -> list[int]:
+        ticks = []
+        while not q.empty():
+            ticks.append(m.decode(m.ClockTick, q.get().payload).tick)
+        return ticks
+
+    assert heard(clock) == list(range(126))
+    assert heard(pace) == [0, 1, 50, 100, 125]

@@ -84,6 +84,7 @@ def test_any_bytes_on_any_key_are_counted_never_raised(payload, topic, ident):
         f"swarm/v/{ident}/{topic}",
         "swarm/v/1/feed",
         "swarm/ctl/clock",
+        "swarm/ctl/pace",
         "swarm/ctl/end",
         "swarm/v/2/v2v",
         "swarm/v/2/v2v/1",
