@@ -25,14 +25,18 @@ MAX_FLOOR_RATIO, MAX_OVERRUN, MAX_JITTER_US = 3.0, 0.01, 5000.0
 # the control: the same realtime swarm with every loop under the fair scheduler (vehicle.scheduling)
 FAIR_SCENARIO = 'name = "fair"\n[vehicle]\nrealtime_priority = 0\n'
 
-CASES = [  # (label, vehicles, mode, duration_s, target ("-": a control, not held to one), scenario)
-    ("lockstep", 5, "lockstep", 60, "RTF >= 20x", None),
-    ("lockstep", 20, "lockstep", 20, "RTF >= 5x", None),
-    ("realtime 50 Hz", 5, "realtime", 20, "overruns < 1%", None),
-    ("realtime 50 Hz", 10, "realtime", 20, "overruns < 1%", None),
-    ("realtime 50 Hz", 20, "realtime", 20, "overruns < 1%", None),
-    ("realtime 50 Hz, fair scheduler", 20, "realtime", 20, "-", FAIR_SCENARIO),
-    ("realtime 50 Hz", 32, "realtime", 20, "overruns < 1%", None),
+# The realtime case the speed issue's target is on runs three times, and its row is the median run by
+# the worst vehicle's jitter p99: one run's worst p99 swings between 2 and 5 ms with the machine's
+# spells (docs/benchmarks.md); every run's figures stay in the details.
+REALTIME_RUNS = 3
+CASES = [  # (label, vehicles, mode, duration_s, target ("-": a control, not held to one), scenario, runs)
+    ("lockstep", 5, "lockstep", 60, "RTF >= 20x", None, 1),
+    ("lockstep", 20, "lockstep", 20, "RTF >= 5x", None, 1),
+    ("realtime 50 Hz", 5, "realtime", 20, "overruns < 1%", None, 1),
+    ("realtime 50 Hz", 10, "realtime", 20, "overruns < 1%", None, 1),
+    ("realtime 50 Hz", 20, "realtime", 20, "overruns < 1%", None, REALTIME_RUNS),
+    ("realtime 50 Hz, fair scheduler", 20, "realtime", 20, "-", FAIR_SCENARIO, 1),
+    ("realtime 50 Hz", 32, "realtime", 20, "overruns < 1%", None, 1),
 ]
 
 
@@ -113,6 +117,16 @@ def run_case(vehicles: int, mode: str, duration_s: float, out: Path, scenario: P
     }
 
 
+def median_run(results: list[dict]) -> dict:
+    """The run whose worst vehicle's jitter p99 is the median of ``results`` (one: itself), with
+    every run's jitter, overruns and stale samples under ``runs`` when there are several."""
+    if len(results) == 1:
+        return results[0]
+    ranked = sorted(results, key=lambda r: r["jitter_p99_us"] if r["jitter_p99_us"] is not None else float("inf"))
+    keep = ("jitter_p99_us", "overrun_rate", "dropped_stale", "exit_status")
+    return {**ranked[len(ranked) // 2], "runs": [{k: r[k] for k in keep} for r in results]}
+
+
 def floor_wall_s(vehicles: int, duration_s: float) -> float:
     """Wall time of the floor for the configuration `swarm up --vehicles N --duration D --seed 1` runs."""
     config = build_config({"world": {"vehicles": vehicles, "seed": 1}, "clock": {"duration_s": duration_s}})
@@ -148,13 +162,14 @@ def run(quick: bool = False) -> list[Row]:
     """One headline row per case (lockstep: RTF; realtime: overrun rate) and one for vehicle memory."""
     rows, details = [], []
     with tempfile.TemporaryDirectory() as tmp:
-        for label, vehicles, mode, duration, target, scenario_text in CASES[:2] if quick else CASES:
-            print(f"  swarm: {label} with {vehicles} vehicles for {duration} s ...", flush=True)
+        for label, vehicles, mode, duration, target, scenario_text, runs in CASES[:2] if quick else CASES:
+            print(f"  swarm: {label} with {vehicles} vehicles for {duration} s ({runs} run(s)) ...", flush=True)
             scenario = None
             if scenario_text is not None:
                 scenario = Path(tmp) / f"case{len(details)}.toml"
                 scenario.write_text(scenario_text)
-            r = {"label": label, "target": target, **run_case(vehicles, mode, duration, Path(tmp), scenario)}
+            results = [run_case(vehicles, mode, duration, Path(tmp) / f"run{k}", scenario) for k in range(runs)]
+            r = {"label": label, "target": target, **median_run(results)}
             details.append(r)
             case = f"{label}, {vehicles} vehicles"
             if mode == "lockstep":
@@ -202,22 +217,23 @@ def run(quick: bool = False) -> list[Row]:
                     Row(
                         "swarm",
                         case,
-                        "jitter p99",
+                        "jitter p99" + (f" (median run of {runs})" if runs > 1 else ""),
                         round(r["jitter_p99_us"] / 1000, 2),
                         "ms",
                         f"{'-' if control else '< 5 ms'} ({_scheduling(r)})",
                         None if control else r["jitter_p99_us"] < MAX_JITTER_US,
                     )
                 )
+                stale = max(x["dropped_stale"] for x in results)  # in any run
                 rows.append(
                     Row(
                         "swarm",
                         case,
-                        "samples dropped as stale",
-                        r["dropped_stale"],
+                        "samples dropped as stale" + (f" (most of {runs} runs)" if runs > 1 else ""),
+                        stale,
                         "",
                         "0 (no faults)",
-                        r["dropped_stale"] == 0,
+                        stale == 0,
                     )
                 )
     rss = max((r["vehicle_rss_mb_max"] or 0.0) for r in details)
