@@ -27,7 +27,7 @@ def run_centralized(
     ``world``: the world or replay to run (default: the one ``config`` describes); ``estimator``: the
     builder of the blocks' filters (default: the configured estimator's, vehicle.estimators)."""
     if world is None:
-        from sim.node import make_world
+        from sim.tick_output import make_world
 
         world = make_world(config)
     ids = world.vehicle_ids()

@@ -16,12 +16,7 @@ import logging
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass
-from pathlib import Path
 
-import numpy as np
-
-from bus import feed
 from bus import messages as m
 from bus.config import SwarmConfig
 from bus.errors import SwarmlocError
@@ -33,42 +28,13 @@ from bus.session import Bus, await_subscribers
 from sim.intake import WorldIntake
 from sim.membership import Membership
 from sim.pace import on_pace
-from sim.world import World
+from sim.tick_output import TickOutput, encode_tick, make_world
 
 log = logging.getLogger("swarmloc.world")
 
 
 class StartTimeout(SwarmlocError):
     """Not every process joined the swarm in time."""
-
-
-@dataclass(frozen=True)
-class _Prepared:
-    """One tick's output, computed ahead: encoded batches and truth."""
-
-    tick: int
-    stamp_us: int
-    batches: list[tuple[str, bytes]]
-    truth: bytes
-
-
-def make_world(config: SwarmConfig) -> World:
-    """The simulated world, or the replay of a recorded data set (``config.replay``)."""
-    if config.replay is None:
-        return World(config)
-    from sim.mrclam import load_mrclam
-    from sim.replay import ReplayWorld
-
-    data = load_mrclam(Path(config.replay.dataset))
-    world = ReplayWorld(config, data)
-    log.info(
-        "replaying robots %s of %s: %d sightings of unknown barcodes and %d of robots not replayed skipped",
-        list(config.replay.robots),
-        config.replay.dataset,
-        sum(data.robots[r].unknown_barcodes for r in config.replay.robots),
-        world.skipped_sightings,
-    )
-    return world
 
 
 class WorldNode:
@@ -128,35 +94,12 @@ class WorldNode:
                 raise StartTimeout(f"{' and '.join(who)} did not join within {self.config.clock.start_timeout_s:g} s")
             self.drain(0.1)
 
-    def prepare(self, tick: int) -> _Prepared:
+    def prepare(self, tick: int) -> TickOutput:
         """Advance the world to the tick's stamp and encode what it measured (no publishing)."""
-        stamp = min(tick, self.final_tick) * self.tick_us
-        out = self.world.advance(stamp)
-        listeners = out.listeners() if self.addressed_v2v else None
-        batches = [
-            (
-                self.bus.keys.feed(vid),
-                feed.encode_batch(
-                    feed.SensorBatch(
-                        vid,
-                        tick,
-                        stamp,
-                        out.blocks(vid),
-                        out.camera(vid),
-                        None if listeners is None else listeners.get(vid, ()),
-                    )
-                ),
-            )
-            for vid in self.world.vehicle_ids()
-        ]
-        ids = self.world.vehicle_ids()
-        rows = np.array(out.truth).reshape(len(out.truth_stamps), len(ids), feed.TRUTH_WIDTH)
-        ranged = out.listeners() if listeners is None else listeners
-        pairs = np.array([(o, t) for t, observers in ranged.items() for o in observers], np.int64).reshape(-1, 2)
-        truth = feed.TruthBatch(tick, stamp, np.array(out.truth_stamps, dtype=np.int64), np.array(ids), rows, pairs)
-        return _Prepared(tick, stamp, batches, feed.encode_truth(truth))
+        stamp_us = min(tick, self.final_tick) * self.tick_us
+        return encode_tick(self.world, self.bus.keys, tick, stamp_us, addressed_v2v=self.addressed_v2v)
 
-    def send(self, prepared: _Prepared, final: bool) -> None:
+    def send(self, prepared: TickOutput, final: bool) -> None:
         for key, payload in prepared.batches:
             self.publish(key, payload)
         self.publish(self.bus.keys.truth(), prepared.truth)
@@ -313,7 +256,7 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
     return node
 
 
-def _end_run(node: WorldNode, prepared: _Prepared, stop: threading.Event, final_ack_timeout_s: float) -> None:
+def _end_run(node: WorldNode, prepared: TickOutput, stop: threading.Event, final_ack_timeout_s: float) -> None:
     """The final tick (the next one prepared), the final acks of a complete run, and the run's end."""
     if node.status == "complete":
         finishing = set(node.members.alive)
