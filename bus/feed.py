@@ -24,7 +24,6 @@ from bus.feed_blocks import (  # noqa: F401 (the layout is part of this module's
     LAYOUT,
     MAX_LANDMARK_ID,
     MAX_SEQ,
-    MAX_TICK_US,
     SIGHTINGS,
     TOPICS,
     block,

@@ -54,6 +54,7 @@ class WorldNode:
             key: bus.publisher(key) for key in [*control, keys.truth(), *map(keys.feed, self.members.expected)]
         }
         self.tick_us = round(config.clock.tick_s * 1e6)
+        self.ticks_per_second = round(1e6 / self.tick_us)  # of sim time (the pace's, sim.pace)
         self.final_tick = round(config.clock.duration_s * 1e6) // self.tick_us
         self._gs_gone_since: float | None = None
         # the truth of the last ticks (payloads), sent again to a ground station that returns: its
@@ -116,7 +117,7 @@ class WorldNode:
         )
         payload = m.encode(tick)
         self.publish(self.bus.keys.clock(), payload)
-        if self.realtime and on_pace(prepared.tick, final=final, ticks_per_second=round(1e6 / self.tick_us)):
+        if self.realtime and on_pace(prepared.tick, final=final, ticks_per_second=self.ticks_per_second):
             self.publish(self.bus.keys.pace(), payload)
 
     def await_acks(self, tick: int, stop: threading.Event, timeout_s: float) -> None:
