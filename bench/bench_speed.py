@@ -90,14 +90,10 @@ def role_cpu(args: tuple[str, ...], out: Path, name: str) -> dict[str, float]:
 
 
 def run(quick: bool) -> list[Row]:
-    old = baseline_python(A0FCCEE)
+    """The rows against a0fccee, on the quiet machine, and of the CPU per vehicle-second by size."""
     rounds = 1 if quick else ROUNDS
-    results: dict[str, list[dict[str, float]]] = {"now": [], "then": [], "twenty": []}
     with tempfile.TemporaryDirectory() as tmp:
-        for k in range(rounds):  # the 20-vehicle runs too: one run's RTF moves by 10 % between runs
-            results["now"].append(timed(sys.executable, DEMO, Path(tmp), f"now-{k}"))
-            results["then"].append(timed(old, DEMO, Path(tmp), f"then-{k}"))
-            results["twenty"].append(timed(sys.executable, lockstep(20, 20), Path(tmp), f"n20-{k}"))
+        results = interleaved_rounds(Path(tmp), rounds)
         per_role = {  # n -> [(short run, long run) per repetition]
             n: [
                 tuple(role_cpu(lockstep(n, d), Path(tmp), f"roles-{n}-{d}-{k}") for d in GROWTH_S)
@@ -105,8 +101,26 @@ def run(quick: bool) -> list[Row]:
             ]
             for n in (5, 20, 50)
         }
+    return [*speed_rows(results, rounds), *growth_rows(per_role)]
+
+
+def interleaved_rounds(tmp: Path, rounds: int) -> dict[str, list[dict[str, float]]]:
+    """Each round: the 5-vehicle demo by today's code ("now") and by a0fccee ("then"), and today's
+    20-vehicle run ("twenty"; one run's RTF moves by 10 % between runs)."""
+    old = baseline_python(A0FCCEE)
+    results: dict[str, list[dict[str, float]]] = {"now": [], "then": [], "twenty": []}
+    for k in range(rounds):
+        results["now"].append(timed(sys.executable, DEMO, tmp, f"now-{k}"))
+        results["then"].append(timed(old, DEMO, tmp, f"then-{k}"))
+        results["twenty"].append(timed(sys.executable, lockstep(20, 20), tmp, f"n20-{k}"))
+    return results
+
+
+def speed_rows(results: dict[str, list[dict[str, float]]], rounds: int) -> list[Row]:
+    """Wall and CPU against a0fccee, the real-time factors as measured (medians of the rounds) and on
+    the quiet machine (each round's factor times 22.7 over a0fccee's in the same round)."""
     med = {side: {k: statistics.median(r[k] for r in rs) for k in rs[0]} for side, rs in results.items()}
-    quiet = {  # each round's factor on the issue's quiet machine, by a0fccee's factor in the same round
+    quiet = {
         side: statistics.median(
             r["rtf"] * QUIET_A0FCCEE_RTF / then["rtf"] for r, then in zip(results[side], results["then"])
         )
@@ -115,62 +129,29 @@ def run(quick: bool) -> list[Row]:
     twenty = med.pop("twenty")
     ratio = med["now"]["wall_s"] / med["then"]["wall_s"]
     details = {side: {k: round(v, 3) for k, v in m.items()} for side, m in med.items()}
-    rows = [
-        Row(
-            "speed",
-            f"lockstep 5 vehicles x 60 s against {A0FCCEE}",
-            "wall (median of interleaved rounds)",
-            round(ratio, 3),
-            "x",
-            "<= 0.75x",
-            ratio <= 0.75,
-            {**details, "rounds": rounds},
-        ),  # fmt: skip
-        Row(
-            "speed",
-            f"lockstep 5 vehicles x 60 s against {A0FCCEE}",
-            "CPU of every process",
-            round(med["now"]["cpu_s"] / med["then"]["cpu_s"], 3),
-            "x",
-            "-",
-            None,
-        ),  # fmt: skip
-        Row(
-            "speed",
-            "lockstep 5 vehicles x 60 s",
-            "real-time factor (median of the rounds)",
-            round(med["now"]["rtf"], 1),
-            "x",
-            ">= 30x",
-            med["now"]["rtf"] >= 30.0,
-        ),  # fmt: skip
-        Row(
-            "speed",
-            "lockstep 20 vehicles x 20 s",
-            "real-time factor (median of the rounds)",
-            round(twenty["rtf"], 1),
-            "x",
-            ">= 8x",
-            twenty["rtf"] >= 8.0,
-            {k: round(v, 2) for k, v in twenty.items()},
-        ),  # fmt: skip
+    against = f"lockstep 5 vehicles x 60 s against {A0FCCEE}"
+    five, many = "lockstep 5 vehicles x 60 s", "lockstep 20 vehicles x 20 s"
+    return [
+        Row("speed", against, "wall (median of interleaved rounds)", round(ratio, 3), "x", "<= 0.75x",
+            ratio <= 0.75, {**details, "rounds": rounds}),
+        Row("speed", against, "CPU of every process", round(med["now"]["cpu_s"] / med["then"]["cpu_s"], 3), "x",
+            "-", None),
+        Row("speed", five, "real-time factor (median of the rounds)", round(med["now"]["rtf"], 1), "x", ">= 30x",
+            med["now"]["rtf"] >= 30.0),
+        Row("speed", many, "real-time factor (median of the rounds)", round(twenty["rtf"], 1), "x", ">= 8x",
+            twenty["rtf"] >= 8.0, {k: round(v, 2) for k, v in twenty.items()}),
         *(
-            Row(
-                "speed",
-                case,
-                f"real-time factor on the quiet machine ({A0FCCEE} at {QUIET_A0FCCEE_RTF:g}x)",
-                round(quiet[side], 1),
-                "x",
-                f">= {target:g}x",
-                quiet[side] >= target,
-                {"a0fccee_rtf_median": round(med["then"]["rtf"], 2), "rounds": rounds},
-            )
-            for side, case, target in (
-                ("now", "lockstep 5 vehicles x 60 s", 30.0),
-                ("twenty", "lockstep 20 vehicles x 20 s", 8.0),
-            )
+            Row("speed", case, f"real-time factor on the quiet machine ({A0FCCEE} at {QUIET_A0FCCEE_RTF:g}x)",
+                round(quiet[side], 1), "x", f">= {target:g}x", quiet[side] >= target,
+                {"a0fccee_rtf_median": round(med["then"]["rtf"], 2), "rounds": rounds})
+            for side, case, target in (("now", five, 30.0), ("twenty", many, 8.0))
         ),
-    ]
+    ]  # fmt: skip
+
+
+def growth_rows(per_role: dict[int, list[tuple[dict[str, float], dict[str, float]]]]) -> list[Row]:
+    """CPU per vehicle per simulated second, 50 against 5 vehicles, and the projection to 100 and
+    200 vehicles; ``per_role``: each size's (short run, long run) CPU by role, per repetition."""
     short, long = GROWTH_S
     per_vs = {  # the marginal CPU of a simulated second (start-up and shutdown cancel out), median of repetitions
         n: {
@@ -181,35 +162,21 @@ def run(quick: bool) -> list[Row]:
     }
     total = {n: sum(v.values()) for n, v in per_vs.items()}
     growth = total[50] / total[5]
-    rows.append(
-        Row(
-            "speed",
-            "CPU per vehicle per simulated second, 50 against 5 vehicles",
-            "ratio",
-            round(growth, 3),
-            "x",
-            "<= 1.3x",
-            growth <= 1.3,
-            {f"{n} vehicles (ms)": {k: round(v, 2) for k, v in roles.items()} for n, roles in per_vs.items()},
-        ),  # fmt: skip
-    )
+    rows = [
+        Row("speed", "CPU per vehicle per simulated second, 50 against 5 vehicles", "ratio", round(growth, 3), "x",
+            "<= 1.3x", growth <= 1.3,
+            {f"{n} vehicles (ms)": {k: round(v, 2) for k, v in roles.items()} for n, roles in per_vs.items()}),
+    ]  # fmt: skip
     for n in (100, 200):  # vehicles' own CPU grows with N; the world's and the ground station's are one process each
         vehicle_cores = per_vs[50]["vehicle"] * n / 1000.0
         central_cores = (per_vs[50]["sim"] + per_vs[50]["gs"] + per_vs[50]["router"]) * n / 1000.0
+        details = {
+            "vehicle_cores": round(vehicle_cores, 1),
+            "world_gs_router_cores": round(central_cores, 2),
+            "from": "CPU per vehicle-second at 50 vehicles, lockstep",
+        }
         rows.append(
-            Row(
-                "speed",
-                f"projection: {n} vehicles in real time",
-                "cores (vehicles + world, ground station, router)",
-                round(vehicle_cores + central_cores, 1),
-                "cores",
-                "-",
-                None,
-                {
-                    "vehicle_cores": round(vehicle_cores, 1),
-                    "world_gs_router_cores": round(central_cores, 2),
-                    "from": "CPU per vehicle-second at 50 vehicles, lockstep",
-                },
-            ),  # fmt: skip
-        )
+            Row("speed", f"projection: {n} vehicles in real time", "cores (vehicles + world, ground station, router)",
+                round(vehicle_cores + central_cores, 1), "cores", "-", None, details)
+        )  # fmt: skip
     return rows
