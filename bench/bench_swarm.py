@@ -24,6 +24,8 @@ from bus.config import build_config
 MAX_FLOOR_RATIO, MAX_OVERRUN, MAX_JITTER_US = 3.0, 0.01, 5000.0
 # the control: the same realtime swarm with every loop under the fair scheduler (vehicle.scheduling)
 FAIR_SCENARIO = 'name = "fair"\n[vehicle]\nrealtime_priority = 0\n'
+# the same swarm with each GNSS fix half a period off the ranging epochs (sensors.gnss_phase): reported
+PHASE_SCENARIO = 'name = "phase"\n[sensors]\ngnss_phase = 0.5\n'
 
 # The realtime case the speed issue's target is on runs three times, and its row is the median run by
 # the worst vehicle's jitter p99: one run's worst p99 swings between 2 and 5 ms with the machine's
@@ -38,6 +40,7 @@ CASES = [  # (label, vehicles, mode, duration_s, target ("-": a control; RETIRED
     ("realtime 50 Hz", 10, "realtime", 20, "overruns < 1%", None, 1),
     ("realtime 50 Hz", 20, "realtime", 20, "overruns < 1%", None, REALTIME_RUNS),
     ("realtime 50 Hz, fair scheduler", 20, "realtime", 20, "-", FAIR_SCENARIO, 1),
+    ("realtime 50 Hz, GNSS at phase 0.5", 20, "realtime", 20, "-", PHASE_SCENARIO, REALTIME_RUNS),
     ("realtime 50 Hz", 32, "realtime", 20, RETIRED, None, 1),
 ]
 

@@ -37,6 +37,14 @@ class SensorSpec(_Strict):
         "the distance travelled (m/sqrt(m)). Replays only, as above",
     )
     gnss_rate_hz: float = Field(5.0, gt=0, le=100)
+    gnss_phase: float = Field(
+        0.0,
+        ge=0,
+        lt=1,
+        description="where in its period a GNSS fix comes, as a share of the period: fixes at "
+        "(k + phase) / gnss_rate_hz, to the nearest IMU step (0: with the ranging epochs at equal rates; "
+        "0.5 spreads a realtime swarm's work at the epochs: docs/benchmarks.md)",
+    )
     gnss_sigma_m: float = Field(1.5, gt=0)
     gnss_correlated_sigma_m: float = Field(
         0.0,

@@ -100,6 +100,12 @@ def _period_us(rate_hz: float) -> int:
     return round(1e6 / rate_hz)
 
 
+def gnss_offset_us(phase: float, period_us: int, step_us: int) -> int:
+    """When in its period of ``period_us`` a GNSS fix comes (``sensors.gnss_phase``, a share of the
+    period), to the nearest world step of ``step_us``."""
+    return round(phase * period_us / step_us) * step_us % period_us
+
+
 def make_terrain(config: SwarmConfig) -> Terrain:
     """The ground the cameras see: ``world.terrain`` (an orthophoto) or a procedural one from the
     world's seed (ConfigError, one line, for an unreadable file). OpenCV and the terrain are loaded
@@ -173,6 +179,7 @@ class World:
                 ("truth", spec.truth_rate_hz),
             )
         }
+        self._gnss_offset_us = gnss_offset_us(spec.gnss_phase, self._periods[Topic.GNSS], self.step_us)
         odom_scale = np.array([v.errors.odom_scale for v in self.vehicles])
         self.high_rate = HighRateSensors(
             np.array(biases), odom_scale, self.step_us, self._periods[Topic.ODOM], wc.sensor_truth
@@ -241,13 +248,16 @@ class World:
             out.truth.append(np.column_stack([self.poses, inputs]))
         self.high_rate.step(streams, t_us, k, inputs[:, 0], inputs[:, 1], self._silenced)
         camera_due = self.terrain is not None and t_us % self._periods[Topic.CAMERA] == 0
-        if t_us == 0 or t_us % self._periods[Topic.GNSS] == 0 or camera_due:
+        if t_us == 0 or self._gnss_due(t_us) or camera_due:
             for v, pose in zip(self.vehicles, self.poses):
                 self._samples(out.rows[v.vehicle_id], v, t_us, k, pose)
         if t_us % self._periods[Topic.RANGING] == 0 and spec.ranging_max_m > 0 and spec.ranging_max_peers > 0:
             self._ranging(out, t_us, k)
         self._move(law, k, dt)
         self.steps_done += 1
+
+    def _gnss_due(self, t_us: int) -> bool:
+        return (t_us - self._gnss_offset_us) % self._periods[Topic.GNSS] == 0
 
     def _wobble_over(self, t_us: int) -> np.ndarray:
         """The input wobble (BLOCK_STEPS, substeps, N, 2) [m/s, rad/s] at every substep of the block of
@@ -280,7 +290,7 @@ class World:
         if t_us == 0:
             prior, cov = sensors.pose_prior(pose, spec, v.rng)
             self._emit(rows, v, Topic.PRIOR, t_us, np.concatenate([prior, cov.ravel()]))
-        if t_us % self._periods[Topic.GNSS] == 0:
+        if self._gnss_due(t_us):
             error = v.errors.gnss_error(k, self._periods[Topic.GNSS] * 1e-6, v.noise[Topic.GNSS][k])
             if not silenced(vid, Topic.GNSS, t_us, pose):
                 fix = pose[:2] + error + self.faults.spoof_offset_m(vid, t_us, pose)

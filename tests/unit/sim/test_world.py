@@ -1,6 +1,7 @@
 """The world: exact kinematics, seeded determinism, sensor rates, non-overlapping vehicles."""
 
 import numpy as np
+import pytest
 
 from bus import feed
 from bus.config import build_config
@@ -159,6 +160,19 @@ def test_spoofed_fixes_drift_at_the_set_rate_and_jammed_ones_vanish():
     stamps = np.array([f.stamp_us for f in faulty]) * 1e-6
     np.testing.assert_allclose(offsets[:, 0], 0.0, atol=1e-9)
     np.testing.assert_allclose(offsets[:, 1], np.where(stamps >= 1.0, 2.0 * (stamps - 1.0), 0.0), atol=1e-9)
+
+
+@pytest.mark.parametrize(("phase", "first_us"), [(None, 0), (0.5, 100_000), (0.25, 50_000), (0.99, 0)])
+def test_gnss_fixes_come_at_their_phase_of_the_period(phase, first_us):
+    """5 Hz fixes at (k + phase) / 5 s, to the nearest 10 ms IMU step (0.99 of 200 ms rounds to the
+    next period's start); by default with the ranging epochs, off them at any other phase."""
+    sensors = {} if phase is None else {"sensors": {"gnss_phase": phase}}
+    world = World(build_config({"world": {"vehicles": 2, "seed": 1}, **sensors}))
+    samples = _all_samples(world, 2_000_000, 1)
+    gnss = [msg.stamp_us for t, msg in samples if t == "gnss"]
+    ranging = {msg.stamp_us for t, msg in samples if t == "ranging"}
+    assert gnss == list(range(first_us, 2_000_001, 200_000))
+    assert ranging and ranging.isdisjoint(gnss) == (first_us % 200_000 != 0)
 
 
 def _imu_by_tick(faults: list, seconds: int = 3) -> dict[int, list[tuple]]:
