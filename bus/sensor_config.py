@@ -43,7 +43,7 @@ class SensorSpec(_Strict):
         lt=1,
         description="where in its period a GNSS fix comes, as a share of the period: fixes at "
         "(k + phase) / gnss_rate_hz, to the nearest IMU step (0: with the ranging epochs at equal rates; "
-        "0.5 spreads a realtime swarm's work at the epochs: docs/benchmarks.md)",
+        "0.5 takes the fixes off the epochs, where a realtime swarm's work gathers: docs/benchmarks.md)",
     )
     gnss_sigma_m: float = Field(1.5, gt=0)
     gnss_correlated_sigma_m: float = Field(
