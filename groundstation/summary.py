@@ -12,7 +12,8 @@ from bus.consistency import nis_summary
 from bus.messages import VehicleStatus
 from bus.rejections import REASONS, counts_to_dict
 from bus.statistics import POSE_NEES_DOF
-from groundstation.scoring import Scorer
+from groundstation.link_quality import StreamQuality
+from groundstation.scoring import Scorer, Tally
 
 
 def _round(value: float) -> float:
@@ -33,49 +34,82 @@ def build_summary(
     rejected input by process and reason, and how the run ended."""
     quality = intake.quality if intake is not None else {}
     per_vehicle_rejected = intake.rejected_by_vehicle if intake is not None else {}
-    vehicles: dict[str, Any] = {}
+    ids = sorted(set(scorer.tallies) | set(statuses))
+    vehicles = {
+        str(vid): vehicle_entry(
+            scorer.tallies.get(vid), statuses.get(vid), per_vehicle_rejected.get(vid, 0), quality.get(vid)
+        )
+        for vid in ids
+    }
+    return {
+        "name": config.name,
+        "status": status,
+        "mode": config.clock.mode,
+        "seed": config.world.seed,
+        "duration_s": config.clock.duration_s,
+        "vehicles": vehicles,
+        "swarm": swarm_entry(scorer, [scorer.tallies[vid] for vid in ids if vid in scorer.tallies]),
+        "events": events,
+        "faults": {
+            "total": len(faults),
+            "by_kind": dict(sorted(Counter(f.kind for f in faults).items())),
+            "names": [f.name for f in faults],
+        },
+        "rejected": rejected_entry(rejected or {}),
+    }
+
+
+def vehicle_entry(
+    tally: Tally | None, st: VehicleStatus | None, mavlink_rejected: int, link: StreamQuality | None
+) -> dict[str, Any]:
+    """One vehicle's scores (``tally``: its scorer tally, None before any estimate), the counters of
+    its last status (None before one came), its MAVLink frames rejected and its link's quality."""
+    entry: dict[str, Any] = {"samples": tally.samples if tally else 0}
+    if tally and tally.samples:
+        entry.update(
+            rmse_m=_round(math.sqrt(tally.sum_sq_position_m2 / tally.samples)),
+            max_error_m=_round(tally.max_position_error_m),
+            anees=_round(tally.sum_nees / tally.samples),
+            nees_inside_95=_round(tally.nees_inside / tally.samples),
+            consistency=tally.consistency.result().as_dict(),
+        )
+    if st is not None:
+        entry.update(
+            cycles=st.cycles,
+            overruns=st.overruns,
+            gnss_rejected=st.rejected_gnss,
+            dropped_stale=st.dropped_stale,
+            decode_errors=st.decode_errors,
+            reset_counter=st.reset_counter,
+            sensor_duplicates=st.duplicates,
+            sensor_samples_lost=st.samples_lost,
+            late_fused=st.late_fused,
+            v2v_fused=st.v2v_fused,
+            v2v_missing=st.v2v_missing,
+        )
+        if st.frames_used:  # a camera vehicle running SLAM
+            entry.update(landmarks=st.landmarks, camera_frames_used=st.frames_used)
+        nis = nis_summary(st.nis)
+        if nis:
+            entry["nis"] = nis
+    entry["mavlink_rejected"] = mavlink_rejected
+    if link is not None:
+        entry["mavlink_link"] = link.as_dict()
+    return entry
+
+
+def swarm_entry(scorer: Scorer, tallies: list[Tally]) -> dict[str, Any]:
+    """The swarm's RMSE and ANEES over every scored estimate of ``tallies`` (summed in vehicle order),
+    and what the scorer could not score."""
+    scored = [t for t in tallies if t.samples]
     total_sq, total_n, total_nees = 0.0, 0, 0.0
-    for vid in sorted(set(scorer.tallies) | set(statuses)):
-        tally = scorer.tallies.get(vid)
-        st = statuses.get(vid)
-        entry: dict[str, Any] = {"samples": tally.samples if tally else 0}
-        if tally and tally.samples:
-            entry.update(
-                rmse_m=_round(math.sqrt(tally.sum_sq_position_m2 / tally.samples)),
-                max_error_m=_round(tally.max_position_error_m),
-                anees=_round(tally.sum_nees / tally.samples),
-                nees_inside_95=_round(tally.nees_inside / tally.samples),
-                consistency=tally.consistency.result().as_dict(),
-            )
-            total_sq, total_n, total_nees = (
-                total_sq + tally.sum_sq_position_m2,
-                total_n + tally.samples,
-                total_nees + tally.sum_nees,
-            )
-        if st is not None:
-            entry.update(
-                cycles=st.cycles,
-                overruns=st.overruns,
-                gnss_rejected=st.rejected_gnss,
-                dropped_stale=st.dropped_stale,
-                decode_errors=st.decode_errors,
-                reset_counter=st.reset_counter,
-                sensor_duplicates=st.duplicates,
-                sensor_samples_lost=st.samples_lost,
-                late_fused=st.late_fused,
-                v2v_fused=st.v2v_fused,
-                v2v_missing=st.v2v_missing,
-            )
-            if st.frames_used:  # a camera vehicle running SLAM
-                entry.update(landmarks=st.landmarks, camera_frames_used=st.frames_used)
-            nis = nis_summary(st.nis)
-            if nis:
-                entry["nis"] = nis
-        entry["mavlink_rejected"] = per_vehicle_rejected.get(vid, 0)
-        if vid in quality:
-            entry["mavlink_link"] = quality[vid].as_dict()
-        vehicles[str(vid)] = entry
-    swarm = {
+    for tally in scored:
+        total_sq, total_n, total_nees = (
+            total_sq + tally.sum_sq_position_m2,
+            total_n + tally.samples,
+            total_nees + tally.sum_nees,
+        )
+    return {
         "samples": total_n,
         "rmse_m": _round(math.sqrt(total_sq / total_n)) if total_n else None,
         "anees": _round(total_nees / total_n) if total_n else None,
@@ -86,25 +120,17 @@ def build_summary(
         "duplicate_estimates": scorer.duplicates,
         "late_estimates": scorer.late,
     }
-    fault_counts = dict(sorted(Counter(f.kind for f in faults).items()))
-    by_process = {name: counts_to_dict(counts) for name, counts in sorted((rejected or {}).items())}
-    totals = Counter()
+
+
+def rejected_entry(rejected: Mapping[str, tuple[int, ...]]) -> dict[str, Any]:
+    """Input rejected, by process (only those that rejected any) and by reason over every process."""
+    by_process = {name: counts_to_dict(counts) for name, counts in sorted(rejected.items())}
+    totals: Counter = Counter()
     for counts in by_process.values():
         totals.update(counts)
     return {
-        "name": config.name,
-        "status": status,
-        "mode": config.clock.mode,
-        "seed": config.world.seed,
-        "duration_s": config.clock.duration_s,
-        "vehicles": vehicles,
-        "swarm": swarm,
-        "events": events,
-        "faults": {"total": len(faults), "by_kind": fault_counts, "names": [f.name for f in faults]},
-        "rejected": {
-            "by_process": {k: v for k, v in by_process.items() if v},
-            "by_reason": {r: totals[r] for r in REASONS if totals[r]},
-        },
+        "by_process": {k: v for k, v in by_process.items() if v},
+        "by_reason": {r: totals[r] for r in REASONS if totals[r]},
     }
 
 
