@@ -203,7 +203,7 @@ def realtime_rows(case: str, r: dict, results: list[dict]) -> list[Row]:
     """A realtime case's overruns, worst vehicle's jitter p99 (``r``: the median of ``results``) and
     samples dropped as stale (the most of any run). The control is held to no overrun or jitter
     target, a retired case to none at all: both are reported."""
-    held, control = r["target"] not in ("-", RETIRED), r["target"] == "-"
+    held, retired = r["target"] not in ("-", RETIRED), r["target"] == RETIRED
     runs, stale = len(results), max(x["dropped_stale"] for x in results)
     overruns, jitter = ("< 1%", "< 5 ms") if held else (r["target"], r["target"])
     return [
@@ -213,5 +213,5 @@ def realtime_rows(case: str, r: dict, results: list[dict]) -> list[Row]:
             round(r["jitter_p99_us"] / 1000, 2), "ms", f"{jitter} ({_scheduling(r)})",
             r["jitter_p99_us"] < MAX_JITTER_US if held else None),
         Row("swarm", case, "samples dropped as stale" + (f" (most of {runs} runs)" if runs > 1 else ""), stale, "",
-            "0 (no faults)" if held or control else RETIRED, stale == 0 if held or control else None),
+            RETIRED if retired else "0 (no faults)", None if retired else stale == 0),
     ]  # fmt: skip

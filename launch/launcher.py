@@ -110,7 +110,7 @@ def write_terrain_model(config: SwarmConfig, run_dir: Path) -> None:
     (groundstation.recording's /terrain)."""
     from groundstation.recording import TERRAIN_MODEL
     from groundstation.terrain_model import terrain_glb
-    from sim.world import make_terrain
+    from sim.terrain import make_terrain
 
     terrain = make_terrain(config)
     width_m, height_m = terrain.size_m

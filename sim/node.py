@@ -28,7 +28,7 @@ from bus.session import Bus, await_subscribers
 from sim.intake import WorldIntake
 from sim.membership import Membership
 from sim.pace import on_pace
-from sim.tick_output import TickOutput, encode_tick, make_world
+from sim.tick_output import EncodedTick, encode_tick, make_world
 
 log = logging.getLogger("swarmloc.world")
 
@@ -95,12 +95,12 @@ class WorldNode:
                 raise StartTimeout(f"{' and '.join(who)} did not join within {self.config.clock.start_timeout_s:g} s")
             self.drain(0.1)
 
-    def prepare(self, tick: int) -> TickOutput:
+    def prepare(self, tick: int) -> EncodedTick:
         """Advance the world to the tick's stamp and encode what it measured (no publishing)."""
         stamp_us = min(tick, self.final_tick) * self.tick_us
         return encode_tick(self.world, self.bus.keys, tick, stamp_us, addressed_v2v=self.addressed_v2v)
 
-    def send(self, prepared: TickOutput, final: bool) -> None:
+    def send(self, prepared: EncodedTick, final: bool) -> None:
         for key, payload in prepared.batches:
             self.publish(key, payload)
         self.publish(self.bus.keys.truth(), prepared.truth)
@@ -257,7 +257,7 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
     return node
 
 
-def _end_run(node: WorldNode, prepared: TickOutput, stop: threading.Event, final_ack_timeout_s: float) -> None:
+def _end_run(node: WorldNode, prepared: EncodedTick, stop: threading.Event, final_ack_timeout_s: float) -> None:
     """The final tick (the next one prepared), the final acks of a complete run, and the run's end."""
     if node.status == "complete":
         finishing = set(node.members.alive)

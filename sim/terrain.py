@@ -14,7 +14,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from bus.config import SwarmConfig
 from bus.errors import ConfigError
+from bus.pads import start_pads
 
 
 @dataclass(frozen=True)
@@ -100,3 +102,27 @@ def repetitive_terrain(
     tile = source[start : start + period_px, start : start + period_px]
     reps = -(-size_px // period_px)
     return Terrain(np.ascontiguousarray(np.tile(tile, (reps, reps))[:size_px, :size_px]), metres_per_pixel)
+
+
+def make_terrain(config: SwarmConfig) -> Terrain:
+    """The ground the cameras see: ``world.terrain`` (an orthophoto) or a procedural one from the
+    world's seed (ConfigError, one line, for an unreadable file). OpenCV and the terrain are loaded
+    only for a camera swarm (sim.world imports this module then)."""
+    wc = config.world
+    if wc.terrain:
+        return load_terrain(wc.terrain, wc.terrain_metres_per_pixel)
+    size_px = wc.terrain_size_px or terrain_size_for(config)
+    rng = np.random.default_rng([wc.seed, 0, 7])
+    if wc.terrain_period_px:
+        return repetitive_terrain(
+            rng, size_px=size_px, period_px=wc.terrain_period_px, metres_per_pixel=wc.terrain_metres_per_pixel
+        )
+    return procedural_terrain(rng, size_px=size_px, metres_per_pixel=wc.terrain_metres_per_pixel)
+
+
+def terrain_size_for(config: SwarmConfig, margin_m: float = 20.0) -> int:
+    """Side [px] of a terrain centred on the origin that holds every start pad, the trajectory
+    around it (``radius_m``) and a camera footprint's margin: at least 2048, at most 8192."""
+    wc = config.world
+    reach_m = float(np.max(np.abs(start_pads(wc.vehicles, wc.spacing_m)))) + wc.radius_m + margin_m
+    return int(min(8192, max(2048, 2 * np.ceil(reach_m / wc.terrain_metres_per_pixel))))

@@ -19,7 +19,7 @@ log = logging.getLogger("swarmloc.world")
 
 
 @dataclass(frozen=True)
-class TickOutput:
+class EncodedTick:
     """One tick's output, encoded: (key, payload) of every vehicle's batch, and the truth batch."""
 
     tick: int
@@ -47,7 +47,7 @@ def make_world(config: SwarmConfig) -> World:
     return world
 
 
-def encode_tick(world: World, keys: KeySpace, tick: int, stamp_us: int, *, addressed_v2v: bool) -> TickOutput:
+def encode_tick(world: World, keys: KeySpace, tick: int, stamp_us: int, *, addressed_v2v: bool) -> EncodedTick:
     """Advance ``world`` to ``stamp_us`` and encode what it measured for clock tick ``tick``: each
     vehicle's batch names who ranges it when ``addressed_v2v`` (bus.feed.SensorBatch.listeners), the
     truth batch the ranging pairs either way."""
@@ -74,4 +74,4 @@ def encode_tick(world: World, keys: KeySpace, tick: int, stamp_us: int, *, addre
     ranged = out.listeners() if listeners is None else listeners
     pairs = np.array([(o, t) for t, observers in ranged.items() for o in observers], np.int64).reshape(-1, 2)
     truth = feed.TruthBatch(tick, stamp_us, np.array(out.truth_stamps, dtype=np.int64), np.array(ids), rows, pairs)
-    return TickOutput(tick, stamp_us, batches, feed.encode_truth(truth))
+    return EncodedTick(tick, stamp_us, batches, feed.encode_truth(truth))

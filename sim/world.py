@@ -106,32 +106,6 @@ def gnss_offset_us(phase: float, period_us: int, step_us: int) -> int:
     return round(phase * period_us / step_us) * step_us % period_us
 
 
-def make_terrain(config: SwarmConfig) -> Terrain:
-    """The ground the cameras see: ``world.terrain`` (an orthophoto) or a procedural one from the
-    world's seed (ConfigError, one line, for an unreadable file). OpenCV and the terrain are loaded
-    only for a camera swarm."""
-    from sim.terrain import load_terrain, procedural_terrain, repetitive_terrain
-
-    wc = config.world
-    if wc.terrain:
-        return load_terrain(wc.terrain, wc.terrain_metres_per_pixel)
-    size_px = wc.terrain_size_px or terrain_size_for(config)
-    rng = np.random.default_rng([wc.seed, 0, 7])
-    if wc.terrain_period_px:
-        return repetitive_terrain(
-            rng, size_px=size_px, period_px=wc.terrain_period_px, metres_per_pixel=wc.terrain_metres_per_pixel
-        )
-    return procedural_terrain(rng, size_px=size_px, metres_per_pixel=wc.terrain_metres_per_pixel)
-
-
-def terrain_size_for(config: SwarmConfig, margin_m: float = 20.0) -> int:
-    """Side [px] of a terrain centred on the origin that holds every start pad, the trajectory
-    around it (``radius_m``) and a camera footprint's margin: at least 2048, at most 8192."""
-    wc = config.world
-    reach_m = float(np.max(np.abs(start_pads(wc.vehicles, wc.spacing_m)))) + wc.radius_m + margin_m
-    return int(min(8192, max(2048, 2 * np.ceil(reach_m / wc.terrain_metres_per_pixel))))
-
-
 class World:
     """Truth and sensor generation for every vehicle of ``config``; deterministic from its seed."""
 
@@ -184,10 +158,13 @@ class World:
         self.high_rate = HighRateSensors(
             np.array(biases), odom_scale, self.step_us, self._periods[Topic.ODOM], wc.sensor_truth
         )
-        self.terrain = make_terrain(config) if spec.camera_rate_hz else None
-        if self.terrain is not None:
+        self.terrain: Terrain | None = None
+        if spec.camera_rate_hz:  # OpenCV and the terrain only for a camera swarm
             import cv2
 
+            from sim.terrain import make_terrain
+
+            self.terrain = make_terrain(config)
             cv2.setNumThreads(1)  # frames are small: OpenCV's thread pool costs more than it brings
         if self.terrain is not None:
             self._periods[Topic.CAMERA] = _period_us(spec.camera_rate_hz)
