@@ -132,6 +132,7 @@ def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
     while not stop.is_set():
         if final is not None and node.next_cycle_us > final.stamp_us:
             node.publish_status(final.stamp_us, final=True)
+            node.outbound.send_held()
             node.outbound.flush()
             node.outbound.ack(final.tick)
             return

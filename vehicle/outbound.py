@@ -23,6 +23,7 @@ from bus.lies import active_lies, false_accusations, longest_stale_s, told
 from bus.mavlink_codec import MAX_ACCUSED, MavlinkEncoder, status_of
 from bus.session import Bus
 from vehicle.estimators.filter import Filter
+from vehicle.v2v import send_turn_us
 
 
 class Outbound:
@@ -48,6 +49,10 @@ class Outbound:
         self._next_heartbeat_us = 0
         self._next_status_us = 0
         self._frames: list[bytes] = []
+        # realtime: an epoch's V2V frames wait for this vehicle's turn (when, frame, listeners)
+        cycle_us, wait_us = round(1e6 / vc.loop_rate_hz), round(vc.v2v_latency_s * 1e6)
+        self._turn_us = send_turn_us(vehicle_id, cycle_us, wait_us) if realtime else 0
+        self._held: deque[tuple[int, bytes, tuple[int, ...]]] = deque()
         self._past: deque[PoseEstimate] = deque()  # the broadcast epochs' estimates a stale lie replays
         self.v2v_sent = 0
         self.acked_tick: int | None = None  # the last tick acknowledged
@@ -62,7 +67,9 @@ class Outbound:
     ) -> None:
         """Encode this cycle's frames (kept until ``flush``); at the ranging epochs send the V2V frame to
         ``listeners`` (the vehicles that range with this one now), or to every vehicle (None), as the
-        plan's lies and accusations of this vehicle (``behaviour``) have it."""
+        plan's lies and accusations of this vehicle (``behaviour``) have it; addressed frames go at this
+        vehicle's turn (``send_turn_us``), sent before the cycle's own."""
+        self.send_held(t_us)
         notices = estimator.take_notices()
         for notice in notices:
             self._frames += [  # when it was said, then what
@@ -72,7 +79,7 @@ class Outbound:
         on_v2v, on_mavlink = self.broadcasts_at(t_us), self._on_mavlink(t_us)
         if not estimator.initialized:
             if on_v2v:  # neighbours in lockstep wait for every epoch's broadcast: say there is none
-                self._send_v2v(self.encoder.no_estimate(t_us, reset_counter), listeners)
+                self._send_v2v(t_us, self.encoder.no_estimate(t_us, reset_counter), listeners)
             return
         if any(n.status_changed for n in notices):
             self._frames.append(self.encoder.estimator_status(status_of(estimator.health(t_us))))
@@ -84,7 +91,8 @@ class Outbound:
             if on_v2v:  # the V2V packet {id, x_hat, P, t}, and whom its monitor distrusts
                 accused = sorted(set(estimator.accused()) | false_accusations(behaviour, self.vehicle_id, t_us / 1e6))
                 accusations = b"".join(self._accuser.accusation(t_us, j) for j in accused[:MAX_ACCUSED])
-                self._send_v2v(self._v2v_frame(odometry, pose, t_us, reset_counter, behaviour) + accusations, listeners)
+                frame = self._v2v_frame(odometry, pose, t_us, reset_counter, behaviour) + accusations
+                self._send_v2v(t_us, frame, listeners)
         if self._heartbeat_due(t_us):
             self._frames += [self.encoder.heartbeat(), self.encoder.estimator_status(status_of(estimator.health(t_us)))]
             self._next_heartbeat_us = t_us + self._heartbeat_us
@@ -124,12 +132,25 @@ class Outbound:
         told_estimate = told(estimate, active, self._past)
         return self._lie_encoder.pose_odometry(told_estimate, altitude_m=self.altitude_m, reset_counter=reset_counter)
 
-    def _send_v2v(self, frame: bytes, listeners: tuple[int, ...] | None) -> None:
-        """Broadcast (``listeners`` None: counted for lockstep's V2V barrier) or one copy per listener."""
+    def _send_v2v(self, t_us: int, frame: bytes, listeners: tuple[int, ...] | None) -> None:
+        """Broadcast (``listeners`` None: counted for lockstep's V2V barrier) or one copy per listener,
+        at this vehicle's turn after the epoch ``t_us`` (realtime; lockstep's turn is the epoch)."""
         if listeners is None:
             self._v2v.put(frame)
             self.v2v_sent += 1
-            return
+        elif self._turn_us:
+            self._held.append((t_us + self._turn_us, frame, listeners))
+        else:
+            self._send_addressed(frame, listeners)
+
+    def send_held(self, now_us: int | None = None) -> None:
+        """Send the V2V frames held for this vehicle's turn: those due by ``now_us`` (None: all, at the
+        run's end)."""
+        while self._held and (now_us is None or self._held[0][0] <= now_us):
+            _, frame, listeners = self._held.popleft()
+            self._send_addressed(frame, listeners)
+
+    def _send_addressed(self, frame: bytes, listeners: tuple[int, ...]) -> None:
         for j in listeners:
             publisher = self._v2v_to.get(j)
             if publisher is None and j in self._neighbours:  # the world names only this swarm's vehicles

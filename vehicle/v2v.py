@@ -66,6 +66,18 @@ def fusion_turn_us(vehicle_id: int, cycle_us: int, v2v_period_us: int, room_us: 
     return ((vehicle_id - 1) % slots) * cycle_us
 
 
+def send_turn_us(vehicle_id: int, cycle_us: int, wait_us: int) -> int:
+    """Realtime: how long after a ranging epoch vehicle ``vehicle_id`` sends that epoch's V2V frames,
+    in whole loop cycles of ``cycle_us``: vehicles take turns, a cycle apart, over the first half of
+    ``wait_us``, the wait its neighbours give the frames (the other half is the frames' time on the
+    way). At one shared cycle every vehicle's epoch frames, their copies through the router and their
+    arrivals filled the epoch's period with its GNSS fixes and checkpoints, and the world's next tick
+    waited for the cores (docs/decisions/performance.md). What a frame says is fixed at the epoch;
+    lockstep sends it there (its neighbours wait for it)."""
+    slots = wait_us // 2 // cycle_us + 1
+    return ((vehicle_id - 1) % slots) * cycle_us
+
+
 @dataclass(frozen=True)
 class Broadcast:
     """What a neighbour's broadcast tells about it: pose [x m, y m, yaw rad] (3,) and its covariance

@@ -314,6 +314,39 @@ def test_v2v_frames_go_to_the_listeners_the_batch_names_else_to_everyone(mode: s
     assert node.inbound.heard_until == {2: 200_000} and node.inbound.heard == {2: 1}
 
 
+@pytest.mark.parametrize("mode", ["realtime", "lockstep"])
+def test_realtime_an_epochs_addressed_frames_go_at_the_vehicles_turn_as_they_were_at_the_epoch(mode: str):
+    """Vehicle 3's turn is 40 ms after the epoch in realtime (``send_turn_us``): its epoch's frames go
+    to the listeners then, before that cycle's own, the bytes fixed at the epoch; held frames go at the
+    run's end; lockstep sends them at the epoch."""
+    hub = MemoryHub()
+    sent: list[tuple[str, bytes]] = []
+    deliver = hub.deliver
+    hub.deliver = lambda key, payload: (sent.append((key, payload)), deliver(key, payload))
+    node = VehicleNode(hub.connect("vehicle"), build_config({"clock": {"mode": mode}}).for_vehicle(), 3)
+    node.take(Envelope(node.bus.keys.feed(3), _batch(3, 0, 0, PRIOR)))
+    node.cycle(0)
+    to_1 = node.bus.keys.v2v_to(3, 1)
+
+    def frames_to_1() -> list[bytes]:
+        return [payload for key, payload in sent if key == to_1]
+
+    node.outbound.cycle(200_000, node.estimator, 0, listeners=(1,))
+    at_epoch = frames_to_1()
+    for t_us in (220_000, 240_000):
+        node.outbound.cycle(t_us, node.estimator, 0)
+        if t_us == 220_000:
+            before_turn = frames_to_1()
+    node.outbound.cycle(400_000, node.estimator, 0, listeners=(1,))
+    node.outbound.send_held()
+    if mode == "lockstep":
+        assert len(at_epoch) == 1 and len(frames_to_1()) == 2
+        return
+    assert at_epoch == [] and before_turn == []
+    first, last = frames_to_1()
+    assert [MavlinkDecoder().decode(split_frames(f)[0][0]).time_usec for f in (first, last)] == [200_000, 400_000]
+
+
 def test_realtime_a_flood_of_messages_delays_filing_never_a_cycle():
     """Realtime: a cycle that is due runs before the loop files what is queued (a flood on the
     neighbours' lane is filed between cycles, one item at a time)."""

@@ -13,7 +13,7 @@ from bus import messages as m
 from bus.mavlink_codec import MAX_ACCUSED, MAX_V2V_BYTES, MavlinkEncoder, StateEstimate
 from bus.rejections import Rejections
 from vehicle.models.cooperative_fixes import SeenFix
-from vehicle.v2v import V2V
+from vehicle.v2v import V2V, fusion_turn_us, send_turn_us
 
 PERIOD_US = 200_000
 
@@ -153,3 +153,19 @@ def test_accusations_of_any_sender_and_value_mutated_anywhere_give_a_fix_or_a_co
     fixes = v2v.mature(PERIOD_US + 100_000)
     assert len(fixes) + v2v.rejections.total == 1
     assert all(0 < j <= 255 and j != 2 for fix in fixes for j in fix.neighbour_accuses)
+
+
+def test_realtime_vehicles_send_an_epochs_frames_in_turns_within_half_the_neighbours_wait():
+    """A cycle apart, over the first half of the wait the neighbours give the frames (0, 20, 40 ms of
+    100 ms at 50 Hz); one turn for all when a cycle is longer than half the wait."""
+    turns = [send_turn_us(v, 20_000, 100_000) for v in range(1, 8)]
+    assert turns == [0, 20_000, 40_000, 0, 20_000, 40_000, 0]
+    assert {send_turn_us(v, 20_000, 30_000) for v in range(1, 8)} == {0}
+    assert {send_turn_us(v, 20_000, 0) for v in range(1, 8)} == {0}
+
+
+def test_realtime_vehicles_fuse_an_epoch_in_turns_over_half_the_v2v_period_within_the_horizon():
+    """A cycle apart, over the first half of the V2V period (0-80 ms of 200 ms at 50 Hz), never beyond
+    the room the fusion horizon leaves."""
+    assert [fusion_turn_us(v, 20_000, 200_000, 900_000) for v in range(1, 7)] == [0, 20_000, 40_000, 60_000, 80_000, 0]
+    assert {fusion_turn_us(v, 20_000, 200_000, 30_000) for v in range(1, 7)} == {0}
