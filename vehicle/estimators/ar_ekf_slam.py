@@ -34,10 +34,11 @@ import numpy as np
 
 from bus.config import ArSlamConfig, SensorSpec, VehicleProcessConfig
 from bus.statistics import gate_threshold
-from vehicle.estimators.ekf_slam import Reject, VisionSlamMap, config_arguments
 from vehicle.estimators.ekf_slam import build as build_ekf_slam
+from vehicle.estimators.ekf_slam import config_arguments
 from vehicle.estimators.filter import Filter
 from vehicle.estimators.state import FilterState, frozen
+from vehicle.estimators.vision_map import Reject, VisionSlamMap
 from vehicle.models import added_states
 from vehicle.models import landmarks as slam
 from vehicle.models.cooperative import CooperativeRule, Correction, closed_form_weight
