@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -19,31 +20,44 @@ COMPARED = ("ekf-slam", "fixed 25 m", "ar-ekf-slam", "ar-ekf-slam visual odometr
 
 def frame_time_figure(tracks: dict[str, Track], names: tuple[str, ...] = COMPARED) -> Figure:
     """The paper's figure 7: time per frame along the flight (a 2 s running median)."""
-    fig = Figure(figsize=(8, 4))
-    ax = fig.add_subplot()
-    for name in names:
-        if name in tracks:
-            ms = np.array(tracks[name].frame_ms)
-            width = 20
-            smooth = [np.median(ms[max(0, k - width) : k + 1]) for k in range(len(ms))]
-            ax.plot(np.arange(len(ms)), smooth, label=name)
-    ax.set(xlabel="camera frame", ylabel="estimator time per frame [ms] (running median)", title="Cost per frame")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    return fig
+    return _lines(
+        tracks,
+        names,
+        lambda track: (np.arange(len(track.frame_ms)), _running_median(np.array(track.frame_ms), width=20)),
+        xlabel="camera frame",
+        ylabel="estimator time per frame [ms] (running median)",
+        title="Cost per frame",
+    )
 
 
 def x_error_figure(tracks: dict[str, Track], names: tuple[str, ...] = COMPARED) -> Figure:
     """The paper's figure 8: squared x error over time."""
+    return _lines(
+        tracks,
+        names,
+        lambda track: (track.t_s, track.x_error_m2),
+        xlabel="time [s]",
+        ylabel="(x - x_hat)^2 [m^2]",
+        title="Squared x error",
+    )
+
+
+def _lines(tracks: dict[str, Track], names: tuple[str, ...], series: Callable, **labels: str) -> Figure:
+    """One axis, a line per named track: ``series(track)`` gives its (x, y)."""
     fig = Figure(figsize=(8, 4))
     ax = fig.add_subplot()
     for name in names:
         if name in tracks:
-            ax.plot(tracks[name].t_s, tracks[name].x_error_m2, label=name)
-    ax.set(xlabel="time [s]", ylabel="(x - x_hat)^2 [m^2]", title="Squared x error")
+            ax.plot(*series(tracks[name]), label=name)
+    ax.set(**labels)
     ax.legend()
     ax.grid(alpha=0.3)
     return fig
+
+
+def _running_median(values: np.ndarray, *, width: int) -> list[float]:
+    """The median of each value and the ``width`` before it."""
+    return [np.median(values[max(0, k - width) : k + 1]) for k in range(len(values))]
 
 
 def state_figure(tracks: dict[str, Track], names: tuple[str, ...] = COMPARED) -> Figure:
