@@ -10,7 +10,6 @@ import json
 import os
 import queue
 import signal
-import socket
 import subprocess
 import threading
 import time
@@ -19,12 +18,13 @@ from pathlib import Path
 
 from bus import messages as m
 from bus.config import SwarmConfig, ViewConfig
-from bus.errors import ConfigError, DecodeError, SwarmlocError
+from bus.errors import ConfigError, DecodeError
 from bus.kill_schedule import KillSchedule
 from bus.plan import FaultPlan, decode_json
 from bus.secrets import role_env, write_secrets
 from bus.session import Envelope
 from launch import children
+from launch.child import Child, free_port, wait_for_port
 
 SHUTDOWN_GRACE_S = 4.0
 WATCH_PERIOD_S = 0.1  # the supervisor looks at the fault plan this often (a child ending wakes it at once)
@@ -40,10 +40,6 @@ ONE_ZENOH_RUNTIME = (
     "(rx: (handover: app), tx: (handover: app), net: (handover: app), acc: (handover: app), app: (worker_threads: 1))"
 )
 SWARM_HANDLE = "swarm.json"  # in the run directory while `swarm up` runs: how `swarm fault` finds it
-
-
-class ChildFailed(SwarmlocError):
-    """A process of the swarm failed to start or died."""
 
 
 @dataclass(frozen=True)
@@ -70,39 +66,6 @@ class Security:
         if self.tls_certificate:
             args += ["--tls-cert", str(self.tls_certificate), "--tls-key", str(self.tls_private_key)]
         return args
-
-
-@dataclass
-class Child:
-    name: str
-    process: children.Forked | subprocess.Popen
-    log_path: Path
-    essential: bool
-
-    def tail(self, lines: int = 8) -> str:
-        try:
-            text = self.log_path.read_text(errors="replace").splitlines()
-        except OSError:
-            return "(no log)"
-        return "\n".join(text[-lines:]) or "(empty log)"
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def wait_for_port(port: int, timeout_s: float, router: Child) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if router.process.poll() is not None:
-            raise ChildFailed(f"router exited with {router.process.returncode}:\n{router.tail()}")
-        with socket.socket() as sock:
-            if sock.connect_ex(("127.0.0.1", port)) == 0:
-                return
-        time.sleep(0.01)
-    raise ChildFailed(f"router did not listen on port {port} within {timeout_s:g} s")
 
 
 def write_terrain_model(config: SwarmConfig, run_dir: Path) -> None:

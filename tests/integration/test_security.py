@@ -19,7 +19,7 @@ from bus.errors import BusUnavailable
 from bus.mavlink_codec import MavlinkEncoder, StateEstimate, signing_now, split_frames
 from bus.secrets import write_secrets
 from bus.session import Transport, ZenohBus
-from launch.launcher import Child, free_port, wait_for_port
+from launch.child import Child, free_port, wait_for_port
 from tests.integration.conftest import ESTIMATES_PER_S, read_summary, run_swarm, swarm_command, wait_for_metrics
 
 pytestmark = pytest.mark.integration

@@ -11,7 +11,7 @@ import pytest
 
 from bus.config import build_config
 from bus.secrets import role_env, write_secrets
-from launch.launcher import free_port
+from launch.child import free_port
 from tests.integration.conftest import ESTIMATES_PER_S, read_summary
 
 pytestmark = pytest.mark.integration
