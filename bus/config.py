@@ -18,6 +18,7 @@ from typing import Literal
 
 from pydantic import Field, ValidationError, model_validator
 
+from bus.clock_config import ClockConfig as ClockConfig
 from bus.errors import ConfigError
 from bus.faults import BEHAVIOUR_KINDS, LINK_KINDS, Fault, check_fault, named
 from bus.replay_config import ReplayConfig
@@ -28,6 +29,7 @@ from bus.sensor_config import SensorTruth as SensorTruth
 from bus.strict_model import Strict as _Strict
 from bus.vehicle_config import ArSlamConfig as ArSlamConfig
 from bus.vehicle_config import VehicleConfig as VehicleConfig
+from bus.view_config import ViewConfig as ViewConfig
 
 
 class BusConfig(_Strict):
@@ -52,50 +54,6 @@ class BusConfig(_Strict):
         if env.get("SWARMLOC_ZENOH_CONNECT_TIMEOUT_S"):
             updates["connect_timeout_s"] = env["SWARMLOC_ZENOH_CONNECT_TIMEOUT_S"]
         return _validated(BusConfig, {**self.model_dump(), **updates})
-
-
-class ClockConfig(_Strict):
-    mode: Literal["lockstep", "realtime"] = "lockstep"
-    speed: float = Field(1.0, gt=0, le=1000, description="realtime: sim seconds per wall second")
-    tick_s: float | None = Field(
-        None,
-        gt=0,
-        le=1.0,
-        description="sim time per clock tick (lockstep barrier): default 0.02 in realtime; in lockstep 1, or 0.5 "
-        "with cameras, a live view, kill faults or a truth batch too large for 1 s",
-    )
-    duration_s: float = Field(60.0, gt=0, le=86400)
-    ack_timeout_s: float = Field(
-        10.0, gt=0, description="lockstep (realtime: the first tick): wall time before a silent vehicle is dead"
-    )
-    start_timeout_s: float = Field(60.0, gt=0, description="wall time to wait for every process to join")
-    gone_timeout_s: float = Field(
-        30.0,
-        gt=0,
-        description="wall time the world and the ground station wait for "
-        "each other after one disappears, before ending the run",
-    )
-    gs_lag_ticks: int = Field(
-        1,
-        ge=1,
-        le=10_000,
-        description="lockstep: how many ticks the ground station may lag "
-        "(what a ground-station crash can lose: up to 1 s of scoring at the default tick)",
-    )
-    background_niceness: int = Field(
-        19,
-        ge=0,
-        le=19,
-        description="lockstep: the niceness the world and the ground station run at, so that the vehicles' "
-        "cycles, the barrier's critical path, get the cores first (0: the default priority)",
-    )
-
-    @model_validator(mode="after")
-    def _default_tick(self) -> ClockConfig:
-        """Realtime's default tick; lockstep's depends on the rest of the run (SwarmConfig)."""
-        if self.tick_s is None and self.mode == "realtime":
-            object.__setattr__(self, "tick_s", 0.02)
-        return self
 
 
 class WorldConfig(_Strict):
@@ -123,25 +81,6 @@ class WorldConfig(_Strict):
         "(repetitive texture: every keypoint has look-alikes a period away)",
     )
     sensor_truth: SensorTruth = SensorTruth()
-
-
-class ViewConfig(_Strict):
-    """What the ground station shows and records for Foxglove or Lichtblick (groundstation.recording)."""
-
-    record: bool = Field(True, description="write run.mcap in the run directory (scene, poses, metrics, events)")
-    live: bool = Field(False, description="serve a Foxglove WebSocket live view while the swarm runs")
-    live_host: str = Field("127.0.0.1", min_length=1, max_length=255, description="the live view's address")
-    live_port: int = Field(8765, ge=1, le=65535, description="the live view's port")
-    live_backlog: int = Field(
-        1024, ge=1, le=1_000_000, description="messages queued per live viewer; a slow viewer loses the oldest"
-    )
-    live_speed: float | None = Field(
-        None,
-        gt=0,
-        le=10_000,
-        description="lockstep with the live view on: run at most this many times real time, so that a viewer "
-        "can watch (the ground station holds its tick acknowledgements; None: as fast as the swarm goes)",
-    )
 
 
 class SwarmConfig(_Strict):

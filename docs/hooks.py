@@ -73,6 +73,7 @@ def config_reference() -> str:
         ("sensors (the datasheet the vehicles are told)", c.SensorSpec),
         ("vehicle", c.VehicleConfig),
         ("clock", c.ClockConfig),
+        ("view (run.mcap and the live view)", c.ViewConfig),
         ("bus", c.BusConfig),
     ):
         lines += ["", f"## `{title}`", ""] + _model_table(model)
