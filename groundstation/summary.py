@@ -101,14 +101,9 @@ def vehicle_entry(
 def swarm_entry(scorer: Scorer, tallies: list[Tally]) -> dict[str, Any]:
     """The swarm's RMSE and ANEES over every scored estimate of ``tallies`` (summed in vehicle order),
     and what the scorer could not score."""
-    scored = [t for t in tallies if t.samples]
-    total_sq, total_n, total_nees = 0.0, 0, 0.0
-    for tally in scored:
-        total_sq, total_n, total_nees = (
-            total_sq + tally.sum_sq_position_m2,
-            total_n + tally.samples,
-            total_nees + tally.sum_nees,
-        )
+    total_n = sum(t.samples for t in tallies)
+    total_sq = sum(t.sum_sq_position_m2 for t in tallies)
+    total_nees = sum(t.sum_nees for t in tallies)
     return {
         "samples": total_n,
         "rmse_m": _round(math.sqrt(total_sq / total_n)) if total_n else None,
