@@ -10,6 +10,8 @@ from pydantic import Field, model_validator
 
 from bus.strict_model import Strict
 
+LOCKSTEP_RESTART_TICK_S = 0.5  # lockstep's tick under `swarm up --restart on-failure` (cli.main)
+
 
 class ClockConfig(Strict):
     mode: Literal["lockstep", "realtime"] = "lockstep"

@@ -91,8 +91,7 @@ def up(
         fail("TLS needs --tls-cert, --tls-key and --tls-ca, all existing PEM files")
     try:
         base = load_scenario(scenario) if scenario else {}
-        if tick is None and restart == "on-failure" and "tick_s" not in base.get("clock", {}):
-            tick = 0.5  # a ground station started again loses the ticks it had not acknowledged: short ones
+        tick_given = tick is not None or "tick_s" in base.get("clock", {})
         config = build_config(
             overlay(
                 base,
@@ -114,7 +113,9 @@ def up(
         if config.view.live:
             check_live_address(config.view.live_host, config.view.live_port)
         if chaos is not None:
-            config = with_chaos(config, chaos, tick_given=tick is not None or "tick_s" in base.get("clock", {}))
+            config = with_chaos(config, chaos, tick_given=tick_given)
+        if restart == "on-failure" and not tick_given:
+            config = with_restart_tick(config)
         if mavlink_out:
             parse_udpout(mavlink_out)
         security = Security(
@@ -182,6 +183,21 @@ def with_chaos(config, seed: int, *, tick_given: bool = False):
     )
     if not tick_given:
         data["clock"]["tick_s"] = None
+    return build_config(data)
+
+
+def with_restart_tick(config):
+    """``config`` on lockstep's short tick (0.5 s) for ``--restart on-failure``: a ground station started
+    again loses the ticks it had not acknowledged, so short ones. Realtime keeps its own tick: its clock
+    ticks every loop period (0.02 s), and a longer one would hand every vehicle its samples up to a tick
+    late (docs/decisions/realtime-restart.md)."""
+    from bus.clock_config import LOCKSTEP_RESTART_TICK_S
+    from bus.config import build_config
+
+    if config.clock.mode != "lockstep" or config.clock.tick_s <= LOCKSTEP_RESTART_TICK_S:
+        return config
+    data = config.model_dump(mode="json")
+    data["clock"]["tick_s"] = LOCKSTEP_RESTART_TICK_S
     return build_config(data)
 
 

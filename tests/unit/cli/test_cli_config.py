@@ -41,3 +41,37 @@ def test_a_chaos_timeline_with_kill_faults_gets_the_short_tick_unless_one_was_gi
     chaotic = with_chaos(plain, 7)
     assert any(f.kind == "kill" for f in chaotic.faults) and chaotic.clock.tick_s == 0.5
     assert with_chaos(build_config({"clock": {"tick_s": 0.1}}), 7, tick_given=True).clock.tick_s == 0.1
+
+
+def test_restart_on_failure_shortens_only_lockstep_ticks():
+    """The supervisor's restart policy may shorten lockstep's tick (a restarted ground station loses
+    less); it leaves realtime's alone, whose 0.02 s tick hands every vehicle its samples in time."""
+    from bus.config import build_config
+    from cli.main import with_restart_tick
+
+    assert with_restart_tick(build_config({})).clock.tick_s == 0.5
+    assert with_restart_tick(build_config({"clock": {"tick_s": 0.2}})).clock.tick_s == 0.2
+    realtime = build_config({"clock": {"mode": "realtime"}})
+    assert with_restart_tick(realtime).clock.tick_s == realtime.clock.tick_s == 0.02
+
+
+def test_swarm_up_with_restart_on_failure_keeps_the_realtime_tick(tmp_path, monkeypatch):
+    """What `swarm up` hands the launcher: realtime's tick whatever the restart policy, lockstep's short."""
+    import launch.launcher
+
+    seen = {}
+
+    def fake_launch(config, out, **kwargs):
+        seen[(config.clock.mode, kwargs["restart"])] = config.clock.tick_s
+        return tmp_path, [], []
+
+    monkeypatch.setattr(launch.launcher, "launch", fake_launch)
+    for mode in ("realtime", "lockstep"):
+        for restart in ("no", "on-failure"):
+            CliRunner().invoke(app, ["up", "--mode", mode, "--restart", restart, "--out", str(tmp_path), "--quiet"])
+    assert seen == {
+        ("realtime", "no"): 0.02,
+        ("realtime", "on-failure"): 0.02,
+        ("lockstep", "no"): 1.0,
+        ("lockstep", "on-failure"): 0.5,
+    }
