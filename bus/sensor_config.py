@@ -36,6 +36,20 @@ class SensorSpec(_Strict):
         description="odometry along-track error per square root of "
         "the distance travelled (m/sqrt(m)). Replays only, as above",
     )
+    speed_walk_mps_rtsec: float = Field(
+        0.2,
+        ge=0,
+        le=100,
+        description="how fast the vehicle's true speed may wander from its latest sample once the next is "
+        "overdue (late, lost or silent): a random walk from the due time, per square root of a second",
+    )
+    yaw_rate_walk_radps_rtsec: float = Field(
+        0.2,
+        ge=0,
+        le=100,
+        description="the same for its turn rate (the default world's turning vehicles: 0.20-0.23; "
+        "docs/decisions/realtime-restart.md)",
+    )
     gnss_rate_hz: float = Field(5.0, gt=0, le=100)
     gnss_phase: float = Field(
         0.0,

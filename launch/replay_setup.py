@@ -28,6 +28,9 @@ RATE_HZ = 50.0  # the vehicles' loop and the truth grid; clock ticks as in `swar
 # noise): a nominal 10 % datasheet spread, which known-map estimates online (vehicle.models.added_states).
 ODOM_SCALE_PRIOR_SIGMA = 0.1
 RANGE_SCALE_PRIOR_SIGMA = 0.05
+# A data set's odometry is the robots' commands, logged at an irregular rate (gaps of 20 ms to 1 s): each
+# is held until the next by design, and what holding it costs is in the calibrated noise, not a walk.
+HELD_COMMANDS = {"speed_walk_mps_rtsec": 0.0, "yaw_rate_walk_radps_rtsec": 0.0}
 
 
 @dataclass(frozen=True)
@@ -110,6 +113,7 @@ def _config_dict(
         "sensors": {
             "odom_rate_hz": RATE_HZ,
             "truth_rate_hz": RATE_HZ,
+            **HELD_COMMANDS,
             **sheet.sensors,
             "prior_sigma_m": PRIOR_SIGMA_M,
             "odom_scale_prior_sigma": ODOM_SCALE_PRIOR_SIGMA,

@@ -10,6 +10,13 @@ o^2 + (h - o)^2, as little as half, and make a filter cycling at a rate that doe
 input's overconfident). A hold still open at the close counts the longer of the time since its
 sample and the previous hold. One sample held over the whole interval gives sigma^2, n evenly
 spread samples sigma^2 / n.
+
+Past the time its next sample was due (``period_us`` after its stamp), a held input is extrapolated:
+the next sample is late, lost or never sent, and the vehicle's true speed or turn rate may have
+changed meanwhile. That change is modelled as a random walk from the due time (the vehicle's
+manoeuvres, a datasheet rate in units per sqrt(s)); :meth:`HeldInput.walk_s` gives what it adds to
+the variance of the interval's mean, so that a filter cycling on inputs that have not come yet
+claims no more than it knows (docs/decisions/realtime-restart.md).
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ class HeldInput:
     _sq_us2: float = 0.0  # sum of o_i h_i of closed segments (us^2): see the module docstring
     _last_hold_us: int = 0  # the previous sample's whole hold
     segments: list = None  # (duration us, value) of the closed holds of the last interval
+    period_us: int = 0  # the next sample is due this long after the latest (0: never extrapolated)
 
     def __post_init__(self) -> None:
         self.segments, self._open, self._weight = [], [], 1.0
@@ -62,10 +70,26 @@ class HeldInput:
         self.restart(t_us)
         return integral / dt, sq / (float(dt) * dt)
 
+    def walk_s(self, t_us: int) -> float:
+        """What a unit random walk of the input (1 unit/sqrt(s)) from the time its next sample was due
+        adds to the variance of its mean over [start, ``t_us``] (s; multiply by the walk's rate squared):
+        0 while the latest sample is not overdue. Call it before :meth:`close`."""
+        if self.stamp_us is None or not self.period_us:
+            return 0.0
+        return walk_variance_s(self.start_us, t_us, self.stamp_us + self.period_us)
+
     def copy(self) -> HeldInput:
         """An independent copy (for the fusion horizon's checkpoints)."""
         twin = HeldInput(
-            self.value, self.stamp_us, self.start_us, self._segment_us, self._integral, self._sq_us2, self._last_hold_us
+            self.value,
+            self.stamp_us,
+            self.start_us,
+            self._segment_us,
+            self._integral,
+            self._sq_us2,
+            self._last_hold_us,
+            None,
+            self.period_us,
         )
         twin.segments, twin._open, twin._weight = list(self.segments), list(self._open), self._weight
         return twin
@@ -74,6 +98,19 @@ class HeldInput:
         """Forget the interval so far (the filter was re-initialised at ``t_us``); keep the held value."""
         self.start_us = self._segment_us = t_us
         self._integral, self._sq_us2, self._open = 0.0, 0.0, []
+
+
+def walk_variance_s(start_us: int, t_us: int, due_us: int) -> float:
+    """Variance (s, per unit walk rate squared) of the mean over [start, t] of a Wiener process W that
+    is 0 until ``due_us`` and walks from then on: with a = how long it has walked at the interval's
+    first overdue instant and L the overdue part of the interval, (1/dt^2) Var(integral of W) =
+    (a^2 L + a L^2 + L^3 / 3) / dt^2. Summed over consecutive intervals, each weighted by dt^2, this is
+    exactly the variance of the integral over all of them, L^3 / 3 from the due time on."""
+    first = max(start_us, due_us)
+    if t_us <= first:
+        return 0.0
+    a, length, dt = (first - due_us) * 1e-6, (t_us - first) * 1e-6, (t_us - start_us) * 1e-6
+    return (a * a * length + a * length * length + length**3 / 3.0) / (dt * dt)
 
 
 def swept(segments: list[tuple[int, float]]) -> float:

@@ -88,6 +88,7 @@ class Filter:
         self.gate_probability = gate_probability
         self._adaptive_window = adaptive_window
         self._gyro_period_us = round(1e6 / spec.imu_rate_hz)
+        self._camera_period_us = round(1e6 / spec.camera_rate_hz) if spec.camera_rate_hz else 0
         self.state = self._fresh_state()
         self._notices: list[Notice] = []
         self._noticed_until_us = -1
@@ -95,10 +96,11 @@ class Filter:
 
     def _fresh_state(self) -> FilterState:
         spec = self.spec
+        odom_period_us = round(1e6 / spec.odom_rate_hz)
         state = FilterState(
-            speed=HeldInput(),
-            gyro=HeldInput(),
-            odom_yaw=HeldInput(),
+            speed=HeldInput(period_us=odom_period_us),
+            gyro=HeldInput(period_us=self._gyro_period_us),
+            odom_yaw=HeldInput(period_us=odom_period_us),
             slip=SlipGuard.for_datasheet(spec.odom_speed_sigma_mps, spec.imu_rate_hz),
             gnss_health=GnssHealth(GnssHealthSpec(gate_probability=self.gate_probability)),
             alignment=GnssAlignment(),
@@ -255,6 +257,7 @@ class Filter:
             s.gyro.sample(msg.stamp_us, float(msg.gyro_radps[2]))
             s.slip.accelerometer(float(msg.accel_mps2[0]))
         elif isinstance(msg, VisualMotion):
+            s.speed.period_us = s.odom_yaw.period_us = self._camera_period_us
             s.speed.sample(msg.stamp_us, msg.speed_mps, msg.speed_var / max(spec.odom_speed_sigma_mps**2, 1e-12))
             if np.isfinite(msg.yaw_rate_var):  # else the yaw rate is unknown: the gyro's
                 s.visual_us = msg.stamp_us
@@ -285,6 +288,9 @@ class Filter:
         if s.x is None or stamp_us <= s.time_us:
             return
         dt = (stamp_us - s.time_us) * 1e-6
+        # inputs held past their next sample's due time: what the vehicle's manoeuvres may have changed
+        speed_walk = spec.speed_walk_mps_rtsec**2 * s.speed.walk_s(stamp_us)
+        gyro_walk, odom_walk = s.gyro.walk_s(stamp_us), s.odom_yaw.walk_s(stamp_us)
         speed, speed_factor = s.speed.close(stamp_us)
         gyro, gyro_factor = s.gyro.close(stamp_us)
         odom_yaw, odom_factor = s.odom_yaw.close(stamp_us)
@@ -299,7 +305,8 @@ class Filter:
             rate, rate_var, rate_source = gyro, spec.gyro_sigma_radps**2 * gyro_factor, s.gyro
         else:
             rate, rate_var, rate_source = odom_yaw, spec.odom_yaw_rate_sigma_radps**2 * odom_factor, s.odom_yaw
-        speed_var = spec.odom_speed_sigma_mps**2 * speed_factor
+        rate_var += spec.yaw_rate_walk_radps_rtsec**2 * (gyro_walk if fresh else odom_walk)
+        speed_var = spec.odom_speed_sigma_mps**2 * speed_factor + speed_walk
         if spec.odom_travel_sigma_m:  # along-track error growing with the distance travelled
             speed_var += spec.odom_travel_sigma_m**2 * swept(s.speed.segments) / (dt * dt)
         if spec.odom_turn_sigma_rad and not fresh:  # heading error growing with the angle turned

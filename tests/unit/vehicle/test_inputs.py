@@ -45,3 +45,34 @@ def test_a_sample_held_across_cycles_counts_its_whole_variance():
     for input_us, cycle_us in ((20_000, 20_000), (15_000, 20_000), (10_000, 20_000), (30_000, 20_000)):
         predicted, actual = _predicted_and_actual_variance(rng, input_us, cycle_us)
         assert 0.9 < predicted / actual < 1.1, (input_us, cycle_us, predicted / actual)
+
+
+def test_an_input_not_overdue_adds_no_walk():
+    held = HeldInput(period_us=20_000)
+    held.restart(0)
+    held.sample(0, 1.0)
+    assert held.walk_s(20_000) == 0.0  # the next sample is due at 20 ms, not late yet
+    held.close(20_000)
+    held.sample(20_000, 1.0)
+    assert held.walk_s(40_000) == 0.0 and HeldInput().walk_s(10**6) == 0.0  # no period: never extrapolated
+    assert held.copy().period_us == 20_000
+
+
+def test_an_overdue_input_counts_the_walk_of_what_it_stands_for():
+    """An input whose samples stop (late, lost) is held while the true value walks away from it from
+    the due time on: the per-cycle variances the filter adds sum to the Monte Carlo variance of the
+    integrated walk, whatever the cycle length, so the heading a held turn rate predicts is honest."""
+    rng = np.random.default_rng(5)
+    step_us, runs, period_us = 1_000, 4000, 10_000
+    steps = np.arange(period_us, 500_000, step_us)  # the walk starts when the next sample was due
+    walk = np.cumsum(rng.standard_normal((runs, len(steps))) * np.sqrt(step_us * 1e-6), axis=1)
+    actual = float(np.var(walk.sum(axis=1) * step_us * 1e-6))  # the integral of the walk (unit rate)
+    for cycle_us in (20_000, 50_000):
+        held, predicted, t = HeldInput(period_us=period_us), 0.0, 0
+        held.restart(0)
+        held.sample(0, 0.0)
+        for end in range(cycle_us, 500_001, cycle_us):
+            predicted += held.walk_s(end) * ((end - t) * 1e-6) ** 2
+            held.close(end)
+            t = end
+        assert 0.93 < predicted / actual < 1.07, (cycle_us, predicted / actual)
