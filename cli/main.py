@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Optional
 
@@ -15,6 +14,7 @@ from cli.errors import REPORT_HELP, fail
 from cli.experiment_commands import experiment_app
 from cli.fault_commands import fault_app
 from cli.replay_commands import replay_app
+from cli.results import print_result
 
 app = typer.Typer(
     add_completion=False,
@@ -132,7 +132,7 @@ def up(
         )
     except SwarmlocError as exc:
         fail(str(exc))
-    _print_result(run_dir, failures, notes, report=report)
+    print_result(run_dir, failures, notes, report=report)
 
 
 @app.command()
@@ -199,46 +199,6 @@ def with_restart_tick(config):
     data = config.model_dump(mode="json")
     data["clock"]["tick_s"] = LOCKSTEP_RESTART_TICK_S
     return build_config(data)
-
-
-def _print_result(
-    run_dir: Path, failures: list[str], notes: list[str], *, report: bool = True, consistency: bool = False
-) -> None:
-    """The run's table (``consistency``: and its consistency table), then its report (``report``:
-    written now; else how to write it later); exits 1 when a process failed, no summary was written or
-    the report could not be."""
-    from rich.console import Console
-
-    from groundstation.display import consistency_table, nis_table, rmse_table
-
-    console = Console()
-    for note in notes:
-        console.print(f"[yellow]swarm: {note}[/yellow]", highlight=False)
-    for failure in failures:
-        console.print(f"[red]swarm: {failure}[/red]")
-    summary_path = run_dir / "summary.json"
-    if summary_path.exists():
-        summary = json.loads(summary_path.read_text())
-        timing_path = run_dir / "timing.json"
-        timing = json.loads(timing_path.read_text()) if timing_path.exists() else None
-        console.print(rmse_table(summary, timing, title=f"{summary['name']}: {summary['status']}"))
-        if consistency:
-            console.print(consistency_table(summary))
-            nis = nis_table(summary)
-            if nis is not None:
-                console.print(nis)
-    else:
-        console.print(f"[red]swarm: no summary.json was written in {run_dir}[/red]")
-    console.print(f"run directory: {run_dir}")
-    from groundstation.display import report_and_say
-
-    if report:
-        report_ok = report_and_say(run_dir, console)
-    else:
-        console.print(f"report: not written (--no-report); `swarm report {run_dir}` writes it", highlight=False)
-        report_ok = True
-    if failures or not summary_path.exists() or not report_ok:
-        raise typer.Exit(1)
 
 
 @app.command()

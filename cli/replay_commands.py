@@ -77,7 +77,7 @@ def mrclam(
     world playing its odometry, landmark and robot sightings and Vicon truth on sim time, the ground
     station scoring. Writes a run directory and report like `swarm up`."""
     from bus.process import stop_on_signals
-    from cli.main import _print_result
+    from cli.results import print_result
     from launch.launcher import launch
     from launch.live import check_live_address
     from launch.replay_setup import ReplayChoice, replay_config
@@ -123,7 +123,7 @@ def mrclam(
         )
     except SwarmlocError as exc:
         fail(str(exc))
-    _print_result(run_dir, failures, notes, report=report, consistency=True)
+    print_result(run_dir, failures, notes, report=report, consistency=True)
 
 
 def _reference(config: SwarmConfig, out: Path) -> None:

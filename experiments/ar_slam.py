@@ -34,6 +34,7 @@ from bus.config import SwarmConfig, build_config
 from bus.errors import ConfigError
 from bus.topics import Topic
 from experiments.ar_slam_figures import write_figures
+from experiments.ar_slam_track import Track
 from experiments.conclusions import write_experiment
 from launch.runspec import RunSpec
 from vehicle.association.optimum import optimal_assignment
@@ -99,24 +100,6 @@ def ar_slam_config(case: Case, *, seed: int, duration_s: float) -> SwarmConfig:
             "faults": [{"kind": "jam-gnss", "center_m": [0, 0], "radius_m": 100_000}],
         }
     )
-
-
-@dataclass
-class Track:
-    """What one estimator did over the flight: per second (t_s, squared x error, position error,
-    pose NEES, state size) and per camera frame (time [ms], association counts)."""
-
-    t_s: list[float] = field(default_factory=list)
-    x_error_m2: list[float] = field(default_factory=list)
-    error_m: list[float] = field(default_factory=list)
-    nees: list[float] = field(default_factory=list)
-    state_dim: list[int] = field(default_factory=list)
-    frame_ms: list[float] = field(default_factory=list)
-    pairs: int = 0
-    correct: int = 0
-    opportunities: int = 0
-    gap: list[float] = field(default_factory=list)
-    vo_failures: int = 0
 
 
 class _Timed:
@@ -203,7 +186,7 @@ def _score_pose(track: Track, f, true_pose: np.ndarray, t_us: int) -> None:
 
 def _score_frame(track: Track, f, the_map, msg, true_pose, landmark_truth: dict, landmarks_before: int) -> None:
     """The frame's pairs against the truth; then the truth of the landmarks it created."""
-    cached = the_map.remembered(msg.stamp_us, msg.seq)
+    cached = the_map.front_end.remembered(msg.stamp_us, msg.seq)
     if cached is None:
         return
     found = cached[0]

@@ -5,15 +5,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from bus import statistics
-
-if TYPE_CHECKING:
-    from experiments.ar_slam import Track
+from experiments.ar_slam_track import Track
 
 COMPARED = ("ekf-slam", "fixed 25 m", "ar-ekf-slam", "ar-ekf-slam visual odometry")
 

@@ -74,3 +74,61 @@ def test_the_key_check_finds_a_key_literal(tmp_path):
         assert _key_literals(planted)
     finally:
         planted.unlink()
+
+
+def _circles(graph, modules: set[str]) -> list[list[str]]:
+    """The import circles among ``modules`` (strongly connected components of two or more, or a module
+    importing itself), by Tarjan's algorithm over grimp's direct imports."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    circles: list[list[str]] = []
+
+    def visit(module: str) -> None:  # recursion depth is bounded by the chain length (a few dozen)
+        index[module] = low[module] = len(index)
+        stack.append(module)
+        on_stack.add(module)
+        for other in sorted(graph.find_modules_directly_imported_by(module) & modules):
+            if other not in index:
+                visit(other)
+                low[module] = min(low[module], low[other])
+            elif other in on_stack:
+                low[module] = min(low[module], index[other])
+        if low[module] == index[module]:
+            component = []
+            while True:
+                other = stack.pop()
+                on_stack.discard(other)
+                component.append(other)
+                if other == module:
+                    break
+            if len(component) > 1 or module in graph.find_modules_directly_imported_by(module):
+                circles.append(sorted(component))
+
+    for module in sorted(modules):
+        if module not in index:
+            visit(module)
+    return circles
+
+
+def _graph():
+    import grimp
+
+    return grimp.build_graph(*PRODUCT, "campaign")
+
+
+def test_no_module_imports_itself_back():
+    """No import circle between any two modules (type-checking imports count: a circle is a circle
+    whether or not Python trips over it)."""
+    graph = _graph()
+    modules = {m for m in graph.modules if m.split(".")[0] in (*PRODUCT, "campaign")}
+    circles = _circles(graph, modules)
+    assert not circles, "import circles:\n" + "\n".join(" <-> ".join(c) for c in circles)
+
+
+def test_the_circle_check_finds_a_planted_circle():
+    graph = _graph()
+    graph.add_import(importer="bus.angles", imported="bus.topics")
+    graph.add_import(importer="bus.topics", imported="bus.angles")
+    assert ["bus.angles", "bus.topics"] in _circles(graph, {"bus.angles", "bus.topics", "bus.keys"})

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from bus import messages as m
-from vehicle.estimators.filter import Reject
+from vehicle.estimators.parts import Reject
 from vehicle.inputs import ANNOUNCE_OFFSET_US, VisualMotion
 from vehicle.vision import features
 from vehicle.vision.odometry import NoMotion, VoSpec, frame_motion

@@ -84,12 +84,12 @@ class LocalMap:
         empty_ids = frozen(np.zeros(0, dtype=np.int64))
         return RangeBook(self.spec.r0_m, frozen(np.zeros((0, 2))), frozen(np.zeros((0, 2, 2))), empty_ids)
 
-    def before_sighting(self, f: Filter, the_map: VisionSlamMap, stamp_us: int) -> None:
+    def before_sighting(self, s: FilterState, the_map: VisionSlamMap, stamp_us: int) -> None:
         """Identified sightings (a replay): the range managed once per image (per stamp)."""
-        book: RangeBook = f.state.landmarks.policy
+        book: RangeBook = s.landmarks.policy
         if stamp_us > book.managed_us:
             book.managed_us = stamp_us
-            self.before_frame(f, the_map)
+            self.before_frame(s, the_map)
 
     def take_retired(self, s: FilterState, ident: int) -> tuple[np.ndarray, np.ndarray] | None:
         """The retired marginal of identified landmark ``ident`` (forgotten: it re-enters), or None."""
@@ -109,10 +109,9 @@ class LocalMap:
     def occupied(self, s: FilterState) -> np.ndarray:
         return s.landmarks.policy.xy
 
-    def before_frame(self, f: Filter, the_map: VisionSlamMap) -> None:
+    def before_frame(self, s: FilterState, the_map: VisionSlamMap) -> None:
         """Adapt R to the local map's size, retire the landmarks beyond it, and (``naive`` only) put
         back retired ones within it."""
-        s = f.state
         book: RangeBook = s.landmarks.policy
         book.radius_m = next_radius(book.radius_m, s.counters.landmarks, self.spec)
         mapped = the_map.landmarks_xy(s)
@@ -171,10 +170,11 @@ class LocalMap:
         local.index_of = {**local.index_of, **identified}
         self._forget(book, rows)
 
-    def reenter(self, f, the_map: VisionSlamMap, found, z, R, matched: set[int], half_extent_m: float) -> set[int]:
+    def reenter(
+        self, s: FilterState, the_map: VisionSlamMap, found, z, R, matched: set[int], half_extent_m: float
+    ) -> set[int]:
         """Retired landmarks the frame sees again (descriptor match among those in view), re-entered
         by the rule; returns the keypoints used."""
-        s = f.state
         book: RangeBook = s.landmarks.policy
         if self.spec.reentry == "naive" or book.descriptors is None or not len(book.xy):
             return set()

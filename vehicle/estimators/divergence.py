@@ -9,10 +9,11 @@ O(n^3) per cycle) and refreshes its fallback, an n x n copy, once per ``GOOD_PER
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
-from vehicle.estimators.state import FilterState, frozen
+from vehicle.estimators.state import SEVERITY_WARNING, FilterState, Notice, frozen
 from vehicle.models import unicycle
 
 DIVERGENCE_INFLATION = 10.0
@@ -59,3 +60,15 @@ class MapCheck:
         out = DIVERGENCE_INFLATION * P
         out[:4, :4] += np.diag(DIVERGENCE_FLOOR)
         return out
+
+
+def fall_back(s: FilterState, inflated: Callable[[np.ndarray], np.ndarray], t_us: int) -> Notice:
+    """A diverged state replaced by its fallback with the covariance ``inflated(P)``, or by nothing
+    when it diverged before any good cycle (the filter then starts over); what to say about it."""
+    if s.last_good is None:
+        s.x, s.P = None, None
+        return Notice(t_us, SEVERITY_WARNING, "estimator reset: diverged before a good cycle")
+    x, P = s.last_good
+    s.x, s.P = x.copy(), inflated(P)
+    s.counters.resets += 1
+    return Notice(t_us, SEVERITY_WARNING, "estimator reset: non-finite or indefinite covariance")

@@ -21,7 +21,7 @@ from vehicle.estimators.persisting_errors import SlottedErrors
 from vehicle.estimators.state import FilterState
 from vehicle.estimators.stores import InPlaceStore
 from vehicle.estimators.updates import Linearized
-from vehicle.estimators.vision_map import Reject, VisionSlamMap
+from vehicle.estimators.vision_map import MapPolicy, Reject, VisionSlamMap
 from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.gnss import WhiteGnss
 from vehicle.models.motion import POSE_DIM, UnicycleMotion
@@ -35,13 +35,13 @@ class FullMap:
 
     capacity = MAX_LANDMARKS
 
-    def start(self) -> object:
+    def start(self) -> None:
         return None
 
-    def before_frame(self, f: Filter, the_map: VisionSlamMap) -> None:
+    def before_frame(self, s: FilterState, the_map: VisionSlamMap) -> None:
         """Nothing to manage."""
 
-    def reenter(self, f, the_map, found, z, R, matched: set[int], half_extent_m: float) -> set[int]:
+    def reenter(self, s: FilterState, the_map, found, z, R, matched: set[int], half_extent_m: float) -> set[int]:
         """No landmark ever leaves: nothing re-enters."""
         return set()
 
@@ -49,14 +49,14 @@ class FullMap:
         """Where landmarks outside the state lie (new ones keep away from them): none."""
         return None
 
-    def before_sighting(self, f: Filter, the_map: VisionSlamMap, stamp_us: int) -> None:
+    def before_sighting(self, s: FilterState, the_map: VisionSlamMap, stamp_us: int) -> None:
         """Nothing to manage."""
 
     def take_retired(self, s: FilterState, ident: int) -> None:
         """An identified landmark that left the state: none ever leaves."""
         return None
 
-    def reentered(self, s: FilterState, k: int, retired: object) -> None:
+    def reentered(self, s: FilterState, k: int, retired: tuple[np.ndarray, np.ndarray]) -> None:
         """Nothing re-enters."""
 
 
@@ -72,7 +72,7 @@ def build(
     adaptive_window: int = 0,
     front_end_results: dict | None = None,
     monitor: MonitorSpec | None = MonitorSpec(),
-    policy: object = None,
+    policy: MapPolicy | None = None,
     association: str = "descriptor",
 ) -> Filter:
     """The EKF-SLAM filter of vehicle ``vehicle_id`` (module docstring); ``reject(reason, where,
@@ -83,6 +83,8 @@ def build(
     errors = SlottedErrors(spec, first_index=POSE_DIM + (2 if wheel_scales else 0))
     the_map = VisionSlamMap(
         head_dim=errors.head_dim,
+        vehicle_id=vehicle_id,
+        keypoint_sigma_px=spec.keypoint_sigma_px,
         detector=detector,
         reject=reject,
         first_estimates=first_estimates,

@@ -27,9 +27,10 @@ from bus import messages as m
 from bus.angles import wrap_angle
 from bus.config import SensorSpec, VehicleProcessConfig
 from vehicle.estimators.divergence import FullCheck
-from vehicle.estimators.filter import SEVERITY_WARNING, Filter, Notice
+from vehicle.estimators.filter import Filter
+from vehicle.estimators.parts import Fusing, Handler
 from vehicle.estimators.persisting_errors import GrowingErrors
-from vehicle.estimators.state import FilterState
+from vehicle.estimators.state import SEVERITY_WARNING, FilterState, Notice, tally_nis
 from vehicle.estimators.stores import DenseStore
 from vehicle.estimators.updates import Linearized
 from vehicle.models import added_states
@@ -58,11 +59,15 @@ class KnownMap:
     def __init__(self, landmarks: tuple[tuple[int, float, float], ...]) -> None:
         self.where = {int(ident): np.array([x, y], dtype=float) for ident, x, y in landmarks}
 
+    def handlers(self) -> dict[type, Handler]:
+        """Identified sightings; camera frames are not this filter's."""
+        return {m.LandmarkSighting: self.on_sighting}
+
     def start(self, s: FilterState) -> None:
         s.landmarks = KnownMapBook()
         s.counters.landmarks = len(self.where)
 
-    def initialise(self, f: Filter) -> None:
+    def initialise(self, s: FilterState) -> None:
         """Nothing to set up: the map is surveyed."""
 
     def position_reset(self, s: FilterState) -> None:
@@ -75,27 +80,25 @@ class KnownMap:
         """The surveyed map is not the filter's to report."""
         return None
 
-    def on_frame(self, f: Filter, frame: m.CameraFrame) -> None:
-        """Camera frames are not this filter's: it reads identified sightings."""
-
-    def on_sighting(self, f: Filter, msg: m.LandmarkSighting) -> None:
+    def on_sighting(self, fusing: Fusing, msg: m.LandmarkSighting) -> None:
         """One gated range-bearing update against the mapped landmark."""
-        f.propagate_to(msg.stamp_us)
-        s, book = f.state, f.state.landmarks
+        fusing.propagate_to(msg.stamp_us)
+        s, store = fusing.state, fusing.store
+        book = s.landmarks
         where = self.where.get(msg.landmark_id)
         if where is None:
             book.unknown_landmarks += 1
             return
         R = np.array(msg.covariance, dtype=float)
-        model = f.errors.of_sighting(f, ("landmark", msg.landmark_id), msg.stamp_us, R[1, 1])
+        model = fusing.errors.of_sighting(s, store, ("landmark", msg.landmark_id), msg.stamp_us, R[1, 1])
         predicted, H_pose, _ = slam.observe(np.concatenate([s.x[:3], where]), 3, 0)
         H = np.zeros((2, len(s.x)))
         H[:, :3] = H_pose
         if model:  # range r (1 + k + s_l), bearing beta + b_l, each + white (vehicle.models.added_states)
             H, R, predicted = added_states.persisting_sighting(H, R, predicted, s.x, **model)
         y = np.array([msg.range_m - predicted[0], wrap_angle(msg.bearing_rad - predicted[1])])
-        result = f.store.update(s, y, H, R, f.gate)
-        f.tally_nis("landmark", result, 2)
+        result = store.update(s, y, H, R, fusing.gate)
+        tally_nis(s, "landmark", result, 2)
         if result.accepted:
             book.fused += 1
             book.failed_in_a_row = []
@@ -103,17 +106,17 @@ class KnownMap:
         book.rejected += 1
         book.failed_in_a_row.append(msg.landmark_id)
         if len(book.failed_in_a_row) >= LOST_AFTER and len(set(book.failed_in_a_row)) >= 2:
-            self._relocalize(f, msg.stamp_us)
+            self._relocalize(fusing, msg.stamp_us)
 
-    def _relocalize(self, f: Filter, t_us: int) -> None:
+    def _relocalize(self, fusing: Fusing, t_us: int) -> None:
         """Widen the pose's spread so the map can pull it back (see the module docstring)."""
-        s = f.state
+        s = fusing.state
         failed = len(s.landmarks.failed_in_a_row)
         s.landmarks.failed_in_a_row = []
-        f.store.set_spread(s, [0, 1, 2], np.diagonal(s.P)[:3] + RELOCALIZE_SIGMA**2)
+        fusing.store.set_spread(s, [0, 1, 2], np.diagonal(s.P)[:3] + RELOCALIZE_SIGMA**2)
         s.counters.resets += 1
         text = f"lost track: {failed} landmark sightings in a row failed the gate; re-localizing against the map"
-        f.notice(Notice(t_us, SEVERITY_WARNING, text))
+        fusing.say(Notice(t_us, SEVERITY_WARNING, text))
 
 
 def build(

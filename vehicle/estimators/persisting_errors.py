@@ -22,19 +22,15 @@ hardly correlate with a new reading). Their books live in ``FilterState.errors``
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from bus.config import SensorSpec
+from vehicle.estimators.parts import Store, Subject
 from vehicle.estimators.state import FilterState, frozen
 from vehicle.models import added_states
 from vehicle.models.cooperative_fixes import CooperativeFix, SeenFix
 
-if TYPE_CHECKING:
-    from vehicle.estimators.filter import Filter
-
-Subject = tuple[str, int]  # ("landmark", id), ("robot", id seen) or ("seen", id of the robot seeing this one)
 FORGET_AFTER = 5.0  # correlation times unseen before a subject's states are dropped (GrowingErrors)
 ERROR_SLOTS = 8  # subjects in view at once, with their recent past (SlottedErrors)
 
@@ -75,27 +71,27 @@ class _SightingErrors:
             model.update(bearing_state=b, bearing_var=self.stationary_variance(s, b))
         return model
 
-    def of_sighting(self, f: Filter, key: Subject, t_us: int, bearing_var: float) -> dict:
+    def of_sighting(self, s: FilterState, store: Store, key: Subject, t_us: int, bearing_var: float) -> dict:
         """The sighting model's state arguments for a sighting of ``key`` at ``t_us`` (its states
         added or handed a slot if need be); the camera's range scale included where there is one."""
-        model = self.model(f.state, self.index_of(f, key, t_us, bearing_var)) if self.per_subject else {}
+        model = self.model(s, self.index_of(s, store, key, t_us, bearing_var)) if self.per_subject else {}
         if self.range_scale_index is not None:
             model["scale_state"] = self.range_scale_index
         return model
 
-    def of_fix(self, f: Filter, fix: CooperativeFix | SeenFix) -> dict | None:
+    def of_fix(self, s: FilterState, store: Store, fix: CooperativeFix | SeenFix) -> dict | None:
         """A robot sighting's persisting errors as states (vehicle.models.cooperative): the same
         camera's as a landmark's, one set per robot seen and one per robot that sees this one; this
         robot's own sightings are read with its camera's range scale too."""
         model = {}
         if self.per_subject:
             key = ("robot", fix.target_id) if isinstance(fix, CooperativeFix) else ("seen", fix.observer_id)
-            model = self.model(f.state, self.index_of(f, key, fix.stamp_us, float(fix.covariance[1, 1])))
+            model = self.model(s, self.index_of(s, store, key, fix.stamp_us, float(fix.covariance[1, 1])))
         if isinstance(fix, CooperativeFix) and self.range_scale_index is not None:
             model["scale_state"] = self.range_scale_index
         return model or None
 
-    def index_of(self, f: Filter, key: Subject, t_us: int, bearing_var: float) -> int:
+    def index_of(self, s: FilterState, store: Store, key: Subject, t_us: int, bearing_var: float) -> int:
         raise NotImplementedError
 
     def stationary_variance(self, s: FilterState, index: int) -> float:
@@ -121,10 +117,9 @@ class GrowingErrors(_SightingErrors):
     def start(self, s: FilterState) -> None:
         s.errors = GrowingBook()
 
-    def initialise(self, f: Filter) -> None:
+    def initialise(self, s: FilterState) -> None:
         """A fresh book; the scale states appended after the base states (to the fresh state itself:
         a joint store takes the whole initialised state as its block)."""
-        s = f.state
         s.errors = GrowingBook()
         if self.scale_variances():
             s.x, s.P = added_states.append_states(s.x, s.P, np.array(self.scale_variances()))
@@ -137,31 +132,31 @@ class GrowingErrors(_SightingErrors):
     def stationary_variance(self, s: FilterState, index: int) -> float:
         return s.errors.decaying[index - self.first][1]
 
-    def index_of(self, f: Filter, key: Subject, t_us: int, bearing_var: float) -> int:
+    def index_of(self, s: FilterState, store: Store, key: Subject, t_us: int, bearing_var: float) -> int:
         """The index of the first error state (range, then bearing) of the sighted subject ``key``,
         added (at 0, stationary variance: the bearing's a fraction of ``bearing_var``, the
         sighting's reported one) when it has none; the states of subjects unseen for FORGET_AFTER
         correlation times are dropped first."""
-        book = f.state.errors
+        book = s.errors
         book.last_seen_us[key] = t_us
         if key in book.states:
             return book.states[key]
         horizon_us = FORGET_AFTER * max(self.range_tau, self.bearing_tau) * 1e6
         stale = [ident for ident in book.states if t_us - book.last_seen_us[ident] > horizon_us]
         if stale:
-            self._forget(f, stale)
-            book = f.state.errors
-        book.states[key] = len(f.state.x)
+            self._forget(s, store, stale)
+            book = s.errors
+        book.states[key] = len(s.x)
         new = self.subject_states(bearing_var)
         book.decaying = book.decaying + new
-        f.store.append(f.state, np.array([variance for _, variance in new]))
+        store.append(s, np.array([variance for _, variance in new]))
         return book.states[key]
 
-    def _forget(self, f: Filter, stale: list[Subject]) -> None:
+    def _forget(self, s: FilterState, store: Store, stale: list[Subject]) -> None:
         """The states of the ``stale`` subjects marginalized out, the others' indices closed up."""
-        book, per, first = f.state.errors, self.per_subject, self.first
+        book, per, first = s.errors, self.per_subject, self.first
         dropped = [book.states[i] + k for i in stale for k in range(per)]
-        f.store.drop(f.state, dropped)
+        store.drop(s, dropped)
         book.decaying = [d for i, d in enumerate(book.decaying) if first + i not in dropped]
         kept = sorted((index, ident) for ident, index in book.states.items() if ident not in stale)
         book.states = {ident: first + per * k for k, (_, ident) in enumerate(kept)}
@@ -192,10 +187,9 @@ class SlottedErrors(_SightingErrors):
     def start(self, s: FilterState) -> None:
         s.errors = SlotBook(slot_vars=frozen(self._initial_vars.copy()))
 
-    def initialise(self, f: Filter) -> None:
+    def initialise(self, s: FilterState) -> None:
         """The scale and slot states appended after the pose (the slots with their current variances);
         no subject holds a slot."""
-        s = f.state
         s.x, s.P = added_states.append_states(s.x, s.P, np.array(self.scale_variances() + s.errors.slot_vars.tolist()))
         s.errors.slot_of, s.errors.last_seen_us = {}, {}
 
@@ -205,11 +199,10 @@ class SlottedErrors(_SightingErrors):
     def stationary_variance(self, s: FilterState, index: int) -> float:
         return float(s.errors.slot_vars[index - self.first])
 
-    def index_of(self, f: Filter, key: Subject, t_us: int, bearing_var: float) -> int:
+    def index_of(self, s: FilterState, store: Store, key: Subject, t_us: int, bearing_var: float) -> int:
         """The index of the slot (its first error state) of the sighted subject ``key``: its own slot
         if it has one, else a free slot or the slot of the subject seen longest ago, reset to 0 with
         the stationary variances (the bearing's a fraction of ``bearing_var``)."""
-        s = f.state
         book = s.errors
         book.last_seen_us[key] = t_us
         slot = book.slot_of.get(key)
@@ -229,7 +222,7 @@ class SlottedErrors(_SightingErrors):
         slot_vars[within] = [variance for _, variance in self.subject_states(bearing_var)]
         book.slot_vars = frozen(slot_vars)
         s.x[states] = 0.0
-        f.store.set_spread(s, states, book.slot_vars[within])
+        store.set_spread(s, states, book.slot_vars[within])
         book.slot_of = {**owners, key: slot}
         return slot
 

@@ -26,11 +26,13 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from bus.config import SensorSpec
 from bus.consistency import NisBook
 from vehicle.adaptive import NoiseAdaptation
 from vehicle.alignment import GnssAlignment
-from vehicle.gnss_health import GnssHealth
+from vehicle.gnss_health import GnssHealth, GnssHealthSpec
 from vehicle.inputs import HeldInput
+from vehicle.kalman import UpdateResult
 from vehicle.neighbours import NeighbourBook
 from vehicle.wheel_slip import SlipGuard
 
@@ -49,6 +51,26 @@ class Notice:
     severity: int
     text: str
     status_changed: bool = False
+
+
+class Notices:
+    """The notices an estimator has to say, each said once: a replay re-runs cycles that said
+    something already (what a replay must not undo lives here, outside the state)."""
+
+    def __init__(self) -> None:
+        self._queued: list[Notice] = []
+        self._said_until_us = -1
+
+    def say(self, notice: Notice) -> None:
+        """Queue ``notice`` unless one at its stamp or later was taken already."""
+        if notice.stamp_us > self._said_until_us:
+            self._queued.append(notice)
+
+    def take(self) -> list[Notice]:
+        out, self._queued = self._queued, []
+        if out:
+            self._said_until_us = max(self._said_until_us, *(n.stamp_us for n in out))
+        return out
 
 
 @dataclass
@@ -97,6 +119,28 @@ class FilterState:
     def copy(self) -> FilterState:
         """An independent copy (module docstring)."""
         return _fieldwise(self)
+
+    @classmethod
+    def fresh(cls, spec: SensorSpec, gate_probability: float, adaptive_window: int) -> FilterState:
+        """The state of a filter for the sensors of ``spec`` before its prior: each input held with its
+        sensor's period, the GNSS monitor at the filter's gate, IAE on when ``adaptive_window`` > 0."""
+        odom_period_us, gyro_period_us = round(1e6 / spec.odom_rate_hz), round(1e6 / spec.imu_rate_hz)
+        return cls(
+            speed=HeldInput(period_us=odom_period_us),
+            gyro=HeldInput(period_us=gyro_period_us),
+            odom_yaw=HeldInput(period_us=odom_period_us),
+            slip=SlipGuard.for_datasheet(spec.odom_speed_sigma_mps, spec.imu_rate_hz),
+            gnss_health=GnssHealth(GnssHealthSpec(gate_probability=gate_probability)),
+            alignment=GnssAlignment(),
+            iae=NoiseAdaptation(adaptive_window) if adaptive_window else None,
+            counters=EstimatorCounters(),
+        )
+
+
+def tally_nis(s: FilterState, kind: str, result: UpdateResult, dof: int) -> None:
+    """Count a fused update's NIS of ``dof`` dimensions under ``kind`` (bus.consistency.NIS_KINDS)."""
+    if result.accepted:
+        s.counters.nis = s.counters.nis.add(kind, result.nis, dof)
 
 
 def copied(value: T) -> T:

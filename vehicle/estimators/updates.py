@@ -6,16 +6,13 @@ unscented update equals the Kalman update, so both strategies make that one. Pur
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
-
 import numpy as np
 
-from vehicle.estimators.state import frozen
+from vehicle.estimators.parts import ErrorStates, MotionModel, Store
+from vehicle.estimators.state import FilterState, frozen
 from vehicle.models import unicycle
 from vehicle.models import unscented as ut
-
-if TYPE_CHECKING:
-    from vehicle.estimators.filter import Filter
+from vehicle.models.input_noise import InputNoise
 
 
 class Linearized:
@@ -24,15 +21,24 @@ class Linearized:
 
     unscented_fixes = False
 
-    def predict(self, f: Filter, speed: float, rate: float, dt: float, noise: dict[str, Any]) -> None:
-        s = f.state
-        if f.store.dense and f.motion.pose_only(s.x):
-            s.x, s.P = unicycle.predict_fast(s.x, s.P, speed, rate, dt, **noise)
+    def predict(
+        self,
+        s: FilterState,
+        store: Store,
+        motion: MotionModel,
+        errors: ErrorStates | None,
+        speed: float,
+        rate: float,
+        dt: float,
+        noise: InputNoise,
+    ) -> None:
+        if store.dense and motion.pose_only(s.x):
+            s.x, s.P = unicycle.predict_fast(s.x, s.P, speed, rate, dt, **noise.kwargs())
             return
-        decaying = None if f.errors is None else f.errors.decaying(s)
-        x_next, F, Q = f.motion.step(s.x, speed, rate, dt, noise, decaying=decaying, prior_xy=s.prior_xy)
-        f.store.move(s, F, Q, x_next)
-        if f.motion.first_estimates:
+        decaying = None if errors is None else errors.decaying(s)
+        x_next, F, Q = motion.step(s.x, speed, rate, dt, noise, decaying=decaying, prior_xy=s.prior_xy)
+        store.move(s, F, Q, x_next)
+        if motion.first_estimates:
             s.prior_xy = frozen(x_next[:2].copy())
 
 
@@ -43,10 +49,19 @@ class Unscented:
 
     unscented_fixes = True
 
-    def predict(self, f: Filter, speed: float, rate: float, dt: float, noise: dict[str, Any]) -> None:
-        s = f.state
-        use_bias, steps = noise["use_bias"], noise["steps"]
-        _, F, Q = f.motion.base(s.x, speed, rate, dt, noise)  # Q; F only for the GNSS error states' decay
+    def predict(
+        self,
+        s: FilterState,
+        store: Store,
+        motion: MotionModel,
+        errors: ErrorStates | None,
+        speed: float,
+        rate: float,
+        dt: float,
+        noise: InputNoise,
+    ) -> None:
+        use_bias, steps = noise.use_bias, noise.steps
+        _, F, Q = motion.base(s.x, speed, rate, dt, noise)  # Q; F only for the GNSS error states' decay
         decay = F[4, 4] if len(s.x) > 4 else 1.0
 
         def move(point: np.ndarray) -> np.ndarray:

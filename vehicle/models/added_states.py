@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from vehicle.models.input_noise import InputNoise
+
 SCALE_WALK_PER_RTSEC = 1e-3  # the odometry scale states' random walk (1/sqrt(s)): wheels wear, loads change
 WHITE_FLOOR = 0.1  # of a sighting's range variance, at least this much is taken as white
 
@@ -82,14 +84,14 @@ def with_unused_scale(coupling: np.ndarray | None, head: int) -> np.ndarray:
 
 
 def scaled_inputs(
-    x: np.ndarray, scales_at: int, speed: float, rate: float, dt: float, noise: dict, wheel_rate: bool
-) -> tuple[float, float, dict, np.ndarray]:
+    x: np.ndarray, scales_at: int, speed: float, rate: float, dt: float, noise: InputNoise, wheel_rate: bool
+) -> tuple[float, float, InputNoise, np.ndarray]:
     """The inputs as the robot really moved them, given the scale states [k_v, k_w] at x[scales_at:]:
     speed (m/s), yaw rate (rad/s), the noise arguments with their hold pieces scaled too, and the
     coupling d [x, y, theta, ...] / d [k_v, k_w] (scales_at, 2) of the motion step. ``wheel_rate``:
     the yaw rate is the wheels' (a gyro's is not scaled; column k_w is then zero)."""
     k_speed, k_rate = float(x[scales_at]), float(x[scales_at + 1]) if wheel_rate else 0.0
-    noise = {**noise, "steps": scaled_steps(noise.get("steps"), k_speed, k_rate)}
+    noise = noise.with_steps(scaled_steps(noise.steps, k_speed, k_rate))
     coupling = np.zeros((scales_at, 2))
     coupling[:3] = scale_jacobian(float(x[2]), speed, rate, dt, k_speed, k_rate)
     coupling[:, 1] *= wheel_rate

@@ -11,12 +11,11 @@ position is the displacement between propagated estimates, not the current estim
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from vehicle.models import added_states, unicycle
 from vehicle.models.gnss_error import GnssErrorModel, augment_motion
+from vehicle.models.input_noise import InputNoise
 
 POSE_DIM = 4  # [x, y, theta, gyro_bias]
 
@@ -44,11 +43,11 @@ class UnicycleMotion:
         return len(x) == POSE_DIM and self.gnss_error is None and not self.first_estimates
 
     def base(
-        self, x: np.ndarray, speed: float, rate: float, dt: float, noise: dict[str, Any]
+        self, x: np.ndarray, speed: float, rate: float, dt: float, noise: InputNoise
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The new base state (base_dim,) and F, Q (base_dim, base_dim): the unicycle's step and the
         GNSS error states' decay."""
-        head, F, Q = unicycle.motion_model(x[:POSE_DIM], speed, rate, dt, **noise)
+        head, F, Q = unicycle.motion_model(x[:POSE_DIM], speed, rate, dt, **noise.kwargs())
         if self.gnss_error is None:
             return head, F, Q
         F, Q = augment_motion(F, Q, self.gnss_error, dt)
@@ -60,7 +59,7 @@ class UnicycleMotion:
         speed: float,
         rate: float,
         dt: float,
-        noise: dict[str, Any],
+        noise: InputNoise,
         *,
         decaying: tuple[int, np.ndarray, np.ndarray, int] | None = None,
         prior_xy: np.ndarray | None = None,
@@ -72,11 +71,11 @@ class UnicycleMotion:
         b, coupling = self.base_dim, None
         if self.wheel_scales:  # a fresh gyro's rate is not the wheels'
             speed, rate, noise, coupling = added_states.scaled_inputs(
-                x, b, speed, rate, dt, noise, wheel_rate=not noise.get("use_bias")
+                x, b, speed, rate, dt, noise, wheel_rate=not noise.use_bias
             )
         if self.range_scale:  # a random walk like the wheels' scales; the motion does not depend on it
             coupling = added_states.with_unused_scale(coupling, b)
-        head, F, Q = unicycle.motion_model(x[:POSE_DIM], speed, rate, dt, **noise)
+        head, F, Q = unicycle.motion_model(x[:POSE_DIM], speed, rate, dt, **noise.kwargs())
         if self.first_estimates and prior_xy is not None:
             F[0, 2], F[1, 2] = -(head[1] - prior_xy[1]), head[0] - prior_xy[0]
         if self.gnss_error is not None:

@@ -86,7 +86,7 @@ def test_error_slots_go_to_the_landmarks_seen_last(monkeypatch):
     assert now == {9: slots[7], 6: slots[6], 8: slots[8]}
     assert slam.counters.landmarks == 4
     slot = slam.errors.index_of(
-        slam, ("landmark", 7), 600_000, R[1, 1]
+        slam.state, slam.store, ("landmark", 7), 600_000, R[1, 1]
     )  # back: the slot of the one seen longest ago (8)
     assert slot == slots[8] and ("landmark", 8) not in slam.state.errors.slot_of
     states = [slot, slot + 1]
