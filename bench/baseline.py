@@ -1,6 +1,6 @@
 """An older commit of this repository, checked out beside it and installed in a virtual environment
-of its own, so that a benchmark can run it and today's code side by side in one sitting (issue 44:
-"measured in one run against a0fccee built from the repository's history"). Cached under
+of its own, so that a benchmark can run it and today's code side by side in one sitting (a speed
+target is a ratio measured in one run, never a number carried over from another day). Cached under
 ``~/.cache/swarmloc/baseline/<commit>``; built once, in a minute or two."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 CACHE = Path.home() / ".cache" / "swarmloc" / "baseline"
-A0FCCEE = "a0fccee"  # before the redesign and the three issues that followed it (issue 44's yardstick)
+A0FCCEE = "a0fccee"  # before the redesign and the work that followed it (the speed targets' yardstick)
 
 
 def swarm_of(python: Path | str) -> str:

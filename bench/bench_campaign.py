@@ -1,4 +1,4 @@
-"""Campaign benchmarks (issue 45): a cooperative experiment (``SEEDS`` seeds of the default variants,
+"""Campaign benchmarks: a cooperative experiment (``SEEDS`` seeds of the default variants,
 shortened to ``JAM_S`` of jam) flown one run at a time (``--workers 1``) and as a campaign on this
 machine's local cluster (workers from the cores), in one sitting; runs per hour and CPU seconds per
 run; and the projection to 16 and 64 cores from the CPU one run takes, with what stops it holding:

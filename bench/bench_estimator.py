@@ -2,8 +2,9 @@
 default estimator behind its fusion horizon, one cycle (prediction with the inputs integrated since
 the last one, then the updates) every 20 ms, as the vehicle process runs it.
 
-Target: a 50 Hz cycle well under 100 us (issue 11); held to <= 50 us. The UKF variant and the EKF
-with the GNSS error states (issue 13) side by side.
+Target: a 50 Hz cycle well under 100 us (a quarter of the 20 ms cycle shared by 100 vehicles on two
+cores would be 100 us); held to <= 50 us. The UKF variant and the EKF
+with the GNSS error states (the honest datasheet) side by side.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Speed against the past (issue 44): the same `swarm up` command run by today's code and by
+"""Speed against the past: the same `swarm up` command run by today's code and by
 ``a0fccee`` (built from the repository's history, bench/baseline.py), interleaved A B A B in one
 sitting, medians of ``ROUNDS``: wall time, CPU of every process and the largest process; and the CPU
 each role spends per vehicle per simulated second at 5, 20 and 50 vehicles (lockstep), read from
@@ -22,7 +22,7 @@ from bench.baseline import A0FCCEE, baseline_python, checkout_of, swarm_of
 from bench.common import Row
 
 ROUNDS = 5
-# Issue 44 sets its real-time factors "on a quiet machine" and measured a0fccee there at 22.7x (5
+# The speed targets are real-time factors "on a quiet machine" and measured a0fccee there at 22.7x (5
 # vehicles x 60 s, lockstep). This machine's speed swings by more than 2x from one hour to the next
 # (a0fccee alone: 12.6x to 31.2x in the benchmark's sittings), so each round's factors are also
 # given on that machine: scaled by 22.7 over a0fccee's factor in the same round.

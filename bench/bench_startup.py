@@ -1,4 +1,4 @@
-"""Start-up benchmarks (issue 44): what each process role loads and costs before its loop
+"""Start-up benchmarks: what each process role loads and costs before its loop
 (bench/startup.py), and the CPU a whole 10-vehicle swarm spends to start and stop, against the code
 the issue was filed on (``BEFORE``, built from the repository's history by bench/baseline.py), the
 two interleaved in one sitting (medians of ``ROUNDS``); and a one-minute MRCLAM replay with its
@@ -19,7 +19,7 @@ from bench.baseline import baseline_python, checkout_of, swarm_of
 from bench.common import Row
 from bench.startup import ROLES, probe
 
-BEFORE = "4abe413"  # main when issue 44 was filed
+BEFORE = "4abe413"  # main before the start-up work (the yardstick of its targets)
 ROUNDS = 3
 VEHICLE_RSS_MB = 65.0
 EXCERPT = Path(__file__).resolve().parents[1] / "tests" / "data" / "MRCLAM_Dataset6_first240s.tar.xz"

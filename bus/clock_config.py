@@ -4,7 +4,7 @@ how the processes off lockstep's critical path yield the cores."""
 
 from __future__ import annotations
 
-from typing import Literal
+from enum import StrEnum
 
 from pydantic import Field, model_validator
 
@@ -13,8 +13,17 @@ from bus.strict_model import Strict
 LOCKSTEP_RESTART_TICK_S = 0.5  # lockstep's tick under `swarm up --restart on-failure` (cli.main)
 
 
+class ClockMode(StrEnum):
+    """How the world's clock advances: ``LOCKSTEP``, tick k only after every live vehicle acknowledged
+    tick k-1 (reproducible bit for bit, as fast as the processes go); ``REALTIME``, with the wall clock
+    times the speed factor."""
+
+    LOCKSTEP = "lockstep"
+    REALTIME = "realtime"
+
+
 class ClockConfig(Strict):
-    mode: Literal["lockstep", "realtime"] = "lockstep"
+    mode: ClockMode = ClockMode.LOCKSTEP
     speed: float = Field(1.0, gt=0, le=1000, description="realtime: sim seconds per wall second")
     tick_s: float | None = Field(
         None,
@@ -52,6 +61,6 @@ class ClockConfig(Strict):
     @model_validator(mode="after")
     def _default_tick(self) -> ClockConfig:
         """Realtime's default tick; lockstep's depends on the rest of the run (SwarmConfig)."""
-        if self.tick_s is None and self.mode == "realtime":
+        if self.tick_s is None and self.mode is ClockMode.REALTIME:
             object.__setattr__(self, "tick_s", 0.02)
         return self

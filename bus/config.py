@@ -19,6 +19,7 @@ from typing import Literal
 from pydantic import Field, ValidationError, model_validator
 
 from bus.clock_config import ClockConfig as ClockConfig
+from bus.clock_config import ClockMode as ClockMode
 from bus.errors import ConfigError
 from bus.faults import BEHAVIOUR_KINDS, LINK_KINDS, Fault, check_fault, named
 from bus.replay_config import ReplayConfig
@@ -225,7 +226,7 @@ class SwarmConfig(_Strict):
 
 
 class VehicleClock(_Strict):
-    mode: Literal["lockstep", "realtime"] = "lockstep"
+    mode: ClockMode = ClockMode.LOCKSTEP
     speed: float = Field(1.0, gt=0, le=1000)
 
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from bus import messages as m
 from bus.errors import DecodeError
+from bus.spd import all_spd2, all_spd3, spd2_row
 from bus.topics import Topic
 
 MAX_TICK_US = 1_000_000
@@ -51,22 +52,6 @@ def column(raw: Any, dtype: str, name: str) -> np.ndarray:
     if not isinstance(raw, bytes) or len(raw) % 8:
         raise DecodeError(f"{name}: expected raw 8-byte values")
     return np.frombuffer(raw, dtype=dtype)
-
-
-def _spd2(c: np.ndarray) -> bool:
-    """All rows (k, 4) are symmetric positive-definite 2x2 matrices (row-major)."""
-    a, b, cc, d = c[:, 0], c[:, 1], c[:, 2], c[:, 3]
-    return bool(
-        (np.abs(b - cc) <= 1e-9 * np.maximum(np.abs(b), 1e-300)).all() and (a > 0).all() and (a * d - b * cc > 0).all()
-    )
-
-
-def _spd3(c: np.ndarray) -> bool:
-    """All rows (k, 9) are symmetric positive-definite 3x3 matrices (Sylvester's criterion)."""
-    M = c.reshape(-1, 3, 3)
-    if not np.allclose(M, np.transpose(M, (0, 2, 1)), rtol=1e-9, atol=0.0):
-        return False
-    return bool((M[:, 0, 0] > 0).all() and (np.linalg.det(M[:, :2, :2]) > 0).all() and (np.linalg.det(M) > 0).all())
 
 
 def outside_tick(stamps: np.ndarray, stamp_us: int, *, strictly: bool) -> bool:
@@ -147,9 +132,9 @@ def _topic_flaw(topic: str, rows: np.ndarray, vehicle_id: int) -> str | None:
     bounds, by then), with numpy; None when nothing is."""
     if not len(rows):
         return None
-    if topic in (Topic.GNSS, *SIGHTINGS) and not _spd2(rows[:, -4:]):
+    if topic in (Topic.GNSS, *SIGHTINGS) and not all_spd2(rows[:, -4:]):
         return "covariance"
-    if topic is Topic.PRIOR and not _spd3(rows[:, 3:]):
+    if topic is Topic.PRIOR and not all_spd3(rows[:, 3:]):
         return "covariance"
     if topic in (Topic.RANGING, Topic.SEEN):
         peer = rows[:, 0]
@@ -168,7 +153,7 @@ def _topic_flaw_small(topic: str, values: tuple[float, ...], width: int, vehicle
     """``_topic_flaw`` on a few rows' values (row-major, ``width`` a row), in Python (not the prior,
     whose 3x3 determinants stay numpy's)."""
     rows = [values[i : i + width] for i in range(0, len(values), width)]
-    if topic in (Topic.GNSS, *SIGHTINGS) and not all(_spd2_row(*r[-4:]) for r in rows):
+    if topic in (Topic.GNSS, *SIGHTINGS) and not all(spd2_row(*r[-4:]) for r in rows):
         return "covariance"
     if topic in (Topic.RANGING, Topic.SEEN) and any(
         p != round(p) or p < 1 or p > 250 or p == vehicle_id for p in (r[0] for r in rows)
@@ -179,8 +164,3 @@ def _topic_flaw_small(topic: str, values: tuple[float, ...], width: int, vehicle
     if topic in SIGHTINGS and any(r[1] < 0 or abs(r[2]) > 10.0 for r in rows):
         return "sighting"
     return None
-
-
-def _spd2_row(a: float, b: float, c: float, d: float) -> bool:
-    """``_spd2`` of one row-major 2x2 matrix, with the same floating-point operations."""
-    return abs(b - c) <= 1e-9 * max(abs(b), 1e-300) and a > 0 and a * d - b * c > 0

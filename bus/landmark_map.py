@@ -17,6 +17,7 @@ import numpy as np
 
 from bus.errors import DecodeError
 from bus.schema import WIRE_VERSION, Int, unpack_tagged
+from bus.spd import all_spd2
 
 MAX_LANDMARKS = 5000
 MAX_COORD_M = 1e7
@@ -71,7 +72,7 @@ def decode_map(payload: bytes) -> LandmarkMap:
     if not np.all(np.abs(xy) <= MAX_COORD_M) or not np.all(np.abs(cov) <= MAX_COORD_M**2):
         raise DecodeError("LandmarkMap: values must be finite and in range")
     a, b, d = cov[:, 0], cov[:, 1], cov[:, 2]
-    if not np.all((a > 0) & (a * d - b * b > 0)):
+    if not all_spd2(np.stack([a, b, b, d], axis=1)):
         raise DecodeError("LandmarkMap: covariances must be positive definite")
     full = np.stack([np.stack([a, b], axis=1), np.stack([b, d], axis=1)], axis=1)
     return LandmarkMap(vid, stamp, xy.copy(), full)

@@ -22,7 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from bus.faults import Delay, Duplicate, Loss, Reorder, _LinkFault
+from bus.faults import Delay, Duplicate, LinkFault, Loss, Reorder
 from bus.topics import Topic
 
 PARETO_SHAPE = 3.0
@@ -64,7 +64,7 @@ class LinkFaultStage:
 
     def __init__(self, receiver: str, *, seed: int, faults: tuple = ()) -> None:
         self.receiver, self.seed = receiver, seed
-        self.faults: tuple[_LinkFault, ...] = ()
+        self.faults: tuple[LinkFault, ...] = ()
         self.set_plan(faults)
         self._arrivals: Counter[str] = Counter()  # per key: bounded by the keys a receiver listens to
         self._bad: dict[tuple[str, str], bool] = {}  # Gilbert-Elliott state per (fault, key)
@@ -77,9 +77,7 @@ class LinkFaultStage:
 
     def set_plan(self, faults: tuple) -> None:
         """Keep the plan's link faults that can select traffic to this receiver."""
-        self.faults = tuple(
-            f for f in faults if isinstance(f, _LinkFault) and fnmatch.fnmatchcase(self.receiver, f.dst)
-        )
+        self.faults = tuple(f for f in faults if isinstance(f, LinkFault) and fnmatch.fnmatchcase(self.receiver, f.dst))
 
     def untouched(self, key: str, count: int = 1) -> bool:
         """True when no fault of the plan can select traffic to this receiver: ``count`` arrivals on

@@ -18,6 +18,7 @@ import msgpack
 import numpy as np
 
 from bus.errors import DecodeError
+from bus.spd import spd_values
 
 WIRE_VERSION = 1
 MAX_PAYLOAD_BYTES = 1 << 20
@@ -173,24 +174,9 @@ class Covariance(Array):
                 a, b = values[i * n + j], values[j * n + i]
                 if abs(a - b) > 1e-9 * max(abs(a), abs(b), 1e-300):
                     raise DecodeError(f"{name}: covariance is not symmetric")
-        if not _is_positive_definite(values, n):
+        if not spd_values(values, n):
             raise DecodeError(f"{name}: covariance is not positive definite")
         return np.array(values, dtype=np.float64).reshape(self.shape)
-
-
-def _is_positive_definite(values: tuple[float, ...], n: int) -> bool:
-    """Cholesky of a small row-major symmetric matrix in plain Python; True if it succeeds."""
-    low = [[0.0] * n for _ in range(n)]
-    for i in range(n):
-        for j in range(i + 1):
-            s = values[i * n + j] - sum(low[i][k] * low[j][k] for k in range(j))
-            if i == j:
-                if not s > 0.0:
-                    return False
-                low[i][i] = math.sqrt(s)
-            else:
-                low[i][j] = s / low[j][j]
-    return True
 
 
 @functools.cache

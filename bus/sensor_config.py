@@ -181,7 +181,8 @@ class SensorTruth(_Strict):
         return self
 
 
-# A world richer than the filters (issue 13; `swarm experiment cooperative`, the staged tests): the
+# A world richer than the filters (`swarm experiment cooperative`, the staged tests), so that a filter
+# consistent in it is consistent for its own reasons, not because the world shares its model: the
 # datasheet's GNSS sigma (1.5 m) is split into 1.2 m white and 0.9 m Gauss-Markov (60 s), so the total
 # matches the datasheet but half of it no longer averages out.
 HONEST_WORLD = {

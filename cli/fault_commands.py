@@ -15,90 +15,23 @@ The grammar is close to netem and toxiproxy::
 
 from __future__ import annotations
 
+import inspect
 import json
 import os
-import re
 from pathlib import Path
 from typing import Optional
 
 import typer
 
 from bus.errors import ConfigError, SwarmlocError
+from bus.faults import BY_KIND
 from cli.errors import fail
+from cli.fault_flags import addable_kinds, flags, with_flag_options
+from cli.quantities import seconds, vehicle_number
 
 fault_app = typer.Typer(no_args_is_help=True, help="Inspect and change the fault plan of a running swarm.")
-# bus.faults' LINK_KINDS, PHYSICAL_KINDS and BEHAVIOUR_KINDS (a test keeps them equal; importing bus.faults
-# here would load pydantic and numpy into every process that starts the CLI)
-KINDS = ("delay", "loss", "duplicate", "reorder", "jam-gnss", "spoof-gnss", "jam-comms", "blackout", "lie", "accuse")
-_UNITS_S = {"us": 1e-6, "ms": 1e-3, "s": 1.0, "min": 60.0, "": 1.0}
-_UNITS_M = {"m": 1.0, "km": 1000.0, "": 1.0}
 REPLY_TIMEOUT_S = 5.0
-FLAGS = {
-    "delay_s": "--delay",
-    "jitter_s": "--jitter",
-    "gap_s": "--gap",
-    "radius_m": "--radius",
-    "center_m": "--center",
-    "drift_mps": "--drift",
-    "heading_deg": "--heading",
-    "for_s": "--for",
-    "start_s": "--in",
-    "dst": "--to",
-    "src": "--from",
-    "restart_after_s": "--restart-after",
-    "percent": "--percent",
-    "burst": "--burst",
-    "offset_m": "--offset",
-    "cov_scale": "--cov-scale",
-    "vehicle": "--vehicle",
-    "names": "--names",
-    "stale_s": "--stale",
-}
-
-
-def _quantity(text: str, units: dict[str, float], what: str) -> float:
-    match = re.fullmatch(r"\s*([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)\s*([a-z]*)\s*", text)
-    if not match or match.group(2) not in units:
-        raise ConfigError(f"{what}: cannot read {text!r} (units: {', '.join(u for u in units if u)})")
-    return float(match.group(1)) * units[match.group(2)]
-
-
-def seconds(text: str | None, what: str) -> float | None:
-    """'200ms', '10s', '1.5', '2min' -> seconds (None stays None)."""
-    return None if text is None else _quantity(text, _UNITS_S, what)
-
-
-def metres(text: str | None, what: str) -> float | None:
-    return None if text is None else _quantity(text, _UNITS_M, what)
-
-
-def percent(text: str | None) -> float | None:
-    return None if text is None else _quantity(text.rstrip("%"), {"": 1.0}, "--percent")
-
-
-def centre(text: str | None, flag: str = "--center") -> list[float] | None:
-    """'X,Y' in metres (units allowed on each) -> [x, y]."""
-    if text is None:
-        return None
-    parts = text.split(",")
-    if len(parts) != 2:
-        raise ConfigError(f"{flag}: expected X,Y in metres, got {text!r}")
-    return [metres(p, flag) for p in parts]
-
-
-def vehicle_number(text: str) -> int:
-    match = re.fullmatch(r"v?(\d+)", text.strip())
-    if not match:
-        raise ConfigError(f"not a vehicle: {text!r} (use v<id> or <id>)")
-    return int(match.group(1))
-
-
-def vehicle_numbers(text: str, flag: str) -> list[int]:
-    """'v1,v2' or '1,2' -> [1, 2]."""
-    try:
-        return [vehicle_number(part) for part in text.split(",")]
-    except ConfigError as exc:
-        raise ConfigError(f"{flag}: {exc}") from None
+FLAGS = {name: flag.flag for name, flag in flags().items()}  # field -> flag, every kind's (error messages)
 
 
 def find_swarm(out: Path, run: Optional[Path], connect: Optional[str]) -> tuple[tuple[str, ...], str, dict[str, str]]:
@@ -137,7 +70,7 @@ def ask(request: dict, out: Path, run: Optional[Path], connect: Optional[str]) -
         first = exc.errors()[0]
         field = str(first["loc"][-1]) if first["loc"] else "fault"
         message = first["msg"].removeprefix("Value error, ")
-        where = "" if field in KINDS else f"{FLAGS.get(field, field)}: "  # a whole fault's check names its flags
+        where = "" if field in BY_KIND else f"{FLAGS.get(field, field)}: "  # a whole fault's check names its flags
         raise ConfigError(f"invalid fault: {where}{message}") from None
     endpoints, prefix, env = find_swarm(out, run, connect)
     reply = _query(BusConfig(mode="client", connect=endpoints, prefix=prefix), payload, env)
@@ -192,68 +125,36 @@ RUN = typer.Option(None, help="the run directory of the swarm to talk to")
 CONNECT = typer.Option(None, help="zenoh endpoint(s) of the swarm's router, e.g. tcp/10.0.0.2:7447")
 
 
-@fault_app.command()
-def add(
-    kind: str = typer.Argument(..., help=f"one of: {', '.join(KINDS)}"),
-    to: Optional[str] = typer.Option(None, "--to", help="link faults: receiving endpoint glob (v*, v3, gs)"),
-    src: Optional[str] = typer.Option(None, "--from", help="link faults: sending endpoint glob"),
-    topic: Optional[str] = typer.Option(None, help="link faults: topic glob (imu, odom, gnss, ranging, seen, mavlink)"),
-    delay: Optional[str] = typer.Option(None, help="delay: e.g. 200ms"),
-    jitter: Optional[str] = typer.Option(None, help="delay: e.g. 50ms"),
-    distribution: Optional[str] = typer.Option(None, help="delay: uniform, normal or pareto"),
-    percent_: Optional[str] = typer.Option(None, "--percent", help="loss, duplicate, reorder: share of packets"),
-    burst: Optional[float] = typer.Option(None, help="loss: mean burst length in packets (Gilbert-Elliott)"),
-    gap: Optional[str] = typer.Option(None, help="reorder: how long a held-back packet waits, e.g. 100ms"),
-    center: Optional[str] = typer.Option(None, help="zones: X,Y in metres"),
-    radius: Optional[str] = typer.Option(None, help="zones: e.g. 25m"),
-    drift: Optional[float] = typer.Option(None, help="spoof-gnss, lie: offset growth in m/s"),
-    heading: Optional[float] = typer.Option(None, help="spoof-gnss, lie: direction of the growth in degrees (0 = +x)"),
-    offset: Optional[str] = typer.Option(None, help="lie: constant offset X,Y in metres of the broadcast position"),
-    cov_scale: Optional[float] = typer.Option(None, help="lie: broadcast covariance times this (0.01: 100x too sure)"),
-    stale: Optional[str] = typer.Option(None, help="lie: broadcast the estimate of this long before, e.g. 5s"),
-    vehicle: Optional[str] = typer.Option(None, help="blackout, lie, accuse: the vehicle (v3 or 3)"),
-    names: Optional[str] = typer.Option(None, help="accuse: the vehicles it accuses, e.g. v1,v2"),
-    sensor: Optional[str] = typer.Option(None, help="blackout: imu, odom, gnss or ranging"),
-    name: Optional[str] = typer.Option(None, help="a unique name (default: <kind>-<n>)"),
-    in_: Optional[str] = typer.Option(None, "--in", help="start this long from now (default: now)"),
-    for_: Optional[str] = typer.Option(None, "--for", help="how long it lasts (default: to the end of the run)"),
-    out: Path = OUT,
-    run: Optional[Path] = RUN,
-    connect: Optional[str] = CONNECT,
-) -> None:
-    """Add a fault to the running swarm's plan (starts now unless --in is given)."""
+def add(**values: Optional[str]) -> None:
+    """Add a fault to the running swarm's plan (starts now unless --in is given). Its flags are the
+    fields the fault kinds declare (cli.fault_flags)."""
+    kind = values.pop("kind")
+    out, run, connect = values.pop("out"), values.pop("run"), values.pop("connect")
     try:
-        if kind not in KINDS:
-            raise ConfigError(f"unknown fault kind {kind!r}; known: {', '.join(KINDS)} (and `swarm fault kill`)")
-        fields = {
-            "kind": kind,
-            "name": name,
-            "dst": to,
-            "src": src,
-            "topic": topic,
-            "delay_s": seconds(delay, "--delay"),
-            "jitter_s": seconds(jitter, "--jitter"),
-            "distribution": distribution,
-            "percent": percent(percent_),
-            "burst": burst,
-            "gap_s": seconds(gap, "--gap"),
-            "center_m": centre(center),
-            "radius_m": metres(radius, "--radius"),
-            "drift_mps": drift,
-            "heading_deg": heading,
-            "offset_m": centre(offset, "--offset"),
-            "cov_scale": cov_scale,
-            "sensor": sensor,
-            "stale_s": seconds(stale, "--stale"),
-            "vehicle": vehicle_number(vehicle) if vehicle else None,
-            "names": vehicle_numbers(names, "--names") if names else None,
-            "start_s": seconds(in_, "--in"),
-            "for_s": seconds(for_, "--for"),
-        }
+        if kind not in addable_kinds():
+            raise ConfigError(
+                f"unknown fault kind {kind!r}; known: {', '.join(addable_kinds())} (and `swarm fault kill`)"
+            )
+        fault = {"kind": kind}
+        for name, flag in ADD_FLAGS.items():
+            text = values.get(flag.param)
+            if text is not None:
+                fault[name] = flag.value(text)
     except ConfigError as exc:
         fail(str(exc))
-    fault = {k: v for k, v in fields.items() if v is not None}
     _run({"op": "add", "fault": fault, "relative": True}, out, run, connect)
+
+
+ADD_FLAGS = flags(addable_kinds())
+_REST = [
+    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=annotation)
+    for name, default, annotation in (
+        ("out", OUT, Path),
+        ("run", RUN, Path | None),
+        ("connect", CONNECT, str | None),
+    )
+]
+fault_app.command()(with_flag_options(add, ADD_FLAGS, _REST))
 
 
 @fault_app.command()

@@ -7,6 +7,7 @@ from typing import Optional
 
 import typer
 
+from bus.clock_config import ClockMode
 from bus.errors import SwarmlocError
 from cli import process_commands
 from cli.campaign_commands import campaign
@@ -82,7 +83,7 @@ def up(
     from launch.live import check_live_address
     from launch.scenario import load_scenario, overlay
 
-    if mode not in (None, "lockstep", "realtime"):
+    if mode not in (None, *ClockMode):
         fail(f"unknown mode {mode!r}: use lockstep or realtime")
     if restart not in ("no", "on-failure"):
         fail(f"unknown restart policy {restart!r}: use no or on-failure")
@@ -152,7 +153,7 @@ def config(
     from bus.config import build_config
     from launch.scenario import load_scenario, overlay
 
-    if mode not in (None, "lockstep", "realtime"):
+    if mode not in (None, *ClockMode):
         fail(f"unknown mode {mode!r}: use lockstep or realtime")
     try:
         base = load_scenario(scenario) if scenario else {}
@@ -194,7 +195,7 @@ def with_restart_tick(config):
     from bus.clock_config import LOCKSTEP_RESTART_TICK_S
     from bus.config import build_config
 
-    if config.clock.mode != "lockstep" or config.clock.tick_s <= LOCKSTEP_RESTART_TICK_S:
+    if config.clock.mode is not ClockMode.LOCKSTEP or config.clock.tick_s <= LOCKSTEP_RESTART_TICK_S:
         return config
     data = config.model_dump(mode="json")
     data["clock"]["tick_s"] = LOCKSTEP_RESTART_TICK_S

@@ -11,6 +11,7 @@ from typing import Optional
 
 import typer
 
+from bus.clock_config import ClockMode
 from bus.errors import SwarmlocError
 from cli.errors import fail
 
@@ -46,7 +47,7 @@ def background_niceness(role: str, config) -> int:
     station in lockstep, where the vehicles' cycles are the critical path (the world prepares the
     next tick and the ground station scores while they cycle, on the cores they leave idle); 0 (the
     default priority) otherwise (a realtime world's feeds are due on the wall clock)."""
-    if role in BACKGROUND_ROLES and config.clock.mode == "lockstep":
+    if role in BACKGROUND_ROLES and config.clock.mode is ClockMode.LOCKSTEP:
         return config.clock.background_niceness
     return 0
 

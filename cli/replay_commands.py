@@ -7,6 +7,7 @@ from typing import Optional
 
 import typer
 
+from bus.clock_config import ClockMode
 from bus.config import SwarmConfig
 from bus.errors import SwarmlocError
 from cli.errors import REPORT_HELP, fail
@@ -84,7 +85,7 @@ def mrclam(
 
     if estimator not in ESTIMATORS:
         fail(f"unknown estimator {estimator!r}: use {', '.join(ESTIMATORS)}")
-    if mode not in ("lockstep", "realtime"):
+    if mode not in tuple(ClockMode):
         fail(f"unknown mode {mode!r}: use lockstep or realtime")
     interval = _numbers(calibrate, "--calibrate", float)
     if len(interval) != 2:
@@ -102,7 +103,7 @@ def mrclam(
         relay,
         str(calibration) if calibration is not None else "",
     )
-    if estimator == "centralized" and mode != "lockstep":
+    if estimator == "centralized" and mode != ClockMode.LOCKSTEP:
         fail("the centralized reference runs in this process as fast as it can: --mode realtime does not apply")
     try:
         config = replay_config(

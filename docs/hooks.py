@@ -1,7 +1,8 @@
 """MkDocs hooks: the pages that are generated, not written. ``reference/cli.md`` from the typer app
 (every command, argument and option with its help), ``reference/config.md`` from the pydantic
 configuration models (every field with its type, default, bounds and description), and the
-benchmark table of ``benchmarks.md`` from ``bench/results.json`` (the marker ``<!-- bench-table -->``).
+benchmark table of ``benchmarks.md`` from ``bench/results.json`` (the marker ``<!-- bench-table -->``),
+and the faults page's table of fault kinds from their registry, bus.faults (``<!-- fault-table -->``).
 Nothing here is pasted: change the code, and the docs follow at the next build."""
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
         markdown = markdown.replace("<!-- bench-table -->", bench_table())
     if "<!-- swarm-table -->" in markdown:
         markdown = markdown.replace("<!-- swarm-table -->", swarm_table())
+    if "<!-- fault-table -->" in markdown:
+        markdown = markdown.replace("<!-- fault-table -->", fault_table())
     return markdown
 
 
@@ -101,6 +104,24 @@ def _type_name(annotation) -> str:
         return " \\| ".join(f"`{v}`" for v in typing.get_args(annotation))
     text = getattr(annotation, "__name__", None) or str(annotation).replace("typing.", "")
     return f"`{text}`".replace("|", "\\|")
+
+
+def fault_table() -> str:
+    """Every fault kind of the registry (bus.faults.KINDS): who applies it, its own fields, its effect."""
+    from bus.faults import KINDS, FaultBase
+    from bus.faults.base import APPLIERS
+
+    lines = ["| kind | applied by | fields | effect |", "| --- | --- | --- | --- |"]
+    for kind in KINDS:
+        fields = []
+        for name, field in kind.model_fields.items():
+            if name in FaultBase.model_fields or name == "kind":
+                continue
+            values = typing.get_args(field.annotation) if typing.get_origin(field.annotation) is typing.Literal else ()
+            fields.append(f"`{name}`" + (f" ({', '.join(values)})" if values else ""))
+        effect = kind.effect.replace("|", "\\|")
+        lines.append(f"| `{kind.kind_name()}` | {APPLIERS[kind.applied_by]} | {', '.join(fields)} | {effect} |")
+    return "\n".join(lines)
 
 
 def bench_table() -> str:

@@ -18,6 +18,7 @@ import numpy as np
 from bus import feed
 from bus import messages as m
 from bus.claims import ClaimReply, ClaimRequest
+from bus.clock_config import ClockMode
 from bus.config import SwarmConfig
 from bus.errors import DecodeError
 from bus.landmark_map import MAX_MAP_BYTES, map_record
@@ -171,7 +172,7 @@ class GroundStation:
         kind = "vehicle_joined" if item.alive else ("vehicle_left" if self._completed(vid) else "vehicle_lost")
         (self.active.add if item.alive else self.active.discard)(vid)
         (self.departed.discard if item.alive else self.departed.add)(vid)
-        if self.config.clock.mode != "lockstep" or (self.final_seen and not item.alive):
+        if self.config.clock.mode is not ClockMode.LOCKSTEP or (self.final_seen and not item.alive):
             self.event(kind, vehicle=vid)  # lockstep: the world's ticks say who joined and left when
 
     def _log_membership(self, tick: m.ClockTick) -> None:
@@ -260,7 +261,7 @@ class GroundStation:
         self.final_seen = self.final_seen or tick.final
         self.sim_time_us = max(self.sim_time_us, tick.stamp_us)
         self.tick_members = set(tick.members) or None  # none listed: liveliness decides
-        if self.config.clock.mode == "lockstep":
+        if self.config.clock.mode is ClockMode.LOCKSTEP:
             self._log_membership(tick)
         self.faults.advance(tick.stamp_us)
         if self.run.recording is not None:
@@ -270,10 +271,10 @@ class GroundStation:
                 self.event("live_view_overflow", times=overflows)
         for vid, frame in self.intake.release(tick.stamp_us, self._stream_passed):
             self.streams.frame(vid, frame, self.sim_time_us)
-        if self.config.clock.mode == "lockstep" and self.previous_tick_us >= 0:
+        if self.config.clock.mode is ClockMode.LOCKSTEP and self.previous_tick_us >= 0:
             self.published_us = self.previous_tick_us  # tick k: every estimate up to tick k-1 is published
             self._score_published()
-        elif self.config.clock.mode == "realtime":
+        elif self.config.clock.mode is ClockMode.REALTIME:
             self.run.write_scores(self.scorer.release(tick.stamp_us - REALTIME_LAG_US))
         self.previous_tick_us = tick.stamp_us
         if time.monotonic() - self._plan_sent_at > PLAN_REPEAT_S:
@@ -288,7 +289,7 @@ class GroundStation:
         without bound behind it (lockstep backpressure, and what a killed ground station loses)."""
         if self._ack.due is None or not self.mailbox.empty():
             return
-        if self.config.clock.mode == "lockstep":
+        if self.config.clock.mode is ClockMode.LOCKSTEP:
             view, period_us = self.config.view, round(1e6 / self.config.vehicle.mavlink_rate_hz)
             if paced_ahead(view.live_speed if view.live else None, self.wall_start, self.sim_time_us):
                 return

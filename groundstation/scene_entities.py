@@ -10,11 +10,10 @@ from typing import Any
 import numpy as np
 
 from groundstation import scene_primitives as sp
-from groundstation.scene_primitives import ELLIPSE_POINTS, ellipse_xy
+from groundstation.scene_primitives import ELLIPSE_POINTS, ellipse_xy, zone_colour
 from groundstation.scoring import Score
 
 RANGING_LIFETIME_NS = 1_000_000_000
-ZONE_COLOURS = {"jam-gnss": (1.0, 0.2, 0.2), "spoof-gnss": (1.0, 0.6, 0.0), "jam-comms": (0.7, 0.3, 1.0)}
 TRUE_RGB, ESTIMATED_RGB = (0.1, 0.8, 0.2), (0.2, 0.4, 1.0)
 
 
@@ -122,7 +121,7 @@ def zone_update(fm: Any, stamp_us: int, active: dict[str, Any], ended: set[str])
         angle = np.linspace(0.0, 2.0 * np.pi, 72, endpoint=False)
         x = fault.center_m[0] + fault.radius_m * np.cos(angle)
         y = fault.center_m[1] + fault.radius_m * np.sin(angle)
-        rgba = (*ZONE_COLOURS.get(fault.kind, (0.6, 0.6, 0.6)), 0.9)
+        rgba = (*zone_colour(fault.kind), 0.9)
         centre = sp.pose(fm, fault.center_m[0], fault.center_m[1], 0.0)
         entities.append(
             fm.SceneEntity(

@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from bus.faults import BY_KIND
+
 ELLIPSE_POINTS = 36
 
 
@@ -66,3 +68,10 @@ def loop(fm, xy: np.ndarray, rgba: tuple[float, float, float, float], thickness:
         points=[fm.Point3(x=a, y=b, z=0.0) for a, b in np.asarray(xy, dtype=float).tolist()],
         color=fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]),
     )
+
+
+def zone_colour(kind: str) -> tuple[float, float, float]:
+    """The colour a fault zone of ``kind`` is drawn with: the kind's own marker (bus.faults), grey for
+    a kind that declares none."""
+    fault = BY_KIND.get(kind)
+    return fault.marker if fault is not None and fault.marker is not None else (0.6, 0.6, 0.6)

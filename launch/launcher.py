@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bus import messages as m
+from bus.clock_config import ClockMode
 from bus.config import SwarmConfig, ViewConfig
 from bus.errors import ConfigError, DecodeError
 from bus.kill_schedule import KillSchedule
@@ -120,7 +121,7 @@ class Swarm:
     def spawn(self, name: str, args: list[str], *, essential: bool, inherit_stdout: bool = False) -> Child:
         log_path = self.run_dir / "logs" / f"{name}.log"
         secrets = self.security.env(name) if name != "router" else {}
-        one_thread = name != "router" and self.config.clock.mode == "lockstep"
+        one_thread = name != "router" and self.config.clock.mode is ClockMode.LOCKSTEP
         runtime = {"ZENOH_RUNTIME": ONE_ZENOH_RUNTIME} if one_thread else {}
         env = {**CHILD_ENV, **runtime, **os.environ, "PYTHONUNBUFFERED": "1", **secrets}
         process = children.start(args, env, log_path, inherit_stdout=inherit_stdout)

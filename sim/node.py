@@ -18,6 +18,7 @@ import time
 from collections import deque
 
 from bus import messages as m
+from bus.clock_config import ClockMode
 from bus.config import SwarmConfig
 from bus.errors import SwarmlocError
 from bus.kill_schedule import KillSchedule
@@ -48,7 +49,7 @@ class WorldNode:
         self.intake = WorldIntake(bus, self.members, self._apply_plan, self.rejections)
         self.status = "complete"
         bus.declare_token(keys.alive("world", 0))
-        self.realtime = config.clock.mode == "realtime"  # realtime vehicles hear the clock's pace (sim.pace)
+        self.realtime = config.clock.mode is ClockMode.REALTIME  # realtime vehicles hear the clock's pace (sim.pace)
         control = [keys.clock(), keys.pace()] if self.realtime else [keys.clock()]
         self._publishers: dict[str, object] = {
             key: bus.publisher(key) for key in [*control, keys.truth(), *map(keys.feed, self.members.expected)]
@@ -215,7 +216,7 @@ class WorldNode:
                 # the new one gets the truth of the last ticks again: its predecessor scores a tick's
                 # estimates only at the next tick, so the truth of the last one it acknowledged may
                 # be needed too (the vehicles hold their frames until they know the new one
-                # listens: vehicle.node.finish_tick). It starts here.
+                # listens: vehicle.node.VehicleNode.finish_tick). It starts here.
                 self.members.gs_returned = False
                 for truth in self._truth_sent:
                     self.publish(self.bus.keys.truth(), truth)
@@ -230,7 +231,7 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
     """Run the whole simulation; returns the node (for its membership record and status)."""
     node = WorldNode(bus, config)
     node.wait_for_members(stop)
-    lockstep = config.clock.mode == "lockstep"
+    lockstep = config.clock.mode is ClockMode.LOCKSTEP
     ack_timeout = config.clock.ack_timeout_s
     prepared = node.prepare(0)
     pacer: Pacer | None = None  # realtime: paced from the second tick on, once every vehicle acked the first

@@ -1,12 +1,13 @@
-"""Applies the plan's physical faults to the world's sensor output: GNSS jamming and spoofing zones,
-sensor blackouts. Pure and deterministic: a function of sim time and the vehicles' true poses."""
+"""Applies the plan's physical faults to the world's sensor output: what each kind silences and whose
+radio it cuts (the kinds' own ``silences`` and ``jams_comms``, bus.faults), and the spoofers' offsets,
+which grow from the moment each vehicle is captured. Pure and deterministic: a function of sim time
+and the vehicles' true poses."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from bus.faults import PHYSICAL_KINDS, Blackout, JamComms, JamGnss, SpoofGnss
-from bus.topics import Topic
+from bus.faults import PHYSICAL_KINDS, SpoofGnss
 
 
 class PhysicalFaults:
@@ -23,18 +24,11 @@ class PhysicalFaults:
     def silenced(self, vehicle_id: int, sensor: str, t_us: int, pose: np.ndarray) -> bool:
         """True when ``sensor`` of ``vehicle_id`` produces nothing at ``t_us`` (blackout or jamming)."""
         t_s = t_us * 1e-6
-        for f in self.faults:
-            if not f.active(t_s):
-                continue
-            if isinstance(f, Blackout) and f.vehicle == vehicle_id and f.sensor == sensor:
-                return True
-            if isinstance(f, JamGnss) and sensor == Topic.GNSS and f.inside(pose[:2]):
-                return True
-        return False
+        return any(f.active(t_s) and f.silences(vehicle_id, sensor, pose[:2]) for f in self.faults)
 
     def comm_jammed(self, t_us: int, pose: np.ndarray) -> bool:
         """True when a vehicle at ``pose`` is inside an active comm-jamming zone."""
-        return any(isinstance(f, JamComms) and f.active(t_us * 1e-6) and f.inside(pose[:2]) for f in self.faults)
+        return any(f.active(t_us * 1e-6) and f.jams_comms(pose[:2]) for f in self.faults)
 
     def spoof_offset_m(self, vehicle_id: int, t_us: int, pose: np.ndarray) -> np.ndarray:
         """(2,) metres added to the fix: drift_mps times the time since the vehicle was captured."""

@@ -1,6 +1,6 @@
-"""What the world does that no filter models (``world.sensor_truth``; issue 13's honest world): inputs
-that vary inside a step, a wheel scale error and slip, a time-correlated (Gauss-Markov) GNSS error
-with outliers, and Student-t white noise.
+"""What the world does that no filter models (``world.sensor_truth``: the honest world, richer than
+any filter's model): inputs that vary inside a step, a wheel scale error and slip, a time-correlated
+(Gauss-Markov) GNSS error with outliers, and Student-t white noise.
 
 Each vehicle draws these from its own generator (never the one of its datasheet noise), in blocks
 of the world's steps, so turning them on or off leaves every other noise stream bit-identical, and

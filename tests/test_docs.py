@@ -13,7 +13,8 @@ import pytest
 
 from bus import statistics
 from bus.estimators import ESTIMATORS, EstimatorEntry
-from examples import derated_gnss
+from bus.faults import BY_KIND
+from examples import derated_gnss, fog
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -39,6 +40,11 @@ def test_the_docs_build_strictly(tmp_path):
     tutorial = (tmp_path / "site" / "tutorial" / "adding-an-estimator" / "index.html").read_text()
     for code in ("class DeratedGnss", "def from_config", "def compare"):  # the estimator and its runner, included
         assert code in re.sub(r"<[^>]+>", "", tutorial), code
+    recipe = (tmp_path / "site" / "tutorial" / "adding-a-fault-kind" / "index.html").read_text()
+    for code in ("class Fog(Zone)", "def silences", "def frames_in_fog"):  # the kind and its example, included
+        assert code in re.sub(r"<[^>]+>", "", recipe), code
+    faults = re.sub(r"<[^>]+>", "", (tmp_path / "site" / "faults" / "index.html").read_text())
+    assert all(f"{kind}\n" in faults or f"{kind} " in faults for kind in BY_KIND)  # the table, from the registry
 
 
 def test_the_tutorial_estimator_is_consistent_where_the_plain_ekf_is_not():
@@ -58,3 +64,19 @@ def test_one_registry_line_makes_the_tutorial_estimator_selectable(monkeypatch):
     config = build_config({}).for_vehicle()
     config = config.model_copy(update={"vehicle": config.vehicle.model_copy(update={"estimator": "ekf-derated"})})
     assert get_estimator(config, 1).name == "ekf-derated"
+
+
+def test_the_recipe_s_fault_kind_blinds_the_cameras_inside_its_zone_only():
+    counts = fog.frames_in_fog()
+    assert counts["fog, made inside the bank"] == 0  # nothing inside the bank
+    assert 0 < counts["fog"] < counts["clear"]  # the frames outside it are still made
+
+
+def test_a_fault_kind_is_one_module_and_one_registry_line():
+    """Everything `swarm fault add`, chaos and the scene know of a kind comes from the registry: a kind
+    the registry lists has its flags, and the scene draws its zone in its own colour."""
+    from cli.fault_flags import flags
+    from groundstation.scene_primitives import zone_colour
+
+    assert "fog" in BY_KIND and {"center_m", "radius_m"} <= set(flags(["fog"]))
+    assert zone_colour("fog") == BY_KIND["fog"].marker

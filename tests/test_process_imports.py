@@ -1,8 +1,9 @@
-"""Each process imports what its role needs (issue 44): a vehicle without a camera, and a world
-without cameras, load no OpenCV and no scipy; nothing outside the ground station loads the Foxglove
-SDK, and nothing loads matplotlib (the report is drawn after the run, by the command that started
-it); a camera vehicle does load OpenCV (the control: the probe sees what a process loads). Each role
-is started in a fresh interpreter as its process would be, up to its loop (bench/startup.py)."""
+"""Each process imports what its role needs (start-up time and memory scale with the swarm): a
+vehicle without a camera, and a world without cameras, load no OpenCV and no scipy; nothing outside
+the ground station loads the Foxglove SDK, and nothing loads matplotlib (the report is drawn after
+the run, by the command that started it); a camera vehicle does load OpenCV (the control: the probe
+sees what a process loads). Each role is started in a fresh interpreter as its process would be, up
+to its loop (bench/startup.py)."""
 
 import pytest
 

@@ -11,6 +11,7 @@ from collections import deque
 from collections.abc import Callable, Iterable
 
 from bus import messages as m
+from bus.clock_config import ClockMode
 from bus.config import VehicleProcessConfig
 from bus.process import Pacer
 from bus.session import Bus
@@ -215,7 +216,7 @@ def run_vehicle(
 ) -> VehicleNode:
     node = VehicleNode(bus, config, vehicle_id, restarts=restarts, signing_key=signing_key)
     node.join(stop)
-    (run_lockstep if config.clock.mode == "lockstep" else run_realtime)(node, stop)
+    (run_lockstep if config.clock.mode is ClockMode.LOCKSTEP else run_realtime)(node, stop)
     if not stop.is_set():
         hand_over_end(node, stop)
     return node

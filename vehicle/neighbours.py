@@ -75,7 +75,7 @@ class MonitorSpec:
     discredit_s: float = 60.0  # an accuser contradicted by the vehicle's own evidence is not heard for this long
     implausible_ratio: float = 0.1  # a claimed position variance below this times the best of the others'
     max_compromised: int = 1  # f: hearsay needs more than f believed accusers (docs/security.md)
-    hearsay_over_evidence: bool = False  # the rule before issue 43 (a control): a quorum's word decides
+    hearsay_over_evidence: bool = False  # the quorum-only rule, kept as a control: a quorum's word decides
 
     @property
     def quorum(self) -> int:

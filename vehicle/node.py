@@ -14,6 +14,7 @@ from __future__ import annotations
 import logging
 
 from bus import messages as m
+from bus.clock_config import ClockMode
 from bus.config import VehicleProcessConfig
 from bus.feed import SensorBatch
 from bus.landmark_map import LandmarkMap
@@ -57,7 +58,7 @@ class VehicleNode:
         self.world_lane = world  # the feed, the clock, the fault plan and liveliness
         self.neighbour_lane = neighbours  # the neighbours' V2V frames
         # a realtime vehicle hears the ticks it needs (sim.pace), a lockstep one every tick
-        bus.subscribe(keys.pace() if config.clock.mode == "realtime" else keys.clock(), world, MAX_CLOCK_BYTES)
+        bus.subscribe(keys.pace() if config.clock.mode is ClockMode.REALTIME else keys.clock(), world, MAX_CLOCK_BYTES)
         bus.subscribe(keys.fault_plan(), world, MAX_PLAN_BYTES)
         bus.subscribe(keys.end(), world, MAX_CLOCK_BYTES)
         bus.subscribe(keys.feed(vehicle_id), world, MAX_BATCH_BYTES)
@@ -78,8 +79,8 @@ class VehicleNode:
         )
         self.outbound = Outbound(bus, config, vehicle_id, signing_key=signing_key)
         self.estimator = get_estimator(config, vehicle_id, reject=self.rejections.reject)
-        realtime = config.clock.mode == "realtime"
-        self._lockstep = config.clock.mode == "lockstep"
+        realtime = config.clock.mode is ClockMode.REALTIME
+        self._lockstep = config.clock.mode is ClockMode.LOCKSTEP
         # realtime: a checkpoint every 5 cycles for samples late beyond the allowance (every cycle
         # cost a fifth of a realtime cycle; a late sample replays at most 5 cycles more)
         self.fusion = FusionHorizon(

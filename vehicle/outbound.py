@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections import deque
 
 from bus import messages as m
+from bus.clock_config import ClockMode
 from bus.config import VehicleProcessConfig
 from bus.estimate import PoseEstimate
 from bus.faults import Accuse, Lie
@@ -39,7 +40,7 @@ class Outbound:
         # round trip to the router, which an overloaded swarm must not wait for mid-run), in lockstep
         # as listeners first appear (nothing there waits on the wall clock)
         self._bus, self._neighbours = bus, frozenset(j for j in range(1, config.vehicles + 1) if j != vehicle_id)
-        realtime = config.clock.mode == "realtime"
+        realtime = config.clock.mode is ClockMode.REALTIME
         self._v2v_to = {j: bus.publisher(keys.v2v_to(vehicle_id, j)) for j in (self._neighbours if realtime else ())}
         self.ack_publisher = self._ack = bus.publisher(keys.ack(vehicle_id))
         self._status = bus.publisher(keys.status(vehicle_id))

@@ -16,6 +16,7 @@ from bus.consistency import BLOCK_S, consistency
 from bus.statistics import binned_mean, binned_rms
 from groundstation.report.rundata import RunData
 from groundstation.report.stats import binned_nees, covariance_ellipse
+from groundstation.scene_primitives import zone_colour
 
 MAX_ERROR_PANELS = 12
 MARKER_COLORS = {
@@ -51,12 +52,11 @@ def map_figure(data: RunData, *, ellipse_every_s: float = 5.0) -> Figure | None:
         if vid in data.maps:
             _draw_landmarks(ax, *data.maps[vid], _color(i), vid)
     for zone in data.zones():
-        spoof = "spoof" in str(zone.get("fault"))
         ax.add_patch(
             Circle(
                 tuple(zone["center_m"]),
                 zone["radius_m"],
-                color="tab:orange" if spoof else "tab:red",
+                color=zone_colour(str(zone.get("fault"))),
                 alpha=0.15,
                 lw=1.5,
                 label=f"{zone['fault']} {zone['name']}".strip(),

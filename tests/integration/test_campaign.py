@@ -1,4 +1,4 @@
-"""Campaigns on Dask through real processes (issue 45): a scheduler and two workers started with the
+"""Campaigns on Dask through real processes: a scheduler and two workers started with the
 stock `dask scheduler` and `dask worker` commands fly a grid of lockstep runs whose outputs equal,
 byte for byte, those of the same grid flown one run at a time; a worker killed in the middle leaves
 its runs to the other and nothing of them running; Ctrl-C on a local campaign leaves nothing running

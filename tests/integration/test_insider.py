@@ -4,9 +4,9 @@ Secure swarm: the attacker holds vehicle 3's login and signing key. It tries to 
 (the router refuses), sends hostile but well-formed traffic on its own keys (impersonating frames,
 acks and status, unknown sysids, degenerate covariances, far-off stamps, oversized and truncated
 payloads) and floods 10,000 messages in about a second. Insecure swarm: nobody filters anything, and
-the cases of issue 10's table go straight to the processes. Either way the run completes, every
-real vehicle is scored in full and nothing else is, every process stays alive, and each rejection
-is counted by reason in summary.json.
+the cases of the threat model's table (docs/security.md) go straight to the processes. Either way
+the run completes, every real vehicle is scored in full and nothing else is, every process stays
+alive, and each rejection is counted by reason in summary.json.
 """
 
 import json

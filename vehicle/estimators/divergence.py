@@ -13,8 +13,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from bus.notices import EstimatorReset, text_of
+from bus.spd import spd, spd4
 from vehicle.estimators.state import SEVERITY_WARNING, FilterState, Notice, frozen
-from vehicle.models import unicycle
 
 DIVERGENCE_INFLATION = 10.0
 DIVERGENCE_FLOOR = np.array([1.0, 1.0, 0.01, 1e-4])  # m^2, m^2, rad^2, (rad/s)^2
@@ -24,7 +25,7 @@ GOOD_PERIOD_US = 1_000_000
 class FullCheck:
     def diverged(self, s: FilterState) -> bool:
         """Non-finite state or a covariance that is no longer (finite and) positive definite."""
-        return not (math.isfinite(sum(s.x.tolist())) and unicycle.is_spd(s.P))
+        return not (math.isfinite(sum(s.x.tolist())) and spd(s.P))
 
     def remember(self, s: FilterState, t_us: int) -> None:
         """This cycle's state is the one to fall back to."""
@@ -46,7 +47,7 @@ class MapCheck:
         diagonal = np.diagonal(s.P)
         return not (
             math.isfinite(float(s.x.sum()))
-            and unicycle.is_spd4(s.P[:4, :4])
+            and spd4(s.P[:4, :4])
             and bool(np.all(diagonal > 0))
             and math.isfinite(float(diagonal.sum()))
         )
@@ -67,8 +68,8 @@ def fall_back(s: FilterState, inflated: Callable[[np.ndarray], np.ndarray], t_us
     when it diverged before any good cycle (the filter then starts over); what to say about it."""
     if s.last_good is None:
         s.x, s.P = None, None
-        return Notice(t_us, SEVERITY_WARNING, "estimator reset: diverged before a good cycle")
+        return Notice(t_us, SEVERITY_WARNING, text_of(EstimatorReset("diverged before a good cycle")))
     x, P = s.last_good
     s.x, s.P = x.copy(), inflated(P)
     s.counters.resets += 1
-    return Notice(t_us, SEVERITY_WARNING, "estimator reset: non-finite or indefinite covariance")
+    return Notice(t_us, SEVERITY_WARNING, text_of(EstimatorReset("non-finite or indefinite covariance")))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bus import notices
 from bus.statistics import gate_threshold
 from vehicle.estimators.parts import Say, Store
 from vehicle.estimators.state import SEVERITY_INFO, SEVERITY_WARNING, FilterState, Notice
@@ -85,10 +86,11 @@ class NeighbourTrust:
 
 
 def notice_of(change: Verdict | Contradiction) -> Notice:
-    """A neighbour's trust changed, or an accuser was contradicted: a STATUSTEXT (the ground station
-    makes it an event: groundstation.vehicle_says.trust_verdict reads it)."""
+    """A neighbour's trust changed, or an accuser was contradicted: a STATUSTEXT, written by
+    bus.notices (the ground station reads it back there and makes it an event)."""
     if isinstance(change, Contradiction):
-        text = f"discredit v{change.accuser}: accuses v{change.accused}, consistent here"
-        return Notice(change.stamp_us, SEVERITY_WARNING, text)
-    word, severity = ("trust", SEVERITY_INFO) if change.trusted else ("distrust", SEVERITY_WARNING)
-    return Notice(change.stamp_us, severity, f"{word} v{change.neighbour}: {change.reason}")
+        said = notices.Contradicted(change.accuser, change.accused)
+        return Notice(change.stamp_us, SEVERITY_WARNING, notices.text_of(said))
+    severity = SEVERITY_INFO if change.trusted else SEVERITY_WARNING
+    said = notices.Verdict(change.neighbour, change.trusted, change.reason)
+    return Notice(change.stamp_us, severity, notices.text_of(said))

@@ -212,39 +212,6 @@ def predict_fast(
     return x_new, P_new
 
 
-def is_spd4(P: np.ndarray) -> bool:
-    """True when the symmetric 4 x 4 matrix P is finite and positive definite (Cholesky, unrolled)."""
-    rows = P.tolist()
-    if not math.isfinite(sum(map(sum, rows))):
-        return False
-    (a00, a01, a02, a03), (_, a11, a12, a13), (_, _, a22, a23), (_, _, _, a33) = rows
-    if not a00 > 0.0:
-        return False
-    l00 = math.sqrt(a00)
-    l10, l20, l30 = a01 / l00, a02 / l00, a03 / l00
-    d = a11 - l10 * l10
-    if not d > 0.0:
-        return False
-    l11 = math.sqrt(d)
-    l21, l31 = (a12 - l20 * l10) / l11, (a13 - l30 * l10) / l11
-    d = a22 - l20 * l20 - l21 * l21
-    if not d > 0.0:
-        return False
-    l32 = (a23 - l30 * l20 - l31 * l21) / math.sqrt(d)
-    return a33 - l30 * l30 - l31 * l31 - l32 * l32 > 0.0
-
-
-def is_spd(P: np.ndarray) -> bool:
-    """True when the symmetric matrix P (n, n) is finite and positive definite (:func:`is_spd4` for 4 x 4)."""
-    if P.shape == (4, 4):
-        return is_spd4(P)
-    try:
-        np.linalg.cholesky(P)
-    except np.linalg.LinAlgError:
-        return False
-    return bool(np.isfinite(P).all())
-
-
 def gnss_update(
     x: np.ndarray, P: np.ndarray, innovation_m: np.ndarray, H: np.ndarray, cov_m2: np.ndarray, gate: float
 ) -> tuple[np.ndarray, np.ndarray, UpdateResult]:

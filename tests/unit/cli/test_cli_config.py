@@ -25,11 +25,20 @@ def test_config_refuses_bad_input_in_one_line(tmp_path):
     assert not (tmp_path / "config.json").exists()
 
 
-def test_the_fault_commands_know_every_fault_kind_the_plan_has():
-    from bus.faults import BEHAVIOUR_KINDS, LINK_KINDS, PHYSICAL_KINDS
-    from cli.fault_commands import KINDS
+def test_swarm_fault_add_knows_every_fault_kind_but_the_supervisor_s():
+    """The kinds and their flags come from the registry (bus.faults): every kind is addable but
+    ``kill`` (`swarm fault kill`), and every field a kind declares a flag for is an option of `add`."""
+    from bus.faults import BY_KIND
+    from cli.fault_commands import ADD_FLAGS
+    from cli.fault_flags import addable_kinds
 
-    assert set(KINDS) == {*LINK_KINDS, *PHYSICAL_KINDS, *BEHAVIOUR_KINDS}
+    assert set(addable_kinds()) == set(BY_KIND) - {"kill"}
+    result = CliRunner().invoke(app, ["fault", "add", "--help"], env={"COLUMNS": "200"})
+    for name in addable_kinds():
+        for field, info in BY_KIND[name].model_fields.items():
+            extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+            if "flag" in extra:
+                assert field in ADD_FLAGS and extra["flag"] in result.output, (name, field)
 
 
 def test_a_chaos_timeline_with_kill_faults_gets_the_short_tick_unless_one_was_given():

@@ -115,37 +115,6 @@ def test_the_realtime_live_table_shows_a_running_ground_station(tmp_path):
         on_progress(gs)
 
 
-@given(st.one_of(st.text(max_size=80), st.from_regex(r"discredit v[0-9]{1,4}: accuses v[0-9]{1,4}, .{0,45}")))
-def test_trust_verdicts_are_read_from_any_statustext_or_none(text):
-    from groundstation.vehicle_says import announced, contradiction, trust_verdict
-
-    assert len(announced(text)) <= 1  # a reset, a verdict or a contradiction: they begin differently
-    verdict = trust_verdict(text)
-    assert verdict is None or (verdict[0] in ("neighbour_distrusted", "neighbour_trusted") and 1 <= verdict[1] <= 999)
-    contradicted = contradiction(text)
-    assert contradicted is None or all(1 <= v <= 999 for v in contradicted)
-
-
-def test_trust_verdicts_name_the_neighbour_and_the_reason():
-    from groundstation.vehicle_says import trust_verdict
-
-    assert trust_verdict("distrust v3: 8 of 8 fixes fail the gate") == (
-        "neighbour_distrusted",
-        3,
-        "8 of 8 fixes fail the gate",
-    )
-    assert trust_verdict("trust v12: consistent again") == ("neighbour_trusted", 12, "consistent again")
-    assert trust_verdict("GNSS unhealthy: no fix") is None and trust_verdict("distrust v0: x") is None
-
-
-def test_contradicted_accusations_name_the_accuser_and_the_accused():
-    from groundstation.vehicle_says import contradiction, trust_verdict
-
-    assert contradiction("discredit v4: accuses v1, consistent here") == (4, 1)
-    assert trust_verdict("discredit v4: accuses v1, consistent here") is None
-    assert contradiction("discredit v0: accuses v1, x") is None and contradiction("distrust v3: x") is None
-
-
 def test_what_a_vehicle_says_is_stamped_with_when_it_said_it(tmp_path):
     """A STATUSTEXT and the events it announces take the SYSTEM_TIME sent just before it, not the
     ground station's clock tick (which trails by up to a tick and depends on arrival order); without

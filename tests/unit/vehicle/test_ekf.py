@@ -5,6 +5,7 @@ import pytest
 
 from bus import messages as m
 from bus.config import SensorSpec
+from bus.spd import spd4
 from bus.statistics import gate_threshold
 from experiments.harness import pose_nees_series
 from vehicle.estimators import ekf
@@ -87,11 +88,11 @@ def test_the_positive_definiteness_check_agrees_with_cholesky():
             expected = True
         except np.linalg.LinAlgError:
             expected = False
-        assert unicycle.is_spd4(P) is expected
+        assert spd4(P) is expected
     for bad in (np.nan, np.inf, -np.inf):
         P = np.eye(4)
         P[1, 2] = P[2, 1] = bad
-        assert not unicycle.is_spd4(P)
+        assert not spd4(P)
 
 
 def _after_odometry(spec: SensorSpec, speed_mps: float, yaw_rate_radps: float, seconds: float) -> np.ndarray:
