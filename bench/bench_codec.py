@@ -18,7 +18,7 @@ from bus import feed
 from bus.config import build_config
 from bus.mavlink_codec import MavlinkDecoder, MavlinkEncoder, StateEstimate
 from sim.world import World
-from vehicle.input_runs import unpack
+from vehicle.process.input_runs import unpack
 
 BATCH_US, FRAME_US = 200.0, 50.0
 

@@ -15,7 +15,7 @@ from bench.common import Row
 from bus.config import HONEST_DATASHEET, build_config
 from experiments.harness import vehicle_feed
 from vehicle.estimators import get_estimator
-from vehicle.fusion import FusionHorizon
+from vehicle.process.fusion import FusionHorizon
 
 TARGET_US = 50.0
 

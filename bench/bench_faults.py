@@ -20,9 +20,9 @@ from bus.faults import Delay, Loss
 from bus.link_faults import Arrival, LinkFaultStage
 from experiments.harness import vehicle_feed
 from vehicle.estimators import get_estimator
-from vehicle.fusion import FusionHorizon
 from vehicle.models.cooperative import CooperativeRule, cooperative_update
 from vehicle.models.cooperative_fixes import CooperativeFix
+from vehicle.process.fusion import FusionHorizon
 
 
 def _stage_rows() -> list[Row]:

@@ -18,7 +18,7 @@ from bus import messages as m
 from bus.config import build_config
 from bus.memory import MemoryHub
 from sim.world import World
-from vehicle.node import VehicleNode
+from vehicle.process.node import VehicleNode
 
 CASES = (5, 20, 32)
 

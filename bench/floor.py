@@ -19,8 +19,8 @@ from bus.feed import SensorBatch
 from bus.topics import Topic
 from sim.world import World
 from vehicle.estimators import get_estimator
-from vehicle.fusion import FusionHorizon
 from vehicle.models.cooperative_fixes import CooperativeFix
+from vehicle.process.fusion import FusionHorizon
 
 
 @dataclass

@@ -39,8 +39,8 @@ hub = MemoryHub()
 role = sys.argv[1]
 if role == "vehicle":
     from bus.secrets import signing_key_from_env
-    from vehicle.loops import run_vehicle
-    from vehicle.node import VehicleNode
+    from vehicle.process.loops import run_vehicle
+    from vehicle.process.node import VehicleNode
     node = VehicleNode(hub.connect("vehicle"), config.for_vehicle(), 1)
 elif role == "world":
     from sim.node import WorldNode, run_world

@@ -21,6 +21,7 @@ from pydantic import Field, ValidationError, model_validator
 from bus.clock_config import ClockConfig as ClockConfig
 from bus.clock_config import ClockMode as ClockMode
 from bus.errors import ConfigError
+from bus.estimators import ESTIMATORS, NEEDS
 from bus.faults import BEHAVIOUR_KINDS, LINK_KINDS, Fault, check_fault, named
 from bus.replay_config import ReplayConfig
 from bus.sensor_config import HONEST_DATASHEET as HONEST_DATASHEET
@@ -161,12 +162,14 @@ class SwarmConfig(_Strict):
         return self
 
     @model_validator(mode="after")
-    def _slam_has_a_camera(self) -> SwarmConfig:
-        slam = self.vehicle.estimator in ("ekf-slam", "ar-ekf-slam")
-        if slam and not self.sensors.camera_rate_hz and self.replay is None:
-            raise ValueError(
-                f"vehicle.estimator = {self.vehicle.estimator!r} needs a camera: set sensors.camera_rate_hz (e.g. 10)"
-            )
+    def _estimator_has_what_it_needs(self) -> SwarmConfig:
+        has = {
+            "camera": bool(self.sensors.camera_rate_hz) or self.replay is not None,
+            "map": bool(self.vehicle.landmarks),
+        }
+        for need in sorted(ESTIMATORS[self.vehicle.estimator].needs):
+            if not has[need]:
+                raise ValueError(f"vehicle.estimator = {self.vehicle.estimator!r} needs {NEEDS[need]}")
         visual = self.vehicle.odometry == "visual" or self.vehicle.visual_odometry_vehicles
         if visual and not self.sensors.camera_rate_hz:
             raise ValueError("visual odometry needs a camera: set sensors.camera_rate_hz (e.g. 10)")
@@ -178,8 +181,6 @@ class SwarmConfig(_Strict):
         unknown = sorted(set(self.vehicle.visual_odometry_vehicles) - set(range(1, self.world.vehicles + 1)))
         if unknown:
             raise ValueError(f"vehicle.visual_odometry_vehicles names vehicles not in the swarm: {unknown}")
-        if self.vehicle.estimator == "known-map" and not self.vehicle.landmarks:
-            raise ValueError("vehicle.estimator = 'known-map' needs the map: vehicle.landmarks")
         return self
 
     @model_validator(mode="after")

@@ -1,19 +1,27 @@
 """The estimators a vehicle can run, by the name a configuration gives them (``vehicle.estimator``):
 the one registry. Each entry names the module that builds the estimator (its ``from_config(config,
 vehicle_id, reject=...)``, resolved by ``vehicle.estimators.get_estimator``) and says in a line what it
-is; the configuration's allowed names and the generated config reference come from here. Adding an
-estimator is one new module under ``vehicle/estimators/`` and one line here."""
+is, and what it needs of the configuration (``NEEDS``: a camera, the surveyed map), which the
+configuration's validation checks for every estimator alike; the configuration's allowed names and
+the generated config reference come from here. Adding an estimator is one new module under
+``vehicle/estimators/`` and one line here."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Literal
 
+NEEDS = {
+    "camera": "a camera: set sensors.camera_rate_hz (e.g. 10), or replay a data set's sightings",
+    "map": "the surveyed map: vehicle.landmarks",
+}
+
 
 @dataclass(frozen=True)
 class EstimatorEntry:
     module: str  # the module whose from_config builds it
     summary: str  # one line for the config reference
+    needs: frozenset[str] = frozenset()  # of NEEDS
 
 
 ESTIMATORS: dict[str, EstimatorEntry] = {
@@ -27,14 +35,17 @@ ESTIMATORS: dict[str, EstimatorEntry] = {
     "known-map": EstimatorEntry(
         "vehicle.estimators.known_map",
         "the EKF with camera sightings of surveyed landmarks (vehicle.landmarks) and their persisting errors",
+        frozenset({"map"}),
     ),
     "ekf-slam": EstimatorEntry(
         "vehicle.estimators.ekf_slam",
         "vision EKF-SLAM: landmarks from camera frames (or a replay's sightings) mapped as it flies",
+        frozenset({"camera"}),
     ),
     "ar-ekf-slam": EstimatorEntry(
         "vehicle.estimators.ar_ekf_slam",
         "EKF-SLAM keeping only the landmarks within an adaptive range in its state (AR-EKF-SLAM paper)",
+        frozenset({"camera"}),
     ),
 }
 

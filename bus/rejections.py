@@ -33,6 +33,7 @@ REASONS = (
     "no_visual_motion",  # visual odometry found no motion between two frames (too few matches, degenerate)
 )
 _INDEX = {reason: i for i, reason in enumerate(REASONS)}
+Reject = Callable[[str, str, str], None]  # Rejections.reject(reason, where, detail), as handed to a part
 MAX_LOGGED = 1000  # distinct (reason, where) pairs logged; past that, rejections are only counted
 
 

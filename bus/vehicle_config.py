@@ -93,7 +93,7 @@ class VehicleConfig(_Strict):
     neighbour_monitor: bool = Field(
         True,
         description="judge each neighbour's fixes for consistency and stop fusing a neighbour that lies "
-        "(vehicle.neighbours; docs: liars)",
+        "(vehicle.trust.neighbours; docs: liars)",
     )
     max_compromised: int = Field(
         1,
@@ -136,6 +136,6 @@ class VehicleConfig(_Strict):
         le=99,
         description="realtime: the estimator loop runs under SCHED_FIFO at this priority when the kernel allows "
         "it (root, CAP_SYS_NICE or `ulimit -r`), else under the fair scheduler; 0: always the fair scheduler "
-        "(vehicle.scheduling)",
+        "(vehicle.process.scheduling)",
     )
     world_timeout_s: float = Field(60.0, gt=0, description="a vehicle whose world is gone this long gives up")

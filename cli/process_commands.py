@@ -125,7 +125,7 @@ def vehicle(
     name, and hands over the vehicle's own login and key."""
     from bus.keys import parse_vehicle_id
     from bus.secrets import signing_key_from_env
-    from vehicle.loops import run_vehicle
+    from vehicle.process.loops import run_vehicle
 
     if id != "auto" and parse_vehicle_id(id) is None:
         fail(f"--id must be 1-250 or auto, got {id!r}")

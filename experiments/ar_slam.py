@@ -136,8 +136,8 @@ def fly(case: Case, *, seed: int, duration_s: float) -> Track:
     from experiments.harness import vehicle_feed
     from sim.world import World
     from vehicle.estimators import get_estimator
-    from vehicle.fusion import FusionHorizon
-    from vehicle.visual_odometry import ANNOUNCE_OFFSET_US, VisualOdometry
+    from vehicle.process.fusion import FusionHorizon
+    from vehicle.vision.visual_odometry import ANNOUNCE_OFFSET_US, VisualOdometry
 
     config = ar_slam_config(case, seed=seed, duration_s=duration_s)
     feed = vehicle_feed(config)

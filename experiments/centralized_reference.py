@@ -1,4 +1,4 @@
-"""Run the centralized reference (``vehicle.centralized``) next to the world in one process (the
+"""Run the centralized reference (``vehicle.estimators.centralized``) next to the world in one process (the
 simulated world, or a data-set replay) and score it against truth the way the ground station scores
 a run: per vehicle, position error and pose NEES (3 dof) of the estimate at each scored stamp where
 truth is known. No bus, no link faults: the yardstick is a filter that hears every measurement at
@@ -15,7 +15,7 @@ from bus import statistics
 from bus.config import SwarmConfig
 from bus.consistency import consistency
 from experiments import harness
-from vehicle.centralized import CentralizedEkf
+from vehicle.estimators.centralized import CentralizedEkf
 from vehicle.estimators.filter import Filter
 
 

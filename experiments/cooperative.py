@@ -2,7 +2,7 @@
 vehicles) loses GNSS on most of its members (6) for a long stretch (120 s); the others keep it. Each
 decentralized variant flies through real processes, one run directory per variant and seed:
 independent dead reckoning, naive fusion, split CI with the EKF and the UKF, split CI with IAE,
-plain CI. The centralized reference (``vehicle.centralized``) runs in this process on the same
+plain CI. The centralized reference (``vehicle.estimators.centralized``) runs in this process on the same
 world. Scored over the jam, on the jammed vehicles only, every 0.2 s of sim time.
 
 Consistency: ANEES is the mean pose NEES (3 dof). Its 95% interval comes from the spread of the

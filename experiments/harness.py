@@ -14,9 +14,9 @@ from bus import feed
 from bus.config import SensorSpec, build_config
 from launch.in_process import PERIOD_US, Listener, pose_score, run, samples
 from launch.in_process import replay_in_memory as replay_in_memory  # the tests' and figures' name for it
-from vehicle.estimators import ekf, ukf
+from vehicle.estimators import build_estimator
 from vehicle.estimators.filter import Filter
-from vehicle.gnss_health import GnssHealthSpec
+from vehicle.estimators.gnss_health import GnssHealthSpec
 
 
 def samples_of(world: Any, until_us: int, vehicle_id: int = 1) -> tuple[list[tuple[str, object]], feed.TruthBatch]:
@@ -42,9 +42,9 @@ def samples_of(world: Any, until_us: int, vehicle_id: int = 1) -> tuple[list[tup
 
 
 def vehicle_filter(spec: SensorSpec, gate_probability: float, kind: str = "ekf", adaptive_window: int = 0) -> Filter:
-    """Vehicle 1's filter of ``kind`` (ekf or ukf); ``adaptive_window``: IAE."""
-    build = ukf.build if kind == "ukf" else ekf.build
-    return build(vehicle_id=1, spec=spec, gate_probability=gate_probability, adaptive_window=adaptive_window)
+    """Vehicle 1's filter of ``kind`` (an estimator the registry names: ekf, ukf); ``adaptive_window``: IAE."""
+    arguments = {"spec": spec, "gate_probability": gate_probability, "adaptive_window": adaptive_window}
+    return build_estimator(kind, vehicle_id=1, **arguments)
 
 
 def nees_series_of_filters(
@@ -159,7 +159,7 @@ def swarm_in_memory(
     from bus.memory import MemoryHub
     from groundstation.scoring import score
     from sim.node import WorldNode
-    from vehicle.node import VehicleNode
+    from vehicle.process.node import VehicleNode
 
     hub = MemoryHub(config.bus.prefix)
     world_bus, keys = hub.connect("world"), None

@@ -29,7 +29,7 @@ PRELOAD = (
     "cli.main",
     "bus.session",
     "zenoh",
-    "vehicle.loops",
+    "vehicle.process.loops",
     "vehicle.estimators.ekf",
     "sim.node",
     "groundstation.station_loop",

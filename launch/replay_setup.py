@@ -18,9 +18,10 @@ from pathlib import Path
 
 from bus.config import SwarmConfig, build_config
 from bus.errors import ConfigError
+from bus.estimators import ESTIMATORS as REGISTRY
 
+# what `swarm replay mrclam --estimator` offers: a registry estimator (bus.estimators) by the replay's name for it
 ESTIMATORS = {"dead-reckoning": "ekf", "known-map": "known-map", "slam": "ekf-slam", "centralized": "known-map"}
-USES_MAP = ("known-map", "centralized")
 PRIOR_SIGMA_M, PRIOR_HEADING_SIGMA_RAD = 0.05, 0.02  # the start pose, surveyed (the data set's Vicon)
 RATE_HZ = 50.0  # the vehicles' loop and the truth grid; clock ticks as in `swarm up` (0.5 s in lockstep:
 # the same summary and metrics to the byte as 20 ms ticks on data set 6, in a quarter of the wall time)
@@ -105,6 +106,7 @@ def _config_dict(
 ) -> dict:
     """The config (as a dict) replaying ``window_s`` of ``data`` with ``sheet``."""
     start, end = window_s
+    estimator = ESTIMATORS[choice.estimator]
     landmarks = [(int(row[0]), float(row[1]), float(row[2])) for row in data.landmarks]
     return {
         "name": name,
@@ -121,9 +123,9 @@ def _config_dict(
             "prior_heading_sigma_rad": PRIOR_HEADING_SIGMA_RAD,
         },
         "vehicle": {
-            "estimator": ESTIMATORS[choice.estimator],
+            "estimator": estimator,
             "cooperative": choice.cooperative,
-            "landmarks": landmarks if choice.estimator in USES_MAP else [],
+            "landmarks": landmarks if "map" in REGISTRY[estimator].needs else [],
         },
         "replay": {
             "dataset": str(choice.dataset),

@@ -5,7 +5,7 @@ Lockstep: tick k is published only after every live vehicle acknowledged tick k-
 station is at most ``gs_lag_ticks`` behind; a vehicle whose liveliness token disappears, or that stays
 silent for ``ack_timeout_s``, is dropped from the set and the run goes on. A ground station that is
 gone for ``gone_timeout_s`` ends the run (status ``groundstation-lost``). Realtime: the first tick
-waits for every vehicle's acknowledgement as in lockstep (their first cycle: vehicle.loops), then
+waits for every vehicle's acknowledgement as in lockstep (their first cycle: vehicle.process.loops), then
 ticks follow the wall clock times the speed factor. The next tick's feeds are computed while
 vehicles work.
 """
@@ -216,7 +216,7 @@ class WorldNode:
                 # the new one gets the truth of the last ticks again: its predecessor scores a tick's
                 # estimates only at the next tick, so the truth of the last one it acknowledged may
                 # be needed too (the vehicles hold their frames until they know the new one
-                # listens: vehicle.node.VehicleNode.finish_tick). It starts here.
+                # listens: vehicle.process.node.VehicleNode.finish_tick). It starts here.
                 self.members.gs_returned = False
                 for truth in self._truth_sent:
                     self.publish(self.bus.keys.truth(), truth)
@@ -249,7 +249,7 @@ def run_world(bus: Bus, config: SwarmConfig, stop: threading.Event) -> WorldNode
         if lockstep:
             node.await_acks(tick, stop, ack_timeout)
             node.hold_for_kills(tick * node.tick_us, stop)
-        elif pacer is None:  # every vehicle's first cycle (vehicle.loops) is done before the clock starts
+        elif pacer is None:  # every vehicle's first cycle (vehicle.process.loops) is done before the clock starts
             node.await_acks(tick, stop, ack_timeout)
             pacer = Pacer(sim0_us=(tick + 1) * node.tick_us, wall0_ns=time.time_ns(), speed=config.clock.speed)
         else:

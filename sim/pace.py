@@ -2,7 +2,7 @@
 one (``ctl/clock``).
 
 A realtime vehicle cycles on its own wall-clock deadlines, mapped from sim time by the world's first
-paced tick; of the ticks after it, it only needs the final one (vehicle.loops.run_realtime). Fifty
+paced tick; of the ticks after it, it only needs the final one (vehicle.process.loops.run_realtime). Fifty
 ticks a second to every vehicle were a wake-up of its bus thread and its loop, and a decode, each 20
 ms: in a 20-vehicle, 20 s run on two cores, 2 s of its 31 s of CPU
 (docs/decisions/performance.md, fifteenth pass). The pace carries the first tick (each vehicle's

@@ -24,7 +24,7 @@ from bus.config import build_config
 from experiments.harness import swarm_in_memory
 from experiments.liar import LIAR, LIE_START_S, Case, liar_config
 from vehicle.estimators.trust import NeighbourTrust
-from vehicle.neighbour_fixes import Fix
+from vehicle.trust.neighbour_fixes import Fix
 
 WINDOW_S = 5.0
 MIN_FIXES = 10  # a window's mean counts with at least this many fixes

@@ -2,7 +2,7 @@
 
 A vehicle that cycles before its IMU and odometry have come propagates on the inputs it holds and
 replays once they arrive; the estimates it published meanwhile must claim no more than that
-extrapolation knows (vehicle.inputs: the walk of an overdue input). The feed is held back by a link
+extrapolation knows (vehicle.estimators.inputs: the walk of an overdue input). The feed is held back by a link
 delay fault, the same way in lockstep (reproducible: several seeds, a control without the walk that
 the statistics catch) and in realtime. `swarm up --restart on-failure` in realtime used to put the
 clock on lockstep's 0.5 s tick and so hand every vehicle its samples up to half a second late

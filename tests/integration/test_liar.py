@@ -75,7 +75,7 @@ def test_the_defence_stops_the_drag_that_goes_on_in_the_control(runs):
 
 def test_a_vehicle_warned_by_two_that_found_the_liar_themselves_judges_it_watchfully(runs):
     """The verdicts travel in the V2V broadcasts: a vehicle that ranges the liar is not told what to
-    conclude (its own evidence decides, vehicle.hearsay) but made watchful by the two accusers: it
+    conclude (its own evidence decides, vehicle.trust.hearsay) but made watchful by the two accusers: it
     distrusts the liar on its own fixes with a bias below the usual bound (40), above the watchful
     one (25), after two others had found the liar themselves."""
     distrusted = sorted(_events(runs["defended"], "neighbour_distrusted"), key=lambda e: e["t_s"])

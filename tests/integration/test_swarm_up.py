@@ -150,7 +150,7 @@ def _may_use_fifo(priority: int) -> bool:
     """Whether this user may put a thread under SCHED_FIFO at ``priority``: asked from a throwaway thread."""
     import threading
 
-    from vehicle.scheduling import ask_for_realtime_priority
+    from vehicle.process.scheduling import ask_for_realtime_priority
 
     granted = []
     probe = threading.Thread(target=lambda: granted.append(ask_for_realtime_priority(priority)))

@@ -1,5 +1,5 @@
 """Vehicles without wheels through real processes (lockstep): their speed and yaw rate come from
-visual odometry between consecutive camera frames (vehicle.visual_odometry), GNSS jammed all flight.
+visual odometry between consecutive camera frames (vehicle.vision.visual_odometry), GNSS jammed all flight.
 VO alone drifts within a stated share of the distance travelled and stays consistent; ar-ekf-slam on
 the same VO does better."""
 

@@ -34,6 +34,7 @@ import numpy as np
 
 from bus.config import ArSlamConfig, SensorSpec, VehicleProcessConfig
 from bus.statistics import gate_threshold
+from vehicle.association import descriptors as matching
 from vehicle.estimators.ekf_slam import build as build_ekf_slam
 from vehicle.estimators.ekf_slam import config_arguments
 from vehicle.estimators.filter import Filter
@@ -42,8 +43,7 @@ from vehicle.estimators.vision_map import Reject, VisionSlamMap
 from vehicle.models import added_states
 from vehicle.models import landmarks as slam
 from vehicle.models.cooperative import CooperativeRule, Correction, closed_form_weight
-from vehicle.neighbours import MonitorSpec
-from vehicle.vision import association
+from vehicle.trust.neighbours import MonitorSpec
 
 MAX_RETIRED = 100_000
 REENTRY_GATE = gate_threshold(2, 0.999)  # a re-entered landmark against its old marginal
@@ -178,11 +178,11 @@ class LocalMap:
         book: RangeBook = s.landmarks.policy
         if self.spec.reentry == "naive" or book.descriptors is None or not len(book.xy):
             return set()
-        visible = association.in_view(book.xy, s.x[:3], half_extent_m)
+        visible = matching.in_view(book.xy, s.x[:3], half_extent_m)
         free = [i for i in range(len(z)) if i not in matched]
         if not len(visible) or not free:
             return set()
-        pairs = association.match(found.descriptors[free], book.descriptors[visible], the_map.norm)
+        pairs = matching.match(found.descriptors[free], book.descriptors[visible], the_map.norm)
         pairs = [(free[i], int(visible[row])) for i, row in pairs]
         for i, r in pairs:
             s.x, s.P = slam.add_landmarks(s.x, s.P, z[i][None, :], R[i])

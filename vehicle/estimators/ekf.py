@@ -9,13 +9,14 @@ from __future__ import annotations
 from bus.config import SensorSpec, VehicleProcessConfig
 from vehicle.estimators.divergence import FullCheck
 from vehicle.estimators.filter import Filter
+from vehicle.estimators.settings import shared_arguments
 from vehicle.estimators.stores import DenseStore
 from vehicle.estimators.updates import Linearized
 from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.gnss import gnss_model
 from vehicle.models.gnss_error import GnssErrorModel
 from vehicle.models.motion import UnicycleMotion
-from vehicle.neighbours import MonitorSpec, monitor_spec
+from vehicle.trust.neighbours import MonitorSpec
 
 
 def build(
@@ -49,12 +50,4 @@ def build(
 
 def from_config(config: VehicleProcessConfig, vehicle_id: int, *, reject=None) -> Filter:
     """:func:`build` from a vehicle's configuration (``reject`` is unused: nothing is refused here)."""
-    vc = config.vehicle
-    return build(
-        vehicle_id=vehicle_id,
-        spec=config.sensors,
-        gate_probability=vc.gate_probability,
-        cooperative=CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
-        adaptive_window=vc.adaptive_window if vc.adaptive_noise else 0,
-        monitor=monitor_spec(vc),
-    )
+    return build(**shared_arguments(config, vehicle_id))

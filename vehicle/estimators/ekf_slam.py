@@ -18,6 +18,7 @@ from bus.config import SensorSpec, VehicleProcessConfig
 from vehicle.estimators.divergence import MapCheck
 from vehicle.estimators.filter import Filter
 from vehicle.estimators.persisting_errors import SlottedErrors
+from vehicle.estimators.settings import shared_arguments
 from vehicle.estimators.state import FilterState
 from vehicle.estimators.stores import InPlaceStore
 from vehicle.estimators.updates import Linearized
@@ -25,7 +26,7 @@ from vehicle.estimators.vision_map import MapPolicy, Reject, VisionSlamMap
 from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.gnss import WhiteGnss
 from vehicle.models.motion import POSE_DIM, UnicycleMotion
-from vehicle.neighbours import MonitorSpec, monitor_spec
+from vehicle.trust.neighbours import MonitorSpec
 
 MAX_LANDMARKS = 2000  # the map stops growing here (update cost is O(n^2))
 
@@ -114,14 +115,9 @@ def config_arguments(config: VehicleProcessConfig, vehicle_id: int, reject: Reje
     """:func:`build`'s arguments from a vehicle's configuration (also ``ar_ekf_slam``'s)."""
     vc = config.vehicle
     return {
-        "vehicle_id": vehicle_id,
-        "spec": config.sensors,
-        "gate_probability": vc.gate_probability,
+        **shared_arguments(config, vehicle_id),
         "detector": vc.features,
         "reject": reject,
-        "cooperative": CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
-        "adaptive_window": vc.adaptive_window if vc.adaptive_noise else 0,
-        "monitor": monitor_spec(vc),
         "association": vc.association,
     }
 

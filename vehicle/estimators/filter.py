@@ -55,10 +55,10 @@ from vehicle.estimators.state import (
     Notices,
 )
 from vehicle.estimators.trust import NeighbourTrust
-from vehicle.inputs import VisualMotion
 from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.cooperative_fixes import CooperativeFix, SeenFix
-from vehicle.neighbours import MonitorSpec
+from vehicle.trust.neighbours import MonitorSpec
+from vehicle.vision.motion import VisualMotion
 
 
 class Filter:
@@ -203,7 +203,7 @@ class Filter:
             handler(msg)
 
     def handle_row(self, topic: str, stamp_us: int, row: list[float], message: Callable[[], Any]) -> None:
-        """An IMU or wheel odometry sample as its feed row (bus.feed.LAYOUT, floats; vehicle.input_runs):
+        """An IMU or wheel odometry sample as its feed row (bus.feed.LAYOUT, floats; vehicle.process.input_runs):
         what :meth:`handle` does with its message, which ``message()`` makes where it is needed."""
         s = self.state
         if s.x is None or stamp_us < s.time_us:
@@ -224,7 +224,7 @@ class Filter:
             model.initialise(s)
 
     def _align(self, msg: Any) -> None:
-        """No prior (a restart in flight): align from the GNSS track and the gyro (vehicle.alignment)."""
+        """No prior (a restart in flight): align from the GNSS track and the gyro (vehicle.estimators.alignment)."""
         s, kind = self.state, type(msg)
         if kind is m.ImuSample:
             s.alignment.yaw_rate(msg.stamp_us, float(msg.gyro_radps[2]))

@@ -1,6 +1,6 @@
 """How a vehicle filter fuses a GNSS fix: observed through its GNSS model, its noise the white part of
-what the receiver reports (or IAE's, vehicle.adaptive), judged by the GNSS health monitor
-(vehicle.gnss_health) before it is fused; a position reset the monitor asks for is first put to the
+what the receiver reports (or IAE's, vehicle.estimators.adaptive), judged by the GNSS health monitor
+(vehicle.estimators.gnss_health) before it is fused; a position reset the monitor asks for is first put to the
 believed neighbours (``may_reset``: vehicle.estimators.trust). Pure."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""What a vehicle filter does with its input samples: holds them (vehicle.inputs) until the next
+"""What a vehicle filter does with its input samples: holds them (vehicle.estimators.inputs) until the next
 prediction closes them (vehicle.estimators.propagation). The gyro's rate, with the accelerometer
 telling the slip guard whether the wheels spin; the wheels' speed (slip taken off) and yaw rate;
 visual odometry's speed and yaw rate with the variances of their fit. Pure."""
@@ -11,7 +11,7 @@ from bus import messages as m
 from bus.config import SensorSpec
 from bus.topics import Topic
 from vehicle.estimators.state import FilterState
-from vehicle.inputs import VisualMotion
+from vehicle.vision.motion import VisualMotion
 
 
 def hold_imu(s: FilterState, msg: m.ImuSample) -> None:

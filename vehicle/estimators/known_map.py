@@ -30,6 +30,7 @@ from vehicle.estimators.divergence import FullCheck
 from vehicle.estimators.filter import Filter
 from vehicle.estimators.parts import Fusing, Handler
 from vehicle.estimators.persisting_errors import GrowingErrors
+from vehicle.estimators.settings import shared_arguments
 from vehicle.estimators.state import SEVERITY_WARNING, FilterState, Notice, tally_nis
 from vehicle.estimators.stores import DenseStore
 from vehicle.estimators.updates import Linearized
@@ -39,7 +40,7 @@ from vehicle.models.cooperative import CooperativeRule
 from vehicle.models.gnss import gnss_model
 from vehicle.models.gnss_error import GnssErrorModel
 from vehicle.models.motion import UnicycleMotion
-from vehicle.neighbours import MonitorSpec, monitor_spec
+from vehicle.trust.neighbours import MonitorSpec
 
 LOST_AFTER = 8  # sightings in a row failing the gate
 RELOCALIZE_SIGMA = np.array([1.0, 1.0, 0.5])  # m, m, rad added to the pose's spread when lost
@@ -160,13 +161,4 @@ def build(
 
 def from_config(config: VehicleProcessConfig, vehicle_id: int, *, reject=None) -> Filter:
     """:func:`build` from a vehicle's configuration (its map is ``vehicle.landmarks``)."""
-    vc = config.vehicle
-    return build(
-        landmarks=vc.landmarks,
-        vehicle_id=vehicle_id,
-        spec=config.sensors,
-        gate_probability=vc.gate_probability,
-        cooperative=CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
-        adaptive_window=vc.adaptive_window if vc.adaptive_noise else 0,
-        monitor=monitor_spec(vc),
-    )
+    return build(landmarks=config.vehicle.landmarks, **shared_arguments(config, vehicle_id))

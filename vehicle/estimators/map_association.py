@@ -1,7 +1,7 @@
 """Which keypoints of a camera frame are which mapped landmarks (vehicle.estimators.vision_map):
 
 - ``by_descriptor``: descriptor match with the ratio test among the landmarks in view, kept when the
-  pairs agree on one rigid motion (RANSAC, ``vehicle.vision.association``);
+  pairs agree on one rigid motion (RANSAC, ``vehicle.association.descriptors``);
 - ``by_geometry``: a data-association method of ``vehicle.association`` (nn, jcbb, aco) on the
   range-bearing innovations, among each visible landmark's descriptor shortlist.
 
@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from vehicle.association import descriptors as matching
 from vehicle.association.methods import METHODS
 from vehicle.association.problem import Problem, problem
 from vehicle.estimators.state import FilterState
 from vehicle.models import landmarks as slam
-from vehicle.vision import association, features
+from vehicle.vision import features
 
 CONSENSUS_M = 0.3  # matches must agree on one rigid motion within this [m]
 SHORTLIST = 3  # geometric association: each landmark's nearest keypoints by descriptor
@@ -35,12 +36,12 @@ def by_descriptor(
 ) -> Pairs:
     """Descriptor pairs of keypoints (``z``: [range, bearing] (k, 2)) with the ``visible`` rows of the
     ``mapped`` landmarks (m, 2) that agree on one rigid motion from ``pose`` (3,)."""
-    pairs = association.match(found.descriptors, descriptors[visible], norm) if len(visible) else []
+    pairs = matching.match(found.descriptors, descriptors[visible], norm) if len(visible) else []
     if pairs:
         seen = np.array([z[i] for i, _ in pairs])
         measured = np.stack([seen[:, 0] * np.cos(seen[:, 1]), seen[:, 0] * np.sin(seen[:, 1])], axis=1)
-        predicted = association.to_body(mapped[[visible[row] for _, row in pairs]], pose)
-        agree = association.rigidly_consistent(predicted, measured, CONSENSUS_M)
+        predicted = matching.to_body(mapped[[visible[row] for _, row in pairs]], pose)
+        agree = matching.rigidly_consistent(predicted, measured, CONSENSUS_M)
         pairs = [pair for pair, ok in zip(pairs, agree.tolist()) if ok]
     return pairs
 
@@ -60,7 +61,7 @@ def by_geometry(
     problem with its assignment (None when there was nothing to associate)."""
     if not len(visible) or s.landmarks.descriptors is None:
         return [], None
-    shortlisted = association.shortlist(found.descriptors, s.landmarks.descriptors[visible], norm, SHORTLIST)
+    shortlisted = matching.shortlist(found.descriptors, s.landmarks.descriptors[visible], norm, SHORTLIST)
     observations = sorted({i for i, _ in shortlisted})
     if not observations:
         return [], None

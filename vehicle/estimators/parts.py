@@ -7,7 +7,7 @@ needs, never the filter: parts can be read, tested and swapped one at a time.
 | ``gnss`` | :class:`GnssObservation` | how a fix observes the state; a prior's state | ``vehicle.models.gnss`` |
 | ``motion`` | :class:`MotionModel` | the linearized step of the moving states | ``vehicle.models.motion`` |
 | ``update`` | :class:`UpdateStrategy` | the prediction: linearized or unscented | ``updates`` |
-| ``store`` | :class:`Store` | where x and P live, how they change | ``stores``, ``vehicle.centralized`` |
+| ``store`` | :class:`Store` | where x and P live, how they change | ``stores``, ``vehicle.estimators.centralized`` |
 | ``divergence`` | :class:`DivergenceGuard` | a state no longer usable, and the fallback | ``divergence`` |
 | ``errors`` | :class:`ErrorStates` | sensor errors that persist, as states | ``persisting_errors`` |
 | ``sightings`` | :class:`MeasurementPart` | landmark sightings and camera frames | ``known_map``, ``vision_map`` |
@@ -25,13 +25,14 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from bus import rejections
 from vehicle.estimators.state import FilterState, Notice
-from vehicle.kalman import UpdateResult
 from vehicle.models.cooperative import Correction
 from vehicle.models.cooperative_fixes import CooperativeFix, SeenFix
 from vehicle.models.gnss import Observed
 from vehicle.models.gnss_error import GnssErrorModel
 from vehicle.models.input_noise import InputNoise
+from vehicle.models.kalman import UpdateResult
 
 Say = Callable[[Notice], None]  # queue a notice for the vehicle to say (STATUSTEXT), once
 Subject = tuple[str, int]  # ("landmark", id), ("robot", id seen) or ("seen", id of the robot seeing this one)
@@ -143,7 +144,7 @@ class Fusing:
 
 
 Handler = Callable[[Fusing, Any], None]
-Reject = Callable[[str, str, str], None]  # reject(reason, where, detail): counts input a part refuses
+Reject = rejections.Reject  # reject(reason, where, detail): counts input a part refuses
 
 
 class MeasurementPart(Protocol):

@@ -1,5 +1,5 @@
 """What one prediction is driven by: the held inputs' means over the interval and their noise
-(vehicle.inputs), chosen as every vehicle filter chooses them. Pure.
+(vehicle.estimators.inputs), chosen as every vehicle filter chooses them. Pure.
 
 - the yaw rate: visual odometry's while it is recent (drift-free, it beats an integrated gyro whose
   bias nothing observes), else the gyro's while it is fresh, else the wheels' (their noise growing
@@ -15,8 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from bus.config import SensorSpec
+from vehicle.estimators.inputs import swept
 from vehicle.estimators.state import FilterState
-from vehicle.inputs import swept
 from vehicle.models import unicycle
 from vehicle.models.input_noise import InputNoise
 

@@ -28,13 +28,13 @@ import numpy as np
 
 from bus.config import SensorSpec
 from bus.consistency import NisBook
-from vehicle.adaptive import NoiseAdaptation
-from vehicle.alignment import GnssAlignment
-from vehicle.gnss_health import GnssHealth, GnssHealthSpec
-from vehicle.inputs import HeldInput
-from vehicle.kalman import UpdateResult
-from vehicle.neighbours import NeighbourBook
-from vehicle.wheel_slip import SlipGuard
+from vehicle.estimators.adaptive import NoiseAdaptation
+from vehicle.estimators.alignment import GnssAlignment
+from vehicle.estimators.gnss_health import GnssHealth, GnssHealthSpec
+from vehicle.estimators.inputs import HeldInput
+from vehicle.estimators.wheel_slip import SlipGuard
+from vehicle.models.kalman import UpdateResult
+from vehicle.trust.neighbours import NeighbourBook
 
 T = TypeVar("T")
 _IMMUTABLE = (int, float, complex, str, bytes, bool, tuple, frozenset, type(None))

@@ -5,7 +5,7 @@ a motion step, a gated update, a cooperative correction, and adds, drops or deco
 - ``InPlaceStore``: a SLAM map's x and P changed in their own memory, O(n) for the gain and O(n^2)
   flops with no n x n temporary (vehicle.models.landmarks); the motion moves only the head of the
   state (the map stands still);
-- the centralized reference's joint block (vehicle.centralized.JointBlock): one vehicle's block of
+- the centralized reference's joint block (vehicle.estimators.centralized.JointBlock): one vehicle's block of
   a joint state, so every change lands on the cross-covariances too.
 
 A store only changes the ``FilterState`` it is handed. Pure."""
@@ -16,10 +16,10 @@ import numpy as np
 
 from bus.angles import wrap_angle
 from vehicle.estimators.state import FilterState
-from vehicle.kalman import UpdateResult, gated_update
 from vehicle.models import added_states
 from vehicle.models import landmarks as slam
 from vehicle.models.cooperative import Correction, apply_correction
+from vehicle.models.kalman import UpdateResult, gated_update
 
 
 class DenseStore:

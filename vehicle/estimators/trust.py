@@ -1,5 +1,5 @@
-"""What the filter does with its neighbour monitor (the pure tests are vehicle.neighbours, what the
-others' word is worth vehicle.hearsay, the fixes' statistics vehicle.neighbour_fixes): each
+"""What the filter does with its neighbour monitor (the pure tests are vehicle.trust.neighbours, what the
+others' word is worth vehicle.trust.hearsay, the fixes' statistics vehicle.trust.neighbour_fixes): each
 neighbour fix is judged before it is fused, with whom the neighbour's broadcast accuses; a verdict
 against a neighbour (the vehicle's own, or on the word of a quorum of others where it cannot judge)
 undoes what it may have pulled and is said in a notice, as is an accusation the vehicle's own
@@ -17,12 +17,12 @@ from bus import notices
 from bus.statistics import gate_threshold
 from vehicle.estimators.parts import Say, Store
 from vehicle.estimators.state import SEVERITY_INFO, SEVERITY_WARNING, FilterState, Notice
-from vehicle.hearsay import Contradiction, hear
-from vehicle.kalman import UpdateResult
 from vehicle.models.cooperative_fixes import CooperativeFix, SeenFix
-from vehicle.neighbour_fixes import fix_of, pull_m2, smallest_variance
-from vehicle.neighbours import MonitorSpec, Verdict, plausible, refused, see
-from vehicle.reset_say import disagreement
+from vehicle.models.kalman import UpdateResult
+from vehicle.trust.hearsay import Contradiction, hear
+from vehicle.trust.neighbour_fixes import fix_of, pull_m2, smallest_variance
+from vehicle.trust.neighbours import MonitorSpec, Verdict, plausible, refused, see
+from vehicle.trust.reset_say import disagreement
 
 IDENTITY = ((1.0, 0.0), (0.0, 1.0))
 
@@ -79,7 +79,7 @@ class NeighbourTrust:
     def allows_reset(self, s: FilterState, stamp_us: int, offset_m: np.ndarray) -> bool:
         """Whether the believed neighbours' recent fixes allow a GNSS position reset by ``offset_m``
         (2,): a spoofed receiver's fixes agree with each other and pass the reset's own tests, but
-        not with neighbours that range the vehicle where it is (``vehicle.reset_say.disagreement``
+        not with neighbours that range the vehicle where it is (``vehicle.trust.reset_say.disagreement``
         within the reset's chi-square bound)."""
         limit = gate_threshold(2, s.gnss_health.spec.reset_probability)
         return disagreement(s.neighbours, self.spec, offset_m, stamp_us) <= limit

@@ -20,6 +20,7 @@ import numpy as np
 from bus import messages as m
 from bus.angles import wrap_angle
 from bus.statistics import gate_threshold
+from vehicle.association import descriptors as matching
 from vehicle.estimators import map_association
 from vehicle.estimators.camera_front_end import CameraFrontEnd
 from vehicle.estimators.map_association import LANDMARK_GATE_P
@@ -27,7 +28,7 @@ from vehicle.estimators.parts import Fusing, Handler, Reject
 from vehicle.estimators.state import FilterState, frozen, tally_nis
 from vehicle.models import added_states
 from vehicle.models import landmarks as slam
-from vehicle.vision import association, features
+from vehicle.vision import features
 
 CELL_PX = 30  # paper's thinning cell
 
@@ -175,7 +176,7 @@ class VisionSlamMap:
         returns the keypoints paired (fused or gated out)."""
         s = fusing.state
         mapped = self.landmarks_xy(s)
-        visible = association.in_view(mapped, s.x[:3], half_extent_m)
+        visible = matching.in_view(mapped, s.x[:3], half_extent_m)
         if self.association == "descriptor":
             pairs = map_association.by_descriptor(
                 found, z, mapped, visible, s.landmarks.descriptors, s.x[:3], self.norm

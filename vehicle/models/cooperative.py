@@ -39,9 +39,9 @@ from typing import Literal
 import numpy as np
 
 from bus.angles import wrap_angle
-from vehicle.kalman import UpdateResult
 from vehicle.models import unscented as ut
 from vehicle.models.cooperative_fixes import POSE, CooperativeFix, SeenFix, with_persisting_errors
+from vehicle.models.kalman import UpdateResult
 from vehicle.models.sym2 import Sym2, add_sym, as_array, inv_sym, sym
 
 WEIGHT_GRID = np.linspace(0.0, 1.0, 101)  # w = 0: only the fix; w = 1: do not fuse
@@ -118,7 +118,7 @@ class CooperativeRule:
         """Gate the fix on its plain NIS, choose w and fuse it in measurement space; None when gated
         out or when w = 1. ``unscented``: range and bearing through sigma points of the pose marginal
         (paper eqs. 4.1-4.9) instead of the linearization. ``adapt(y, M + S, R)``: the radio noise to
-        use instead of R (IAE, vehicle.adaptive). ``errors``: the sighting's persisting errors as
+        use instead of R (IAE, vehicle.estimators.adaptive). ``errors``: the sighting's persisting errors as
         states of x (``vehicle.models.added_states.persisting_sighting``'s state arguments; linearized
         split CI and CI only)."""
         y, M, C, R, S, cov_xz = self.measurement(x, P, fix, unscented, errors)

@@ -29,8 +29,8 @@ import math
 import numpy as np
 
 from bus.angles import wrap_angle
-from vehicle.kalman import UpdateResult
 from vehicle.models.cooperative import Correction, regression_on_z
+from vehicle.models.kalman import UpdateResult
 
 
 def landmark_count(x: np.ndarray, pose_dim: int) -> int:

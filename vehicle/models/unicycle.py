@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from bus.angles import wrap_angle as wrap
-from vehicle.kalman import UpdateResult, gated_update
+from vehicle.models.kalman import UpdateResult, gated_update
 
 STATE_DIM = 4
 H_GNSS = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])

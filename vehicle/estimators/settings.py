@@ -1,0 +1,24 @@
+"""The settings every vehicle estimator takes from a vehicle's configuration, read in one place: its
+id, its datasheet, its GNSS gate, its cooperative rule, IAE's window (0: off) and its neighbour
+monitor's thresholds (None: off). An estimator's ``from_config`` adds only what is its own."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from bus.config import VehicleProcessConfig
+from vehicle.models.cooperative import CooperativeRule
+from vehicle.trust.neighbours import monitor_spec
+
+
+def shared_arguments(config: VehicleProcessConfig, vehicle_id: int) -> dict[str, Any]:
+    """``build``'s arguments every estimator shares, from a vehicle's configuration."""
+    vc = config.vehicle
+    return {
+        "vehicle_id": vehicle_id,
+        "spec": config.sensors,
+        "gate_probability": vc.gate_probability,
+        "cooperative": CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
+        "adaptive_window": vc.adaptive_window if vc.adaptive_noise else 0,
+        "monitor": monitor_spec(vc),
+    }
