@@ -29,6 +29,7 @@ from bus.sensor_config import HONEST_WORLD as HONEST_WORLD
 from bus.sensor_config import SensorSpec as SensorSpec
 from bus.sensor_config import SensorTruth as SensorTruth
 from bus.strict_model import Strict as _Strict
+from bus.topics import Topic
 from bus.vehicle_config import ArSlamConfig as ArSlamConfig
 from bus.vehicle_config import VehicleConfig as VehicleConfig
 from bus.view_config import ViewConfig as ViewConfig
@@ -143,10 +144,10 @@ class SwarmConfig(_Strict):
     def _rates_fit_the_world_step(self) -> SwarmConfig:
         step_us = round(1e6 / self.sensors.imu_rate_hz)
         for label, rate in [
-            ("odom", self.sensors.odom_rate_hz),
-            ("gnss", self.sensors.gnss_rate_hz),
-            ("ranging", self.sensors.ranging_rate_hz),
-            *([("camera", self.sensors.camera_rate_hz)] if self.sensors.camera_rate_hz else []),
+            (Topic.ODOM, self.sensors.odom_rate_hz),
+            (Topic.GNSS, self.sensors.gnss_rate_hz),
+            (Topic.RANGING, self.sensors.ranging_rate_hz),
+            *([(Topic.CAMERA, self.sensors.camera_rate_hz)] if self.sensors.camera_rate_hz else []),
             ("truth", self.sensors.truth_rate_hz),
             ("tick", 1.0 / self.clock.tick_s),
         ]:

@@ -32,6 +32,7 @@ from bus.feed_blocks import (  # noqa: F401 (the layout is part of this module's
     outside_tick,
 )
 from bus.schema import WIRE_VERSION, unpack_tagged
+from bus.sensors import SENSORS
 from bus.topics import Topic
 
 CAMERA_SIZES_PX = (8, 1024)  # frame side, inclusive bounds
@@ -71,7 +72,7 @@ class SensorBatch:
         out = []
         vid = self.vehicle_id
         for name, (stamps, seq0, rows) in self.blocks.items():
-            topic, make = Topic(name), _MAKERS[name]
+            topic, make = _TOPICS[name], _MAKERS[name]
             out += [(topic, make(vid, int(s), seq0 + i, r)) for i, (s, r) in enumerate(zip(stamps.tolist(), rows))]
         if self.camera is not None:
             c = self.camera
@@ -134,6 +135,8 @@ _MAKERS = {
     Topic.SEEN: _seen,
     Topic.LANDMARK: _landmark,
 }
+_MAKERS |= {sensor.topic: sensor.message for sensor in SENSORS}  # the sensors added by the recipe (bus.sensors)
+_TOPICS = {**{t.value: t for t in Topic}, **{sensor.topic: sensor.topic for sensor in SENSORS}}
 
 
 def encode_batch(batch: SensorBatch) -> bytes:

@@ -20,6 +20,7 @@ import numpy as np
 
 from bus import messages as m
 from bus.errors import DecodeError
+from bus.sensors import BY_TOPIC, SENSORS
 from bus.spd import all_spd2, all_spd3, spd2_row
 from bus.topics import Topic
 
@@ -35,6 +36,7 @@ LAYOUT = {
     Topic.SEEN: (7, 2500, 1e6),  # observer id, range m, bearing rad, covariance (2, 2)
     Topic.LANDMARK: (7, 2500, 1e6),  # landmark id, range m, bearing rad, covariance (2, 2)
 }
+LAYOUT |= {sensor.topic: (sensor.width, sensor.max_rows, sensor.max_abs) for sensor in SENSORS}  # bus.sensors
 SIGHTINGS = (Topic.RANGING, Topic.SEEN, Topic.LANDMARK)  # several per stamp (one camera frame sees many)
 MAX_LANDMARK_ID = 999_999
 TOPICS = tuple(LAYOUT)
@@ -124,6 +126,9 @@ def block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.ndar
     if flaw is not None:
         who = "target" if topic is Topic.RANGING else "observer"
         raise DecodeError(f"{topic}: " + _MESSAGES[flaw].format(stamp_us=stamp_us, max_abs=max_abs, who=who))
+    added = BY_TOPIC.get(topic)
+    if added is not None and len(rows) and (own := added.flaw(rows)) is not None:
+        raise DecodeError(f"{topic}: expected {own}")
     return stamps, seq0, rows
 
 

@@ -5,12 +5,13 @@ the swarm configuration (bus.config)."""
 
 from __future__ import annotations
 
-from pydantic import Field, model_validator
+from pydantic import Field, create_model, model_validator
 
+from bus.sensors import SENSORS
 from bus.strict_model import Strict as _Strict
 
 
-class SensorSpec(_Strict):
+class _BuiltInSensors(_Strict):
     """Rates and noise of the simulated sensors (also the vehicles' datasheet noise model)."""
 
     imu_rate_hz: float = Field(100.0, gt=0, le=1000)
@@ -125,13 +126,30 @@ class SensorSpec(_Strict):
     keypoint_sigma_px: float = Field(0.7, gt=0, le=20, description="keypoint position noise the filter assumes")
 
     @model_validator(mode="after")
-    def _correlated_part_is_a_part(self) -> SensorSpec:
+    def _correlated_part_is_a_part(self) -> _BuiltInSensors:
         if self.gnss_correlated_sigma_m >= self.gnss_sigma_m:
             raise ValueError(
                 f"gnss_correlated_sigma_m ({self.gnss_correlated_sigma_m} m) must be below "
                 f"gnss_sigma_m ({self.gnss_sigma_m} m): it is a part of the total"
             )
         return self
+
+
+# the datasheet: the built-in sensors' fields, and a section per sensor added by the recipe (bus.sensors:
+# ``sensors.<topic>``, each off until its ``rate_hz`` is set)
+SensorSpec = create_model(
+    "SensorSpec",
+    __base__=_BuiltInSensors,
+    __module__=__name__,
+    __doc__=(
+        "Rates and noise of the simulated sensors (also the vehicles' datasheet noise model): the built-in "
+        "sensors' fields and a section per sensor added by the recipe (bus.sensors)."
+    ),
+    **{
+        sensor.topic: (sensor.Spec, Field(default_factory=sensor.Spec, description=f"the {sensor.topic} (bus.sensors)"))
+        for sensor in SENSORS
+    },
+)
 
 
 class SensorTruth(_Strict):

@@ -79,8 +79,9 @@ def up(
     from bus.config import build_config
     from bus.process import stop_on_signals
     from groundstation.mavlink_out import parse_udpout
-    from launch.launcher import Security, launch
+    from launch.launcher import launch
     from launch.live import check_live_address
+    from launch.run_setup import Security
     from launch.scenario import load_scenario, overlay
 
     if mode not in (None, *ClockMode):

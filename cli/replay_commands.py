@@ -136,7 +136,7 @@ def _reference(config: SwarmConfig, out: Path) -> None:
 
     from experiments.centralized_reference import run_centralized, tracks_summary
     from groundstation.display import consistency_table, rmse_table
-    from launch.launcher import unique_run_dir
+    from launch.run_setup import unique_run_dir
 
     run_dir = unique_run_dir(out, config.name)
     config.dump(run_dir / "config.json")

@@ -19,11 +19,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from bus import statistics
 from bus.config import HONEST_DATASHEET, HONEST_WORLD, SwarmConfig, build_config
 from bus.errors import ConfigError
+from experiments.cooperative_figures import VariantLines
 from groundstation.report.rundata import load_run
 from launch.runspec import RunSpec
 
@@ -250,68 +250,11 @@ def compare(
     table = {"setup": setup.__dict__, "score_every_s": SCORE_EVERY_US * 1e-6, "variants": rows}
     (folder / "experiment.json").write_text(json.dumps(table, indent=2, sort_keys=True) + "\n")
     written = []
-    for stem, build in (("rmse_during_jam", error_figure), ("anees_during_jam", nees_figure)):
-        figure = build(tracks, setup)
-        path = folder / f"{stem}.png"
-        figure.savefig(path, dpi=100)
-        written.append(path)
+    if tracks:  # a campaign stopped before any run completed has nothing to draw
+        where = f"GNSS jammed for {setup.jammed} of {setup.vehicles} vehicles from {setup.jam_start_s:g} s"
+        lines = VariantLines(LABELS, CENTRALIZED, emphasised=(CENTRALIZED, "ci-ekf"), world=setup.world, jam=where)
+        for stem, build in (("rmse_during_jam", lines.error_figure), ("anees_during_jam", lines.nees_figure)):
+            path = folder / f"{stem}.png"
+            build(tracks).savefig(path, dpi=100)
+            written.append(path)
     return table, written
-
-
-def _binned(
-    tracks: dict[int, dict[int, dict[str, np.ndarray]]], key: str, bin_s: float, root_mean_square: bool
-) -> tuple[np.ndarray, np.ndarray]:
-    """Bin centres (s) and the mean (or RMS) of ``key`` over all seeds and jammed vehicles per bin."""
-    t = np.concatenate([v["t_s"] for s in tracks.values() for v in s.values()])
-    values = np.concatenate([v[key] for s in tracks.values() for v in s.values()])
-    return (statistics.binned_rms if root_mean_square else statistics.binned_mean)(t, values, bin_s)
-
-
-def _variant_lines(tracks: dict[str, dict], key: str, bin_s: float, root_mean_square: bool) -> tuple[Figure, Any]:
-    """A figure with one binned line of ``key`` per variant (the centralized reference dashed), log y."""
-    fig = Figure(figsize=(9.0, 4.5), layout="constrained")
-    ax = fig.subplots()
-    for k, (name, by_seed) in enumerate(tracks.items()):
-        t, value = _binned(by_seed, key, bin_s, root_mean_square)
-        ax.plot(
-            t,
-            value,
-            color=f"C{k}",
-            lw=1.4 if name in (CENTRALIZED, "ci-ekf") else 1.0,
-            ls="--" if name == CENTRALIZED else "-",
-            label=LABELS.get(name, name),
-        )
-    ax.set_yscale("log")
-    ax.set_xlabel("sim time [s]")
-    ax.grid(alpha=0.3, which="both")
-    return fig, ax
-
-
-def error_figure(tracks: dict[str, dict], setup: Setup, bin_s: float = 2.0) -> Figure:
-    """Position RMSE of the jammed vehicles over the jam, one line per variant (log scale)."""
-    fig, ax = _variant_lines(tracks, "error_m", bin_s, True)
-    ax.set_ylabel("position RMSE of the jammed vehicles [m]")
-    ax.set_title(
-        f"GNSS jammed for {setup.jammed} of {setup.vehicles} vehicles from {setup.jam_start_s:g} s "
-        f"({setup.world} world; RMS over seeds and jammed vehicles per {bin_s:g} s)",
-        fontsize="medium",
-    )
-    ax.legend(fontsize="small", ncols=2)
-    return fig
-
-
-def nees_figure(tracks: dict[str, dict], setup: Setup, bin_s: float = 2.0) -> Figure:
-    """Pose ANEES of the jammed vehicles over the jam per variant, with the 3-dof expectation and the
-    chi-square band for the largest variant's count of jammed runs taken as independent (log scale)."""
-    fig, ax = _variant_lines(tracks, "nees", bin_s, False)
-    runs = max(sum(len(s) for s in by_seed.values()) for by_seed in tracks.values())
-    lo, hi = statistics.chi2_band(statistics.POSE_NEES_DOF, runs=runs)
-    ax.axhspan(lo, hi, color="grey", alpha=0.2, lw=0, label=f"95% band, {runs} independent runs")
-    ax.axhline(statistics.POSE_NEES_DOF, color="black", lw=0.8, ls=":")
-    ax.set_ylabel("pose ANEES (3 dof) of the jammed vehicles")
-    ax.set_title(
-        f"consistency during the jam ({setup.world} world; mean over seeds and jammed vehicles per {bin_s:g} s)",
-        fontsize="medium",
-    )
-    ax.legend(fontsize="small", ncols=2, loc="upper left", framealpha=0.9)
-    return fig

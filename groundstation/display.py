@@ -125,11 +125,10 @@ def live_display(mode: str, duration_s: float, quiet: bool) -> Iterator[Any]:
 
         def update(gs: Any) -> None:
             if gs.sim_time_us % 500_000 == 0:
-                from groundstation.summary import build_summary
+                from groundstation.summary import build_summary, rejected_by_process
 
-                summary = build_summary(
-                    gs.config, gs.scorer, gs.reports.statuses, {}, "running", rejected=gs.rejected_by_process()
-                )
+                rejected = rejected_by_process(gs.rejections, gs.ended, gs.reports.statuses)
+                summary = build_summary(gs.config, gs.scorer, gs.reports.statuses, {}, "running", rejected=rejected)
                 live.update(rmse_table(summary, title=f"t = {gs.sim_time_us * 1e-6:.1f} s"))
 
         yield update

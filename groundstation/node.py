@@ -11,41 +11,42 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from bus import feed
 from bus import messages as m
-from bus.claims import ClaimReply, ClaimRequest
 from bus.clock_config import ClockMode
 from bus.config import SwarmConfig
 from bus.errors import DecodeError
-from bus.landmark_map import MAX_MAP_BYTES, map_record
 from bus.link_faults import Arrival
-from bus.mailbox import Mailbox, Oversized
-from bus.plan import FaultReply, FaultRequest, decode_json, encode_json
+from bus.mailbox import Oversized
+from bus.plan import encode_json
 from bus.rejections import Rejections
 from bus.session import Bus, Envelope, LivelinessEvent, Request
 from groundstation.claims import IdRegister
 from groundstation.fault_control import FaultControl
 from groundstation.layout import swarm_layouts
-from groundstation.mavlink_in import MAX_STREAM_BYTES, MavlinkIntake
+from groundstation.mavlink_in import MavlinkIntake
 from groundstation.mavlink_out import MavlinkForwarder
-from groundstation.membership import MembershipLog
-from groundstation.recording import open_recording
-from groundstation.resume import resume_events, resume_tallies
+from groundstation.membership import Presence
+from groundstation.recording_start import open_recording
+from groundstation.requests import Requests
+from groundstation.resume import resume_events, resume_run
+from groundstation.run_end import finish_run
 from groundstation.rundir import RunDirectory
 from groundstation.scoring import Scorer
-from groundstation.summary import build_summary, build_timing
-from groundstation.tick_ack import TickAck, paced_ahead
+from groundstation.station_bus import station_mailbox
+from groundstation.tick_ack import TickAck, paced_ahead, watermark_us
 from groundstation.vehicle_reports import VehicleReports
 from groundstation.vehicle_streams import VehicleStreams
 
 log = logging.getLogger("swarmloc.groundstation")
 REALTIME_LAG_US = 1_000_000
 PLAN_REPEAT_S = 1.0
-MAX_CONTROL_BYTES = 8 << 10
 
 
 class GroundStation:
@@ -61,19 +62,7 @@ class GroundStation:
         self.bus, self.config = bus, config
         keys = bus.keys
         self.rejections = Rejections(log, "ground station")
-        self.mailbox = Mailbox()
-        control, truth = self.mailbox.lane("control", max_items=10_000), self.mailbox.lane("truth", max_items=10_000)
-        mavlink, status = self.mailbox.lane("mavlink", max_items=200_000), self.mailbox.lane("status", max_items=20_000)
-        for expr, lane, cap in (
-            (keys.clock(), control, MAX_CONTROL_BYTES),
-            (keys.end(), control, MAX_CONTROL_BYTES),
-            (keys.truth(), truth, feed.MAX_TRUTH_BYTES),
-            (keys.mavlink("*"), mavlink, MAX_STREAM_BYTES),
-            (keys.status("*"), status, MAX_MAP_BYTES),
-        ):
-            bus.subscribe(expr, lane, cap)
-        bus.queryable(keys.fault_request(), control)
-        bus.queryable(keys.claim(), control)
+        self.mailbox, control = station_mailbox(bus)
         self._plan_pub, self._ack_pub = bus.publisher(keys.fault_plan()), bus.publisher(keys.ack("gs"))
         self.run = RunDirectory(run_dir)  # creates the directory the recording goes in
         self.run.recording = open_recording(run_dir, config.view, config.world.vehicles)
@@ -96,38 +85,39 @@ class GroundStation:
         self.sim_time_us = 0
         self.previous_tick_us = -1
         self.published_us = -1  # lockstep: every estimate up to here is published (the tick before the last)
-        self.rejoined_us: dict[int, int] = {}  # lockstep: a restarted vehicle's estimates all come after this
         self.ended: m.RunEnd | None = None
         self.final_seen = False
-        self.active: set[int] = set()  # vehicles alive on the bus
         self.tick_members: set[int] | None = None  # lockstep: the vehicles the world's last tick waited for
-        self.departed: set[int] = set()
-        self.world_alive = False
-        self.world_seen = False
         self.latest_truth_us = -1
         self.truth_tick = -1  # the newest tick whose truth batch arrived
         self.faults = FaultControl(config.faults, vehicles=config.world.vehicles, log=self._event_at)
+        self.requests = Requests(keys, self.faults, self.ids, self.rejections, self.run)
         self.resumed = False
         self._resume(run_dir)
-        self.membership = MembershipLog(resumed=self.resumed)
+        self.presence = Presence(resumed=self.resumed)
         self._plan_sent_at = 0.0
         self._ack = TickAck()
         self.wall_start: float | None = None
         self.wall_end: float | None = None
         self.on_progress = lambda gs: None
+        self._handlers: dict[type, Callable[[Any], None]] = {
+            LivelinessEvent: self._on_liveliness,
+            Request: self._on_request,
+            Oversized: lambda item: self.rejections.reject("oversized", item.key, f"{item.size} bytes"),
+            Envelope: self._on_envelope,
+        }
         bus.watch_liveliness(keys.alive("vehicle", "*"), control)
         bus.watch_liveliness(keys.alive("world", "*"), control)
         bus.declare_token(keys.alive("groundstation", 0))
 
     def _resume(self, run_dir: Path) -> None:
         """Pick up a run directory a previous ground station of this run was writing."""
-        tallies, last_us = resume_tallies(run_dir / "metrics.csv", self.scorer.bounds)
-        if not tallies:
+        found = resume_run(run_dir, self.scorer.bounds)
+        if found is None:
             return
-        self.scorer.tallies, self.scorer.last_scored_us = tallies, last_us
-        self.events = resume_events(run_dir / "events.jsonl")
-        self.resumed = True
-        self.sim_time_us = max(last_us.values())
+        self.scorer.tallies, self.scorer.last_scored_us = found
+        self.events, self.resumed = resume_events(run_dir / "events.jsonl"), True
+        self.sim_time_us = max(self.scorer.last_scored_us.values())
         self.faults.resume(self.sim_time_us)
         self.event("groundstation_restarted", scored_until_s=round(self.sim_time_us * 1e-6, 6))
 
@@ -143,70 +133,40 @@ class GroundStation:
         self.run.event(kind, stamp_us, **fields)
 
     def handle(self, item: object) -> None:
-        if isinstance(item, LivelinessEvent):
-            self._on_liveliness(item)
-        elif isinstance(item, Request):
-            self._on_request(item)
-        elif isinstance(item, Oversized):
-            self.rejections.reject("oversized", item.key, f"{item.size} bytes")
-        elif isinstance(item, Envelope):
-            self._on_envelope(item)
+        """One mailbox item, by its type: a liveliness token, a request, an oversized payload (counted),
+        a message on a key."""
+        handler = self._handlers.get(type(item))
+        if handler is not None:
+            handler(item)
 
     def _on_liveliness(self, item: LivelinessEvent) -> None:
         parsed = self.bus.keys.parse(item.key)
         if parsed is None or parsed.kind != "alive":
             self.rejections.reject("bad_key", "liveliness", repr(item.key))
             return
-        if parsed.role == "world":
-            self.world_alive, self.world_seen = item.alive, self.world_seen or item.alive
-            return
-        if parsed.role != "vehicle":
-            return  # the supervisor, routers, itself: nothing to score
         vid = parsed.vehicle_id
-        if vid is None or vid > self.config.world.vehicles:
+        if parsed.role == "vehicle" and (vid is None or vid > self.config.world.vehicles):
             self.rejections.reject("unknown_vehicle", item.key, "not a vehicle of this swarm")
             return
-        if self.resumed and self.previous_tick_us < 0 and item.alive:
-            self.active.add(vid)  # a restarted ground station meets vehicles that joined long ago
-            return
-        kind = "vehicle_joined" if item.alive else ("vehicle_left" if self._completed(vid) else "vehicle_lost")
-        (self.active.add if item.alive else self.active.discard)(vid)
-        (self.departed.discard if item.alive else self.departed.add)(vid)
-        if self.config.clock.mode is not ClockMode.LOCKSTEP or (self.final_seen and not item.alive):
+        before_first_tick = self.resumed and self.previous_tick_us < 0
+        kind = self.presence.token(parsed.role, vid, item.alive, before_first_tick, self.completed)
+        if kind is not None and (
+            self.config.clock.mode is not ClockMode.LOCKSTEP or (self.final_seen and not item.alive)
+        ):
             self.event(kind, vehicle=vid)  # lockstep: the world's ticks say who joined and left when
 
     def _log_membership(self, tick: m.ClockTick) -> None:
-        """Lockstep: joins and departures as the world's ticks say (groundstation.membership), stamped
-        at the start of the tick's interval (the previous tick's stamp)."""
-        joined, left = self.membership.change(tick.members)
+        """Lockstep: joins and departures as the world's ticks say, stamped at the start of the tick's
+        interval (the previous tick's stamp)."""
         since_us = self.previous_tick_us if self.previous_tick_us >= 0 else tick.stamp_us
-        for vid in joined:
-            if self.previous_tick_us >= 0:  # it cycles from its first tick on, past the previous one's stamp
-                self.rejoined_us[vid] = self.previous_tick_us
-            self.events["vehicle_joined"] += 1
-            self.run.event("vehicle_joined", since_us, vehicle=vid)
-        for vid in left:
-            self.run.event("vehicle_left" if self._completed(vid) else "vehicle_lost", since_us, vehicle=vid)
+        for kind, vid in self.presence.tick(tick.members, self.previous_tick_us, self.completed):
+            if kind == "vehicle_joined":  # departures are counted at the end
+                self.events[kind] += 1
+            self.run.event(kind, since_us, vehicle=vid)
 
     def _on_request(self, request: Request) -> None:
-        """`swarm fault ...`: validate, apply, publish the new plan, answer with it. Id claims too."""
-        if request.key == self.bus.keys.claim():
-            try:
-                reply = self.ids.claim(decode_json(ClaimRequest, request.payload), alive=self.active)
-            except DecodeError as exc:
-                self.rejections.reject("malformed", request.key, str(exc))
-                reply = ClaimReply(ok=False, error=str(exc))
-            request.respond(encode_json(reply))
-            if reply.ok:
-                self.run.event("vehicle_claimed", self.sim_time_us, vehicle=reply.vehicle_id, restarts=reply.restarts)
-            return
-        try:
-            reply = self.faults.request(decode_json(FaultRequest, request.payload))
-        except DecodeError as exc:
-            self.rejections.reject("malformed", request.key, str(exc))
-            reply = FaultReply(ok=False, error=str(exc), plan=self.faults.plan())
-        request.respond(encode_json(reply))
-        if reply.ok:
+        """`swarm fault ...` or an id claim (groundstation.requests); a changed plan goes out at once."""
+        if self.requests.answer(request, now_us=self.sim_time_us, alive=self.presence.active):
             self.publish_plan()
 
     def publish_plan(self) -> None:
@@ -243,15 +203,11 @@ class GroundStation:
 
     def _on_truth(self, batch: feed.TruthBatch) -> None:
         self.truth_tick = max(self.truth_tick, batch.tick)
-        for k, stamp in enumerate(batch.stamps_us.tolist()):
-            for n, vid in enumerate(batch.vehicle_ids.tolist()):
-                self.scorer.add_truth(vid, stamp, batch.rows[k, n, :3])
-        if len(batch.stamps_us):
-            self.latest_truth_us = max(self.latest_truth_us, int(batch.stamps_us[-1]))
-            if self.run.recording is not None:
-                last = batch.rows[-1, :, :2]
-                where = {vid: last[n] for n, vid in enumerate(batch.vehicle_ids.tolist()) if np.isfinite(last[n]).all()}
-                self.run.recording.ranging(int(batch.stamps_us[-1]), batch.pairs, where)
+        self.latest_truth_us = max(self.latest_truth_us, self.scorer.add_truth_batch(batch))
+        if len(batch.stamps_us) and self.run.recording is not None:
+            last = batch.rows[-1, :, :2]
+            where = {vid: last[n] for n, vid in enumerate(batch.vehicle_ids.tolist()) if np.isfinite(last[n]).all()}
+            self.run.recording.ranging(int(batch.stamps_us[-1]), batch.pairs, where)
 
     def _on_tick(self, tick: m.ClockTick) -> None:
         """Lockstep: tick k means every estimate up to tick k-1 has been published."""
@@ -306,9 +262,9 @@ class GroundStation:
         time (zenoh keeps order within a key, so nothing earlier is still on its way), or once its
         vehicle has left. Release order then never depends on when frames arrived."""
         vid = arrival.item[0]
-        return self.intake.stream_stamp_us.get(vid, -1) >= due_us or vid not in self.active
+        return self.intake.stream_stamp_us.get(vid, -1) >= due_us or vid not in self.presence.active
 
-    def _completed(self, vid: int) -> bool:
+    def completed(self, vid: int) -> bool:
         """A vehicle that acknowledged the final tick, or whose estimates reached the end of the run,
         left normally; otherwise it was lost."""
         if self.ended is not None and vid in self.ended.completed:
@@ -319,57 +275,15 @@ class GroundStation:
         self.run.write_scores(self.scorer.release(self._lockstep_watermark()))
 
     def _lockstep_watermark(self) -> int:
-        """Estimates up to here can be scored in (time, vehicle) order: every live vehicle has
-        published past it, truth covers it, and no delay fault still holds an older estimate.
-        Zenoh keeps order within a key, not across keys, so each stream's own progress counts. The
-        vehicles counted are those the world's tick waited for, not those whose liveliness this
-        process has heard: a token is another key, and when it arrives must not decide the order in
-        which estimates are scored. A vehicle that joined during the run (a restart) publishes only
-        estimates stamped after the tick before the one that first listed it, so the others' are
-        not held for it until its first frame comes (a ground station that died meanwhile lost
-        them all)."""
-        marks = [self.published_us, self.latest_truth_us]
-        members = self.active if self.tick_members is None else self.tick_members
-        streams = self.streams.latest_estimate_us
-        marks += [max(streams.get(vid, -1), self.rejoined_us.get(vid, -1)) for vid in members]
-        held = self.intake.links.held_min_stamp()
-        return min(marks) if held is None else min(*marks, held - 1)
+        """Estimates up to here can be scored in (time, vehicle) order (tick_ack.watermark_us)."""
+        members = self.presence.active if self.tick_members is None else self.tick_members
+        estimates, rejoined = self.streams.latest_estimate_us, self.presence.rejoined_us
+        streams_us = {vid: max(estimates.get(vid, -1), rejoined.get(vid, -1)) for vid in members}
+        return watermark_us(
+            min(self.published_us, self.latest_truth_us), streams_us, self.intake.links.held_min_stamp()
+        )
 
     def finish(self, status: str) -> dict:
-        """Score everything left, write summary.json and timing.json, close the files."""
-        for vid, frame in self.intake.release(2**62):
-            self.streams.frame(vid, frame, self.sim_time_us)
-        self.run.write_scores(self.scorer.release(float("inf")))
-        lost = sorted(vid for vid in self.departed if not self._completed(vid))
-        if lost:
-            self.events["vehicle_lost"] = len(lost)
-        self.event("run_ended", status=status, vehicles_lost=lost)
-        self.rejections.counts["inbox_full"] = self.mailbox.dropped()
-        statuses = self.reports.statuses
-        summary = build_summary(
-            self.config,
-            self.scorer,
-            statuses,
-            dict(sorted(self.events.items())),
-            status,
-            self.faults.faults,
-            self.intake,
-            self.rejected_by_process(),
-        )
-        self.run.write_json("summary.json", summary)
-        for vid, landmark_map in sorted(self.reports.maps.items()):
-            self.run.write_json(f"map_v{vid}.json", map_record(landmark_map))
-        wall_s = (self.wall_end or time.perf_counter()) - (self.wall_start or time.perf_counter())
-        timing = build_timing(statuses, self.sim_time_us * 1e-6, wall_s, self.streams.latency_us)
-        self.run.write_json("timing.json", timing)
-        self.run.close()
-        return summary
-
-    def rejected_by_process(self) -> dict[str, tuple[int, ...]]:
-        """Rejected input by process: the ground station's own, the world's (from its run end) and
-        every vehicle's (from its last status)."""
-        out = {"groundstation": self.rejections.as_counts()}
-        if self.ended is not None and self.ended.rejected:
-            out["world"] = self.ended.rejected
-        out.update({f"vehicle-{vid}": st.rejected for vid, st in sorted(self.reports.statuses.items()) if st.rejected})
-        return out
+        """Score everything left, write summary.json and timing.json, close the files
+        (groundstation.run_end)."""
+        return finish_run(self, status)

@@ -2,33 +2,10 @@
 Foxglove WebSocket server, both fed from the one place that may see truth (the ground station's
 scores and events) through the Foxglove SDK, on a context of their own (no global state).
 
-Channels (log times are sim time, nanoseconds from the run's start):
-
-- ``/scene`` (foxglove.SceneUpdate): per vehicle, the estimated pose (blue arrow), the true pose
-  (green arrow) and the 3-sigma position ellipse (rotated by the covariance's eigenvectors), in
-  frame ``world``, each vehicle's latest scored sample every ``SCENE_STEP_US`` of sim time;
-- ``/vehicle/<id>/estimate`` and ``/vehicle/<id>/truth`` (foxglove.PoseInFrame): for trails and plots;
-- ``/vehicle/<id>/metrics`` (JSON): per scored sample the vehicle's position error, NEES and sigmas
-  (plots; a topic per vehicle, so that no topic passes the viewers' 60 Hz warning in a large swarm);
-- ``/events`` (foxglove.Log): the run's events (faults, joins, resets, distrusted neighbours, GNSS
-  health changes, restarts) and, as warnings, the first rejected input of each kind (the ground
-  station's own, and each vehicle's as its status counts it);
-- ``/landmarks`` (foxglove.SceneUpdate): each SLAM vehicle's map as it reports it, a 3-sigma
-  ellipse per landmark;
-- ``/zones`` (foxglove.SceneUpdate): the fault zones (GNSS jamming and spoofing, comm jamming) as
-  circles while they are active, deleted when they end;
-- ``/trails`` (foxglove.SceneUpdate): per vehicle, its true (green) and estimated (blue) trail over
-  the last ``TRAIL_S`` seconds, a point a second;
-- ``/ranging`` (foxglove.SceneUpdate): a line between the true positions of every pair of vehicles
-  that ranged each other in the world's last tick, at most every ``RANGING_STEP_US`` of sim time;
-- ``/terrain`` (foxglove.SceneUpdate): under a camera swarm, the terrain image as a textured model
-  (``terrain.glb`` in the run directory, written by the launcher; groundstation.terrain_model),
-  logged at the start and again whenever a live viewer subscribes to it;
-- ``/vehicle/<id>/health`` (JSON): the vehicle's GNSS health as its ESTIMATOR_STATUS says (test ratio,
-  glitch);
-- ``/swarm`` (JSON): the swarm's RMS position error over the vehicles scored at each stamp;
-- ``/vehicle/<id>/loop`` (JSON): the vehicle's loop statistics as its status reports them (cycles,
-  overruns, cycle time and jitter p99, fused and missing neighbour broadcasts).
+Its channels (log times are sim time, nanoseconds from the run's start) are listed once, in the
+table of docs/live-view.md: the scene (poses, 3-sigma ellipses, trails, landmarks, fault zones,
+ranging lines, the terrain under a camera swarm), the events, and per vehicle its estimate, truth,
+metrics, GNSS health and loop statistics.
 
 The per-vehicle JSON channels are topics of their own rather than one topic with a vehicle field:
 a plot's legend shows a series' current value from the latest message of its topic, so a series
@@ -76,7 +53,6 @@ from groundstation.plot_records import (
 from groundstation.scoring import Score
 
 log = logging.getLogger("swarmloc.groundstation")
-TERRAIN_MODEL = "terrain.glb"
 RANGING_STEP_US, SCENE_STEP_US, CLOCK_STEP_US = 200_000, 100_000, 100_000
 TRAIL_S, TRAIL_STEP_US = 30, 1_000_000  # trails: the last 30 s, a point a second
 WARNING_EVENTS = ("fault", "neighbour_distrusted", "accusation_contradicted", "vehicle_lost", "estimator_reset", "gnss")
@@ -89,15 +65,6 @@ def pose_topic(vehicle_id: int, kind: str) -> str:
     """The Foxglove topic of a vehicle's ``kind`` (estimate, truth, metrics, health, loop; not a
     zenoh key)."""
     return f"/vehicle/{vehicle_id}/{kind}"
-
-
-def recording_path(run_dir: Path) -> Path:
-    """``run.mcap``, or ``run.<n>.mcap`` when a previous ground station of this run left one."""
-    path, n = run_dir / "run.mcap", 0
-    while path.exists():
-        n += 1
-        path = run_dir / f"run.{n}.mcap"
-    return path
 
 
 class Recording:
@@ -320,26 +287,3 @@ class Recording:
             self.server.stop()
             self.server = None
             logging.getLogger(SDK_OVERFLOW_LOGGER).removeHandler(self._overflows)
-
-
-def open_recording(run_dir: Path, view: Any, vehicles: int = 0) -> Recording | None:
-    """The recording a run's ``view`` config asks for (None: neither run.mcap nor a live view), with
-    the channels of ``vehicles`` vehicles made at once. A live view that cannot start (its port taken
-    since the launcher checked) is logged, not fatal: the run and its recording go on."""
-    if not (view.record or view.live):
-        return None
-    try:
-        recording = Recording(recording_path(run_dir) if view.record else None, vehicles)
-    except OSError as exc:  # a read-only or vanished run directory: the run goes on without run.mcap
-        log.error("run.mcap cannot be written in %s: %s; the run goes on without it", run_dir, exc)
-        return None
-    terrain = run_dir / TERRAIN_MODEL
-    if terrain.is_file():
-        recording.terrain(terrain.read_bytes())
-    if view.live:
-        try:
-            recording.serve(view.live_host, view.live_port, view.live_backlog)
-            log.info("live view: ws://%s:%d (Foxglove or Lichtblick: open connection)", view.live_host, view.live_port)
-        except Exception as exc:  # the SDK raises its own error types for a bind failure
-            log.error("live view on %s:%d did not start: %s", view.live_host, view.live_port, exc)
-    return recording

@@ -13,6 +13,13 @@ from groundstation.scoring import Tally
 UNCOUNTED_EVENTS = ("vehicle_left", "vehicle_lost", "vehicle_message", "run_ended")
 
 
+def resume_run(run_dir: Path, bounds: tuple[float, float]) -> tuple[dict[int, Tally], dict[int, int]] | None:
+    """The tallies and last scored stamps of a run directory a previous ground station of this run
+    was writing (``resume_tallies`` of its metrics.csv), None when it scored nothing yet."""
+    tallies, last_us = resume_tallies(run_dir / "metrics.csv", bounds)
+    return (tallies, last_us) if tallies else None
+
+
 def resume_tallies(path: Path, bounds: tuple[float, float]) -> tuple[dict[int, Tally], dict[int, int]]:
     """Per-vehicle tallies and the last scored stamp (us) from the complete lines of metrics.csv."""
     tallies: dict[int, Tally] = {}

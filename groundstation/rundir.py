@@ -98,6 +98,11 @@ class RunDirectory:
         tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
         tmp.replace(self.path / name)
 
+    def write_maps(self, maps: dict[int, dict[str, Any]]) -> None:
+        """Each SLAM vehicle's last reported landmark map as ``map_v<id>.json``, in vehicle order."""
+        for vid, record in sorted(maps.items()):
+            self.write_json(f"map_v{vid}.json", record)
+
     def write_layouts(self, layouts: dict[str, str]) -> None:
         """The viewers' layouts for this run (groundstation.layout), by file name."""
         for name, text in layouts.items():

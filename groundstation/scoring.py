@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bus import statistics
+from bus import feed, statistics
 from bus.angles import wrap_angle as wrap
 from bus.consistency import ConsistencyTally
 from bus.mavlink_codec import StateEstimate, pose_of
@@ -175,6 +175,14 @@ class Scorer:
         if track is None:
             track = self.truth[vehicle_id] = TruthTrack()
         track.add(stamp_us, pose)
+
+    def add_truth_batch(self, batch: feed.TruthBatch) -> int:
+        """Every vehicle's truth of a tick's batch (bus.feed.TruthBatch); the newest stamp (-1: none)."""
+        ids = batch.vehicle_ids.tolist()
+        for k, stamp in enumerate(batch.stamps_us.tolist()):
+            for n, vid in enumerate(ids):
+                self.add_truth(vid, stamp, batch.rows[k, n, :3])
+        return int(batch.stamps_us[-1]) if len(batch.stamps_us) else -1
 
     def add_estimate(self, est: StateEstimate) -> bool:
         """Queue an estimate for scoring; a second copy (same vehicle and stamp) is counted and

@@ -72,11 +72,11 @@ class _WorldWatch:
 
     def check(self) -> None:
         now, gs = time.monotonic(), self.gs
-        if not gs.world_seen:
+        if not gs.presence.world_seen:
             if now - self.start > self.clock.start_timeout_s:
                 self.status = "no-world"
             return
-        if gs.world_alive:
+        if gs.presence.world_alive:
             self.gone_since = None
         elif self.gone_since is None:
             self.gone_since = now

@@ -7,10 +7,11 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from bus import messages as m
 from bus.config import SwarmConfig
 from bus.consistency import nis_summary
 from bus.messages import VehicleStatus
-from bus.rejections import REASONS, counts_to_dict
+from bus.rejections import REASONS, Rejections, counts_to_dict
 from bus.statistics import POSE_NEES_DOF
 from groundstation.link_quality import StreamQuality
 from groundstation.scoring import Scorer, Tally
@@ -159,3 +160,15 @@ def build_timing(
         "real_time_factor": _round(sim_s / wall_s) if wall_s > 0 else None,
         "vehicles": vehicles,
     }
+
+
+def rejected_by_process(
+    own: Rejections, ended: m.RunEnd | None, statuses: dict[int, Any]
+) -> dict[str, tuple[int, ...]]:
+    """Rejected input by process: the ground station's own, the world's (from its run end) and every
+    vehicle's (from its last status)."""
+    out = {"groundstation": own.as_counts()}
+    if ended is not None and ended.rejected:
+        out["world"] = ended.rejected
+    out.update({f"vehicle-{vid}": st.rejected for vid, st in sorted(statuses.items()) if st.rejected})
+    return out

@@ -65,3 +65,17 @@ def paced_ahead(live_speed: float | None, wall_start: float | None, sim_time_us:
     if not (live_speed and wall_start):
         return False
     return time.perf_counter() - wall_start < sim_time_us * 1e-6 / live_speed
+
+
+def watermark_us(published_us: int, streams_us: dict[int, int], held_us: int | None) -> int:
+    """Lockstep: estimates up to the returned stamp can be scored in (time, vehicle) order. Every
+    estimate up to ``published_us`` is published and its truth in; each vehicle the world's tick
+    waited for has published past its ``streams_us`` entry (its own stream's progress: zenoh keeps
+    order within a key, not across keys; a vehicle that joined during the run, a restart, counts as
+    past the tick before the one that first listed it, since it publishes only what comes after, so
+    the others' are not held for it until its first frame comes); and no delay fault holds an
+    estimate stamped ``held_us`` or later. The vehicles counted are those the tick waited for, not
+    those whose liveliness this process has heard: a token is another key, and when it arrives must
+    not decide the order in which estimates are scored."""
+    marks = [published_us, *streams_us.values()]
+    return min(marks) if held_us is None else min(*marks, held_us - 1)

@@ -13,7 +13,6 @@ import signal
 import subprocess
 import threading
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from bus import messages as m
@@ -22,10 +21,11 @@ from bus.config import SwarmConfig, ViewConfig
 from bus.errors import ConfigError, DecodeError
 from bus.kill_schedule import KillSchedule
 from bus.plan import FaultPlan, decode_json
-from bus.secrets import role_env, write_secrets
+from bus.secrets import write_secrets
 from bus.session import Envelope
 from launch import children
 from launch.child import Child, free_port, wait_for_port
+from launch.run_setup import Security, unique_run_dir, write_terrain_model
 
 SHUTDOWN_GRACE_S = 4.0
 WATCH_PERIOD_S = 0.1  # the supervisor looks at the fault plan this often (a child ending wakes it at once)
@@ -41,53 +41,6 @@ ONE_ZENOH_RUNTIME = (
     "(rx: (handover: app), tx: (handover: app), net: (handover: app), acc: (handover: app), app: (worker_threads: 1))"
 )
 SWARM_HANDLE = "swarm.json"  # in the run directory while `swarm up` runs: how `swarm fault` finds it
-
-
-@dataclass(frozen=True)
-class Security:
-    """How `swarm up` protects a run: fresh secrets in ``secrets_dir`` (zenoh logins with access
-    control, MAVLink signing), optional TLS files (PEM paths) for the router and its clients, and a
-    MAVLink forward to ground-control software."""
-
-    secrets_dir: Path | None = None
-    tls_certificate: Path | None = None
-    tls_private_key: Path | None = None
-    tls_root_ca: Path | None = None
-    mavlink_out: str | None = None
-
-    def env(self, user: str) -> dict[str, str]:
-        """The environment of a process logging in as ``user`` (a role, or ``vehicle-<id>``)."""
-        out = role_env(self.secrets_dir, user) if self.secrets_dir else {}
-        if self.tls_root_ca:
-            out["SWARMLOC_ZENOH_TLS_ROOT_CA"] = str(self.tls_root_ca)
-        return out
-
-    def router_args(self) -> list[str]:
-        args = ["--credentials", str(self.secrets_dir / "credentials.txt")] if self.secrets_dir else []
-        if self.tls_certificate:
-            args += ["--tls-cert", str(self.tls_certificate), "--tls-key", str(self.tls_private_key)]
-        return args
-
-
-def write_terrain_model(config: SwarmConfig, run_dir: Path) -> None:
-    """The terrain the cameras see, as the model the ground station shows under the swarm
-    (groundstation.recording's /terrain)."""
-    from groundstation.recording import TERRAIN_MODEL
-    from groundstation.terrain_model import terrain_glb
-    from sim.terrain import make_terrain
-
-    terrain = make_terrain(config)
-    width_m, height_m = terrain.size_m
-    (run_dir / TERRAIN_MODEL).write_bytes(terrain_glb(terrain.image, width_m, height_m))
-
-
-def unique_run_dir(out: Path, name: str) -> Path:
-    candidate, n = out / name, 1
-    while candidate.exists():
-        n += 1
-        candidate = out / f"{name}-{n}"
-    candidate.mkdir(parents=True)
-    return candidate
 
 
 class Swarm:

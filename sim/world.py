@@ -10,26 +10,26 @@ output never depends on how time is cut into ticks, and faults never shift the n
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from bus.config import SwarmConfig
-from bus.feed import CameraBlock
 from bus.pads import start_pads
 from bus.topics import Topic
 from sim import sensors
+from sim.added_sensors import AddedSensors
 from sim.high_rate import HighRateSensors, ImuSteps, StepRows
 from sim.kinematics import unicycle_arcs
 from sim.noise_blocks import BLOCK_STEPS, ahead_schedule, next_block
 from sim.physical_faults import PhysicalFaults
 from sim.trajectories import make_trajectory
 from sim.true_errors import TrueErrors, wobble, wobble_tones
+from sim.world_output import TickOutput
 
 if TYPE_CHECKING:
     from sim.terrain import Terrain
-
-EMITTED = (Topic.PRIOR, Topic.IMU, Topic.ODOM, Topic.GNSS, Topic.CAMERA, Topic.RANGING)  # within a step
 
 
 @dataclass
@@ -47,53 +47,6 @@ class _Vehicle:
     def next_seq(self, topic: str) -> int:
         self.seq[topic] = self.seq.get(topic, -1) + 1
         return self.seq[topic]
-
-
-@dataclass
-class TickOutput:
-    """What the world measured over one advance: ``rows[vid][topic]`` is a list of (stamp_us, seq,
-    row (w,)) of the topics measured one vehicle at a time, ``streams[vid][topic]`` (stamps (k,),
-    first seq, rows (k, w)) of those measured for every vehicle at once (IMU, wheel odometry);
-    ``truth_stamps`` (k,) and ``truth`` (k, N, 5) rows [x, y, theta, speed, yaw rate]."""
-
-    rows: dict[int, dict[str, list[tuple[int, int, np.ndarray]]]]
-    truth_stamps: list[int]
-    truth: list[np.ndarray]
-    streams: dict[int, dict[str, tuple[np.ndarray, int, np.ndarray]]] = field(default_factory=dict)
-
-    def blocks(self, vehicle_id: int) -> dict[str, tuple[np.ndarray, int, np.ndarray]]:
-        """The bus.feed blocks of one vehicle: topic -> (stamps (k,), first seq, rows (k, w)), in the
-        order a step emits them (``EMITTED``) from the earliest first stamp on."""
-        out = dict(self.streams.get(vehicle_id, {}))
-        for topic, samples in self.rows.get(vehicle_id, {}).items():
-            if samples and topic != Topic.CAMERA:
-                out[topic] = (
-                    np.array([s[0] for s in samples], dtype=np.int64),
-                    samples[0][1],
-                    np.array([s[2] for s in samples], dtype=np.float64),
-                )
-        return dict(sorted(out.items(), key=lambda item: (int(item[1][0][0]), EMITTED.index(item[0]))))
-
-    def listeners(self) -> dict[int, tuple[int, ...]]:
-        """vehicle id -> the vehicles that ranged it in this advance (sorted): those that pair its
-        broadcasts of the advance's epochs with a measurement; a vehicle nobody ranged is absent."""
-        out: dict[int, set[int]] = {}
-        for observer, topics in self.rows.items():
-            for _, _, row in topics.get(Topic.RANGING, ()):
-                out.setdefault(int(row[0]), set()).add(observer)
-        return {target: tuple(sorted(observers)) for target, observers in out.items()}
-
-    def camera(self, vehicle_id: int) -> CameraBlock | None:
-        """The vehicle's camera frames as a bus.feed block (None: no frame in this advance)."""
-        frames = self.rows.get(vehicle_id, {}).get(Topic.CAMERA)
-        if not frames:
-            return None
-        return CameraBlock(
-            np.array([f[0] for f in frames], dtype=np.int64),
-            frames[0][1],
-            np.array([f[2][0] for f in frames]),
-            np.stack([f[2][1] for f in frames]),
-        )
 
 
 def _period_us(rate_hz: float) -> int:
@@ -168,6 +121,7 @@ class World:
             cv2.setNumThreads(1)  # frames are small: OpenCV's thread pool costs more than it brings
         if self.terrain is not None:
             self._periods[Topic.CAMERA] = _period_us(spec.camera_rate_hz)
+        self.added = AddedSensors(config, self.vehicle_ids(), self.step_us)  # bus.sensors
 
     @property
     def now_us(self) -> int:
@@ -230,6 +184,9 @@ class World:
                 self._samples(out.rows[v.vehicle_id], v, t_us, k, pose)
         if t_us % self._periods[Topic.RANGING] == 0 and spec.ranging_max_m > 0 and spec.ranging_max_peers > 0:
             self._ranging(out, t_us, k)
+        if self.added.topics:
+            silenced, emit = partial(self._added_silenced, t_us), partial(self._emit_added, out, t_us)
+            self.added.measure(t_us, self.vehicle_ids(), self.poses, silenced, emit)
         self._move(law, k, dt)
         self.steps_done += 1
 
@@ -251,6 +208,14 @@ class World:
         inputs varying from one to the next (finer than any filter, which holds sampled inputs)."""
         inputs = law + self._wobble_block[k] if self._wobbles else law[None]  # (substeps, N, 2)
         self.poses = unicycle_arcs(self.poses, inputs[..., 0], inputs[..., 1], dt / inputs.shape[0])
+
+    def _added_silenced(self, t_us: int, vehicle_id: int, topic: str) -> bool:
+        i = self.vehicle_ids().index(vehicle_id)
+        return self.faults.silenced(vehicle_id, topic, t_us, self.poses[i])
+
+    def _emit_added(self, out: TickOutput, t_us: int, vehicle_id: int, topic: str, row: np.ndarray) -> None:
+        v = self.vehicles[self.vehicle_ids().index(vehicle_id)]
+        self._emit(out.rows[vehicle_id], v, topic, t_us, row)
 
     def _emit(self, rows: dict, v: _Vehicle, topic: str, t_us: int, row: np.ndarray) -> None:
         rows.setdefault(topic, []).append((t_us, v.next_seq(topic), row))

@@ -14,7 +14,7 @@ import pytest
 from bus import statistics
 from bus.estimators import ESTIMATORS, EstimatorEntry
 from bus.faults import BY_KIND
-from examples import derated_gnss, fog
+from examples import compass, derated_gnss, fog
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -42,6 +42,12 @@ def test_the_docs_build_strictly(tmp_path):
         assert code in re.sub(r"<[^>]+>", "", tutorial), code
     recipe = (tmp_path / "site" / "tutorial" / "adding-a-fault-kind" / "index.html").read_text()
     for code in ("class Fog(Zone)", "def silences", "def frames_in_fog"):  # the kind and its example, included
+        assert code in re.sub(r"<[^>]+>", "", recipe), code
+    recipe = (tmp_path / "site" / "tutorial" / "adding-an-experiment" / "index.html").read_text()
+    for code in ("def plan(", "def measure(", "def conclude("):  # the experiment, included
+        assert code in re.sub(r"<[^>]+>", "", recipe), code
+    recipe = (tmp_path / "site" / "tutorial" / "adding-a-sensor" / "index.html").read_text()
+    for code in ("class Compass(SensorKind)", "def measure(", "class CompassPart", "def compare("):
         assert code in re.sub(r"<[^>]+>", "", recipe), code
     faults = re.sub(r"<[^>]+>", "", (tmp_path / "site" / "faults" / "index.html").read_text())
     assert all(f"{kind}\n" in faults or f"{kind} " in faults for kind in BY_KIND)  # the table, from the registry
@@ -80,3 +86,30 @@ def test_a_fault_kind_is_one_module_and_one_registry_line():
 
     assert "fog" in BY_KIND and {"center_m", "radius_m"} <= set(flags(["fog"]))
     assert zone_colour("fog") == BY_KIND["fog"].marker
+
+
+def test_the_recipe_s_compass_bounds_the_heading_and_keeps_the_filter_consistent():
+    runs = 10
+    scores = compass.compare(range(1, runs + 1))
+    low, high = statistics.chi2_band(3, runs=runs)
+    assert low <= scores["compass"]["anees"] <= high, scores
+    assert scores["compass"]["heading_rms_rad"] < scores["no compass"]["heading_rms_rad"] / 5, scores
+
+
+def test_a_sensor_is_a_registry_line_away_from_every_process():
+    """The registry's sensor is in the feed's layout, the datasheet, link-fault topics and blackouts,
+    and a vehicle whose datasheet has it on gets its part in any estimator; one with it off does not."""
+    from bus.config import build_config
+    from bus.faults import LINK_TOPICS, Blackout
+    from bus.feed import LAYOUT
+    from bus.sensors import SENSORS
+    from vehicle.estimators import get_estimator
+
+    for sensor in SENSORS:
+        assert sensor.topic in LAYOUT and sensor.topic in LINK_TOPICS
+        Blackout(vehicle=1, sensor=sensor.topic)
+        on = build_config({"sensors": {sensor.topic: {"rate_hz": 5}}}).for_vehicle()
+        for estimator in ("ekf", "ukf"):
+            config = on.model_copy(update={"vehicle": on.vehicle.model_copy(update={"estimator": estimator})})
+            assert len(get_estimator(config, 1).parts) == 1
+        assert get_estimator(build_config({}).for_vehicle(), 1).parts == []

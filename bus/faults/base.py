@@ -22,11 +22,12 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from bus.sensors import BY_TOPIC
 from bus.topics import Topic
 
 GLOB = r"^[A-Za-z0-9_*?\[\]\-]{1,32}$"
 NAME = r"^[A-Za-z0-9_.\-]{0,64}$"
-LINK_TOPICS = tuple(Topic)
+LINK_TOPICS = (*Topic, *BY_TOPIC)  # the built-in feeds' topics and the added sensors' (bus.sensors)
 APPLIERS = {
     "world": "the world",
     "link": "the receiving bus layer",
@@ -150,7 +151,11 @@ class LinkFault(FaultBase):
     @classmethod
     def chaos(cls, rng: np.random.Generator, swarm: ChaosSwarm) -> dict[str, Any]:
         dst = str(rng.choice(["v*", "gs", f"v{rng.integers(1, swarm.vehicles + 1)}"]))
-        topic = "mavlink" if dst == "gs" else str(rng.choice(["*", "imu", "odom", "gnss", "ranging", "mavlink"]))
+        topic = (
+            "mavlink"
+            if dst == "gs"
+            else str(rng.choice(["*", *map(str, (Topic.IMU, Topic.ODOM, Topic.GNSS, Topic.RANGING, Topic.MAVLINK))]))
+        )
         return {"dst": dst, "topic": topic, **cls.chaos_parameters(rng)}
 
     @classmethod

@@ -8,9 +8,12 @@ import numpy as np
 from pydantic import Field
 
 from bus.faults.base import ChaosSwarm, FaultBase, cli, vehicle_field
+from bus.sensors import BY_TOPIC
+from bus.topics import Topic
 
-SENSORS = ("imu", "odom", "gnss", "ranging", "landmark", "camera")  # the sensor topics the world makes
-CHAOS_SENSORS = ("imu", "odom", "gnss", "ranging")  # every simulated vehicle has these (a camera is optional)
+_MADE = (Topic.IMU, Topic.ODOM, Topic.GNSS, Topic.RANGING, Topic.LANDMARK, Topic.CAMERA)  # by the world (or a replay)
+SENSORS = tuple(map(str, _MADE)) + tuple(BY_TOPIC)  # and the sensors added by the recipe
+CHAOS_SENSORS = tuple(str(t) for t in (Topic.IMU, Topic.ODOM, Topic.GNSS, Topic.RANGING))  # every vehicle has these
 
 
 class Blackout(FaultBase):

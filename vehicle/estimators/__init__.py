@@ -14,6 +14,8 @@ from typing import Any
 from bus.config import VehicleProcessConfig
 from bus.errors import ConfigError
 from bus.estimators import ESTIMATORS
+from bus.sensors import SENSORS
+from bus.sensors.base import resolve
 from vehicle.estimators.filter import Filter
 
 
@@ -34,4 +36,9 @@ def get_estimator(
 ) -> Filter:
     """The estimator a vehicle runs, built from its own configuration only; ``reject(reason, where,
     detail)`` counts input the estimator refuses (garbage camera frames)."""
-    return _module(config.vehicle.estimator).from_config(config, vehicle_id, reject=reject)
+    f = _module(config.vehicle.estimator).from_config(config, vehicle_id, reject=reject)
+    for sensor in SENSORS:  # every sensor added by the recipe that this vehicle's datasheet has on
+        spec = getattr(config.sensors, sensor.topic)
+        if spec.rate_hz > 0:
+            f.add_part(resolve(sensor.part)(config.sensors))
+    return f

@@ -87,6 +87,7 @@ class Filter:
         self.gnss, self.motion, self.update, self.store = gnss, motion, update, store
         self.divergence, self.errors, self.sightings = divergence, errors, sightings
         self.cooperative = cooperative
+        self.parts: list[MeasurementPart] = [] if sightings is None else [sightings]  # and add_part's
         paper = cooperative.fusion == "paper"
         self.trust = None if monitor is None else NeighbourTrust(monitor, vehicle_id=vehicle_id, position_fixes=paper)
         self.neighbour_fusion = NeighbourFusion(cooperative, update.unscented_fixes, self.trust)
@@ -111,10 +112,16 @@ class Filter:
             CooperativeFix: self._on_fix,
             SeenFix: self._on_fix,
         }
-        if self.sightings is not None:
-            for kind, handler in self.sightings.handlers().items():
-                handlers[kind] = partial(self._on_part, handler)
+        for part in self.parts:
+            handlers |= {kind: partial(self._on_part, handler) for kind, handler in part.handlers().items()}
         return handlers
+
+    def add_part(self, part: MeasurementPart) -> None:
+        """A measurement part besides the estimator's own (an added sensor's, bus.sensors): its message
+        kinds reach it as the filter's own do."""
+        self.parts.append(part)
+        part.start(self.state)
+        self._handlers |= {kind: partial(self._on_part, handler) for kind, handler in part.handlers().items()}
 
     def _fresh_state(self) -> FilterState:
         state = FilterState.fresh(self.spec, self.gate_probability, self._adaptive_window)
@@ -123,7 +130,7 @@ class Filter:
         return state
 
     def _models(self) -> list[ErrorStates | MeasurementPart]:
-        return [model for model in (self.errors, self.sightings) if model is not None]
+        return ([] if self.errors is None else [self.errors]) + self.parts
 
     # -- what the node asks -------------------------------------------------------------------
 
@@ -150,10 +157,6 @@ class Filter:
         """Resets so far; never goes down when a replay restores an older snapshot."""
         return max(self._resets_floor, self.state.counters.resets)
 
-    def adapted_noise(self) -> dict[str, np.ndarray] | None:
-        """IAE's current GNSS and ranging covariances (None: IAE off, or the window is not full yet)."""
-        return None if self.state.iae is None else self.state.iae.estimates()
-
     def snapshot(self) -> FilterState:
         """A copy of everything that changes as measurements are fused (for the fusion horizon)."""
         return self.state.copy()
@@ -163,9 +166,6 @@ class Filter:
         stays reusable."""
         self._resets_floor = self.resets
         self.state = snapshot.copy()
-
-    def take_notices(self) -> list[Notice]:
-        return self.notices.take()
 
     def landmark_map(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Landmark positions (m, 2) and covariances (m, 2, 2) of a SLAM map; None without one."""

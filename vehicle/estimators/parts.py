@@ -147,6 +147,17 @@ Handler = Callable[[Fusing, Any], None]
 Reject = rejections.Reject  # reject(reason, where, detail): counts input a part refuses
 
 
+class Replayable(Protocol):
+    """An estimator as the fusion horizon (vehicle.process.fusion) drives it: measurements in stamp
+    order, one cycle per loop period, and snapshots to go back to when a measurement comes late."""
+
+    def handle(self, msg: Any) -> None: ...
+    def handle_row(self, topic: str, stamp_us: int, row: list[float], message: Callable[[], Any]) -> None: ...
+    def cycle(self, t_us: int) -> None: ...
+    def snapshot(self) -> Any: ...
+    def restore(self, snapshot: Any) -> None: ...
+
+
 class MeasurementPart(Protocol):
     """A part that fuses messages of its own kinds (landmark sightings, camera frames...), keeps a book
     in the state (``FilterState.landmarks``) and follows the state's life."""

@@ -6,9 +6,18 @@ from __future__ import annotations
 
 from typing import Any
 
-from bus.config import VehicleProcessConfig
+from bus.config import VehicleConfig, VehicleProcessConfig
 from vehicle.models.cooperative import CooperativeRule
-from vehicle.trust.neighbours import monitor_spec
+from vehicle.trust.neighbours import MonitorSpec
+
+
+def monitor_spec(vehicle: VehicleConfig) -> MonitorSpec | None:
+    """The neighbour monitor a vehicle's configuration asks for (None: the monitor off)."""
+    if not vehicle.neighbour_monitor:
+        return None
+    return MonitorSpec(
+        max_compromised=vehicle.max_compromised, hearsay_over_evidence=vehicle.trust_rule == "quorum-only"
+    )
 
 
 def shared_arguments(config: VehicleProcessConfig, vehicle_id: int) -> dict[str, Any]:

@@ -113,7 +113,10 @@ def update_in_place(
 ) -> UpdateResult:
     """EKF update with innovation y (2,) of a measurement depending only on the states ``idx`` (q,)
     through H (2, q), noise R (2, 2), in place on x (n,) and P (n, n, C-contiguous); skipped when the
-    NIS is above ``gate``. O(n) for the gain, O(n^2) flops for P, no n x n temporary."""
+    NIS is above ``gate``. O(n) for the gain, O(n^2) flops for P, no n x n temporary. A one-dimensional
+    measurement (y (1,), H (1, q), R (1, 1)) is one rank-1 update (:func:`update_in_place_1d`)."""
+    if len(y) == 1:
+        return update_in_place_1d(x, P, idx, H, y, R, gate)
     PHt = P[:, idx] @ H.T  # (n, 2) = P H^T
     (a, b), (_, d) = (H @ PHt[idx] + R).tolist()  # S, symmetric 2 x 2: in closed form below
     y0, y1 = y.tolist()
@@ -138,6 +141,28 @@ def update_in_place(
 
     for row in (row0, row1):
         dger(-1.0, row, row, a=P.T, overwrite_a=True)
+    return UpdateResult(True, nis, nis / gate)
+
+
+def update_in_place_1d(
+    x: np.ndarray, P: np.ndarray, idx: list[int], H: np.ndarray, y: np.ndarray, R: np.ndarray, gate: float
+) -> UpdateResult:
+    """:func:`update_in_place` for a one-dimensional measurement (a heading): S = H P H^T + R a scalar,
+    P -= a a^T with a = P H^T / sqrt(S), x += a y / sqrt(S)."""
+    PHt = P[:, idx] @ H[0]  # (n,)
+    S = float(H[0] @ PHt[idx] + R[0, 0])
+    if not (math.isfinite(S) and math.isfinite(float(y[0]))) or S <= 0.0:
+        return UpdateResult(False, math.nan, math.nan)
+    w = float(y[0]) / math.sqrt(S)
+    nis = w * w
+    if not nis <= gate:
+        return UpdateResult(False, nis, nis / gate)
+    a = PHt / math.sqrt(S)
+    x += w * a
+    x[2] = wrap_angle(x[2])
+    from scipy.linalg.blas import dger
+
+    dger(-1.0, a, a, a=P.T, overwrite_a=True)
     return UpdateResult(True, nis, nis / gate)
 
 

@@ -33,25 +33,17 @@ import heapq
 import itertools
 import logging
 from collections import Counter, deque
-from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Protocol
+from typing import Any
 
 from bus.topics import Topic
+from vehicle.estimators.parts import Replayable
 from vehicle.process.input_runs import InputRun
 
 log = logging.getLogger("swarmloc.vehicle")
 MAX_PENDING = 200_000
 MAX_SEEN = 4_096  # (topic, seq) pairs remembered; pruned to the horizon beyond (a 10-minute soak grew 18 MB at 100k)
-
-
-class Estimator(Protocol):
-    def handle(self, msg: Any) -> None: ...
-    def handle_row(self, topic: str, stamp_us: int, row: list[float], message: Callable[[], Any]) -> None: ...
-    def cycle(self, t_us: int) -> None: ...
-    def snapshot(self) -> Any: ...
-    def restore(self, snapshot: Any) -> None: ...
 
 
 @dataclass
@@ -74,7 +66,7 @@ class FusionHorizon:
 
     def __init__(
         self,
-        estimator: Estimator,
+        estimator: Replayable,
         *,
         horizon_us: int,
         every_cycles: int = 0,

@@ -39,6 +39,7 @@ from vehicle.process.lockstep_waits import LockstepWaits
 from vehicle.process.loop_stats import LoopStats
 from vehicle.process.outbound import Outbound
 from vehicle.process.sequence import SequenceTracker
+from vehicle.process.status import vehicle_status
 from vehicle.process.v2v import V2V, fusion_turn_us
 from vehicle.process.world_watch import WorldWatch
 from vehicle.vision.motion import ANNOUNCE_OFFSET_US
@@ -253,36 +254,8 @@ class VehicleNode:
         return self.restarts + self.estimator.resets
 
     def publish_status(self, t_us: int, *, final: bool = False) -> None:
-        c, f = self.estimator.counters, self.fusion.counters
         self.rejections.counts["inbox_full"] = self.mailbox.dropped()
-        self.outbound.status(
-            m.VehicleStatus(
-                vehicle_id=self.vehicle_id,
-                stamp_us=t_us,
-                cycles=self.stats.cycles,
-                overruns=self.stats.overruns,
-                jitter_p99_us=self.stats.jitter_p99_us(),
-                cycle_p99_us=self.stats.cycle_p99_us(),
-                dropped_stale=c.stale + f.dropped_stale,
-                rejected_gnss=c.gnss_rejected,
-                decode_errors=self.rejections.total,
-                reset_counter=self.reset_counter % 256,
-                duplicates=f.duplicates,
-                samples_lost=self.sequences.lost,
-                late_fused=f.late_fused,
-                v2v_fused=c.v2v_fused,
-                v2v_missing=self.v2v.missing,
-                rejected=self.rejections.as_counts(),
-                replays=f.replays,
-                final=final,
-                landmarks=c.landmarks,
-                landmarks_updated=c.landmarks_updated,
-                frames_used=c.frames_used,
-                nis=c.nis.values,
-                loop_priority=self.loop_priority,
-            ),
-            self._landmark_map(t_us),
-        )
+        self.outbound.status(vehicle_status(self, t_us, final=final), self._landmark_map(t_us))
 
     def _landmark_map(self, t_us: int) -> LandmarkMap | None:
         found = self.estimator.landmark_map()

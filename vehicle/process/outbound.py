@@ -71,7 +71,7 @@ class Outbound:
         plan's lies and accusations of this vehicle (``behaviour``) have it; addressed frames go at this
         vehicle's turn (``send_turn_us``), sent before the cycle's own."""
         self.send_held(t_us)
-        notices = estimator.take_notices()
+        notices = estimator.notices.take()
         for notice in notices:
             self._frames += [  # when it was said, then what
                 self.encoder.system_time(notice.stamp_us),

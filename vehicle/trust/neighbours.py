@@ -53,7 +53,6 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-from bus.config import VehicleConfig
 from vehicle.trust.neighbour_fixes import Fix, FixWindow
 
 
@@ -161,15 +160,6 @@ class Verdict:
     neighbour: int
     trusted: bool
     reason: str
-
-
-def monitor_spec(vehicle: VehicleConfig) -> MonitorSpec | None:
-    """The monitor a vehicle's configuration asks for (None: the monitor off)."""
-    if not vehicle.neighbour_monitor:
-        return None
-    return MonitorSpec(
-        max_compromised=vehicle.max_compromised, hearsay_over_evidence=vehicle.trust_rule == "quorum-only"
-    )
 
 
 def refused(book: NeighbourBook, neighbour: int) -> None:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from groundstation.layout import FOXGLOVE_FILE, LICHTBLICK_FILE, framing, swarm_layouts
-from groundstation.recording import recording_path
+from groundstation.recording_start import recording_path
 from groundstation.scene_primitives import ellipse_xy
 from tests.viewer_rules import lichtblick_layout_errors
 
@@ -94,7 +94,7 @@ def test_the_compose_live_config_is_the_compose_config_with_the_live_view_on():
 
 def test_a_recording_that_cannot_be_written_leaves_the_run_going(tmp_path, caplog):
     from bus.config import ViewConfig
-    from groundstation.recording import open_recording
+    from groundstation.recording_start import open_recording
 
     not_a_directory = tmp_path / "file"
     not_a_directory.write_text("")

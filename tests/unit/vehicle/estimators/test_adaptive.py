@@ -74,5 +74,5 @@ def test_iae_learns_the_real_gnss_noise_and_brings_the_nees_back_near_its_expect
     assert _anees_interval(told)[0] > 10.0, _anees_interval(told)
     lo, hi = _anees_interval(adapted)
     assert 2.0 < lo and hi < 5.0, (lo, hi)
-    learned = np.array([np.diag(f.adapted_noise()["gnss"]) for f in filters]) / NOMINAL_VAR
+    learned = np.array([np.diag(f.state.iae.estimates()["gnss"]) for f in filters]) / NOMINAL_VAR
     assert 0.7 * TRUE_FACTOR**2 < np.median(learned) < 1.3 * TRUE_FACTOR**2, np.median(learned)

@@ -118,7 +118,7 @@ def test_a_lost_robot_relocalizes_against_the_map(monkeypatch, relocalize):
     final_error = rows[-10:, 1].max()
     if relocalize:
         assert final_error < 0.3 and estimator.counters.resets >= 1
-        assert any("lost track" in n.text for n in estimator.take_notices())
+        assert any("lost track" in n.text for n in estimator.notices.take())
     else:
         assert final_error > 1.0  # the control: without re-localizing, the gate keeps the map out
 

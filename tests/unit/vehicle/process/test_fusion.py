@@ -164,7 +164,7 @@ def test_divergence_guard_runs_in_replays_and_the_reset_counter_never_goes_down(
         assert np.all(np.isfinite(est.P)) and np.all(np.isfinite(est.x))
     assert fusion.counters.replays == 1 and est.resets == 1
     assert seen_resets == sorted(seen_resets)  # monotonic through the replay
-    notices = est.take_notices()
+    notices = est.notices.take()
     assert [n.text for n in notices].count("estimator reset: non-finite or indefinite covariance") == 1
 
 
