@@ -23,7 +23,7 @@ from bus.config import build_config
 
 MAX_FLOOR_RATIO, MAX_OVERRUN, MAX_JITTER_US = 3.0, 0.01, 5000.0
 # the control: the same realtime swarm with every loop under the fair scheduler (vehicle.process.scheduling)
-FAIR_SCENARIO = 'name = "fair"\n[vehicle]\nrealtime_priority = 0\n'
+FAIR_SCENARIO = 'name = "fair"\n[vehicle.realtime]\npriority = 0\n'
 # the same swarm with each GNSS fix half a period off the ranging epochs (sensors.gnss_phase): reported
 PHASE_SCENARIO = 'name = "phase"\n[sensors]\ngnss_phase = 0.5\n'
 

@@ -46,7 +46,10 @@ def run_floor(config: SwarmConfig) -> FloorResult:
     waiting: dict[int, list] = {vid: [] for vid in ids}
     broadcasts: dict[int, dict[int, tuple[np.ndarray, np.ndarray]]] = {vid: {} for vid in ids}
     tick_us, period_us = round(config.clock.tick_s * 1e6), round(1e6 / vconfig.vehicle.loop_rate_hz)
-    latency_us, v2v_period_us = round(vconfig.vehicle.v2v_latency_s * 1e6), round(1e6 / config.sensors.ranging_rate_hz)
+    latency_us, v2v_period_us = (
+        round(vconfig.vehicle.cooperation.latency_s * 1e6),
+        round(1e6 / config.sensors.ranging_rate_hz),
+    )
     end_us = round(config.clock.duration_s * 1e6)
     estimator_s = world_s = 0.0
     cycles, next_cycle = 0, 0

@@ -20,7 +20,7 @@ HEAVY = ("cv2", "scipy", "matplotlib", "foxglove", "rich", "typer", "click", "ze
 CAMERA = {  # a camera UAV of the vision-slam experiment
     "world": {"trajectories": ["circle"], "vehicles": 1},
     "sensors": {"camera_rate_hz": 10.0},
-    "vehicle": {"estimator": "ekf-slam", "cooperative": False},
+    "vehicle": {"estimator": "ekf-slam", "cooperation": {"enabled": False}},
 }
 ROLES: dict[str, tuple[str, dict]] = {  # name: (role, build_config input)
     "vehicle": ("vehicle", {}),

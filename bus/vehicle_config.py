@@ -4,7 +4,7 @@ vehicle process is given (``VehicleProcessConfig``)."""
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import Field, model_validator
 
@@ -35,6 +35,99 @@ class ArSlamConfig(_Strict):
         if self.dr_m >= self.r_max_m:
             raise ValueError(f"dr_m {self.dr_m:g} must be below r_max_m {self.r_max_m:g}")
         return self
+
+
+class Cooperation(_Strict):
+    """How a vehicle fuses its neighbours' fixes (vehicle.models.cooperative)."""
+
+    enabled: bool = Field(True, description="fuse ranging to neighbours with their broadcast estimates (CI)")
+    fusion: Literal["split-ci", "ci", "paper", "naive"] = Field(
+        "split-ci",
+        description="split-ci: Covariance Intersection scaling only the neighbour's share, the radio's "
+        "own noise kept whole (consistent whatever the correlation); ci: plain CI; paper: CI of the position "
+        "the fix implies (paper eq. 4.10); naive: a plain Kalman update that treats the neighbour's estimate as "
+        "independent (double counts)",
+    )
+    weight: Literal["optimal", "closed-form"] = Field(
+        "optimal",
+        description="CI weight: optimal (maximum "
+        "pose information, w = 1 skips the fix) or closed-form "
+        "(plain CI's best weight in closed form)",
+    )
+    latency_s: float = Field(0.1, ge=0, le=5, description="ranging waits this long for the neighbour's estimate")
+
+
+class AdaptiveNoise(_Strict):
+    """IAE: the GNSS and ranging noise learnt from the innovations (vehicle.estimators.adaptive)."""
+
+    enabled: bool = Field(
+        False,
+        description="estimate the GNSS and ranging noise covariances from the innovations of the last "
+        "window fixes instead of trusting the datasheet (never below it: a CI-fused covariance is a bound, "
+        "so a quieter-looking sensor is its slack)",
+    )
+    window: int = Field(40, ge=5, le=10_000, description="fixes per sensor")
+
+
+class NeighbourMonitor(_Strict):
+    """Judging the neighbours (vehicle.trust; docs: liars, security)."""
+
+    enabled: bool = Field(
+        True,
+        description="judge each neighbour's fixes for consistency and stop fusing a neighbour that lies",
+    )
+    max_compromised: int = Field(
+        1,
+        ge=0,
+        le=250,
+        description="f: how many vehicles may be compromised (their own keys, any lie or accusation); a "
+        "neighbour a vehicle cannot judge itself is distrusted on the word of more than f (docs: security)",
+    )
+    rule: Literal["evidence", "quorum-only"] = Field(
+        "evidence",
+        description="evidence: the others' word never outweighs a vehicle's own evidence and accusers are "
+        "judged; quorum-only: the rule before, a quorum's word decides (a control; docs: security)",
+    )
+
+
+class RealtimeLoop(_Strict):
+    """The estimator loop in realtime (vehicle.process.loops)."""
+
+    feed_lead_s: float = Field(
+        0.01,
+        ge=0,
+        le=1,
+        description="a vehicle's cycle at sim time t is due this long (wall time) after the world's "
+        "tick at t, plus its own phase of the period: the time the world's sensor batch is given to reach it",
+    )
+    allowance_s: float = Field(
+        0.005, ge=0, le=1, description="a cycle waits this long past its deadline for the tick's sensor batch"
+    )
+    priority: int = Field(
+        10,
+        ge=0,
+        le=99,
+        description="the estimator loop runs under SCHED_FIFO at this priority when the kernel allows "
+        "it (root, CAP_SYS_NICE or `ulimit -r`), else under the fair scheduler; 0: always the fair scheduler "
+        "(vehicle.process.scheduling)",
+    )
+
+
+# keys of the flat configuration before the parts, and where each is now
+MOVED = {
+    "cooperative": "cooperation.enabled",
+    "cooperative_fusion": "cooperation.fusion",
+    "ci_weight": "cooperation.weight",
+    "v2v_latency_s": "cooperation.latency_s",
+    "adaptive_noise": "adaptive.enabled",
+    "adaptive_window": "adaptive.window",
+    "neighbour_monitor": "monitor.enabled",
+    "max_compromised": "monitor.max_compromised",
+    "trust_rule": "monitor.rule",
+    "realtime_feed_lead_s": "realtime.feed_lead_s",
+    "realtime_allowance_s": "realtime.allowance_s",
+    "realtime_priority": "realtime.priority",
+}
 
 
 class VehicleConfig(_Strict):
@@ -69,73 +162,30 @@ class VehicleConfig(_Strict):
     fusion_horizon_s: float = Field(
         0.5, ge=0, le=10, description="late measurements up to this old are still fused in order"
     )
-    cooperative: bool = Field(True, description="fuse ranging to neighbours with their broadcast estimates (CI)")
-    cooperative_fusion: Literal["split-ci", "ci", "paper", "naive"] = Field(
-        "split-ci",
-        description="split-ci: Covariance Intersection scaling only the neighbour's share, the radio's "
-        "own noise kept whole (consistent whatever the correlation); ci: plain CI; paper: CI of the position "
-        "the fix implies (paper eq. 4.10); naive: a plain Kalman update that treats the neighbour's estimate as "
-        "independent (double counts)",
-    )
-    ci_weight: Literal["optimal", "closed-form"] = Field(
-        "optimal",
-        description="CI weight: optimal (maximum "
-        "pose information, w = 1 skips the fix) or closed-form "
-        "(plain CI's best weight in closed form)",
-    )
-    adaptive_noise: bool = Field(
-        False,
-        description="IAE: estimate the GNSS and ranging noise covariances from the "
-        "innovations of the last adaptive_window fixes instead of trusting the datasheet (never below it: "
-        "a CI-fused covariance is a bound, so a quieter-looking sensor is its slack)",
-    )
-    adaptive_window: int = Field(40, ge=5, le=10_000, description="IAE window, fixes per sensor")
-    neighbour_monitor: bool = Field(
-        True,
-        description="judge each neighbour's fixes for consistency and stop fusing a neighbour that lies "
-        "(vehicle.trust.neighbours; docs: liars)",
-    )
-    max_compromised: int = Field(
-        1,
-        ge=0,
-        le=250,
-        description="f: how many vehicles may be compromised (their own keys, any lie or accusation); a "
-        "neighbour a vehicle cannot judge itself is distrusted on the word of more than f (docs: security)",
-    )
-    trust_rule: Literal["evidence", "quorum-only"] = Field(
-        "evidence",
-        description="evidence: the others' word never outweighs a vehicle's own evidence and accusers are "
-        "judged; quorum-only: the rule before, a quorum's word decides (a control; docs: security)",
-    )
+    cooperation: Cooperation = Field(default_factory=Cooperation, description="fusing the neighbours' fixes")
+    adaptive: AdaptiveNoise = Field(default_factory=AdaptiveNoise, description="IAE")
+    monitor: NeighbourMonitor = Field(default_factory=NeighbourMonitor, description="judging the neighbours")
+    realtime: RealtimeLoop = Field(default_factory=RealtimeLoop, description="the realtime loop")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _keys_of_a_part(cls, data: Any) -> Any:
+        """A key that now belongs to a part (``cooperative_fusion``) is refused naming its place."""
+        moved = sorted(MOVED.keys() & data.keys()) if isinstance(data, dict) else []
+        if moved:
+            key = moved[0]
+            raise ValueError(f"vehicle.{key} is now vehicle.{MOVED[key]}")
+        return data
 
     def visual_odometry(self, vehicle_id: int) -> bool:
         """Does this vehicle take its speed from visual odometry?"""
         return self.odometry == "visual" or vehicle_id in self.visual_odometry_vehicles
 
-    v2v_latency_s: float = Field(0.1, ge=0, le=5, description="ranging waits this long for the neighbour's estimate")
     mavlink_rate_hz: float = Field(
         10.0,
         gt=0,
         le=1000,
         description="ODOMETRY to the ground station (<= loop rate; "
         "a telemetry rate: the ground station scores every estimate it receives)",
-    )
-    realtime_feed_lead_s: float = Field(
-        0.01,
-        ge=0,
-        le=1,
-        description="realtime: a vehicle's cycle at sim time t is due this long (wall time) after the world's "
-        "tick at t, plus its own phase of the period: the time the world's sensor batch is given to reach it",
-    )
-    realtime_allowance_s: float = Field(
-        0.005, ge=0, le=1, description="realtime: a cycle waits this long past its deadline for the tick's sensor batch"
-    )
-    realtime_priority: int = Field(
-        10,
-        ge=0,
-        le=99,
-        description="realtime: the estimator loop runs under SCHED_FIFO at this priority when the kernel allows "
-        "it (root, CAP_SYS_NICE or `ulimit -r`), else under the fair scheduler; 0: always the fair scheduler "
-        "(vehicle.process.scheduling)",
     )
     world_timeout_s: float = Field(60.0, gt=0, description="a vehicle whose world is gone this long gives up")

@@ -53,7 +53,9 @@ def cli_reference() -> str:
 
 def config_reference() -> str:
     from bus import config as c
+    from bus import vehicle_config as vc
     from bus.estimators import ESTIMATORS
+    from bus.sensors import SENSORS
 
     lines = [
         "# Configuration reference",
@@ -75,6 +77,12 @@ def config_reference() -> str:
         ("world.sensor_truth", c.SensorTruth),
         ("sensors (the datasheet the vehicles are told)", c.SensorSpec),
         ("vehicle", c.VehicleConfig),
+        ("vehicle.cooperation", vc.Cooperation),
+        ("vehicle.adaptive", vc.AdaptiveNoise),
+        ("vehicle.monitor", vc.NeighbourMonitor),
+        ("vehicle.realtime", vc.RealtimeLoop),
+        ("vehicle.ar", vc.ArSlamConfig),
+        *((f"sensors.{sensor.topic} (an added sensor)", sensor.Spec) for sensor in SENSORS),
         ("clock", c.ClockConfig),
         ("view (run.mcap and the live view)", c.ViewConfig),
         ("bus", c.BusConfig),

@@ -81,7 +81,7 @@ def ar_slam_config(case: Case, *, seed: int, duration_s: float) -> SwarmConfig:
             "sensors": {"camera_rate_hz": 10, **SURVEYED_START},
             "vehicle": {
                 "estimator": case.estimator,
-                "cooperative": False,
+                "cooperation": {"enabled": False},
                 "association": case.association,
                 "odometry": case.odometry,
                 "ar": case.ar,

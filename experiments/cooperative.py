@@ -30,12 +30,12 @@ from launch.runspec import RunSpec
 SCORE_EVERY_US = 200_000
 CENTRALIZED = "centralized"
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
-    "dead-reckoning": ("independent dead reckoning (no cooperation)", {"cooperative": False}),
-    "naive": ("naive fusion (double counts)", {"cooperative_fusion": "naive"}),
+    "dead-reckoning": ("independent dead reckoning (no cooperation)", {"cooperation": {"enabled": False}}),
+    "naive": ("naive fusion (double counts)", {"cooperation": {"fusion": "naive"}}),
     "ci-ekf": ("split CI, EKF", {}),
     "ci-ukf": ("split CI, UKF", {"estimator": "ukf"}),
-    "ci-ekf-iae": ("split CI, EKF, IAE", {"adaptive_noise": True}),
-    "plain-ci-ekf": ("plain CI, EKF", {"cooperative_fusion": "ci"}),
+    "ci-ekf-iae": ("split CI, EKF, IAE", {"adaptive": {"enabled": True}}),
+    "plain-ci-ekf": ("plain CI, EKF", {"cooperation": {"fusion": "ci"}}),
 }
 LABELS = {**{name: label for name, (label, _) in VARIANTS.items()}, CENTRALIZED: "centralized reference"}
 

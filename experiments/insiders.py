@@ -110,9 +110,9 @@ def faults(case: Case) -> list[dict[str, Any]]:
 
 def insiders_config(case: Case) -> SwarmConfig:
     rule = {  # two insiders at most in every case: the swarm is told f = 2 (the rule before: a quorum of two)
-        "evidence": {"max_compromised": 2},
-        "quorum-only": {"trust_rule": "quorum-only", "max_compromised": 1},
-        "off": {"neighbour_monitor": False},
+        "evidence": {"monitor": {"max_compromised": 2}},
+        "quorum-only": {"monitor": {"rule": "quorum-only", "max_compromised": 1}},
+        "off": {"monitor": {"enabled": False}},
     }
     return build_config(
         {

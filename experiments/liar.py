@@ -10,7 +10,7 @@ in lockstep. From ``LIE_START_S`` vehicle 3 (the liar) tells its neighbours, by 
   broadcasts the estimate the spoofer drags. The spoofer's zone is centred on the liar's start pad,
   wide enough for the liar's whole path and no other vehicle's (``spoof_zone``).
 
-Each profile flies with the neighbour monitor on and off (``vehicle.neighbour_monitor``), next to the
+Each profile flies with the neighbour monitor on and off (``vehicle.monitor.enabled``), next to the
 clean swarm of the same seed; and the no-liar conditions (clean, GNSS jammed for six vehicles,
 faults on the vehicle-to-vehicle links) fly with the monitor on to count false alarms; the same
 jamming ending after ``JAMMING_ENDS_AFTER_S`` flies with the monitor on and off (with no liar there is
@@ -131,7 +131,7 @@ def liar_config(case: Case) -> SwarmConfig:
             "world": {"vehicles": VEHICLES, "seed": case.seed, "sensor_truth": HONEST_WORLD},
             "sensors": HONEST_DATASHEET,
             "clock": {"duration_s": DURATION_S},
-            "vehicle": {"neighbour_monitor": case.defence},
+            "vehicle": {"monitor": {"enabled": case.defence}},
             "faults": faults,
         }
     )

@@ -37,7 +37,7 @@ def vision_slam_config(estimator: str, *, name: str, seed: int, duration_s: floa
             "world": {"vehicles": 2, "seed": seed, "trajectories": ["circle", "figure8"]},
             "clock": {"duration_s": duration_s},
             "sensors": {"camera_rate_hz": 10, **SURVEYED_START},
-            "vehicle": {"estimator": estimator, "cooperative": False},
+            "vehicle": {"estimator": estimator, "cooperation": {"enabled": False}},
             "faults": [{"name": "no-gnss", "kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 500.0}],
         }
     )

@@ -124,7 +124,7 @@ def _config_dict(
         },
         "vehicle": {
             "estimator": estimator,
-            "cooperative": choice.cooperative,
+            "cooperation": {"enabled": choice.cooperative},
             "landmarks": landmarks if "map" in REGISTRY[estimator].needs else [],
         },
         "replay": {

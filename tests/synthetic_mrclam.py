@@ -51,7 +51,7 @@ def replay_config(estimator: str, seed: int, sensors: dict | None = None, robots
             "world": {"vehicles": robots, "seed": seed},
             "clock": {"duration_s": 80.0, "tick_s": 0.02},
             "sensors": {**NOMINAL_SENSORS, **(sensors or {})},
-            "vehicle": {"estimator": estimator, "cooperative": False, "landmarks": landmarks},
+            "vehicle": {"estimator": estimator, "cooperation": {"enabled": False}, "landmarks": landmarks},
             "replay": {
                 "dataset": "synthetic",
                 "robots": list(range(1, robots + 1)),

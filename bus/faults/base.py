@@ -173,3 +173,14 @@ def vehicle_field(**kwargs: Any) -> Any:
         json_schema_extra=cli("--vehicle", "vehicle", "v3"),
         **kwargs,
     )
+
+
+def heading_field() -> Any:
+    """The field giving the direction a false offset grows in (``--heading 90``)."""
+    return Field(
+        0.0,
+        ge=-360,
+        le=360,
+        description="direction of the growth (deg, 0 = +x)",
+        json_schema_extra=cli("--heading", "float", "90"),
+    )

@@ -9,7 +9,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from bus.faults.base import ChaosSwarm, FaultBase, cli, vehicle_field
+from bus.faults.base import ChaosSwarm, FaultBase, cli, heading_field, vehicle_field
 
 
 class Lie(FaultBase):
@@ -29,13 +29,7 @@ class Lie(FaultBase):
     drift_mps: float = Field(
         0.0, ge=0, le=100, description="growth of the offset (m/s)", json_schema_extra=cli("--drift", "float", "0.5")
     )
-    heading_deg: float = Field(
-        0.0,
-        ge=-360,
-        le=360,
-        description="direction of the growth (deg, 0 = +x)",
-        json_schema_extra=cli("--heading", "float", "90"),
-    )
+    heading_deg: float = heading_field()
     cov_scale: float = Field(
         1.0,
         gt=0,

@@ -7,7 +7,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import Field
 
-from bus.faults.base import ChaosSwarm, Zone, cli
+from bus.faults.base import ChaosSwarm, Zone, cli, heading_field
 
 
 class SpoofGnss(Zone):
@@ -21,13 +21,7 @@ class SpoofGnss(Zone):
     drift_mps: float = Field(
         0.5, gt=0, le=100, description="growth of the offset (m/s)", json_schema_extra=cli("--drift", "float", "0.5")
     )
-    heading_deg: float = Field(
-        0.0,
-        ge=-360,
-        le=360,
-        description="direction of the growth (deg, 0 = +x)",
-        json_schema_extra=cli("--heading", "float", "90"),
-    )
+    heading_deg: float = heading_field()
 
     @classmethod
     def chaos(cls, rng: np.random.Generator, swarm: ChaosSwarm) -> dict[str, Any]:

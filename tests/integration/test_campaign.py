@@ -30,7 +30,7 @@ def _grid(tmp_path: Path, name: str, seeds: int, duration_s: float, vehicles: in
     path.write_text(
         f'name = "{name}"\nseeds = {seeds}\ncpu_per_run = 1\n[base]\nworld = {{ vehicles = {vehicles} }}\n'
         f"clock = {{ duration_s = {duration_s} }}\nview = {{ record = false }}\n"
-        '[[variants]]\nname = "ekf"\n[[variants]]\nname = "plain-ci"\nvehicle = { cooperative_fusion = "ci" }\n'
+        '[[variants]]\nname = "ekf"\n[[variants]]\nname = "plain-ci"\nvehicle = { cooperation = { fusion = "ci" } }\n'
     )
     return path
 

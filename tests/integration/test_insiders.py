@@ -3,7 +3,7 @@
 fault). Under the trust rule no honest vehicle distrusts another, and the honest vehicles that
 range the accused contradict the accusations (``accusation_contradicted`` events, counted in
 summary.json); the control, the rule before (a quorum of two believed accusers decides,
-``trust_rule = "quorum-only"``), shows the honest vehicles distrusting each other, so the test can
+``vehicle.monitor.rule = "quorum-only"``), shows the honest vehicles distrusting each other, so the test can
 fail."""
 
 import json
@@ -20,7 +20,7 @@ def _scenario(tmp_path, name: str, rule: str) -> str:
     path = tmp_path / f"{name}.toml"
     f = 1 if rule == "quorum-only" else 2
     text = f'name = "{name}"\n[world]\nvehicles = 5\nseed = 11\n[clock]\nduration_s = 40\n'
-    text += f'[vehicle]\ntrust_rule = "{rule}"\nmax_compromised = {f}\n'
+    text += f'[vehicle.monitor]\nrule = "{rule}"\nmax_compromised = {f}\n'
     for v in INSIDERS:
         text += f'[[faults]]\nkind = "accuse"\nvehicle = {v}\nnames = {list(HONEST)}\nstart_s = 5.0\n'
     path.write_text(text)

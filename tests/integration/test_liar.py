@@ -20,7 +20,7 @@ LIE = {"kind": "lie", "name": "liar", "vehicle": 3, "drift_mps": 0.3, "heading_d
 def _scenario(tmp_path, name: str, monitor: bool, lie: bool) -> str:
     path = tmp_path / f"{name}.toml"
     text = f'name = "{name}"\n[world]\nvehicles = 4\nseed = 21\n[clock]\nduration_s = 30\n'
-    text += f"[vehicle]\nneighbour_monitor = {'true' if monitor else 'false'}\nmax_compromised = 1\n"
+    text += f"[vehicle.monitor]\nenabled = {'true' if monitor else 'false'}\nmax_compromised = 1\n"
     if lie:
         text += "[[faults]]\n" + "".join(
             f"{k} = {json.dumps(v) if isinstance(v, str) else v}\n" for k, v in LIE.items()

@@ -27,7 +27,8 @@ prior_heading_sigma_rad = 0.005
 [vehicle]
 estimator = "{estimator}"
 odometry = "visual"
-cooperative = false
+[vehicle.cooperation]
+enabled = false
 [[faults]]
 name = "no-gnss"
 kind = "jam-gnss"

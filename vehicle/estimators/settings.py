@@ -13,11 +13,10 @@ from vehicle.trust.neighbours import MonitorSpec
 
 def monitor_spec(vehicle: VehicleConfig) -> MonitorSpec | None:
     """The neighbour monitor a vehicle's configuration asks for (None: the monitor off)."""
-    if not vehicle.neighbour_monitor:
+    monitor = vehicle.monitor
+    if not monitor.enabled:
         return None
-    return MonitorSpec(
-        max_compromised=vehicle.max_compromised, hearsay_over_evidence=vehicle.trust_rule == "quorum-only"
-    )
+    return MonitorSpec(max_compromised=monitor.max_compromised, hearsay_over_evidence=monitor.rule == "quorum-only")
 
 
 def shared_arguments(config: VehicleProcessConfig, vehicle_id: int) -> dict[str, Any]:
@@ -27,7 +26,7 @@ def shared_arguments(config: VehicleProcessConfig, vehicle_id: int) -> dict[str,
         "vehicle_id": vehicle_id,
         "spec": config.sensors,
         "gate_probability": vc.gate_probability,
-        "cooperative": CooperativeRule(vc.cooperative_fusion, vc.ci_weight),
-        "adaptive_window": vc.adaptive_window if vc.adaptive_noise else 0,
+        "cooperative": CooperativeRule(vc.cooperation.fusion, vc.cooperation.weight),
+        "adaptive_window": vc.adaptive.window if vc.adaptive.enabled else 0,
         "monitor": monitor_spec(vc),
     }

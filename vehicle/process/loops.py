@@ -111,24 +111,24 @@ def schedule_phase_s(vehicle_id: int, vehicles: int, period_s: float) -> float:
 def run_realtime(node: VehicleNode, stop: threading.Event) -> None:
     """The run's first cycle runs on the world's first tick (``_first_cycle``); the others on
     wall-clock deadlines mapped from sim time by the next clock tick, the first the world paces (the
-    wall time it was sent), each vehicle ``vehicle.realtime_feed_lead_s`` after the world's tick
+    wall time it was sent), each vehicle ``vehicle.realtime.feed_lead_s`` after the world's tick
     (the time its sensor batch is given to arrive) plus its own phase of the period
     (``schedule_phase_s``). A vehicle that joins a running swarm (a restart) maps them by the first
     tick it sees. After a cycle the loop files what
     has arrived, one item at a time, until the mailbox is empty or the next deadline comes, then
     sleeps to the deadline (zenoh's thread only queues what arrives meanwhile, it does not wake the
     loop); at the deadline it files until the sensor batch covering the cycle is in, waiting up to
-    ``realtime_allowance_s`` for it, and runs the cycle (a late loop first files what the world sent:
+    ``realtime.allowance_s`` for it, and runs the cycle (a late loop first files what the world sent:
     a batch may be queued behind). A flood of the neighbours' messages can delay filing, never a
     cycle. The final clock tick ends the loop once the cycles up to its stamp have run. The loop's
-    thread asks for real-time scheduling first (``vehicle.realtime_priority``, vehicle.process.scheduling)."""
-    node.loop_priority = ask_for_realtime_priority(node.config.vehicle.realtime_priority)
+    thread asks for real-time scheduling first (``vehicle.realtime.priority``, vehicle.process.scheduling)."""
+    node.loop_priority = ask_for_realtime_priority(node.config.vehicle.realtime.priority)
     pacer: Pacer | None = None
     final: m.ClockTick | None = None  # the world has ended the run at final.stamp_us
-    allowance_s = node.config.vehicle.realtime_allowance_s
+    allowance_s = node.config.vehicle.realtime.allowance_s
     speed = node.config.clock.speed
     phase_s = schedule_phase_s(node.vehicle_id, node.config.vehicles, node.period_us * 1e-6) / speed
-    phase_ns = round((node.config.vehicle.realtime_feed_lead_s + phase_s) * 1e9)
+    phase_ns = round((node.config.vehicle.realtime.feed_lead_s + phase_s) * 1e9)
     early: deque[m.ClockTick] = deque()  # ticks filed while the first cycle waited for its batch
     while not stop.is_set():
         if final is not None and node.next_cycle_us > final.stamp_us:

@@ -71,12 +71,12 @@ class VehicleNode:
         bus.subscribe(keys.fault_plan(), world, MAX_PLAN_BYTES)
         bus.subscribe(keys.end(), world, MAX_CLOCK_BYTES)
         bus.subscribe(keys.feed(vehicle_id), world, MAX_BATCH_BYTES)
-        if vc.cooperative:  # broadcasts, and (realtime simulation) frames addressed to this vehicle alone
+        if vc.cooperation.enabled:  # broadcasts, and (realtime simulation) frames addressed to this vehicle alone
             bus.subscribe(keys.v2v("*"), neighbours, MAX_V2V_BYTES)
             bus.subscribe(keys.v2v_to("*", vehicle_id), neighbours, MAX_V2V_BYTES)
         bus.watch_liveliness(keys.alive("world", "*"), world)
         bus.watch_liveliness(keys.alive("groundstation", "*"), world)
-        if vc.cooperative:
+        if vc.cooperation.enabled:
             bus.watch_liveliness(keys.alive("vehicle", "*"), world)
         self.inbound = Inbound(
             keys=keys,
@@ -98,7 +98,7 @@ class VehicleNode:
             every_cycles=5 if realtime else 0,
             after_cycle=frozenset({Topic.RANGING, Topic.SEEN}),
         )
-        v2v_period_us, latency_us = round(1e6 / config.sensors.ranging_rate_hz), round(vc.v2v_latency_s * 1e6)
+        v2v_period_us, latency_us = round(1e6 / config.sensors.ranging_rate_hz), round(vc.cooperation.latency_s * 1e6)
         if realtime:  # vehicles take turns to fuse an epoch
             room_us = self.fusion.horizon_us - latency_us
             latency_us += fusion_turn_us(vehicle_id, round(1e6 / vc.loop_rate_hz), v2v_period_us, room_us)
@@ -120,7 +120,7 @@ class VehicleNode:
         self.next_cycle_us = 0
         self.world_watch = WorldWatch(timeout_s=vc.world_timeout_s)
         self.waits = LockstepWaits(
-            vehicle_id, config.vehicle.cooperative, self.inbound, self.v2v, self.world_watch, bus.keys
+            vehicle_id, config.vehicle.cooperation.enabled, self.inbound, self.v2v, self.world_watch, bus.keys
         )
         self._deferred: list[int] = []  # lockstep: cycles to run before the next one (``cycle``)
 
@@ -135,7 +135,7 @@ class VehicleNode:
             if not announced:
                 log.info("vehicle %d waits for the world and the ground station to listen", self.vehicle_id)
                 announced = True
-        if self.config.vehicle.cooperative and self.config.vehicles > 1:
+        if self.config.vehicle.cooperation.enabled and self.config.vehicles > 1:
             if await_subscribers({"v2v": out.v2v_publisher}, timeout_s=v2v_wait_s, stop=stop):
                 log.warning(
                     "vehicle %d: no neighbour listens after %g s; it goes on alone", self.vehicle_id, v2v_wait_s
@@ -169,7 +169,7 @@ class VehicleNode:
             self.sequences.see(d.topic, d.payload.seq)
             # its fix may come after later cycles ran (a checkpoint then), unless lockstep waits for it
             may_come_late = not self._lockstep or bool(self.inbound.links.faults)
-            if self.config.vehicle.cooperative and self.v2v.hold(d.payload) and may_come_late:
+            if self.config.vehicle.cooperation.enabled and self.v2v.hold(d.payload) and may_come_late:
                 self.fusion.expect(d.stamp_us)
         else:
             self.sequences.see(d.topic, d.payload.seq)

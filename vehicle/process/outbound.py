@@ -51,7 +51,7 @@ class Outbound:
         self._next_status_us = 0
         self._frames: list[bytes] = []
         # realtime: an epoch's V2V frames wait for this vehicle's turn (when, frame, listeners)
-        cycle_us, wait_us = round(1e6 / vc.loop_rate_hz), round(vc.v2v_latency_s * 1e6)
+        cycle_us, wait_us = round(1e6 / vc.loop_rate_hz), round(vc.cooperation.latency_s * 1e6)
         self._turn_us = send_turn_us(vehicle_id, cycle_us, wait_us) if realtime else 0
         self._held: deque[tuple[int, bytes, tuple[int, ...]]] = deque()
         self._past: deque[PoseEstimate] = deque()  # the broadcast epochs' estimates a stale lie replays

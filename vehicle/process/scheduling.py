@@ -2,7 +2,7 @@
 the world, the ground station and the router, the kernel's fair scheduler lets a vehicle that wakes
 for its deadline wait behind whichever process holds the core, for several milliseconds at the 99th
 percentile. An embedded estimator runs its loop as a real-time thread; so does this one when the
-kernel allows it: SCHED_FIFO at ``vehicle.realtime_priority`` (root, CAP_SYS_NICE, or an RLIMIT_RTPRIO
+kernel allows it: SCHED_FIFO at ``vehicle.realtime.priority`` (root, CAP_SYS_NICE, or an RLIMIT_RTPRIO
 that covers the priority), and the fair scheduler otherwise. The loop sleeps or blocks between
 cycles, and the kernel's real-time throttling (95 % of each second by default) bounds what a
 runaway loop could take."""

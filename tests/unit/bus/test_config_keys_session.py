@@ -204,8 +204,10 @@ def test_vehicle_configs_take_the_swarm_size_from_the_environment(tmp_path):
 def test_estimator_options_that_do_not_fit_together_are_refused():
     with pytest.raises(ConfigError, match="needs a camera"):
         build_config({"vehicle": {"estimator": "ekf-slam"}})
-    with pytest.raises(ConfigError, match="cooperative_fusion"):
-        build_config({"vehicle": {"cooperative_fusion": "fancy"}})
+    with pytest.raises(ConfigError, match="cooperation.fusion"):
+        build_config({"vehicle": {"cooperation": {"fusion": "fancy"}}})
+    with pytest.raises(ConfigError, match="vehicle.cooperative_fusion is now vehicle.cooperation.fusion"):
+        build_config({"vehicle": {"cooperative_fusion": "ci"}})  # a key of before the parts: where it went
     assert build_config({"vehicle": {"estimator": "ukf"}, "sensors": {"camera_rate_hz": 10}}).vehicle.estimator == "ukf"
 
 

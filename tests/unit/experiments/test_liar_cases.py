@@ -49,7 +49,7 @@ def test_the_oracle_cuts_the_liars_broadcasts_at_the_delay_asked_for():
     faults = liar_config(silenced[1]).faults
     cut = [f for f in faults if f.kind == "loss"]
     assert len(cut) == 1 and cut[0].src == f"v{LIAR}" and cut[0].dst == "v*" and cut[0].percent == 100.0
-    assert cut[0].start_s == LIE_START_S + 5.0 and not liar_config(silenced[1]).vehicle.neighbour_monitor
+    assert cut[0].start_s == LIE_START_S + 5.0 and not liar_config(silenced[1]).vehicle.monitor.enabled
     assert any(f.kind == "lie" for f in faults)
 
 

@@ -52,7 +52,7 @@ def test_stage_3_ranging_to_a_vehicle_with_gnss_brings_the_other_down():
                 {
                     "world": {"vehicles": 2, "seed": seed},
                     "clock": {"duration_s": 30},
-                    "vehicle": {"cooperative": cooperative},
+                    "vehicle": {"cooperation": {"enabled": cooperative}},
                     "faults": [jam_one],
                 }
             )
@@ -99,10 +99,10 @@ def _stage_4(**vehicle) -> tuple[float, np.ndarray, float]:
 def test_stage_4_ci_stays_consistent_and_beats_dead_reckoning_where_naive_fusion_turns_overconfident():
     """Split CI (the default) is the most accurate and never over-confident, but conservative (it
     assumes the worst correlation at every fix); plain CI is less conservative, still never over-confident."""
-    dead_reckoning, _, _ = _stage_4(cooperative=False)
-    split, split_nees, count = _stage_4(cooperative_fusion="split-ci")
-    plain, plain_nees, _ = _stage_4(cooperative_fusion="ci")
-    naive, naive_nees, _ = _stage_4(cooperative_fusion="naive")
+    dead_reckoning, _, _ = _stage_4(cooperation={"enabled": False})
+    split, split_nees, count = _stage_4(cooperation={"fusion": "split-ci"})
+    plain, plain_nees, _ = _stage_4(cooperation={"fusion": "ci"})
+    naive, naive_nees, _ = _stage_4(cooperation={"fusion": "naive"})
     lower, upper = chi2.ppf([0.025, 0.975], 3 * count) / count  # one sample per vehicle and seed each second
     assert split < dead_reckoning / 4 and plain < dead_reckoning / 2, (split, plain, dead_reckoning)
     assert np.all(split_nees < upper) and np.all(plain_nees < upper), (split_nees, plain_nees, upper)

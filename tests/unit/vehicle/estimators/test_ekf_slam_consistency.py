@@ -27,7 +27,7 @@ def _nees_at_checkpoints(seed: int, first_estimates: tuple[bool, ...]) -> list[n
             "world": {"vehicles": 1, "seed": seed, "trajectories": ["circle"], "terrain_size_px": 640},
             "clock": {"duration_s": DURATION_S},
             "sensors": {"camera_rate_hz": 10},
-            "vehicle": {"estimator": "ekf-slam", "cooperative": False},
+            "vehicle": {"estimator": "ekf-slam", "cooperation": {"enabled": False}},
             "faults": [{"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 1000.0}],
         }
     )

@@ -19,7 +19,7 @@ def _config(duration_s: float):
             "world": {"vehicles": 1, "seed": 4, "trajectories": ["circle"], "terrain_size_px": 640},
             "clock": {"duration_s": duration_s},
             "sensors": {"camera_rate_hz": 10},
-            "vehicle": {"estimator": "ekf-slam", "cooperative": False},
+            "vehicle": {"estimator": "ekf-slam", "cooperation": {"enabled": False}},
             "faults": [{"kind": "jam-gnss", "center_m": [0.0, 0.0], "radius_m": 1000.0}],
         }
     )

@@ -21,7 +21,7 @@ def _config(estimator: str):
         "world": {"vehicles": 1, "seed": 5, "trajectories": ["circle"]},
         "clock": {"duration_s": 6.0},
         "sensors": {"camera_rate_hz": 10 if estimator.endswith("ekf-slam") else 0},
-        "vehicle": {"estimator": estimator, "cooperative": False},
+        "vehicle": {"estimator": estimator, "cooperation": {"enabled": False}},
     }
     if estimator == "known-map":
         sections["vehicle"]["landmarks"] = [(1, 5.0, 5.0)]

@@ -255,7 +255,7 @@ def _jammed_vehicle_rmse(cooperative: bool, comms_jammed: bool) -> tuple[float, 
             {
                 "world": {"vehicles": 3, "seed": seed},
                 "clock": {"duration_s": 24},
-                "vehicle": {"cooperative": cooperative},
+                "vehicle": {"cooperation": {"enabled": cooperative}},
                 "faults": faults,
             }
         )

@@ -406,7 +406,7 @@ def test_realtime_the_first_cycle_runs_on_the_first_tick_and_is_acknowledged():
 
 def test_realtime_a_cycle_is_due_the_feed_lead_and_its_phase_after_the_worlds_tick():
     """Realtime: the vehicle's cycle at the stamp of the world's first paced tick (the second) is due
-    ``realtime_feed_lead_s`` after the tick's wall time, plus the vehicle's phase of the period, and
+    ``realtime.feed_lead_s`` after the tick's wall time, plus the vehicle's phase of the period, and
     never runs before (a tick sent 0.1 s ago, a lead of 0.3 s)."""
     import threading
     import time as wall
@@ -414,7 +414,7 @@ def test_realtime_a_cycle_is_due_the_feed_lead_and_its_phase_after_the_worlds_ti
     from vehicle.process.loops import run_realtime, schedule_phase_s
 
     lead_s = 0.3
-    node, _ = _node(1, {"clock": {"mode": "realtime"}, "vehicle": {"realtime_feed_lead_s": lead_s}})
+    node, _ = _node(1, {"clock": {"mode": "realtime"}, "vehicle": {"realtime": {"feed_lead_s": lead_s}}})
     keys = node.bus.keys
     world, _neighbours = node.mailbox.lanes
     due_ns = wall.time_ns() - 100_000_000
@@ -558,7 +558,7 @@ def test_realtime_vehicles_take_turns_to_fuse_an_epoch_and_lockstep_ones_do_not(
     over the first half of the V2V period (its next broadcast still carries them) and inside the
     fusion horizon; lockstep: every vehicle right after the wait. Schedules in loop cycles."""
     config = SwarmConfig()
-    wait_us, cycle_us = round(config.vehicle.v2v_latency_s * 1e6), round(1e6 / config.vehicle.loop_rate_hz)
+    wait_us, cycle_us = round(config.vehicle.cooperation.latency_s * 1e6), round(1e6 / config.vehicle.loop_rate_hz)
 
     def turns(swarm: dict | None) -> list[float]:
         return [(_node(vid, swarm)[0].v2v.latency_us - wait_us) / cycle_us for vid in range(1, 7)]

@@ -110,7 +110,7 @@ def test_fresh_evidence_of_its_own_clears_a_neighbour_distrusted_on_others_word(
 
 
 def test_the_old_rule_lets_a_quorum_of_two_outweigh_the_vehicles_own_evidence():
-    """The control (trust_rule = quorum-only, f = 1): the hole this module closes."""
+    """The control (monitor.rule = quorum-only, f = 1): the hole this module closes."""
     old = dataclasses.replace(SPEC, hearsay_over_evidence=True, max_compromised=1)
     rng = np.random.default_rng(25)
     book = NeighbourBook()

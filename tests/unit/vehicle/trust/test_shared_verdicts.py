@@ -21,7 +21,7 @@ SEED, DURATION_S, UNINFORMED = 4, 25.0, 5
 def books():
     config = liar_config(Case("gross", True, SEED)).model_dump(mode="json")
     config["clock"]["duration_s"] = DURATION_S
-    config["vehicle"]["max_compromised"] = 1
+    config["vehicle"]["monitor"]["max_compromised"] = 1
     nodes: list = []
     swarm_in_memory(build_config(config), nodes_out=nodes)
     return {node.vehicle_id: node.estimator.state.neighbours for node in nodes}
