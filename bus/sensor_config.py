@@ -106,8 +106,8 @@ class _BuiltInSensors(_Strict):
         ge=0,
         le=0.5,
         description="how far the wheel odometry's speed "
-        "and yaw-rate scales may be off (0.1: 10 %); known-map then "
-        "estimates both (0: taken as exact)",
+        "and yaw-rate scales may be off (0.1: 10 %); ekf, known-map and "
+        "ekf-slam then estimate both (0: taken as exact)",
     )
     prior_sigma_m: float = Field(0.5, gt=0, description="launch-pad survey of the start position")
     unmodelled_sigma_m: float = Field(

@@ -15,17 +15,25 @@ from bus import statistics
 from bus.config import SwarmConfig
 from bus.consistency import consistency
 from experiments import harness
+from experiments.swarm_modes import SwarmModes, swarm_modes
 from vehicle.estimators.centralized import CentralizedEkf
 from vehicle.estimators.filter import Filter
 
 
 def run_centralized(
-    config: SwarmConfig, *, score_every_us: int = 200_000, world=None, estimator: Callable[..., Filter] | None = None
+    config: SwarmConfig,
+    *,
+    score_every_us: int = 200_000,
+    world=None,
+    estimator: Callable[..., Filter] | None = None,
+    modes: list[tuple[float, SwarmModes]] | None = None,
 ) -> dict[int, dict[str, np.ndarray]]:
     """The whole run of ``config`` through the centralized EKF: per vehicle ``t_s`` (k,), ``error_m``
     (k,) position error in m and ``nees`` (k,) pose NEES, every ``score_every_us`` of sim time.
     ``world``: the world or replay to run (default: the one ``config`` describes); ``estimator``: the
-    builder of the blocks' filters (default: the configured estimator's, vehicle.estimators)."""
+    builder of the blocks' filters (default: the configured estimator's, vehicle.estimators);
+    ``modes``: if given, receives (t s, experiments.swarm_modes.SwarmModes) at each scored stamp where
+    every vehicle's truth is known."""
     if world is None:
         from sim.tick_output import make_world
 
@@ -47,6 +55,9 @@ def run_centralized(
             cov = statistics.published_pose_cov(cov, config.sensors.unmodelled_sigma_m)
             error = statistics.pose_error(pose, truth[k, :3])
             rows[vid].append((t_us * 1e-6, float(np.hypot(error[0], error[1])), statistics.nees(error, cov)))
+        if modes is not None and np.all(np.isfinite(truth[:, 0])):
+            errors = np.array([statistics.pose_error(filt.pose(vid)[0], truth[k, :3]) for k, vid in enumerate(ids)])
+            modes.append((t_us * 1e-6, swarm_modes(errors, filt.poses_covariance())))
 
     period_us = round(1e6 / config.vehicle.loop_rate_hz)
     end_us = round(config.clock.duration_s * 1e6)

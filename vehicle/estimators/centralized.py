@@ -130,6 +130,12 @@ class CentralizedEkf:
         s = self.block(vehicle_id)
         return self.x[s][:3].copy(), self.P[s, s][:3, :3].copy()
 
+    def poses_covariance(self) -> np.ndarray:
+        """The joint covariance (3N, 3N) of every vehicle's pose [x, y, theta], vehicles in
+        ``vehicle_ids`` order, cross-covariances included."""
+        at = np.concatenate([np.arange(self.block(vid).start, self.block(vid).start + 3) for vid in self.vehicle_ids])
+        return self.P[np.ix_(at, at)].copy()
+
     def handle(self, msg: Any) -> None:
         """One sample of any vehicle; unknown vehicles, and a vehicle's samples before its prior, are ignored."""
         vehicle = self._vehicles.get(msg.vehicle_id)
