@@ -5,7 +5,9 @@ Vehicles of the honest world (``HONEST_WORLD``, ``HONEST_DATASHEET``), real proc
 ``DURATION_S`` each; from ``START_S`` on, by condition:
 
 - ``accusers``: vehicles 3 and 4 keep their positions honest and accuse every honest vehicle in each
-  broadcast (the ``accuse`` fault), in swarms of 5 and 8;
+  broadcast (the ``accuse`` fault), in swarms of 5 and 8; ``accusers-start``: the same from the
+  first second, in a swarm of 5 told the default f = 1 (two accusers are a quorum: what a new user
+  meets), before any vehicle has ranged anyone;
 - ``accomplice``: vehicle 3 drifts (0.15 m/s) while vehicle 4 accuses the honest vehicles that
   range vehicle 3 (read off the pure world of the same seed), 8 vehicles; beside it ``drift``, the
   liar alone;
@@ -46,6 +48,7 @@ DRIFT = {"drift_mps": 0.15, "heading_deg": 45.0}
 CONDITIONS: dict[str, tuple[tuple[int, ...], tuple[str, ...]]] = {  # sizes, rules (registry: INSIDER_CONDITIONS)
     "clean": ((3, 5, 8), ("evidence",)),
     "accusers": ((5, 8), ("evidence", "quorum-only")),
+    "accusers-start": ((5,), ("default",)),
     "accomplice": ((8,), ("evidence",)),
     "drift": ((8,), ("evidence", "off")),
     "relapse": ((3, 8), ("evidence", "off")),
@@ -57,7 +60,7 @@ CONDITIONS: dict[str, tuple[tuple[int, ...], tuple[str, ...]]] = {  # sizes, rul
 class Case:
     condition: str
     vehicles: int
-    rule: str  # evidence | quorum-only | off (the monitor off)
+    rule: str  # evidence | quorum-only | off (the monitor off) | default (f = 1)
     seed: int
 
     @property
@@ -71,9 +74,8 @@ class Case:
     @property
     def insiders(self) -> tuple[int, ...]:
         """The compromised vehicles (left out of the score)."""
-        return {"clean": (), "accusers": (LIAR, ACCOMPLICE), "accomplice": (LIAR, ACCOMPLICE)}.get(
-            self.condition, (LIAR,)
-        )
+        two = (LIAR, ACCOMPLICE)
+        return {"clean": (), "accusers": two, "accusers-start": two, "accomplice": two}.get(self.condition, (LIAR,))
 
 
 def cases(seeds: list[int], conditions: tuple[str, ...] = tuple(CONDITIONS)) -> list[Case]:
@@ -91,7 +93,8 @@ def faults(case: Case) -> list[dict[str, Any]]:
     """The case's fault plan."""
     honest = [v for v in range(1, case.vehicles + 1) if v not in case.insiders]
     at = {"start_s": START_S}
-    if case.condition == "accusers":
+    if case.condition.startswith("accusers"):
+        at = {"start_s": 0.0} if case.condition == "accusers-start" else at
         return [{"name": f"accuse-v{v}", "kind": "accuse", "vehicle": v, "names": honest, **at} for v in case.insiders]
     drift = {"name": "liar", "kind": "lie", "vehicle": LIAR, **DRIFT, **at}
     if case.condition == "drift":
@@ -109,10 +112,11 @@ def faults(case: Case) -> list[dict[str, Any]]:
 
 
 def insiders_config(case: Case) -> SwarmConfig:
-    rule = {  # two insiders at most in every case: the swarm is told f = 2 (the rule before: a quorum of two)
+    rule = {  # two insiders at most: told f = 2 (the rule before: a quorum of two; default: f = 1, as shipped)
         "evidence": {"monitor": {"max_compromised": 2}},
         "quorum-only": {"monitor": {"rule": "quorum-only", "max_compromised": 1}},
         "off": {"monitor": {"enabled": False}},
+        "default": {},  # the monitor as a new user has it: f = 1
     }
     return build_config(
         {

@@ -41,7 +41,7 @@ SEEDS = (
 )
 COOPERATIVE_VARIANTS = ("dead-reckoning", "naive", "ci-ekf", "ci-ukf", "ci-ekf-iae", "plain-ci-ekf")
 LIAR_PROFILES = ("gross", "drift", "overconfident", "spoofed")
-INSIDER_CONDITIONS = ("clean", "accusers", "accomplice", "drift", "relapse", "stale")
+INSIDER_CONDITIONS = ("clean", "accusers", "accusers-start", "accomplice", "drift", "relapse", "stale")
 MRCLAM_VARIANTS = ("dead-reckoning", "known-map", "known-map-coop", "slam-coop", "centralized")
 
 

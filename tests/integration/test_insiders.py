@@ -4,7 +4,9 @@ fault). Under the trust rule no honest vehicle distrusts another, and the honest
 range the accused contradict the accusations (``accusation_contradicted`` events, counted in
 summary.json); the control, the rule before (a quorum of two believed accusers decides,
 ``vehicle.monitor.rule = "quorum-only"``), shows the honest vehicles distrusting each other, so the test can
-fail."""
+fail. The first seconds: the same two accusing from the first second in a swarm told the default
+f = 1 (two accusers are a quorum), before anyone has ranged anyone: no honest vehicle distrusts
+another then either."""
 
 import json
 
@@ -17,12 +19,15 @@ INSIDERS, HONEST = (3, 4), (1, 2, 5)
 
 
 def _scenario(tmp_path, name: str, rule: str) -> str:
+    """``rule``: evidence (told f = 2), quorum-only (f = 1), or start (the defaults, accusing from 0 s)."""
     path = tmp_path / f"{name}.toml"
     f = 1 if rule == "quorum-only" else 2
     text = f'name = "{name}"\n[world]\nvehicles = 5\nseed = 11\n[clock]\nduration_s = 40\n'
-    text += f'[vehicle.monitor]\nrule = "{rule}"\nmax_compromised = {f}\n'
+    if rule != "start":
+        text += f'[vehicle.monitor]\nrule = "{rule}"\nmax_compromised = {f}\n'
+    start_s = 0.0 if rule == "start" else 5.0
     for v in INSIDERS:
-        text += f'[[faults]]\nkind = "accuse"\nvehicle = {v}\nnames = {list(HONEST)}\nstart_s = 5.0\n'
+        text += f'[[faults]]\nkind = "accuse"\nvehicle = {v}\nnames = {list(HONEST)}\nstart_s = {start_s}\n'
     path.write_text(text)
     return str(path)
 
@@ -36,7 +41,7 @@ def _events(run, kind: str) -> list[dict]:
 def runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("insiders")
     out = {}
-    for rule in ("evidence", "quorum-only"):
+    for rule in ("evidence", "quorum-only", "start"):
         result = run_swarm(tmp, _scenario(tmp, rule, rule), "--name", rule)
         assert result.returncode == 0, result.stdout + result.stderr
         out[rule] = tmp / rule
@@ -63,3 +68,9 @@ def test_the_control_the_old_quorum_rule_turns_the_honest_vehicles_against_each_
     turned = _honest_distrusting_honest(runs["quorum-only"])
     assert turned, "the old rule should let two insiders switch the honest swarm's cooperation off"
     assert all(e["reason"].startswith("accused by") for e in turned), turned
+
+
+def test_in_the_first_seconds_no_honest_vehicle_distrusts_another_on_a_quorums_word(runs):
+    assert _honest_distrusting_honest(runs["start"]) == []
+    contradicted = _events(runs["start"], "accusation_contradicted")  # heard, and judged against evidence
+    assert {e["accuser"] for e in contradicted if e["vehicle"] in HONEST} == set(INSIDERS), contradicted

@@ -10,6 +10,12 @@ may accuse anyone, withhold accusations or fall silent. So what others say count
 - **a quorum larger than f where the vehicle cannot judge**: a neighbour it has no fresh fixes of
   is distrusted on the word of at least ``f + 1`` believed accusers, and such a verdict holds at
   least ``min_hold_s`` either way (no flapping as accusations come and go);
+- **not before the vehicle could have judged**: in its first seconds of trust (a window and a
+  decorrelation time from the first neighbour it heard) it has not had time to range anyone, and a
+  neighbour it has only just begun to range (its fixes fresh, the first of them less than that long
+  ago) is one it is about to judge: in both it waits for its own evidence rather than act on
+  others' word (insiders accusing from the first second would otherwise have every honest vehicle
+  distrust the others before anyone could range anyone);
 - **accusers are judged too**: an accusation of a neighbour the vehicle's own evidence clears
   (``vehicle.trust.neighbours.consistent_here``) is contradicted. Its accuser is not heard for
   ``discredit_s`` after its latest contradicted accusation (a Contradiction when it starts: a
@@ -45,6 +51,8 @@ def hear(
     """Record whom ``accuser``'s broadcast at ``t_us`` accuses; what changes: a Verdict for each
     neighbour whose belief changes on the others' word, a Contradiction when ``accuser`` starts
     being discredited."""
+    if book.started_us is None:
+        book.started_us = t_us
     if accused:
         book.accusations[accuser] = (t_us, accused)
     else:
@@ -62,7 +70,7 @@ def hear(
     for k in sorted((named | standing) - {me}):
         record = book.records.setdefault(k, NeighbourRecord())
         record.accusers = tuple(_accusers(book, spec, k, me, t_us))
-        verdict = _decide(record, spec, k, t_us)
+        verdict = _decide(record, spec, k, t_us, _may_judge_soon(book, record, spec, t_us))
         if verdict is not None:
             changes.append(verdict)
     return changes
@@ -83,12 +91,24 @@ def _accusers(book: NeighbourBook, spec: MonitorSpec, k: int, me: int, t_us: int
     )
 
 
-def _decide(record: NeighbourRecord, spec: MonitorSpec, k: int, t_us: int) -> Verdict | None:
+def _may_judge_soon(book: NeighbourBook, record: NeighbourRecord, spec: MonitorSpec, t_us: int) -> bool:
+    """Whether the vehicle is in its first seconds of trust, or has only just begun to range the
+    neighbour of ``record`` (module docstring): a window and a decorrelation time, the time its own
+    tests need to judge a neighbour it ranges."""
+    wait_us = round((spec.window_s + spec.decorrelation_s) * 1e6)
+    if book.started_us is not None and t_us - book.started_us < wait_us:
+        return True
+    fixes = record.fixes
+    fresh = bool(fixes) and t_us - fixes[-1].stamp_us <= round(spec.decorrelation_s * 1e6)
+    return fresh and t_us - fixes[0].stamp_us < wait_us
+
+
+def _decide(record: NeighbourRecord, spec: MonitorSpec, k: int, t_us: int, judges_soon: bool) -> Verdict | None:
     """The others' word on ``k`` now: distrusted while a quorum accuses it and the vehicle cannot
-    judge it (whatever it judges, under the old rule); each change at least ``min_hold_s`` after the
-    last one."""
+    judge it, nor is about to (``judges_soon``) (whatever it judges, under the old rule); each change
+    at least ``min_hold_s`` after the last one."""
     quorum = len(record.accusers) >= spec.quorum
-    own_say = not spec.hearsay_over_evidence and judges(record, spec, t_us)
+    own_say = not spec.hearsay_over_evidence and (judges(record, spec, t_us) or judges_soon)
     word = "accused by " + ", ".join(f"v{j}" for j in record.accusers) if quorum and not own_say else ""
     if bool(word) == bool(record.hearsay):
         record.hearsay = word  # the same verdict; the accusers named as they stand

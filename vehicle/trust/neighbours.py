@@ -121,13 +121,15 @@ class NeighbourRecord:
 @dataclass
 class NeighbourBook:
     """Every neighbour's record, the smallest position variance the vehicle has had itself, whom
-    each neighbour's latest broadcast accused: {accuser: (stamp us, accused)}, and the accusers
-    its own evidence contradicted: {accuser: stamp us of the latest such accusation}."""
+    each neighbour's latest broadcast accused: {accuser: (stamp us, accused)}, the accusers its own
+    evidence contradicted: {accuser: stamp us of the latest such accusation}, and when it first
+    heard a neighbour."""
 
     records: dict[int, NeighbourRecord] = field(default_factory=dict)
     own_best_m2: float = math.inf
     accusations: dict[int, tuple[int, frozenset[int]]] = field(default_factory=dict)
     contradicted: dict[int, int] = field(default_factory=dict)
+    started_us: int | None = None  # when the vehicle first heard a neighbour (its first seconds of trust)
 
     def copy(self) -> NeighbourBook:
         return NeighbourBook(
@@ -135,6 +137,7 @@ class NeighbourBook:
             self.own_best_m2,
             dict(self.accusations),
             dict(self.contradicted),
+            self.started_us,
         )
 
     def best_claim_m2(self, besides: int) -> float:

@@ -2,7 +2,9 @@
 than f believed accusers distrust a neighbour the vehicle cannot judge, never one it judges
 consistent; accusers contradicted by the vehicle's own evidence are no longer heard, and said so
 once; many accusers make the vehicle's own tests more watchful; a verdict on others' word holds
-at least min_hold_s; each relapse doubles the probation, and a record is forgiven with time."""
+at least min_hold_s; each relapse doubles the probation, and a record is forgiven with time; in its
+first seconds of trust, and of a neighbour it has just begun to range, a vehicle waits for its own
+evidence."""
 
 import dataclasses
 
@@ -23,6 +25,12 @@ def stream(*args, **kwargs):
 
 
 HOLD_US = round(SPEC.min_hold_s * 1e6)
+WAIT_US = round((SPEC.window_s + SPEC.decorrelation_s) * 1e6)  # the time its own tests need to judge
+
+
+def seasoned() -> NeighbourBook:
+    """The book of a vehicle well past its first seconds of trust."""
+    return NeighbourBook(started_us=-10 * WAIT_US)
 
 
 def _accuse(book, accusers, accused, t_us, spec=SPEC):
@@ -33,7 +41,7 @@ def _accuse(book, accusers, accused, t_us, spec=SPEC):
 
 
 def test_f_accusers_change_nothing_and_f_plus_one_distrust_a_neighbour_the_vehicle_cannot_judge():
-    book = NeighbourBook()
+    book = seasoned()
     assert _accuse(book, range(4, 4 + F), {LIAR}, 0) == [] and book.trusts(LIAR)
     (verdict,) = _accuse(book, [4 + F], {LIAR}, 0)
     assert (verdict.neighbour, verdict.trusted, verdict.reason) == (LIAR, False, "accused by v4, v5, v6")
@@ -41,7 +49,7 @@ def test_f_accusers_change_nothing_and_f_plus_one_distrust_a_neighbour_the_vehic
 
 
 def test_a_verdict_on_others_word_holds_min_hold_s_before_their_retraction_counts():
-    book = NeighbourBook()
+    book = seasoned()
     _accuse(book, [4, 5, 6], {LIAR}, 0)
     assert _accuse(book, [6], set(), HOLD_US - 1) == [] and not book.trusts(LIAR)  # held
     (again,) = _accuse(book, [6], set(), HOLD_US)
@@ -68,7 +76,7 @@ def test_no_number_of_accusers_outweighs_a_neighbour_the_vehicle_ranges_and_find
 
 def test_a_contradicted_accuser_is_heard_again_after_discredit_s():
     rng = np.random.default_rng(22)
-    book = NeighbourBook()
+    book = seasoned()
     stream(book, 2, np.zeros((150, 2)), rng, between=lambda t: _accuse(book, [4], {2}, t))
     assert 4 in book.contradicted
     later = book.contradicted[4] + round(SPEC.discredit_s * 1e6)
@@ -80,9 +88,9 @@ def test_a_contradicted_accuser_is_heard_again_after_discredit_s():
 def test_accusers_make_the_vehicles_own_tests_watchful_and_a_neighbour_it_cannot_clear_is_not_contradicted():
     """A neighbour 0.62 m off along one axis: its bias statistic over the long window (about 32) lies
     between the watchful bound (25) and the usual one (40). Unaccused it stays believed; accused by
-    f + 1 from the start it is distrusted on their word until the vehicle has ranged it for a window,
-    cleared by that evidence (not yet enough to contradict the accusers), then distrusted on the
-    vehicle's own evidence, watchfully judged (a first-hand verdict). Nobody is contradicted."""
+    f + 1 from the start, the vehicle waits for its own evidence rather than distrust it on their
+    word, then distrusts it on that evidence, watchfully judged (a first-hand verdict). Nobody is
+    contradicted."""
     offsets = np.tile([0.62, 0.0], (150, 1))
     quiet = NeighbourBook()
     assert stream(quiet, 2, offsets, np.random.default_rng(23)) == []
@@ -91,13 +99,14 @@ def test_accusers_make_the_vehicles_own_tests_watchful_and_a_neighbour_it_cannot
     verdicts = stream(
         book, 2, offsets, np.random.default_rng(23), between=lambda t: changes.extend(_accuse(book, [4, 5, 6], {2}, t))
     )
-    assert [(v.trusted, v.reason.split(" ")[0]) for v in verdicts] == [(True, "consistent"), (False, "biased")]
+    assert [(v.trusted, v.reason.split(" ")[0]) for v in verdicts] == [(False, "biased")]
+    assert not [c for c in changes if isinstance(c, Verdict)]  # nothing on their word
     assert book.accused() == (2,) and not [c for c in changes if isinstance(c, Contradiction)]
 
 
 def test_fresh_evidence_of_its_own_clears_a_neighbour_distrusted_on_others_word():
     rng = np.random.default_rng(24)
-    book = NeighbourBook()
+    book = seasoned()
     _accuse(book, [4, 5, 6], {LIAR}, 0)
     assert not book.trusts(LIAR)
     verdicts = stream(book, LIAR, np.zeros((30, 2)), rng, start_us=PERIOD_US)  # a window of its own fixes
@@ -160,7 +169,7 @@ def test_the_record_survives_the_neighbours_silence_and_is_forgiven_with_time():
 
 def test_accusations_by_the_accused_of_the_vehicle_itself_or_by_the_distrusted_do_not_count():
     rng = np.random.default_rng(28)
-    book = NeighbourBook()
+    book = seasoned()
     assert not stream(book, 4, np.full((20, 2), 30.0), rng)[0].trusted  # v4 distrusted first-hand
     assert _accuse(book, [4, 5, 6], {LIAR, ME}, 4_000_000) == []  # v4's word is worth nothing here
     assert book.trusts(LIAR) and ME not in book.records
@@ -183,3 +192,39 @@ def test_a_caught_liar_that_goes_on_to_drift_slowly_does_not_earn_trust_back_whi
         verdicts = stream(book, LIAR, np.concatenate([gross, drift]), rng, spec=spec)
         assert not verdicts[0].trusted
         assert any(v.trusted for v in verdicts) == trusted_again, (growth, spec.clear_bias, verdicts)
+
+
+def test_in_its_first_seconds_a_vehicle_waits_for_its_own_evidence_before_a_quorums_word():
+    """Two insiders (f = 1) accuse an honest neighbour in every broadcast from the first second: the
+    vehicle ranges it and never distrusts it; once its evidence spans the long window, the
+    accusers are contradicted."""
+    spec = dataclasses.replace(SPEC, max_compromised=1)
+    rng = np.random.default_rng(30)
+    book = NeighbourBook()
+    changes = []
+    accuse = lambda t: changes.extend(_accuse(book, [4, 5], {2}, t, spec))  # noqa: E731
+    verdicts = stream(book, 2, np.zeros((150, 2)), rng, spec=spec, between=accuse)
+    assert verdicts == [] and not [c for c in changes if isinstance(c, Verdict)] and book.trusts(2)
+    assert sorted(c.accuser for c in changes if isinstance(c, Contradiction)) == [4, 5]
+
+
+def test_after_its_first_seconds_a_neighbour_it_does_not_range_is_distrusted_on_a_quorums_word():
+    book = NeighbourBook()
+    assert _accuse(book, [4, 5, 6], {LIAR}, 0) == [] and book.trusts(LIAR)  # its first seconds
+    assert _accuse(book, [4, 5, 6], {LIAR}, WAIT_US - 1) == [] and book.trusts(LIAR)
+    (verdict,) = _accuse(book, [4, 5, 6], {LIAR}, WAIT_US)
+    assert not verdict.trusted and verdict.reason == "accused by v4, v5, v6"
+
+
+def test_a_neighbour_just_met_is_judged_on_the_vehicles_own_evidence_first():
+    """A seasoned vehicle begins to range neighbour 2, and from its second fix on a quorum accuses
+    it: the vehicle waits for its own window of fixes, which clears it; a neighbour it does not
+    range is distrusted at once."""
+    rng = np.random.default_rng(31)
+    book = seasoned()
+    changes = []
+    accuse = lambda t: t and changes.extend(_accuse(book, [4, 5, 6], {2}, t))  # noqa: E731
+    verdicts = stream(book, 2, np.zeros((60, 2)), rng, between=accuse)
+    assert verdicts == [] and not [c for c in changes if isinstance(c, Verdict)] and book.trusts(2)
+    (verdict,) = _accuse(book, [4, 5, 6], {LIAR}, 60 * PERIOD_US)
+    assert not verdict.trusted
