@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Optional
 
@@ -60,6 +61,13 @@ def mrclam(
         help="a calibration file written by `swarm replay calibrate` (fitted on another data set, or on "
         "another interval of this one), read instead of calibrating; --calibrate is then not used",
     ),
+    folds: bool = typer.Option(
+        False,
+        "--folds",
+        help="two-fold cross-validation: calibrate on the first half of the data set and replay the "
+        "second, then the other way round (two run directories, NAME-fold1 and NAME-fold2); "
+        "--start, --duration, --calibrate and --calibration are then not used",
+    ),
     withhold_landmarks: str = typer.Option("", help="robots whose landmark sightings are withheld, comma-separated"),
     mode: str = typer.Option("lockstep", help="lockstep (as fast as possible, reproducible) or realtime"),
     speed: float = typer.Option(1.0, help="realtime only: data set seconds per wall second"),
@@ -105,26 +113,30 @@ def mrclam(
     )
     if estimator == "centralized" and mode != ClockMode.LOCKSTEP:
         fail("the centralized reference runs in this process as fast as it can: --mode realtime does not apply")
-    try:
-        config = replay_config(
-            choice,
-            name=name or f"mrclam-{estimator}{'-coop' if cooperative else ''}",
-            overrides={
-                "clock": {"mode": mode, "speed": speed},
-                "view": {"record": record, "live": live, "live_host": live_host, "live_port": live_port},
-            },
-        )
-        if config.view.live:
-            check_live_address(config.view.live_host, config.view.live_port)
-        if estimator == "centralized":
-            _reference(config, out)
-            return
-        run_dir, failures, notes = launch(
-            config, out, show_progress=not quiet, stop=stop_on_signals(), secure=not insecure
-        )
-    except SwarmlocError as exc:
-        fail(str(exc))
-    print_result(run_dir, failures, notes, report=report, consistency=True)
+    if folds and (start is not None or duration is not None or calibration is not None or interval != (0.0, 120.0)):
+        fail("--folds sets each fold's window and calibration: no --start, --duration, --calibrate, --calibration")
+    base = name or f"mrclam-{estimator}{'-coop' if cooperative else ''}"
+    for fold in (1, 2) if folds else (0,):
+        try:
+            config = replay_config(
+                dataclasses.replace(choice, fold=fold),
+                name=f"{base}-fold{fold}" if fold else base,
+                overrides={
+                    "clock": {"mode": mode, "speed": speed},
+                    "view": {"record": record, "live": live, "live_host": live_host, "live_port": live_port},
+                },
+            )
+            if config.view.live:
+                check_live_address(config.view.live_host, config.view.live_port)
+            if estimator == "centralized":
+                _reference(config, out)
+                continue
+            run_dir, failures, notes = launch(
+                config, out, show_progress=not quiet, stop=stop_on_signals(), secure=not insecure
+            )
+        except SwarmlocError as exc:
+            fail(str(exc))
+        print_result(run_dir, failures, notes, report=report, consistency=True)
 
 
 def _reference(config: SwarmConfig, out: Path) -> None:

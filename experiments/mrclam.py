@@ -37,42 +37,49 @@ def plan(
     start: float,
     duration: float,
     calibration: str = "",
+    folds: int = 0,
 ) -> list[RunSpec]:
     """Every variant on every seed; the window ``start`` .. ``start + duration`` data set seconds (0
     duration: to the data set's end); ``calibration``: a frozen calibration file (else calibrated on
-    the data set's first 120 s)."""
+    the data set's first 120 s); ``folds`` 2: each run in both folds of two-fold cross-validation
+    (launch.replay_setup.fold_of), its group ``<variant>-fold<k>``, instead of that window."""
     if not dataset:
         raise ConfigError("--dataset: give an MRCLAM data set (its directory or its .tar.xz)")
     specs = []
     for variant in _variants(variants):
         estimator, cooperative = VARIANTS[variant]
-        for seed in range(first_seed, first_seed + seeds):
-            choice = ReplayChoice(
-                dataset,
-                _robots(robots),
-                estimator,
-                cooperative,
-                start,
-                duration or None,
-                seed=seed,
-                calibration_file=calibration,
-            )
-            name = f"{variant}-seed{seed}"
-            config = replay_config(choice, name=name).model_dump(mode="json")
-            if variant == "centralized":
-                specs.append(
-                    RunSpec(
-                        name,
-                        variant,
-                        seed,
-                        config,
-                        measure=f"{__name__}:measure_reference",
-                        runner=f"{__name__}:fly_centralized",
-                    )
+        for fold in _folds(folds):
+            group = _group(variant, fold)
+            for seed in range(first_seed, first_seed + seeds):
+                choice = ReplayChoice(
+                    dataset,
+                    _robots(robots),
+                    estimator,
+                    cooperative,
+                    None if fold else start,
+                    None if fold else duration or None,
+                    seed=seed,
+                    calibration_file=calibration,
+                    fold=fold,
                 )
-            else:
-                specs.append(RunSpec(name, variant, seed, config))
+                name = f"{group}-seed{seed}"
+                config = replay_config(choice, name=name).model_dump(mode="json")
+                if variant == "centralized":
+                    reference = {"measure": f"{__name__}:measure_reference", "runner": f"{__name__}:fly_centralized"}
+                    specs.append(RunSpec(name, group, seed, config, **reference))
+                else:
+                    specs.append(RunSpec(name, group, seed, config))
     return specs
+
+
+def _folds(folds: int) -> tuple[int, ...]:
+    if folds not in (0, 2):
+        raise ConfigError(f"--folds must be 2 (two-fold cross-validation) or 0, got {folds}")
+    return (1, 2) if folds else (0,)
+
+
+def _group(variant: str, fold: int) -> str:
+    return f"{variant}-fold{fold}" if fold else variant
 
 
 def fly_centralized(spec: RunSpec, config: SwarmConfig, run_dir: Path) -> list[str]:
@@ -105,10 +112,11 @@ def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:
     import json
 
     table: dict[str, Any] = {"dataset": params["dataset"], "variants": {}}
-    for variant in _variants(params["variants"]):
+    groups = [(v, _group(v, k)) for v in _variants(params["variants"]) for k in _folds(params.get("folds", 0))]
+    for variant, group in groups:
         summaries = []
         for row in rows:
-            if row.get("variant") != variant or row.get("status") != "complete":
+            if row.get("variant") != group or row.get("status") != "complete":
                 continue
             path = folder / row["run"] / (REFERENCE if variant == "centralized" else "summary.json")
             summaries.append(json.loads(path.read_text()))
@@ -117,7 +125,7 @@ def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:
         rmse, rmse_half, n = interval([s["swarm"]["rmse_m"] for s in summaries])
         anees, anees_half, _ = interval([s["swarm"]["anees"] for s in summaries])
         robots = sorted(summaries[0]["vehicles"], key=int)
-        table["variants"][variant] = {
+        table["variants"][group] = {
             "seeds": n,
             "rmse_m": rmse,
             "rmse_m_interval_95": rmse_half,
@@ -128,7 +136,7 @@ def conclude(rows: list[dict], folder: Path, **params: Any) -> list[str]:
         }
     write_experiment(folder, table)
     return [
-        f"  {name:<16} RMSE {v['rmse_m']:.3f} m (+- {v['rmse_m_interval_95']:.3f})  ANEES {v['anees']:.2f} "
+        f"  {name:<22} RMSE {v['rmse_m']:.3f} m (+- {v['rmse_m_interval_95']:.3f})  ANEES {v['anees']:.2f} "
         f"(+- {v['anees_interval_95']:.2f})  per robot "
         + " ".join(f"{x:.3f}" for x in v["rmse_m_per_robot"].values())
         + f"  block ANEES in band {v['robots_inside_band']}"

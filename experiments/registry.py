@@ -156,6 +156,13 @@ EXPERIMENTS: dict[str, Experiment] = {
             Param("start", 120.0, "data set second the replay starts (after the calibration, 0-120 s)", 0.0),
             Param("duration", 0.0, "seconds replayed (0: to the data set's end)", 0.0),
             Param("calibration", "", "a file from `swarm replay calibrate` read instead of calibrating on 0-120 s"),
+            Param(
+                "folds",
+                0,
+                "2: two-fold cross-validation, every run in both folds (calibrated on one half of the data set, "
+                "scored on the other); --start and --duration are then not used",
+                0,
+            ),
         ),
     ),
 }

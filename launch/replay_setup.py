@@ -49,6 +49,7 @@ class ReplayChoice:
     seed: int = 0
     relay_sightings: bool = True
     calibration_file: str = ""  # a datasheet frozen by `swarm replay calibrate` ("": calibrate on calibration_s)
+    fold: int = 0  # 1, 2: that fold of two-fold cross-validation (fold_of); 0: the window and calibration asked
 
 
 def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = None) -> SwarmConfig:
@@ -68,6 +69,7 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
     if any(r not in choice.robots for r in choice.withhold_landmarks):
         raise ConfigError(f"--withhold-landmarks {list(choice.withhold_landmarks)} names robots not replayed")
     data = load_mrclam(choice.dataset)
+    choice = fold_of(choice, data)
     frozen = _frozen_calibration(choice)
     calibration_s = frozen.interval_s if frozen is not None else choice.calibration_s
     elsewhere = frozen is not None and not frozen.fitted_on(data)
@@ -82,6 +84,26 @@ def replay_config(choice: ReplayChoice, *, name: str, overrides: dict | None = N
     for section, values in (overrides or {}).items():
         config.setdefault(section, {}).update({k: v for k, v in values.items() if v is not None})
     return build_config(config)
+
+
+def fold_of(choice: ReplayChoice, data) -> ReplayChoice:
+    """The choice's fold of two-fold cross-validation on ``data`` (sim.mrclam.MrclamData), from the
+    first second every replayed robot has ground truth to the data set's end: fold 1 calibrates on
+    the first half and replays the second, fold 2 the other way round, so that no fold replays what
+    it was calibrated on; the choice itself when it names no fold. ConfigError when a fold is asked
+    with a window or a calibration of its own."""
+    if not choice.fold:
+        return choice
+    if choice.fold not in (1, 2):
+        raise ConfigError(f"fold must be 1 or 2 (two-fold cross-validation), got {choice.fold}")
+    if choice.start_s is not None or choice.duration_s is not None or choice.calibration_file:
+        raise ConfigError("a fold sets its own window and calibration: no start, duration or calibration file")
+    logs = [data.robots[r].groundtruth for r in choice.robots if r in data.robots]
+    first = max((float(truth[0, 0]) for truth in logs if len(truth)), default=0.0)
+    half = (first + data.duration_s) / 2.0
+    if choice.fold == 1:
+        return dataclasses.replace(choice, calibration_s=(first, half), start_s=half)
+    return dataclasses.replace(choice, calibration_s=(half, data.duration_s), start_s=first, duration_s=half - first)
 
 
 @dataclass(frozen=True)

@@ -191,3 +191,23 @@ def test_the_mrclam_experiment_compares_variants_over_seeds(tmp_path):
     unknown = [*experiment, "--variants", "known-map,telepathy", "--out", str(tmp_path / "x")]
     refused = subprocess.run(unknown, capture_output=True, text=True, env={**os.environ, "COLUMNS": "200"})
     assert refused.returncode != 0 and "telepathy" in refused.stderr and "Traceback" not in refused.stderr
+
+
+def test_two_folds_calibrate_on_one_half_and_replay_the_other(tmp_path):
+    """`--folds` on the 240 s excerpt: fold 1 calibrated on its first half and replaying the second,
+    fold 2 the other way round, each its own run directory (the reference, in one process)."""
+    command = [sys.executable, "-m", "cli", "replay", "mrclam", str(EXCERPT), "--estimator", "centralized"]
+    command += ["--cooperative", "--folds", "--quiet", "--out", str(tmp_path), "--name", "folds"]
+    result = subprocess.run(command, capture_output=True, text=True, env={**os.environ, "COLUMNS": "200"})
+    assert result.returncode == 0, result.stdout + result.stderr
+    windows = {}
+    for fold in (1, 2):
+        config = json.loads((tmp_path / f"folds-fold{fold}" / "config.json").read_text())
+        start, duration = config["replay"]["start_s"], config["clock"]["duration_s"]
+        windows[fold] = (config["replay"]["calibration_s"], [start, start + duration])
+        rmse = json.loads((tmp_path / f"folds-fold{fold}" / "reference.json").read_text())["swarm"]["rmse_m"]
+        assert rmse < 0.3, (fold, rmse)
+    (cal_1, replay_1), (cal_2, replay_2) = windows[1], windows[2]
+    assert cal_1 == pytest.approx(replay_2, abs=0.02) and cal_2 == pytest.approx(replay_1, abs=0.02), windows
+    refused = subprocess.run(command + ["--start", "10"], capture_output=True, text=True)
+    assert refused.returncode != 0 and "--folds sets each fold's window" in refused.stderr
