@@ -1,0 +1,258 @@
+"""A linear study of what sharing cross-covariance factors (vehicle.models.correlation) is worth before
+it is put through the processes (docs/decisions/cross-covariance.md). Pure and deterministic.
+
+n vehicles, each a planar pose [x, y, yaw] as a random walk (process noise ``q`` per epoch), vehicle 1
+with a GNSS fix every ``gnss_every`` epochs, the pairs of ``pairs`` measuring their relative position
+z = p_b - p_a (noise ``relative_var`` per axis) at every epoch. Being linear, the true joint
+covariance of the vehicles' errors under exactly the operations they perform can be followed beside
+them (``Sigma``), so each method's honesty is its expected NEES tr(P^-1 Sigma_ii) (3 for a consistent
+filter: no Monte Carlo needed) and its accuracy the RMS position error sqrt(tr Sigma_pp).
+
+Methods: ``centralized`` (one joint Kalman filter fusing both directions of every pair at every
+epoch); ``split-ci-both`` (each vehicle of a pair fuses the other's broadcast at every epoch by split
+CI, as the vehicles do today); the others fuse a pair once per epoch, by the fuser whose turn it is
+(correlation.fuser_at), one-sided: ``split-ci`` (the neighbour's estimate of unknown correlation),
+``factors`` (the pair's cross-covariance from the factors, Kalman update; the fuser's other factors
+moved by its own update c <- (I - K H) c), ``factors-luft`` (the same with Luft et al.'s map for the
+other factors, c <- P+ P^-1 c), ``factors-residual-ci`` (the known part of the correlation taken out
+exactly, split CI on what is left, e_b = C^T P^-1 e_a + r), and ``tree`` (factors on the edges of a
+chain 1-2-...-n, split CI on the others); ``luft-two-sided`` is Luft et al.'s algorithm as published, both vehicles of
+the pair updated by the one joint update (which the trust model here does not allow: it is measured to
+see whether the one-sided form is what costs), sigma_ij sigma_ji^T with the reset sigma_ij = P_ij+,
+sigma_ji = I and sigma_ik <- P_ii+ P_ii^-1 sigma_ik for the others.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vehicle.models.correlation import POSE, Anchor, Factors, fuser_at, pair_update, resolve
+
+PERIOD_US = 200_000
+H_POSITION = np.hstack([np.eye(2), np.zeros((2, 1))])
+CI_WEIGHTS = np.linspace(0.0, 1.0, 201)[:-1]
+METHODS = (
+    "centralized",
+    "split-ci-both",
+    "split-ci",
+    "factors",
+    "factors-luft",
+    "factors-residual-ci",
+    "tree",
+    "luft-two-sided",
+)
+
+
+@dataclass(frozen=True)
+class Regime:
+    relative_var: float = 0.05  # m^2 per axis, the relative measurement's noise
+    q: tuple[float, float, float] = (0.02, 0.02, 0.001)  # process noise per epoch [m^2, m^2, rad^2]
+    prior: tuple[float, float, float] = (0.1, 0.1, 0.01)
+    gnss_var: float = 0.5  # m^2 per axis, vehicle 1's fix
+    gnss_every: int = 5  # epochs
+
+
+@dataclass(frozen=True)
+class Outcome:
+    expected_nees: np.ndarray  # (n,) mean over the settled epochs of tr(P_i^-1 Sigma_ii)
+    rms_position_m: float
+
+
+def study(
+    n: int,
+    pairs: list[tuple[int, int]],
+    method: str,
+    regime: Regime = Regime(),
+    *,
+    epochs: int = 300,
+    settle: int = 100,
+) -> Outcome:
+    """Run ``method`` (module docstring) on vehicles 0..n-1 ranging the ``pairs`` for ``epochs`` epochs;
+    averaged after the first ``settle``."""
+    if method == "centralized":
+        return _centralized(n, pairs, regime, epochs, settle)
+    if method == "luft-two-sided":
+        return _two_sided(n, pairs, regime, epochs, settle)
+    swarm = _Decentralized(n, regime, method)
+    nees, spread = [], []
+    for k in range(epochs):
+        swarm.epoch(k, pairs)
+        if k >= settle:
+            nees.append(swarm.expected_nees())
+            spread.append(swarm.position_spread())
+    return Outcome(np.mean(nees, axis=0), float(np.sqrt(np.mean(spread))))
+
+
+class _Decentralized:
+    def __init__(self, n: int, regime: Regime, method: str) -> None:
+        self.n, self.regime, self.method = n, regime, method
+        self.P = [np.diag(regime.prior) for _ in range(n)]
+        self.books = [Factors(POSE) for _ in range(n)]
+        self.Sigma = np.kron(np.eye(n), np.diag(regime.prior))
+
+    def _rows(self, i: int) -> slice:
+        return slice(POSE * i, POSE * i + POSE)
+
+    def epoch(self, k: int, pairs: list[tuple[int, int]]) -> None:
+        t = k * PERIOD_US
+        self.P = [P + np.diag(self.regime.q) for P in self.P]
+        self.Sigma = self.Sigma + np.kron(np.eye(self.n), np.diag(self.regime.q))
+        if k % self.regime.gnss_every == 0:
+            self._gnss(0)
+        for i in range(self.n):
+            self.books[i].start_clone(t, self.P[i], self.P[i].copy(), PERIOD_US)
+        claims = {
+            (i, j): self.books[i].claim(i + 1, j + 1, t, PERIOD_US) for a, b in pairs for i, j in ((a, b), (b, a))
+        }
+        broadcast = [P.copy() for P in self.P]
+        for a, b in pairs:
+            fuser = fuser_at(t, PERIOD_US, a + 1, b + 1) - 1
+            other = b if fuser == a else a
+            self._fuse(fuser, other, claims[(other, fuser)], broadcast[other], exact=self._exact(a, b))
+            if self.method == "split-ci-both":  # the other direction too, as the vehicles do today
+                self._fuse(other, fuser, claims[(fuser, other)], broadcast[fuser], exact=False)
+
+    def _exact(self, a: int, b: int) -> bool:
+        return self.method not in ("split-ci", "split-ci-both") and (self.method != "tree" or abs(a - b) == 1)
+
+    def _gnss(self, i: int) -> None:
+        R = self.regime.gnss_var * np.eye(2)
+        S = H_POSITION @ self.P[i] @ H_POSITION.T + R
+        K = self.P[i] @ H_POSITION.T @ np.linalg.inv(S)
+        self.P[i] = self.P[i] - K @ S @ K.T
+        self.books[i].gain(K, H_POSITION)
+        self._truth(i, None, K, H_POSITION, None, R)
+
+    def _fuse(self, a: int, b: int, claim, U: np.ndarray, *, exact: bool) -> None:
+        """a fuses b's broadcast (covariance U) with z = p_b - p_a."""
+        H_own, H_their, R = -H_POSITION, H_POSITION, self.regime.relative_var * np.eye(2)
+        book, P = self.books[a], self.P[a]
+        C = np.zeros((POSE, POSE))
+        if exact:
+            resolved = resolve(book, a + 1, claim, U)
+            if resolved.adopt is not None:
+                book.adopt(b + 1, resolved.adopt)
+            C = resolved.C
+        if exact and self.method != "factors-residual-ci":
+            update = pair_update(np.zeros(POSE), P, np.zeros(2), H_own, H_their, R, C, U)
+            P_new, gain = update.P, update.K
+        else:  # split CI, on the residual of what the factors explain (nothing for plain split CI)
+            A = C.T @ np.linalg.inv(P)
+            P_new, gain = split_ci(P, H_own + H_their @ A, R, H_their @ (U - C.T @ A.T) @ H_their.T)
+        if self.method == "factors-luft":
+            book.move(P_new @ np.linalg.inv(P))
+        else:
+            book.gain(gain, H_own)
+        if exact:
+            book.set_pair(b + 1, Anchor(a + 1, claim.epoch_us), U, C - gain @ (H_own @ C + H_their @ U))
+        self.P[a] = P_new
+        self._truth(a, b, gain, H_own, H_their, R)
+
+    def _truth(self, a: int, b: int | None, K: np.ndarray, H_own: np.ndarray, H_their, R: np.ndarray) -> None:
+        """Sigma after a's update e_a <- e_a - K (H_own e_a + H_their e_b) + K v."""
+        L = np.eye(POSE * self.n)
+        L[self._rows(a), self._rows(a)] -= K @ H_own
+        if b is not None:
+            L[self._rows(a), self._rows(b)] -= K @ H_their
+        noise = np.zeros_like(self.Sigma)
+        noise[self._rows(a), self._rows(a)] = K @ R @ K.T
+        self.Sigma = L @ self.Sigma @ L.T + noise
+
+    def expected_nees(self) -> list[float]:
+        return [
+            float(np.trace(np.linalg.solve(self.P[i], self.Sigma[self._rows(i), self._rows(i)]))) for i in range(self.n)
+        ]
+
+    def position_spread(self) -> float:
+        return float(np.mean([np.trace(self.Sigma[self._rows(i), self._rows(i)][:2, :2]) for i in range(self.n)]))
+
+
+def split_ci(P: np.ndarray, H: np.ndarray, R: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split CI of own estimate (P (n, n), seen through H (m, n)) and a measurement with independent noise
+    R and a share S of unknown correlation, in measurement space with the weight of largest fused
+    information (vehicle.models.cooperative): the new covariance and the gain K (n, m) of the mean."""
+    M = H @ P @ H.T
+    M_inv = np.linalg.inv(M)
+    fix_information = [np.linalg.inv(R + S / (1.0 - w)) for w in CI_WEIGHTS]
+    w_at = int(np.argmax([np.linalg.det(w * M_inv + info) for w, info in zip(CI_WEIGHTS, fix_information)]))
+    w, I_fix = CI_WEIGHTS[w_at], fix_information[w_at]
+    M_new = np.linalg.inv(w * M_inv + I_fix)
+    A = P @ H.T @ M_inv
+    P_new = P + A @ (M_new - M) @ A.T
+    return 0.5 * (P_new + P_new.T), A @ M_new @ I_fix
+
+
+def _centralized(n: int, pairs: list[tuple[int, int]], regime: Regime, epochs: int, settle: int) -> Outcome:
+    P = np.kron(np.eye(n), np.diag(regime.prior))
+    spread = []
+
+    def update(H: np.ndarray, R: np.ndarray) -> np.ndarray:
+        S = H @ P @ H.T + R
+        K = P @ H.T @ np.linalg.inv(S)
+        return P - K @ S @ K.T
+
+    for k in range(epochs):
+        P = P + np.kron(np.eye(n), np.diag(regime.q))
+        if k % regime.gnss_every == 0:
+            H = np.zeros((2, POSE * n))
+            H[:, :POSE] = H_POSITION
+            P = update(H, regime.gnss_var * np.eye(2))
+        for a, b in pairs:
+            for own, their in ((a, b), (b, a)):
+                H = np.zeros((2, POSE * n))
+                H[:, POSE * own : POSE * own + POSE] = -H_POSITION
+                H[:, POSE * their : POSE * their + POSE] = H_POSITION
+                P = update(H, regime.relative_var * np.eye(2))
+        if k >= settle:
+            spread.append(np.mean([np.trace(P[POSE * i : POSE * i + 2, POSE * i : POSE * i + 2]) for i in range(n)]))
+    return Outcome(np.full(n, float(POSE)), float(np.sqrt(np.mean(spread))))
+
+
+def _two_sided(n: int, pairs: list[tuple[int, int]], regime: Regime, epochs: int, settle: int) -> Outcome:
+    """Luft et al. as published (module docstring): per ordered pair sigma[i][j] (3, 3)."""
+    P = [np.diag(regime.prior) for _ in range(n)]
+    sigma = {(i, j): np.zeros((POSE, POSE)) if i < j else np.eye(POSE) for i in range(n) for j in range(n) if i != j}
+    Sigma = np.kron(np.eye(n), np.diag(regime.prior))
+    nees, spread = [], []
+
+    def rows(i: int) -> np.ndarray:
+        return np.arange(POSE * i, POSE * i + POSE)
+
+    for k in range(epochs):
+        P = [p + np.diag(regime.q) for p in P]
+        Sigma = Sigma + np.kron(np.eye(n), np.diag(regime.q))
+        updates = []
+        if k % regime.gnss_every == 0:
+            updates.append(((0,), H_POSITION, regime.gnss_var * np.eye(2)))
+        updates += [((a, b), np.hstack([-H_POSITION, H_POSITION]), regime.relative_var * np.eye(2)) for a, b in pairs]
+        for who, H, R in updates:
+            J = (
+                P[who[0]]
+                if len(who) == 1
+                else np.block(
+                    [[P[who[0]], sigma[who] @ sigma[who[::-1]].T], [(sigma[who] @ sigma[who[::-1]].T).T, P[who[1]]]]
+                )
+            )
+            S = H @ J @ H.T + R
+            K = J @ H.T @ np.linalg.inv(S)
+            J_new = J - K @ S @ K.T
+            for slot, i in enumerate(who):
+                M = J_new[POSE * slot : POSE * slot + POSE, POSE * slot : POSE * slot + POSE] @ np.linalg.inv(P[i])
+                for j in range(n):
+                    if j not in who:
+                        sigma[(i, j)] = M @ sigma[(i, j)]
+                P[i] = J_new[POSE * slot : POSE * slot + POSE, POSE * slot : POSE * slot + POSE]
+            if len(who) == 2:
+                sigma[who], sigma[who[::-1]] = J_new[:POSE, POSE:], np.eye(POSE)
+            at = np.concatenate([rows(i) for i in who])
+            L = np.eye(POSE * n)
+            L[np.ix_(at, at)] -= K @ H
+            noise = np.zeros_like(Sigma)
+            noise[np.ix_(at, at)] = K @ R @ K.T
+            Sigma = L @ Sigma @ L.T + noise
+        if k >= settle:
+            nees.append([float(np.trace(np.linalg.solve(P[i], Sigma[np.ix_(rows(i), rows(i))]))) for i in range(n)])
+            spread.append(np.mean([np.trace(Sigma[np.ix_(rows(i)[:2], rows(i)[:2])]) for i in range(n)]))
+    return Outcome(np.mean(nees, axis=0), float(np.sqrt(np.mean(spread))))
