@@ -2,7 +2,8 @@
 (every command, argument and option with its help), ``reference/config.md`` from the pydantic
 configuration models (every field with its type, default, bounds and description), and the
 benchmark table of ``benchmarks.md`` from ``bench/results.json`` (the marker ``<!-- bench-table -->``),
-and the faults page's table of fault kinds from their registry, bus.faults (``<!-- fault-table -->``).
+the front ends' comparison of ``ar-slam.md`` from the same file (``<!-- front-end-table -->``), and the
+faults page's table of fault kinds from their registry, bus.faults (``<!-- fault-table -->``).
 Nothing here is pasted: change the code, and the docs follow at the next build."""
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
         markdown = markdown.replace("<!-- bench-table -->", bench_table())
     if "<!-- swarm-table -->" in markdown:
         markdown = markdown.replace("<!-- swarm-table -->", swarm_table())
+    if "<!-- front-end-table -->" in markdown:
+        markdown = markdown.replace("<!-- front-end-table -->", front_end_table())
     if "<!-- fault-table -->" in markdown:
         markdown = markdown.replace("<!-- fault-table -->", fault_table())
     return markdown
@@ -152,6 +155,25 @@ def bench_table() -> str:
             f"| {r['benchmark']} | {case} | {r['metric']} | {r['value']} {r['unit']} | {r['target']} | {met} |"
         )
     return "\n".join(lines)
+
+
+def front_end_table() -> str:
+    """The front ends benchmark's rows (bench_front_ends.py) as one line per front end."""
+    path = ROOT / "bench" / "results.json"
+    rows = [r for r in json.loads(path.read_text())["rows"] if r["benchmark"] == "front ends"] if path.exists() else []
+    if not rows:
+        return "*No front-end rows in `bench/results.json` yet: run `python -m bench.run_all --only front_ends`.*"
+    metrics = list(dict.fromkeys(r["metric"] for r in rows))
+    by_case: dict[str, dict[str, str]] = {}
+    for r in rows:
+        by_case.setdefault(r["case"], {})[r["metric"]] = f"{r['value']} {r['unit']}".strip()
+    lines = ["| front end, frames | " + " | ".join(metrics) + " |", "| --- |" + " ---: |" * len(metrics)]
+    lines += [
+        f"| {case} | " + " | ".join(values.get(m, "") for m in metrics) + " |" for case, values in by_case.items()
+    ]
+    return "\n".join(
+        lines + ["", "Generated from `bench/results.json` (`bench/bench_front_ends.py`) at every docs build."]
+    )
 
 
 def swarm_table() -> str:
