@@ -1,7 +1,7 @@
-"""The front-end comparison (experiments.front_ends) measures what it says on a short flight over relief:
-the paper's SUSAN + NCC front end finds and keeps correct matches (most of what RANSAC on F keeps: what slides along an epipolar
-line passes it), and the truth it is scored
-against is the rendered geometry (a keypoint's own projection is where the next frame sees it)."""
+"""The front-end comparison (experiments.front_ends) measures what it says on a short flight over
+relief: the paper's SUSAN + NCC front end finds and keeps correct matches (most of what RANSAC on F
+keeps: a match that slides along its epipolar line passes it), and the truth it is scored against is
+the rendered geometry (a keypoint's own projection is where the next frame sees it)."""
 
 from __future__ import annotations
 
