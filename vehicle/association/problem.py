@@ -1,6 +1,7 @@
-"""One frame's association problem: k observations z_i = [range m, bearing rad] with noise R_i, m
+"""One frame's association problem: k observations z_i of d dimensions with noise R_i (in 2-D
+[range m, bearing rad], the bearing an angle; in 3-D a triangulated point in the body frame [m]), m
 candidate landmarks with predicted observations h_j and the joint covariance of their predictions
-C = H P H^T (2m, 2m) (H the observation Jacobians of all m landmarks stacked; the pose error they
+C = H P H^T (dm, dm) (H the observation Jacobians of all m landmarks stacked; the pose error they
 share is what makes their innovations correlated). Individual compatibility (IC): pair (i, j) is a
 candidate when its Mahalanobis distance d2_ij = y_ij^T S_ij^-1 y_ij (y_ij = z_i - h_j, S_ij = C_jj +
 R_i) passes the chi-square gate and the front end allows it (``allowed``, e.g. a descriptor
@@ -28,9 +29,9 @@ UNPAIRED = -1
 class Problem:
     """The gated association problem of one frame (module docstring); read-only arrays."""
 
-    y: np.ndarray  # (k, m, 2) innovations, bearings wrapped
-    C: np.ndarray  # (2m, 2m) joint covariance of the predictions
-    R: np.ndarray  # (k, 2, 2) observation noise
+    y: np.ndarray  # (k, m, d) innovations, angles wrapped
+    C: np.ndarray  # (dm, dm) joint covariance of the predictions
+    R: np.ndarray  # (k, d, d) observation noise
     d2: np.ndarray  # (k, m) Mahalanobis distances
     cost: np.ndarray  # (k, m) d2 + ln|S|, inf where not a candidate
     gate_probability: float
@@ -38,6 +39,11 @@ class Problem:
     @property
     def shape(self) -> tuple[int, int]:
         return self.d2.shape
+
+    @property
+    def dim(self) -> int:
+        """d, the dimension of one observation."""
+        return self.R.shape[-1]
 
     @property
     def candidates(self) -> np.ndarray:
@@ -53,17 +59,20 @@ def problem(
     *,
     allowed: np.ndarray | None = None,
     gate_probability: float = 0.99,
+    angles: tuple[int, ...] = (1,),
 ) -> Problem:
-    """The problem of observations z (k, 2) with noise R (k, 2, 2) against predictions (m, 2) of joint
-    covariance C (2m, 2m); ``allowed`` (k, m) bool restricts the candidates (default: all)."""
-    k, m = len(z), len(predicted)
+    """The problem of observations z (k, d) with noise R (k, d, d) against predictions (m, d) of joint
+    covariance C (dm, dm); ``allowed`` (k, m) bool restricts the candidates (default: all); ``angles``:
+    the components wrapped to [-pi, pi) (the bearing of a 2-D observation; none of a 3-D point)."""
+    k, m, d = len(z), len(predicted), np.shape(z)[1]
     y = z[:, None, :] - predicted[None, :, :]
-    y[..., 1] = (y[..., 1] + np.pi) % (2 * np.pi) - np.pi
-    blocks = np.stack([C[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] for j in range(m)]) if m else np.zeros((0, 2, 2))
-    S = blocks[None, :, :, :] + R[:, None, :, :]  # (k, m, 2, 2)
+    for a in angles:
+        y[..., a] = (y[..., a] + np.pi) % (2 * np.pi) - np.pi
+    blocks = np.stack([C[d * j : d * j + d, d * j : d * j + d] for j in range(m)]) if m else np.zeros((0, d, d))
+    S = blocks[None, :, :, :] + R[:, None, :, :]  # (k, m, d, d)
     d2 = np.einsum("kma,kmab,kmb->km", y, np.linalg.inv(S), y) if k and m else np.zeros((k, m))
     logdet = np.linalg.slogdet(S)[1] if k and m else np.zeros((k, m))
-    ok = d2 <= gate_threshold(2, gate_probability)
+    ok = d2 <= gate_threshold(d, gate_probability)
     if allowed is not None:
         ok &= allowed
     cost = np.where(ok, d2 + logdet, np.inf)
@@ -79,8 +88,8 @@ def pairs_of(assignment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 @dataclass(frozen=True)
 class Joint:
     """A partial assignment's joint test, grown one pair at a time in O(p^2): the paired
-    (observation, landmark)s, the rows of C they use (2p,), the lower Cholesky factor L (2p, 2p) of
-    their joint innovation covariance S, the whitened stacked innovation w = L^-1 y (2p,) and the
+    (observation, landmark)s, the rows of C they use (dp,), the lower Cholesky factor L (dp, dp) of
+    their joint innovation covariance S, the whitened stacked innovation w = L^-1 y (dp,) and the
     joint Mahalanobis distance |w|^2. The factor grows by a block row (c = L^-1 b, M = chol(D - c^T c)),
     which stays accurate where the innovations are strongly correlated (a shared pose error much
     larger than the noise) and an inverse grown by its Schur complement loses every digit."""
@@ -93,21 +102,35 @@ class Joint:
 
     def plus(self, p: Problem, i: int, j: int) -> Joint:
         """This test with pair (i, j) added (Neira and Tardos 2001: the joint distance updated)."""
-        b = p.C[self.rows, 2 * j : 2 * j + 2]  # (2p, 2) cross-covariance with the new pair
-        c = solve_triangular(self.L, b, lower=True) if len(self.w) else np.zeros((0, 2))
-        M = _chol2(p.C[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] + p.R[i] - c.T @ c)
-        w_new = _solve_lower2(M, p.y[i, j] - c.T @ self.w)
+        d = p.dim
+        b = p.C[self.rows, d * j : d * j + d]  # (dp, d) cross-covariance with the new pair
+        c = solve_triangular(self.L, b, lower=True) if len(self.w) else np.zeros((0, d))
+        M = _chol(p.C[d * j : d * j + d, d * j : d * j + d] + p.R[i] - c.T @ c)
+        w_new = _solve_lower(M, p.y[i, j] - c.T @ self.w)
         n = len(self.w)
-        L = np.zeros((n + 2, n + 2))
+        L = np.zeros((n + d, n + d))
         L[:n, :n] = self.L
         L[n:, :n] = c.T
         L[n:, n:] = M
-        rows = np.concatenate([self.rows, [2 * j, 2 * j + 1]])
+        rows = np.concatenate([self.rows, np.arange(d * j, d * j + d)])
         return Joint((*self.pairs, (i, j)), rows, L, np.concatenate([self.w, w_new]), self.nis + float(w_new @ w_new))
 
     def compatible(self, p: Problem) -> bool:
         """Whether the pairs pass the joint chi-square gate of their dimension."""
-        return not self.pairs or self.nis <= _joint_gate(2 * len(self.pairs), p.gate_probability)
+        return not self.pairs or self.nis <= _joint_gate(p.dim * len(self.pairs), p.gate_probability)
+
+
+def _chol(A: np.ndarray) -> np.ndarray:
+    """The lower Cholesky factor of a d x d covariance (floored: a rounding error is not certainty);
+    2 x 2 on floats."""
+    if A.shape == (2, 2):
+        return _chol2(A)
+    values, vectors = np.linalg.eigh(0.5 * (A + A.T))
+    return np.linalg.cholesky((vectors * np.maximum(values, 1e-18)) @ vectors.T)
+
+
+def _solve_lower(M: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return _solve_lower2(M, v) if M.shape == (2, 2) else solve_triangular(M, v, lower=True)
 
 
 def _chol2(A: np.ndarray) -> np.ndarray:
@@ -159,5 +182,5 @@ def unpaired_cost(p: Problem) -> np.ndarray:
     plus its largest ln|S|), so the optimum pairs all it can and then prefers the cheaper pairs."""
     finite = np.where(p.candidates, p.cost - p.d2, -np.inf)
     largest = finite.max(axis=1, initial=-np.inf) if p.shape[1] else np.full(p.shape[0], -np.inf)
-    gate = gate_threshold(2, p.gate_probability)
+    gate = gate_threshold(p.dim, p.gate_probability)
     return gate + np.where(np.isfinite(largest), largest, 0.0) + 1.0
