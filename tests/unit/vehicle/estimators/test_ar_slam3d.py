@@ -1,0 +1,61 @@
+"""The 3-D AR-EKF-SLAM back end (vehicle.estimators.ar_slam3d): the local map holds only what lies within
+the range, the range follows the paper's q1-q3; and with observations that are what the filter says
+they are (the truth's white velocity changes, body-frame points with their stated long, thin
+covariances) the back end without a range (full EKF-SLAM) has its position NEES over 30 flights
+inside the two-sided band. With a range it does not: which points enter the map is decided on their
+noisy depth (docs/ar-slam.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bus.config import ArSlamConfig
+from bus.statistics import chi2_band
+from sim.pinhole import look
+from vehicle.estimators.ar_slam3d import ArSlam3d
+
+DT, OMEGA_VAR = 0.1, 4e-4
+
+
+def flight(seed: int, frames: int, spec: ArSlamConfig = ArSlamConfig(), adaptive: bool = True):
+    """(position NEES per frame, the back end) of a flight over scattered 3-D landmarks."""
+    rng = np.random.default_rng(seed)
+    landmarks = np.column_stack([rng.uniform(-20, 60, 160), rng.uniform(-30, 30, 160), rng.uniform(0, 6, 160)])
+    p, v = np.array([0.0, 0.0, 15.0]), np.array([5.0, 0.0, 0.0])
+    x0 = np.concatenate([p + rng.normal(0, 0.05, 3), v + rng.normal(0, 0.05, 3)])
+    slam = ArSlam3d(x0, np.diag([0.05**2] * 6), spec=spec, omega_var=OMEGA_VAR, adaptive=adaptive, seed=seed)
+    nees = []
+    for _ in range(frames):
+        v = v + rng.normal(0, np.sqrt(OMEGA_VAR), 3)
+        p = p + v * DT
+        R = look(float(np.arctan2(v[1], v[0])), np.deg2rad(30.0))
+        camera = (landmarks - p) @ R
+        depth = camera[:, 2]
+        seen = np.flatnonzero((depth > 1.0) & (depth < 40.0) & (np.abs(camera[:, 0]) < 0.4 * depth))
+        along = camera[seen] / np.linalg.norm(camera[seen], axis=1, keepdims=True)
+        R_z = 0.02**2 * np.eye(3) + (0.01 * depth[seen] ** 1.5)[:, None, None] * np.einsum("ni,nj->nij", along, along)
+        z = camera[seen] + np.array([rng.multivariate_normal(np.zeros(3), c) for c in R_z]).reshape(-1, 3)
+        slam.predict(DT)
+        slam.frame(z, R_z, R, ids=seen)
+        e = slam.x[:3] - p
+        nees.append(float(e @ np.linalg.solve(slam.P[:3, :3], e)))
+    return np.array(nees), slam, p
+
+
+def test_the_local_map_holds_only_what_lies_within_the_range_and_the_range_follows_q1_q3():
+    spec = ArSlamConfig(r0_m=20.0, r_max_m=30.0, n_min=4, n_max=10, dr_m=0.5)
+    _, slam, p = flight(0, 120, spec)
+    assert np.all(np.linalg.norm(slam.landmarks() - slam.x[:3], axis=1) <= slam.book.radius_m + 1e-9)
+    assert len(slam.book.retired_xyz) > 0 and slam.book.added > 0
+    assert spec.dr_m <= slam.book.radius_m <= spec.r_max_m
+    assert slam.book.radius_m < spec.r0_m  # many landmarks in view: q2 shrank it
+    _, fixed, _ = flight(0, 120, spec, adaptive=False)
+    assert fixed.book.radius_m == spec.r0_m
+
+
+def test_the_back_end_without_a_range_is_consistent_over_30_flights():
+    full = ArSlamConfig(r0_m=1000.0, r_max_m=1000.0)  # full EKF-SLAM: nothing retired, every point initialised
+    nees = np.array([flight(seed, 60, full, adaptive=False)[0] for seed in range(30)])
+    low, high = chi2_band(3, runs=30)
+    for frame in (19, 39, 59):
+        assert low <= nees[:, frame].mean() <= high, (frame, nees[:, frame].mean(), (low, high))

@@ -1,0 +1,121 @@
+"""The AR-EKF-SLAM paper's three-dimensional back end: the 6 + 3n EKF (vehicle.models.slam3d) with the
+adaptive observation range in 3-D distance, data association on the triangulated points
+(vehicle.association, of dimension 3), and marginalisation of what leaves the range. Pure: no bus, no
+clock; not yet an estimator a vehicle process runs (docs/ar-slam.md says what is missing).
+
+Per camera frame (``frame``): the state is predicted to the frame (constant velocity); the landmarks
+in the state farther than R from the camera are retired (marginalised out, their marginals kept);
+the frame's triangulated points z_i (body frame, covariance R_i from vehicle.vision.triangulation)
+are associated with the landmarks in the state (the configured method, behind the chi-square gate),
+the pairs fused one by one, and the unpaired points within R initialised as new landmarks (the
+paper's g and its blocks); then R follows the paper's state machine q1-q3
+(ar_ekf_slam.next_radius) with n the landmarks in the local map. A retired landmark seen again is
+initialised anew (``reinit``, the 2-D estimator's default). A fixed range is R with q1-q3 off, and a
+range of infinity is full EKF-SLAM.
+
+The rotation of each frame, R_wc (the camera's axes in the fixed frame), is given: the paper takes it
+from visual odometry (R from E, cheirality) and does not estimate it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bus.config import ArSlamConfig
+from bus.statistics import gate_threshold
+from vehicle.association.methods import METHODS
+from vehicle.association.problem import problem
+from vehicle.estimators.ar_ekf_slam import next_radius
+from vehicle.models import added_states, slam3d
+from vehicle.models.kalman import gated_update
+
+
+@dataclass
+class Ar3dBook:
+    """What the back end keeps besides x and P: the range, the retired landmarks' positions (k, 3) and
+    marginal covariances (k, 3, 3), and per frame what it did."""
+
+    radius_m: float
+    retired_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    retired_cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    fused: int = 0
+    added: int = 0
+    gated_out: int = 0
+
+
+class ArSlam3d:
+    """The back end (module docstring): ``x`` = [p, v, X_1 ... X_n], ``P`` its covariance."""
+
+    def __init__(
+        self,
+        x0: np.ndarray,
+        P0: np.ndarray,
+        *,
+        spec: ArSlamConfig = ArSlamConfig(),
+        omega_var: float = 0.05,
+        association: str = "nn",
+        adaptive: bool = True,
+        gate_probability: float = 0.999,
+        seed: int = 0,
+    ) -> None:
+        self.x, self.P = np.asarray(x0, float).copy(), np.asarray(P0, float).copy()
+        self.spec, self.omega_var, self.adaptive = spec, omega_var, adaptive
+        self.associate = METHODS[association]
+        self.gate_probability = gate_probability
+        self.gate = gate_threshold(3, gate_probability)
+        self.book = Ar3dBook(spec.r0_m)
+        self.rng = np.random.default_rng(seed)
+        self.ids = np.zeros(0, np.int64)  # each state landmark's id where the frames are identified (else -1)
+
+    def landmarks(self) -> np.ndarray:
+        """The landmarks in the state (n, 3)."""
+        return self.x[slam3d.HEAD :].reshape(-1, 3)
+
+    def predict(self, dt: float) -> None:
+        self.x, self.P = slam3d.predict(self.x, self.P, dt, self.omega_var)
+
+    def frame(self, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray, ids: np.ndarray | None = None) -> None:
+        """One frame's triangulated points z (k, 3) with covariances R_z (k, 3, 3), camera rotation
+        ``rotation`` (3, 3) (module docstring); the state must be predicted to the frame first.
+        ``ids`` (k,): the points' landmark ids where the frame is identified (association by id,
+        as a replay's identified sightings), else the configured association method."""
+        self._retire()
+        n = slam3d.landmarks(self.x)
+        if ids is not None:
+            where = {int(ident): j for j, ident in enumerate(self.ids.tolist())}
+            assignment = np.array([where.get(int(ident), -1) for ident in ids], dtype=np.int64)
+        elif n and len(z):
+            predicted, H = zip(*(slam3d.observe(self.x, j, rotation) for j in range(n)))
+            H = np.vstack(H)
+            gated = problem(
+                z, R_z, np.array(predicted), H @ self.P @ H.T, gate_probability=self.gate_probability, angles=()
+            )
+            assignment = self.associate(gated, self.rng)
+        else:
+            assignment = np.full(len(z), -1)
+        for i in np.flatnonzero(assignment >= 0):
+            h, H_j = slam3d.observe(self.x, int(assignment[i]), rotation)
+            self.x, self.P, result = gated_update(self.x, self.P, z[i] - h, H_j, R_z[i], self.gate)
+            self.book.fused += int(result.accepted)
+            self.book.gated_out += int(not result.accepted)
+        for i in np.flatnonzero(assignment < 0):
+            if np.linalg.norm(z[i]) <= self.book.radius_m:  # the local map holds only what is within R
+                self.x, self.P = slam3d.add_landmark(self.x, self.P, z[i], R_z[i], rotation)
+                self.ids = np.append(self.ids, -1 if ids is None else int(ids[i]))
+                self.book.added += 1
+        if self.adaptive:
+            self.book.radius_m = next_radius(self.book.radius_m, slam3d.landmarks(self.x), self.spec)
+
+    def _retire(self) -> None:
+        """Landmarks farther than R from the camera leave the state, their marginals kept."""
+        far = np.flatnonzero(np.linalg.norm(self.landmarks() - self.x[:3], axis=1) > self.book.radius_m)
+        if not len(far):
+            return
+        rows = [slam3d.landmark_slice(int(j)) for j in far]
+        self.book.retired_xyz = np.vstack([self.book.retired_xyz, self.landmarks()[far]])
+        self.book.retired_cov = np.concatenate([self.book.retired_cov, np.stack([self.P[r, r] for r in rows])])
+        drop = np.concatenate([np.arange(r.start, r.stop) for r in rows]).tolist()
+        self.x, self.P = added_states.drop_states(self.x, self.P, drop)
+        self.ids = np.delete(self.ids, far)
