@@ -7,20 +7,11 @@ import numpy as np
 import pytest
 
 from experiments.point_scenes import SceneSpec, correct_rate, scene
+from tests.unit.vehicle.association.oracle import batch_nis
 from vehicle.association.methods import METHODS
 from vehicle.association.problem import Joint, linear_cost, pairs_of, problem
 
 REPETITIVE = SceneSpec(period_m=1.2, view_m=3.0, pose_sigma_m=0.35)
-
-
-def _batch_nis(p, assignment):
-    rows, cols = pairs_of(assignment)
-    idx = np.stack([2 * cols, 2 * cols + 1], axis=1).ravel()
-    S = p.C[np.ix_(idx, idx)].copy()
-    for a, i in enumerate(rows):
-        S[2 * a : 2 * a + 2, 2 * a : 2 * a + 2] += p.R[i]
-    y = p.y[rows, cols].ravel()
-    return float(y @ np.linalg.solve(S, y))
 
 
 def test_the_joint_test_grown_pair_by_pair_is_the_batch_one_even_when_the_pose_error_dominates():
@@ -33,7 +24,7 @@ def test_the_joint_test_grown_pair_by_pair_is_the_batch_one_even_when_the_pose_e
         joint = joint.plus(p, i, j)
         partial = np.full_like(assignment, -1)
         partial[rows[: n + 1]] = cols[: n + 1]
-        assert joint.nis == pytest.approx(_batch_nis(p, partial), rel=1e-9)
+        assert joint.nis == pytest.approx(batch_nis(p, partial), rel=1e-9)
 
 
 def test_nearest_neighbour_breaks_ties_by_the_smaller_innovation_covariance():

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tests.unit.vehicle.association.oracle import batch_nis
 from vehicle.association.methods import METHODS
 from vehicle.association.problem import Joint, pairs_of, problem
 
@@ -37,16 +38,6 @@ def grid_scene(rng: np.random.Generator, *, period_m: float, pose_sigma_m: float
     return problem(z, Rz, predicted, C, angles=()), truth
 
 
-def _batch_nis(p, assignment):
-    rows, cols = pairs_of(assignment)
-    idx = (3 * cols[:, None] + np.arange(3)).ravel()
-    S = p.C[np.ix_(idx, idx)].copy()
-    for a, i in enumerate(rows):
-        S[3 * a : 3 * a + 3, 3 * a : 3 * a + 3] += p.R[i]
-    y = p.y[rows, cols].ravel()
-    return float(y @ np.linalg.solve(S, y))
-
-
 def test_the_3d_joint_test_grown_pair_by_pair_is_the_batch_one():
     p, truth = grid_scene(np.random.default_rng(0), period_m=3.0, pose_sigma_m=0.2)
     assert p.dim == 3
@@ -57,7 +48,7 @@ def test_the_3d_joint_test_grown_pair_by_pair_is_the_batch_one():
         joint = joint.plus(p, i, j)
         partial = np.full_like(assignment, -1)
         partial[rows[: n + 1]] = cols[: n + 1]
-        assert joint.nis == pytest.approx(_batch_nis(p, partial), rel=1e-9)
+        assert joint.nis == pytest.approx(batch_nis(p, partial), rel=1e-9)
     assert joint.compatible(p)
 
 
