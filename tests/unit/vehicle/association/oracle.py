@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from vehicle.association.problem import Problem, pairs_of
+from vehicle.association.problem import Joint, Problem, pairs_of
 
 
 def batch_nis(p: Problem, assignment: np.ndarray) -> float:
@@ -18,3 +19,16 @@ def batch_nis(p: Problem, assignment: np.ndarray) -> float:
         S[d * a : d * a + d, d * a : d * a + d] += p.R[i]
     y = p.y[rows, cols].ravel()
     return float(y @ np.linalg.solve(S, y))
+
+
+def grown_as_batch(p: Problem, assignment: np.ndarray) -> Joint:
+    """The joint test grown pair by pair over an assignment, checked at each pair against the batch
+    form (to 1e-9); the grown test."""
+    rows, cols = pairs_of(assignment)
+    joint = Joint()
+    for n, (i, j) in enumerate(zip(rows.tolist(), cols.tolist())):
+        joint = joint.plus(p, i, j)
+        partial = np.full_like(assignment, -1)
+        partial[rows[: n + 1]] = cols[: n + 1]
+        assert joint.nis == pytest.approx(batch_nis(p, partial), rel=1e-9)
+    return joint

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.unit.vehicle.association.oracle import batch_nis
+from tests.unit.vehicle.association.oracle import grown_as_batch
 from vehicle.association.methods import METHODS
-from vehicle.association.problem import Joint, pairs_of, problem
+from vehicle.association.problem import problem
 
 
 def grid_scene(rng: np.random.Generator, *, period_m: float, pose_sigma_m: float, clutter: int = 3):
@@ -41,15 +41,7 @@ def grid_scene(rng: np.random.Generator, *, period_m: float, pose_sigma_m: float
 def test_the_3d_joint_test_grown_pair_by_pair_is_the_batch_one():
     p, truth = grid_scene(np.random.default_rng(0), period_m=3.0, pose_sigma_m=0.2)
     assert p.dim == 3
-    assignment = np.where(truth >= 0, truth, -1)
-    rows, cols = pairs_of(assignment)
-    joint = Joint()
-    for n, (i, j) in enumerate(zip(rows.tolist(), cols.tolist())):
-        joint = joint.plus(p, i, j)
-        partial = np.full_like(assignment, -1)
-        partial[rows[: n + 1]] = cols[: n + 1]
-        assert joint.nis == pytest.approx(batch_nis(p, partial), rel=1e-9)
-    assert joint.compatible(p)
+    assert grown_as_batch(p, np.where(truth >= 0, truth, -1)).compatible(p)
 
 
 def test_nearest_neighbour_breaks_3d_ties_by_the_smaller_innovation_covariance():
