@@ -121,17 +121,19 @@ def fly(
     min_parallax_deg: float = 2.0,
     identified: bool = True,
     association: str = "nn",
+    entry: str = "second",
 ) -> Track:
     """One flight of ``frames`` frames with the back end in ``mode`` (MODES), each frame triangulated
     with the one ``baseline_frames`` before it; ``identified``: association by landmark id (the back
-    end alone), else by ``association`` on the triangulated points."""
+    end alone), else by ``association`` on the triangulated points; ``entry``: how points enter the map
+    (vehicle.estimators.ar_slam3d)."""
     landmarks, positions, rotations = world(seed, frames + 1)
     rng = np.random.default_rng([seed, 5])
     dt = 1.0 / RATE_HZ
     v0 = (positions[1] - positions[0]) / dt
     x0 = np.concatenate([positions[0] + rng.normal(0, 0.05, 3), v0 + rng.normal(0, 0.05, 3)])
     P0 = np.diag([0.05**2] * 3 + [0.05**2] * 3)
-    slam = ArSlam3d(x0, P0, omega_var=FILTER_OMEGA_VAR, seed=seed, association=association, **MODES[mode])
+    slam = ArSlam3d(x0, P0, omega_var=FILTER_OMEGA_VAR, seed=seed, association=association, entry=entry, **MODES[mode])
     rows = []
     for k in range(1, frames + 1):
         j = max(0, k - baseline_frames)

@@ -5,7 +5,7 @@ the paper's figures 7 (time per frame) and 8 (the track and its error), and the 
 figures (docs/ar-slam.md shows them).
 
     python tools/ar_slam3d.py [--frames 1600] [--seeds 30] [--full] [--out docs]
-        [--baseline-frames 10] [--min-parallax 2] [--tag NAME]
+        [--baseline-frames 10] [--min-parallax 2] [--entry second] [--tag NAME]
 
 ``--tag``: write ar-slam3d-NAME.json and no figures (a variant beside the default run).
 """
@@ -96,9 +96,10 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("docs"))
     parser.add_argument("--baseline-frames", type=int, default=10, help="triangulate with the frame this many before")
     parser.add_argument("--min-parallax", type=float, default=2.0, help="degrees")
+    parser.add_argument("--entry", default="second", choices=("first", "second"), help="how points enter the map")
     parser.add_argument("--tag", default="", help="a variant: its own JSON, no figures")
     args = parser.parse_args()
-    two_frames = {"baseline_frames": args.baseline_frames, "min_parallax_deg": args.min_parallax}
+    two_frames = {"baseline_frames": args.baseline_frames, "min_parallax_deg": args.min_parallax, "entry": args.entry}
     modes = ("adaptive", "fixed-25") + (("full",) if args.full else ())
     tracks = {mode: fly(args.seed, args.frames, mode, **two_frames) for mode in modes}
     result: dict = {

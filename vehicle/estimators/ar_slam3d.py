@@ -8,10 +8,17 @@ in the state farther than R from the camera are retired (marginalised out, their
 the frame's triangulated points z_i (body frame, covariance R_i from vehicle.vision.triangulation)
 are associated with the landmarks in the state (the configured method, behind the chi-square gate),
 the pairs fused one by one, and the unpaired points within R initialised as new landmarks (the
-paper's g and its blocks); then R follows the paper's state machine q1-q3
+paper's g and its blocks; see Entry); then R follows the paper's state machine q1-q3
 (ar_ekf_slam.next_radius) with n the landmarks in the local map. A retired landmark seen again is
 initialised anew (``reinit``, the 2-D estimator's default). A fixed range is R with q1-q3 off, and a
 range of infinity is full EKF-SLAM.
+
+Entry (``entry``). ``first``, the paper's: a point enters the map on the sighting that finds it within
+R, initialised from that sighting. Deciding on a point's noisy depth and initialising it from the same
+depth keeps the points measured short and makes their errors one-sided (docs/ar-slam.md). ``second``
+(default) splits the two: the first sighting within R makes the point a candidate, the next sighting
+of it (by id, or the nearest candidate within the gate) initialises it, whatever that sighting's own
+depth; a candidate not seen again within ``CANDIDATE_FRAMES`` frames is let go.
 
 The rotation of each frame, R_wc (the camera's axes in the fixed frame), is given: the paper takes it
 from visual odometry (R from E, cheirality) and does not estimate it.
@@ -20,6 +27,7 @@ from visual odometry (R from E, cheirality) and does not estimate it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -30,6 +38,20 @@ from vehicle.association.problem import problem
 from vehicle.estimators.ar_ekf_slam import next_radius
 from vehicle.models import added_states, slam3d
 from vehicle.models.kalman import gated_update
+
+CANDIDATE_FRAMES = 5
+Entry = Literal["first", "second"]
+
+
+@dataclass(frozen=True, eq=False)
+class Candidate:
+    """A point seen once within R: its id (-1 unidentified), where the sighting put it in the fixed frame
+    (3,) and that position's covariance (3, 3) (own position's and the sighting's), and the frame."""
+
+    ident: int
+    xyz: np.ndarray
+    cov: np.ndarray
+    frame: int
 
 
 @dataclass
@@ -58,6 +80,7 @@ class ArSlam3d:
         association: str = "nn",
         adaptive: bool = True,
         gate_probability: float = 0.999,
+        entry: Entry = "second",
         seed: int = 0,
     ) -> None:
         self.x, self.P = np.asarray(x0, float).copy(), np.asarray(P0, float).copy()
@@ -68,6 +91,9 @@ class ArSlam3d:
         self.book = Ar3dBook(spec.r0_m)
         self.rng = np.random.default_rng(seed)
         self.ids = np.zeros(0, np.int64)  # each state landmark's id where the frames are identified (else -1)
+        self.entry = entry
+        self.candidates: list[Candidate] = []
+        self.frames = 0
 
     def landmarks(self) -> np.ndarray:
         """The landmarks in the state (n, 3)."""
@@ -100,13 +126,54 @@ class ArSlam3d:
             self.x, self.P, result = gated_update(self.x, self.P, z[i] - h, H_j, R_z[i], self.gate)
             self.book.fused += int(result.accepted)
             self.book.gated_out += int(not result.accepted)
-        for i in np.flatnonzero(assignment < 0):
-            if np.linalg.norm(z[i]) <= self.book.radius_m:  # the local map holds only what is within R
-                self.x, self.P = slam3d.add_landmark(self.x, self.P, z[i], R_z[i], rotation)
-                self.ids = np.append(self.ids, -1 if ids is None else int(ids[i]))
-                self.book.added += 1
+        self._enter(np.flatnonzero(assignment < 0), z, R_z, rotation, ids)
         if self.adaptive:
             self.book.radius_m = next_radius(self.book.radius_m, slam3d.landmarks(self.x), self.spec)
+
+    def _enter(self, unpaired: np.ndarray, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray, ids) -> None:
+        """New landmarks from the unpaired points (module docstring, ``entry``)."""
+        self.frames += 1
+        within = [int(i) for i in unpaired if np.linalg.norm(z[i]) <= self.book.radius_m]
+        if self.entry == "first":
+            for i in within:
+                self._add(z[i], R_z[i], rotation, -1 if ids is None else int(ids[i]))
+            return
+        seconds = self._seen_again(unpaired, z, R_z, rotation, ids)
+        for i, candidate in seconds.items():
+            self._add(z[i], R_z[i], rotation, candidate.ident)
+        taken = {id(c) for c in seconds.values()}
+        self.candidates = [
+            c for c in self.candidates if id(c) not in taken and self.frames - c.frame < CANDIDATE_FRAMES
+        ]
+        for i in within:
+            if i not in seconds:
+                xyz, cov = self._in_the_map(z[i], R_z[i], rotation)
+                self.candidates.append(Candidate(-1 if ids is None else int(ids[i]), xyz, cov, self.frames))
+
+    def _seen_again(self, unpaired, z, R_z, rotation, ids) -> dict[int, Candidate]:
+        """Which unpaired points are candidates seen again: by id, or each the nearest candidate within
+        the gate (one candidate per point)."""
+        out: dict[int, Candidate] = {}
+        free = list(self.candidates)
+        for i in (int(i) for i in unpaired):
+            if ids is not None:
+                match = next((c for c in free if c.ident == int(ids[i])), None)
+            else:
+                xyz, cov = self._in_the_map(z[i], R_z[i], rotation)
+                d2 = [float((xyz - c.xyz) @ np.linalg.solve(cov + c.cov, xyz - c.xyz)) for c in free]
+                match = free[int(np.argmin(d2))] if d2 and min(d2) <= self.gate else None
+            if match is not None:
+                out[i] = match
+                free = [c for c in free if c is not match]
+        return out
+
+    def _in_the_map(self, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.x[:3] + rotation @ z, self.P[:3, :3] + rotation @ R_z @ rotation.T
+
+    def _add(self, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray, ident: int) -> None:
+        self.x, self.P = slam3d.add_landmark(self.x, self.P, z, R_z, rotation)
+        self.ids = np.append(self.ids, ident)
+        self.book.added += 1
 
     def _retire(self) -> None:
         """Landmarks farther than R from the camera leave the state, their marginals kept."""
