@@ -42,7 +42,8 @@ def ground(xy: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class Track:
     """Per frame: time s, true position (3,), estimated position (3,), its covariance (3, 3), the
-    range R m, landmarks in the state, and the frame's wall time ms (prediction + frame)."""
+    range R m, landmarks in the state, landmarks mapped so far (in the state or retired), and the frame's
+    wall time ms (prediction + frame)."""
 
     t_s: np.ndarray
     truth: np.ndarray
@@ -50,6 +51,7 @@ class Track:
     covariance: np.ndarray
     radius_m: np.ndarray
     landmarks: np.ndarray
+    mapped: np.ndarray
     frame_ms: np.ndarray
 
     def position_nees(self) -> np.ndarray:
@@ -57,8 +59,9 @@ class Track:
         return np.einsum("ni,nij,nj->n", e, np.linalg.inv(self.covariance), e)
 
 
-def world(seed: int, frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Landmarks (m, 3) along the flight, the camera's true positions (frames, 3) and rotations (frames, 3, 3)."""
+def world(seed: int, frames: int, town: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Landmarks (m, 3) along the flight (``town``: with the dense stretch), the camera's true positions
+    (frames, 3) and rotations (frames, 3, 3)."""
     rng = np.random.default_rng([seed, 3])
     dt = 1.0 / RATE_HZ
     p, v = np.array([0.0, 0.0, HEIGHT_M + ground(np.zeros(2))]), np.array([SPEED_MPS, 0.0, 0.0])
@@ -77,7 +80,7 @@ def world(seed: int, frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     count = int(np.prod(high - low) / 15.0)  # one landmark per 15 m^2 of ground
     xy = rng.uniform(low, high, (count, 2))
     town_low, town_high = np.array([TOWN_X_M[0], low[1]]), np.array([TOWN_X_M[1], high[1]])
-    extra = int(np.prod(town_high - town_low) / 15.0 * (TOWN_DENSITY - 1.0))
+    extra = int(np.prod(town_high - town_low) / 15.0 * (TOWN_DENSITY - 1.0)) if town else 0
     xy = np.vstack([xy, rng.uniform(town_low, town_high, (max(extra, 0), 2))])
     count = len(xy)
     landmarks = np.column_stack([xy, ground(xy) + rng.uniform(0.0, 4.0, count)])
@@ -122,12 +125,13 @@ def fly(
     identified: bool = True,
     association: str = "nn",
     entry: str = "second",
+    town: bool = True,
 ) -> Track:
     """One flight of ``frames`` frames with the back end in ``mode`` (MODES), each frame triangulated
     with the one ``baseline_frames`` before it; ``identified``: association by landmark id (the back
     end alone), else by ``association`` on the triangulated points; ``entry``: how points enter the map
     (vehicle.estimators.ar_slam3d)."""
-    landmarks, positions, rotations = world(seed, frames + 1)
+    landmarks, positions, rotations = world(seed, frames + 1, town)
     rng = np.random.default_rng([seed, 5])
     dt = 1.0 / RATE_HZ
     v0 = (positions[1] - positions[0]) / dt
@@ -152,10 +156,18 @@ def fly(
                 slam.P[:3, :3].copy(),
                 slam.book.radius_m,
                 (len(slam.x) - 6) // 3,
+                slam.book.added,
                 elapsed,
             )
         )
-    t, truth, est, cov, radius, n, ms = zip(*rows)
+    t, truth, est, cov, radius, n, mapped, ms = zip(*rows)
     return Track(
-        np.array(t), np.array(truth), np.array(est), np.array(cov), np.array(radius), np.array(n), np.array(ms)
+        np.array(t),
+        np.array(truth),
+        np.array(est),
+        np.array(cov),
+        np.array(radius),
+        np.array(n),
+        np.array(mapped),
+        np.array(ms),
     )
