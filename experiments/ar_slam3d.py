@@ -19,9 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from bus.config import ArSlamConfig
-from sim.pinhole import PAPER_K, PAPER_SIZE, look
+from sim.pinhole import PAPER_K, PAPER_SIZE, Pinhole, look
 from vehicle.estimators.ar_slam3d import ArSlam3d
-from vehicle.vision.triangulation import triangulate
+from vehicle.vision.triangulation import camera_matrices, triangulate
 
 RATE_HZ, SPEED_MPS, HEIGHT_M, PITCH_RAD, SEE_M = 10.0, 5.0, 15.0, np.deg2rad(30.0), 60.0
 OMEGA_VAR = 4e-4  # the truth's white velocity increments per frame, m^2/s^2
@@ -92,23 +92,17 @@ def observe(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The landmarks seen from both cameras, triangulated: points (k, 3) in camera 2, covariances
     (k, 3, 3) and the landmarks' indices (k,)."""
-    pixels, depths = [], []
-    for C, R in ((C1, R1), (C2, R2)):
-        camera = (landmarks - C) @ R
-        depths.append(camera[:, 2])
-        pixels.append(camera @ PAPER_K.T)
+    camera = Pinhole(PAPER_K, PAPER_SIZE)
+    pixels, depths = zip(*(camera.project(R, C, landmarks) for C, R in ((C1, R1), (C2, R2))))
     seen = np.ones(len(landmarks), bool)
-    for p, d in zip(pixels, depths):
-        uv = p[:, :2] / np.where(np.abs(p[:, 2:3]) < 1e-9, 1e-9, p[:, 2:3])
+    for uv, d in zip(pixels, depths):
         seen &= (d > 0.5) & (d < SEE_M) & (uv[:, 0] >= 0) & (uv[:, 0] < PAPER_SIZE[0])
         seen &= (uv[:, 1] >= 0) & (uv[:, 1] < PAPER_SIZE[1])
     if not seen.any():
         return np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0, np.int64)
-    uv1, uv2 = (p[seen, :2] / p[seen, 2:3] + rng.normal(0.0, 1.0, (seen.sum(), 2)) for p in pixels)
+    uv1, uv2 = (uv[seen] + rng.normal(0.0, 1.0, (seen.sum(), 2)) for uv in pixels)
     R_rel, L = R2.T @ R1, R2.T @ (C1 - C2)  # camera 1 -> camera 2: X2 = R_rel X1 + L
-    m1 = PAPER_K @ np.hstack([np.eye(3), np.zeros((3, 1))])
-    m2 = PAPER_K @ np.hstack([R_rel, L[:, None]])
-    out = triangulate(m1, m2, uv1, uv2)
+    out = triangulate(*camera_matrices(PAPER_K, R_rel, L), uv1, uv2)
     keep = out.usable & (out.parallax_rad >= min_parallax_rad)
     z = out.points[keep] @ R_rel.T + L
     cov = np.einsum("ij,njk,lk->nil", R_rel, out.covariances[keep], R_rel)
@@ -141,33 +135,13 @@ def fly(
     rows = []
     for k in range(1, frames + 1):
         j = max(0, k - baseline_frames)
-        z, R_z, ids = observe(
+        seen = observe(
             landmarks, positions[j], rotations[j], positions[k], rotations[k], rng, np.deg2rad(min_parallax_deg)
         )
         start = time.perf_counter()
         slam.predict(dt)
-        slam.frame(z, R_z, rotations[k], ids if identified else None)
+        slam.frame(*seen[:2], rotations[k], seen[2] if identified else None)
         elapsed = (time.perf_counter() - start) * 1e3
-        rows.append(
-            (
-                k * dt,
-                positions[k],
-                slam.x[:3].copy(),
-                slam.P[:3, :3].copy(),
-                slam.book.radius_m,
-                (len(slam.x) - 6) // 3,
-                slam.book.added,
-                elapsed,
-            )
-        )
-    t, truth, est, cov, radius, n, mapped, ms = zip(*rows)
-    return Track(
-        np.array(t),
-        np.array(truth),
-        np.array(est),
-        np.array(cov),
-        np.array(radius),
-        np.array(n),
-        np.array(mapped),
-        np.array(ms),
-    )
+        state = (slam.x[:3].copy(), slam.P[:3, :3].copy(), slam.book.radius_m, (len(slam.x) - 6) // 3, slam.book.added)
+        rows.append((k * dt, positions[k], *state, elapsed))
+    return Track(*(np.array(column) for column in zip(*rows)))

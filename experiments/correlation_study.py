@@ -28,11 +28,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vehicle.models.correlation import POSE, Anchor, Factors, fuser_at, pair_update, resolve
+from vehicle.models.cooperative import CooperativeRule
+from vehicle.models.correlation import POSE, Anchor, Factors, fuser_at, resolve
+from vehicle.models.correlation_update import pair_update
 
 PERIOD_US = 200_000
 H_POSITION = np.hstack([np.eye(2), np.zeros((2, 1))])
-CI_WEIGHTS = np.linspace(0.0, 1.0, 201)[:-1]
 METHODS = (
     "centralized",
     "split-ci-both",
@@ -152,13 +153,8 @@ class _Decentralized:
 
     def _truth(self, a: int, b: int | None, K: np.ndarray, H_own: np.ndarray, H_their, R: np.ndarray) -> None:
         """Sigma after a's update e_a <- e_a - K (H_own e_a + H_their e_b) + K v."""
-        L = np.eye(POSE * self.n)
-        L[self._rows(a), self._rows(a)] -= K @ H_own
-        if b is not None:
-            L[self._rows(a), self._rows(b)] -= K @ H_their
-        noise = np.zeros_like(self.Sigma)
-        noise[self._rows(a), self._rows(a)] = K @ R @ K.T
-        self.Sigma = L @ self.Sigma @ L.T + noise
+        seen, H = ([a], H_own) if b is None else ([a, b], np.hstack([H_own, H_their]))
+        self.Sigma = truth_after(self.Sigma, [a], seen, K, H, R)
 
     def expected_nees(self) -> list[float]:
         return [
@@ -169,15 +165,34 @@ class _Decentralized:
         return float(np.mean([np.trace(self.Sigma[self._rows(i), self._rows(i)][:2, :2]) for i in range(self.n)]))
 
 
+def rows_of(vehicles: list[int] | tuple[int, ...]) -> np.ndarray:
+    """The rows of the joint error vector (3 n,) of ``vehicles``, in order."""
+    return np.concatenate([np.arange(POSE * i, POSE * i + POSE) for i in vehicles])
+
+
+def truth_after(Sigma: np.ndarray, updated, seen, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """The true joint error covariance (3 n, 3 n) after the vehicles ``updated`` moved by gain K
+    (3 len(updated), m) on a measurement H (m, 3 len(seen)) of the vehicles ``seen`` with noise R:
+    e_updated <- e_updated - K H e_seen + K v."""
+    L = np.eye(len(Sigma))
+    L[np.ix_(rows_of(updated), rows_of(seen))] -= K @ H
+    noise = np.zeros_like(Sigma)
+    noise[np.ix_(rows_of(updated), rows_of(updated))] = K @ R @ K.T
+    return L @ Sigma @ L.T + noise
+
+
 def split_ci(P: np.ndarray, H: np.ndarray, R: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Split CI of own estimate (P (n, n), seen through H (m, n)) and a measurement with independent noise
     R and a share S of unknown correlation, in measurement space with the weight of largest fused
-    information (vehicle.models.cooperative): the new covariance and the gain K (n, m) of the mean."""
+    information, the vehicles' own rule (vehicle.models.cooperative.CooperativeRule): the new covariance
+    and the gain K (n, m) of the mean (zero where the weight says the fix brings nothing)."""
+    rule = CooperativeRule()
     M = H @ P @ H.T
+    w = rule.choose_weight(M, R, S)
+    if w >= 1.0:
+        return P, np.zeros((len(P), len(R)))
     M_inv = np.linalg.inv(M)
-    fix_information = [np.linalg.inv(R + S / (1.0 - w)) for w in CI_WEIGHTS]
-    w_at = int(np.argmax([np.linalg.det(w * M_inv + info) for w, info in zip(CI_WEIGHTS, fix_information)]))
-    w, I_fix = CI_WEIGHTS[w_at], fix_information[w_at]
+    I_fix = rule.fix_information(R, S, np.array([w]))[0]
     M_new = np.linalg.inv(w * M_inv + I_fix)
     A = P @ H.T @ M_inv
     P_new = P + A @ (M_new - M) @ A.T
@@ -216,43 +231,40 @@ def _two_sided(n: int, pairs: list[tuple[int, int]], regime: Regime, epochs: int
     sigma = {(i, j): np.zeros((POSE, POSE)) if i < j else np.eye(POSE) for i in range(n) for j in range(n) if i != j}
     Sigma = np.kron(np.eye(n), np.diag(regime.prior))
     nees, spread = [], []
-
-    def rows(i: int) -> np.ndarray:
-        return np.arange(POSE * i, POSE * i + POSE)
-
     for k in range(epochs):
         P = [p + np.diag(regime.q) for p in P]
         Sigma = Sigma + np.kron(np.eye(n), np.diag(regime.q))
-        updates = []
-        if k % regime.gnss_every == 0:
-            updates.append(((0,), H_POSITION, regime.gnss_var * np.eye(2)))
+        updates = [((0,), H_POSITION, regime.gnss_var * np.eye(2))] if k % regime.gnss_every == 0 else []
         updates += [((a, b), np.hstack([-H_POSITION, H_POSITION]), regime.relative_var * np.eye(2)) for a, b in pairs]
         for who, H, R in updates:
-            J = (
-                P[who[0]]
-                if len(who) == 1
-                else np.block(
-                    [[P[who[0]], sigma[who] @ sigma[who[::-1]].T], [(sigma[who] @ sigma[who[::-1]].T).T, P[who[1]]]]
-                )
-            )
-            S = H @ J @ H.T + R
-            K = J @ H.T @ np.linalg.inv(S)
-            J_new = J - K @ S @ K.T
-            for slot, i in enumerate(who):
-                M = J_new[POSE * slot : POSE * slot + POSE, POSE * slot : POSE * slot + POSE] @ np.linalg.inv(P[i])
-                for j in range(n):
-                    if j not in who:
-                        sigma[(i, j)] = M @ sigma[(i, j)]
-                P[i] = J_new[POSE * slot : POSE * slot + POSE, POSE * slot : POSE * slot + POSE]
-            if len(who) == 2:
-                sigma[who], sigma[who[::-1]] = J_new[:POSE, POSE:], np.eye(POSE)
-            at = np.concatenate([rows(i) for i in who])
-            L = np.eye(POSE * n)
-            L[np.ix_(at, at)] -= K @ H
-            noise = np.zeros_like(Sigma)
-            noise[np.ix_(at, at)] = K @ R @ K.T
-            Sigma = L @ Sigma @ L.T + noise
+            K = _joint_update(P, sigma, who, H, R, n)
+            Sigma = truth_after(Sigma, who, who, K, H, R)
         if k >= settle:
-            nees.append([float(np.trace(np.linalg.solve(P[i], Sigma[np.ix_(rows(i), rows(i))]))) for i in range(n)])
-            spread.append(np.mean([np.trace(Sigma[np.ix_(rows(i)[:2], rows(i)[:2])]) for i in range(n)]))
+            blocks = [Sigma[np.ix_(rows_of([i]), rows_of([i]))] for i in range(n)]
+            nees.append([float(np.trace(np.linalg.solve(P[i], blocks[i]))) for i in range(n)])
+            spread.append(np.mean([np.trace(b[:2, :2]) for b in blocks]))
     return Outcome(np.mean(nees, axis=0), float(np.sqrt(np.mean(spread))))
+
+
+def _joint_update(P: list, sigma: dict, who: tuple[int, ...], H: np.ndarray, R: np.ndarray, n: int) -> np.ndarray:
+    """One update of the vehicles ``who`` (one, or the pair) by the joint Kalman update of their prior
+    (the pair's cross-covariance sigma_ab sigma_ba^T); P, sigma changed in place (reset sigma_ab = P_ab+,
+    sigma_ba = I; the others sigma_ik <- P_ii+ P_ii^-1 sigma_ik). Returns the gain K (3 len(who), m)."""
+    if len(who) == 1:
+        J = P[who[0]]
+    else:
+        cross = sigma[who] @ sigma[who[::-1]].T
+        J = np.block([[P[who[0]], cross], [cross.T, P[who[1]]]])
+    S = H @ J @ H.T + R
+    K = J @ H.T @ np.linalg.inv(S)
+    J_new = J - K @ S @ K.T
+    for slot, i in enumerate(who):
+        block = J_new[POSE * slot : POSE * slot + POSE, POSE * slot : POSE * slot + POSE]
+        M = block @ np.linalg.inv(P[i])
+        for j in range(n):
+            if j not in who:
+                sigma[(i, j)] = M @ sigma[(i, j)]
+        P[i] = block
+    if len(who) == 2:
+        sigma[who], sigma[who[::-1]] = J_new[:POSE, POSE:], np.eye(POSE)
+    return K

@@ -87,6 +87,27 @@ def figure_track(tracks: dict[str, Track], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+def monte_carlo(seeds: int, two_frames: dict) -> dict:
+    """Position NEES at the checkpoints of ``seeds`` 300-frame flights, each range and association."""
+    low, high = chi2_band(3, runs=seeds)
+    cases = {}
+    for identified in (True, False):
+        for mode in ("adaptive", "fixed-25"):
+            nees = np.array(
+                [fly(s, 300, mode, identified=identified, **two_frames).position_nees() for s in range(seeds)]
+            )
+            means = [round(float(nees[:, c].mean()), 2) for c in CHECKPOINTS]
+            key = f"{mode}, {'identified' if identified else 'nn association'}"
+            cases[key] = {"checkpoint_position_anees": means, "inside": [low <= m <= high for m in means]}
+            print(key, means, flush=True)
+    return {
+        "seeds": seeds,
+        "checkpoints_frame": [c + 1 for c in CHECKPOINTS],
+        "band_95": [round(low, 2), round(high, 2)],
+        "cases": cases,
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=1600)
@@ -109,23 +130,7 @@ def main() -> None:
         "flight": {m: summary(t) for m, t in tracks.items()},
     }
     print(json.dumps(result["flight"], indent=1), flush=True)
-    low, high = chi2_band(3, runs=args.seeds)
-    consistency = {}
-    for identified in (True, False):
-        for mode in ("adaptive", "fixed-25"):
-            nees = np.array(
-                [fly(s, 300, mode, identified=identified, **two_frames).position_nees() for s in range(args.seeds)]
-            )
-            means = [round(float(nees[:, c].mean()), 2) for c in CHECKPOINTS]
-            key = f"{mode}, {'identified' if identified else 'nn association'}"
-            consistency[key] = {"checkpoint_position_anees": means, "inside": [low <= m <= high for m in means]}
-            print(key, means, flush=True)
-    result["monte_carlo"] = {
-        "seeds": args.seeds,
-        "checkpoints_frame": [c + 1 for c in CHECKPOINTS],
-        "band_95": [round(low, 2), round(high, 2)],
-        "cases": consistency,
-    }
+    result["monte_carlo"] = monte_carlo(args.seeds, two_frames)
     (args.out / "data").mkdir(parents=True, exist_ok=True)
     name = f"ar-slam3d-{args.tag}.json" if args.tag else "ar-slam3d-experiment.json"
     (args.out / "data" / name).write_text(json.dumps(result, indent=2) + "\n")

@@ -4,7 +4,7 @@ adaptive observation range in 3-D distance, data association on the triangulated
 clock; not yet an estimator a vehicle process runs (docs/ar-slam.md says what is missing).
 
 Per camera frame (``frame``): the state is predicted to the frame (constant velocity); the landmarks
-in the state farther than R from the camera are retired (marginalised out, their marginals kept);
+in the state farther than R from the camera are retired (marginalised out);
 the frame's triangulated points z_i (body frame, covariance R_i from vehicle.vision.triangulation)
 are associated with the landmarks in the state (the configured method, behind the chi-square gate),
 the pairs fused one by one, and the unpaired points within R initialised as new landmarks (the
@@ -26,7 +26,7 @@ from visual odometry (R from E, cheirality) and does not estimate it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -56,12 +56,11 @@ class Candidate:
 
 @dataclass
 class Ar3dBook:
-    """What the back end keeps besides x and P: the range, the retired landmarks' positions (k, 3) and
-    marginal covariances (k, 3, 3), and per frame what it did."""
+    """What the back end keeps besides x and P: the range, and counts of what it did (landmarks retired,
+    sightings fused, landmarks added, sightings gated out)."""
 
     radius_m: float
-    retired_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    retired_cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    retired: int = 0
     fused: int = 0
     added: int = 0
     gated_out: int = 0
@@ -176,13 +175,12 @@ class ArSlam3d:
         self.book.added += 1
 
     def _retire(self) -> None:
-        """Landmarks farther than R from the camera leave the state, their marginals kept."""
+        """Landmarks farther than R from the camera leave the state (marginalised: a retired landmark
+        seen again enters anew, so its marginal is not kept)."""
         far = np.flatnonzero(np.linalg.norm(self.landmarks() - self.x[:3], axis=1) > self.book.radius_m)
         if not len(far):
             return
-        rows = [slam3d.landmark_slice(int(j)) for j in far]
-        self.book.retired_xyz = np.vstack([self.book.retired_xyz, self.landmarks()[far]])
-        self.book.retired_cov = np.concatenate([self.book.retired_cov, np.stack([self.P[r, r] for r in rows])])
-        drop = np.concatenate([np.arange(r.start, r.stop) for r in rows]).tolist()
+        self.book.retired += len(far)
+        drop = (slam3d.HEAD + slam3d.POINT * far[:, None] + np.arange(slam3d.POINT)).ravel().tolist()
         self.x, self.P = added_states.drop_states(self.x, self.P, drop)
         self.ids = np.delete(self.ids, far)

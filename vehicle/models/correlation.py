@@ -14,7 +14,8 @@ only through u. Each vehicle's own operations move its own factors as they move 
 columns: a motion step c <- F c, an update with gain K and Jacobian H c <- c - K H c, a state added
 (a zero row), marginalized (its row dropped) or decorrelated (its row zeroed).
 
-**A fusion** (Luft et al.'s relative update, one-sided): vehicle a fuses b's broadcast of epoch tau
+**A fusion** (Luft et al.'s relative update, one-sided; vehicle.models.correlation_update computes it
+and checks a claim before it is used): vehicle a fuses b's broadcast of epoch tau
 (pose error e_bp, covariance U_b) with a measurement z = h(x_a, pose_b) + v. From (1) it has
 C = cov(e_a, e_bp) (n, 3), and the joint prior [[P, C], [C^T, U_b]] gives the exact gain of a's rows,
 K = (P H_a^T + C H_b^T) S^-1 with S = H_a P H_a^T + H_a C H_b^T + H_b C^T H_a^T + H_b U_b H_b^T + R.
@@ -246,65 +247,3 @@ def _rows(rows: np.ndarray | None, sender: int) -> np.ndarray:
 def _through(column: np.ndarray, U: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """Equation (1): c U^-1 r^T (n, 3)."""
     return column @ np.linalg.solve(U, rows.T)
-
-
-@dataclass(frozen=True)
-class PairUpdate:
-    """One exact one-sided fusion: the new mean (n,) and covariance (n, n), the gain K (n, m), the
-    fuser's new factor (n, 3) (equation 2), the NIS and the innovation covariance S (m, m)."""
-
-    x: np.ndarray
-    P: np.ndarray
-    K: np.ndarray
-    factor: np.ndarray
-    nis: float
-    S: np.ndarray
-
-
-def pair_update(
-    x: np.ndarray,
-    P: np.ndarray,
-    y: np.ndarray,
-    H_own: np.ndarray,
-    H_their: np.ndarray,
-    R: np.ndarray,
-    C: np.ndarray,
-    U: np.ndarray,
-) -> PairUpdate:
-    """The fuser's exact update (module docstring): state x (n,), P (n, n), innovation y (m,), Jacobians
-    H_own (m, n) and H_their (m, 3) on the neighbour's broadcast pose, noise R (m, m) independent of
-    both, C = cov(e, e_their) (n, 3), U = cov(e_their) (3, 3)."""
-    PHt = P @ H_own.T + C @ H_their.T  # cov(e, z error)
-    HC = H_own @ C
-    S = H_own @ PHt + H_their @ (HC.T + U @ H_their.T) + R
-    S = 0.5 * (S + S.T)
-    S_inv = np.linalg.inv(S)
-    K = PHt @ S_inv
-    P_new = P - K @ S @ K.T
-    factor = C - K @ (HC + H_their @ U)
-    return PairUpdate(x + K @ y, 0.5 * (P_new + P_new.T), K, factor, float(y @ S_inv @ y), S)
-
-
-def joint_is_positive(P: np.ndarray, C: np.ndarray, U: np.ndarray) -> bool:
-    """Whether the joint covariance [[P, C], [C^T, U]] is positive definite (a claim that makes it
-    indefinite says a correlation no two estimates can have)."""
-    try:
-        np.linalg.cholesky(np.block([[P, C], [C.T, U]]))
-    except np.linalg.LinAlgError:
-        return False
-    return True
-
-
-def shrinks_at_most_as_independent(
-    P: np.ndarray, H_own: np.ndarray, H_their: np.ndarray, R: np.ndarray, C: np.ndarray, U: np.ndarray
-) -> bool:
-    """Whether the exact update leaves the pose covariance no smaller, in any direction, than an update
-    that took the neighbour's estimate as independent of this one: the bound on how much one neighbour's
-    claim may shrink it. (The correlation that fusing each other builds is positive along what a relative
-    measurement sees: the pair's relative pose is better known than their poses, so an honest claim
-    brings less than independence would.)"""
-    exact = pair_update(np.zeros(len(P)), P, np.zeros(len(R)), H_own, H_their, R, C, U).P[:POSE, :POSE]
-    independent = pair_update(np.zeros(len(P)), P, np.zeros(len(R)), H_own, H_their, R, 0.0 * C, U).P[:POSE, :POSE]
-    L = np.linalg.cholesky(independent)
-    ratio = np.linalg.solve(L, np.linalg.solve(L, exact).T)
-    return bool(np.linalg.eigvalsh(0.5 * (ratio + ratio.T)).min() >= 1.0 - 1e-6)

@@ -11,17 +11,8 @@ import numpy as np
 import pytest
 
 from experiments.correlation_study import Regime, study
-from vehicle.models.correlation import (
-    Anchor,
-    Claim,
-    ClaimRefused,
-    Factors,
-    fuser_at,
-    joint_is_positive,
-    pair_update,
-    resolve,
-    shrinks_at_most_as_independent,
-)
+from vehicle.models.correlation import Anchor, Claim, ClaimRefused, Factors, fuser_at, resolve
+from vehicle.models.correlation_update import joint_is_positive, pair_update, shrinks_at_most_as_independent
 
 PERIOD = 200_000
 Q = np.diag([0.02, 0.02, 0.001])  # per epoch
