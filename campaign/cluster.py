@@ -11,7 +11,10 @@ import os
 from collections.abc import Iterator
 from typing import Any
 
+from bus.errors import ConfigError
+
 RESOURCE = "swarm"
+WORKERS_WAIT_S = 30.0
 
 
 def local_workers(cpu_per_run: float, cores: int | None = None) -> int:
@@ -28,6 +31,7 @@ def connect(scheduler: str | None, workers: int | None, cpu_per_run: float) -> I
 
     if scheduler:
         with Client(scheduler, timeout="30s") as client:
+            check_slots(client, scheduler)
             yield client
         return
     n = workers or local_workers(cpu_per_run)
@@ -43,3 +47,25 @@ def connect(scheduler: str | None, workers: int | None, cpu_per_run: float) -> I
         Client(cluster) as client,
     ):
         yield client
+
+
+def check_slots(client: Any, scheduler: str, wait_s: float = WORKERS_WAIT_S) -> int:
+    """How many runs the cluster at ``scheduler`` flies at once; a ConfigError naming the fix when no
+    worker joins within ``wait_s`` or none offers the ``swarm`` resource (its tasks would wait for
+    ever in Dask's ``no-worker`` state)."""
+    try:
+        client.wait_for_workers(1, timeout=wait_s)
+    except TimeoutError:
+        raise ConfigError(
+            f"no Dask worker joined {scheduler} within {wait_s:.0f} s: start one with "
+            f"`dask worker {scheduler} --resources {RESOURCE}=1`"
+        ) from None
+    workers = client.scheduler_info()["workers"].values()
+    slots = sum(w.get("resources", {}).get(RESOURCE, 0) for w in workers)
+    if slots < 1:
+        raise ConfigError(
+            f"no Dask worker at {scheduler} offers the `{RESOURCE}` resource ({len(workers)} joined), so no "
+            f"run could start: restart each with `dask worker {scheduler} --resources {RESOURCE}=1` "
+            "(one run at a time per unit; docs: campaigns)"
+        )
+    return int(slots)

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from bus.config import ViewConfig
+from bus.errors import SwarmlocError
 from campaign.runner import Campaign, run_campaign
 from experiments.registry import EXPERIMENTS, module_of
 from launch.runspec import RunSpec
@@ -37,6 +38,14 @@ def run_experiment(
     how = replace(how, cpu_per_run=EXPERIMENTS[name].cpu_per_run)
     folder = out / name
     rows = run_campaign(specs, folder, how, stop=stop, say=say)
+    complete = sum(row.get("status") == "complete" for row in rows)
+    if stop.is_set() and len(rows) < len(specs):
+        raise SwarmlocError(
+            f"experiment {name} stopped with {complete} of {len(specs)} runs complete, nothing concluded: "
+            "the same command resumes it"
+        )
+    if not complete:
+        return folder, rows, [f"experiment {name}: none of its {len(specs)} runs completed, nothing concluded"]
     return folder, rows, module.conclude(rows, folder, **params)
 
 

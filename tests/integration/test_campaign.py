@@ -80,14 +80,16 @@ def sequential(tmp_path_factory):
 
 
 @contextlib.contextmanager
-def _cluster(*worker_flags: str):
-    """A scheduler and two workers, started with the stock `dask` commands; (its address, the workers)."""
+def _cluster(*worker_flags: str, resources: bool = True):
+    """A scheduler and two workers, started with the stock `dask` commands (offering one ``swarm``
+    each unless not ``resources``); (its address, the workers)."""
     port = _free_port()
     quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
     scheduler = subprocess.Popen(
         [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], **quiet
     )
-    worker = [DASK, "worker", f"tcp://127.0.0.1:{port}", "--nthreads", "1", "--resources", "swarm=1", "--no-dashboard"]
+    worker = [DASK, "worker", f"tcp://127.0.0.1:{port}", "--nthreads", "1", "--no-dashboard"]
+    worker += ["--resources", "swarm=1"] if resources else []
     workers = [subprocess.Popen([*worker, *worker_flags], start_new_session=True, **quiet) for _ in range(2)]
     try:
         yield f"tcp://127.0.0.1:{port}", workers
@@ -108,6 +110,16 @@ def test_a_scheduler_and_two_stock_workers_fly_the_grid_as_one_worker_does(seque
     rows = [json.loads(p.read_text()) for p in flown.glob("*/row.json")]
     assert all(r["status"] == "complete" for r in rows) and len(rows) == 6
     assert (flown / "results.parquet").is_file() and _left_running(flown) == []
+
+
+def test_workers_started_without_the_swarm_resource_are_a_one_line_error_naming_the_fix(tmp_path):
+    """Tasks no worker may run would wait for ever in Dask's no-worker state: the campaign says so."""
+    with _cluster(resources=False) as (address, _):
+        result = _campaign(_grid(tmp_path, "grid", seeds=1, duration_s=6), tmp_path, "--scheduler", address)
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "Traceback" not in result.stderr and result.stderr.count("\n") == 1, result.stderr
+    assert "--resources swarm=1" in result.stderr and "no Dask worker" in result.stderr
+    assert not list((tmp_path / "grid").glob("*/row.json"))
 
 
 def test_a_worker_killed_in_the_middle_leaves_its_runs_to_the_other_and_nothing_running(tmp_path):
