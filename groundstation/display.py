@@ -16,6 +16,32 @@ from rich.table import Table
 
 from bus.consistency import NIS_KINDS
 
+MAX_ROWS = 12  # a swarm larger than this: the tables show its worst vehicles and say so (all in summary.json)
+
+
+def vehicle_rows(vehicles: dict[str, dict[str, Any]], badness: Any, what: str) -> tuple[list[str], str | None]:
+    """(the vehicle ids a table shows, in numeric order, or, beyond ``MAX_ROWS``, the ``MAX_ROWS``
+    worst by ``badness(vehicle summary)`` worst first; a caption saying which when not all)."""
+    ids = sorted(vehicles, key=lambda vid: (len(vid), vid))
+    if len(ids) <= MAX_ROWS:
+        return ids, None
+    worst = sorted(ids, key=lambda vid: -badness(vehicles[vid]))[:MAX_ROWS]
+    return worst, f"the {MAX_ROWS} of {len(ids)} vehicles {what}; every vehicle in summary.json and report.html"
+
+
+def _rmse(v: dict[str, Any]) -> float:
+    value = v.get("rmse_m")
+    return math.inf if value is None or not math.isfinite(value) else float(value)
+
+
+def _inconsistency(v: dict[str, Any]) -> float:
+    """How far a vehicle's block ANEES is outside its band (0 inside; vehicles without one last)."""
+    c = v.get("consistency") or {}
+    anees, band = c.get("block_anees"), c.get("band_95")
+    if anees is None or not band or anees <= 0:
+        return -1.0
+    return max(math.log(band[0] / anees), math.log(anees / band[1]), 0.0) + abs(math.log(anees / 3.0)) * 1e-3
+
 
 def rmse_table(summary: dict[str, Any], timing: dict[str, Any] | None = None, title: str = "swarm RMSE") -> Table:
     """Per-vehicle and swarm position RMSE, ANEES and loop counters from a summary (and timing)."""
@@ -31,7 +57,9 @@ def rmse_table(summary: dict[str, Any], timing: dict[str, Any] | None = None, ti
         "jitter p99 [us]",
     ):
         table.add_column(column, justify="right")
-    for vid, v in summary["vehicles"].items():
+    shown, caption = vehicle_rows(summary["vehicles"], _rmse, "with the largest RMSE")
+    for vid in shown:
+        v = summary["vehicles"][vid]
         t = (timing or {}).get("vehicles", {}).get(vid, {})
         table.add_row(
             vid,
@@ -45,6 +73,7 @@ def rmse_table(summary: dict[str, Any], timing: dict[str, Any] | None = None, ti
         )
     s = summary["swarm"]
     table.add_row("swarm", _num(s.get("rmse_m")), "", _num(s.get("anees")), "", "", "", "", style="bold")
+    table.caption = caption
     return table
 
 
@@ -54,10 +83,10 @@ def consistency_table(summary: dict[str, Any], title: str = "consistency (NEES)"
     table = Table(title=title)
     for column in ("vehicle", "blocks", "block ANEES", "95% band", "inside", "> 95% pt", "< 5% pt"):
         table.add_column(column, justify="right")
-    for vid, v in summary["vehicles"].items():
-        c = v.get("consistency")
-        if not c:
-            continue
+    with_blocks = {vid: v for vid, v in summary["vehicles"].items() if v.get("consistency")}
+    shown, caption = vehicle_rows(with_blocks, _inconsistency, "least consistent (block ANEES farthest outside its band, then from 3)")
+    for vid in shown:
+        c = with_blocks[vid]["consistency"]
         band = c.get("band_95") or [None, None]
         table.add_row(
             vid,
@@ -68,7 +97,10 @@ def consistency_table(summary: dict[str, Any], title: str = "consistency (NEES)"
             _pct(c.get("share_above_95")),
             _pct(c.get("share_below_05")),
         )
-    table.caption = "NEES in 30 s blocks; consistent: inside the band, 5 % above the 95 % point, 5 % below the 5 %"
+    inside = sum(bool(v["consistency"].get("inside")) for v in with_blocks.values())
+    table.caption = "NEES in 30 s blocks; consistent: inside the band, 5 % above the 95 % point, 5 % below the 5 %" + (
+        f"\n{inside} of {len(with_blocks)} vehicles inside; {caption}" if caption else ""
+    )
     return table
 
 
@@ -81,10 +113,13 @@ def nis_table(summary: dict[str, Any], title: str = "consistency (NIS of the fus
     table = Table(title=title, min_width=76)
     for column in ("vehicle", *kinds):
         table.add_column(column, justify="right")
-    for vid, v in summary["vehicles"].items():
-        nis = v.get("nis", {})
+    shown, caption = vehicle_rows(summary["vehicles"], _inconsistency, "least consistent (block ANEES farthest outside its band, then from 3)")
+    for vid in shown:
+        nis = summary["vehicles"][vid].get("nis", {})
         table.add_row(vid, *(_nis(nis.get(k)) for k in kinds))
-    table.caption = "mean (2 for a 2-D measurement) / above 95 % pt / below 5 % pt (5 % each if consistent)"
+    table.caption = "mean (2 for a 2-D measurement) / above 95 % pt / below 5 % pt (5 % each if consistent)" + (
+        f"\n{caption}" if caption else ""
+    )
     return table
 
 

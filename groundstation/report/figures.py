@@ -5,6 +5,7 @@ Each function takes the loaded run and returns a Figure, or None when the run ha
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -18,7 +19,7 @@ from groundstation.report.rundata import RunData
 from groundstation.report.stats import binned_nees, covariance_ellipse
 from groundstation.scene_primitives import zone_colour
 
-MAX_ERROR_PANELS = 12
+MAX_ERROR_PANELS = 12  # more vehicles than this: per-vehicle figures show the worst, the swarm as a band
 MARKER_COLORS = {
     "fault_added": "tab:red",
     "fault_removed": "tab:green",
@@ -71,7 +72,12 @@ def map_figure(data: RunData, *, ellipse_every_s: float = 5.0) -> Figure | None:
         fontsize="medium",
     )
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper right", fontsize="small", ncols=2)
+    if len(data.vehicles) <= MAX_ERROR_PANELS:
+        ax.legend(loc="upper right", fontsize="small", ncols=2)
+    else:  # a legend of hundreds of vehicles would hide the map: the zones alone
+        zones = [(h, label) for h, label in zip(*ax.get_legend_handles_labels()) if not label.startswith("v")]
+        if zones:
+            ax.legend(*zip(*zones), loc="upper right", fontsize="small")
     return fig
 
 
@@ -127,9 +133,40 @@ def _marker_legend(ax: Any, events: list[dict[str, Any]]) -> None:
         ax.plot([], [], ":", color=MARKER_COLORS.get(kind, "tab:gray"), label=kind)
 
 
+def worst_vehicles(data: RunData, score: Callable[[dict[str, np.ndarray]], float]) -> tuple[list[int], int]:
+    """(the vehicles with rows, in order, or the ``MAX_ERROR_PANELS`` of them with the highest
+    ``score`` of their rows when there are more; how many have rows)."""
+    vehicles = [v for v in data.vehicles if len(data.rows_of(v).get("t_s", ()))]
+    if len(vehicles) <= MAX_ERROR_PANELS:
+        return vehicles, len(vehicles)
+    worst = sorted(vehicles, key=lambda v: -score(data.rows_of(v)))[:MAX_ERROR_PANELS]
+    return worst, len(vehicles)
+
+
+def _rmse_of(rows: dict[str, np.ndarray]) -> float:
+    return float(np.sqrt(np.mean(np.square(rows["err_pos_m"]))))
+
+
+def _inconsistency_of(rows: dict[str, np.ndarray]) -> float:
+    """How far a vehicle's mean NEES is from 3, either way (a factor: log scale)."""
+    mean = float(np.nanmean(rows["nees"]))
+    return abs(np.log(mean / 3.0)) if mean > 0 else np.inf
+
+
+def _panels_legend(fig: Figure, first: Any, shown: int, total: int, which: str) -> None:
+    """The legend of a figure of per-vehicle panels, above them; titled with which vehicles they are
+    when not all."""
+    title = f"the {shown} of {total} vehicles {which}" if shown < total else None
+    handles, labels = first.get_legend_handles_labels()
+    fig.legend(
+        handles, labels, loc="outside upper center", fontsize="small", ncols=4, title=title, title_fontsize="small"
+    )
+
+
 def error_figure(data: RunData) -> Figure | None:
-    """Position error per axis over time per vehicle, inside its shaded 3-sigma envelope."""
-    vehicles = [v for v in data.vehicles if data.rows_of(v)][:MAX_ERROR_PANELS]
+    """Position error per axis over time per vehicle, inside its shaded 3-sigma envelope (the vehicles
+    with the largest RMSE when there are more than ``MAX_ERROR_PANELS``)."""
+    vehicles, total = worst_vehicles(data, _rmse_of)
     if not vehicles:
         return None
     fig = Figure(figsize=(9.0, 1.0 + 1.7 * len(vehicles)), layout="constrained")
@@ -146,22 +183,29 @@ def error_figure(data: RunData) -> Figure | None:
         ax.grid(alpha=0.3)
     axes[0].set_title("position error per axis (lines) and its 3-sigma envelope (shaded)")
     _marker_legend(axes[0], events)
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside upper center", fontsize="small", ncols=4)
+    _panels_legend(fig, axes[0], len(vehicles), total, "with the largest RMSE")
     axes[-1].set_xlabel("sim time [s]")
     return fig
 
 
 def rmse_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
-    """Swarm RMSE per ``bin_s`` seconds (bold) over the per-vehicle RMSE (thin), with fault markers."""
+    """Swarm RMSE per ``bin_s`` seconds (bold) over the per-vehicle RMSE (thin; beyond
+    ``MAX_ERROR_PANELS`` vehicles their median and 5-95 % band instead), with fault markers."""
     m = data.metrics
     if not m or not len(m["t_s"]):
         return None
     fig = Figure(figsize=(9.0, 3.6), layout="constrained")
     ax = fig.subplots()
-    for i, vid in enumerate(data.vehicles):
-        r = data.rows_of(vid)
-        if r:
-            ax.plot(*binned_rms(r["t_s"], r["err_pos_m"], bin_s), color=_color(i), lw=0.6, alpha=0.6)
+    per_vehicle = [binned_rms(r["t_s"], r["err_pos_m"], bin_s) for r in map(data.rows_of, data.vehicles) if r]
+    if len(per_vehicle) <= MAX_ERROR_PANELS:
+        for i, (t, rms) in enumerate(per_vehicle):
+            ax.plot(t, rms, color=_color(i), lw=0.6, alpha=0.6)
+        what = "thin: each vehicle"
+    else:
+        t, low, median, high = _spread(per_vehicle)
+        ax.fill_between(t, low, high, color="tab:blue", alpha=0.25, lw=0, label="5-95 % of the vehicles")
+        ax.plot(t, median, color="tab:blue", lw=1.0, label="median vehicle")
+        what = f"{len(per_vehicle)} vehicles: their median and 5-95 % band"
     ax.plot(*binned_rms(m["t_s"], m["err_pos_m"], bin_s), color="black", lw=2.0, label="swarm")
     events = data.marker_events()
     _mark_events(ax, events)
@@ -169,10 +213,21 @@ def rmse_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
     ax.set_xlabel("sim time [s]")
     ax.set_ylabel(f"RMSE per {bin_s:g} s [m]")
     ax.set_ylim(bottom=0.0)
-    ax.set_title("swarm position RMSE over time (thin: each vehicle)")
+    ax.set_title(f"swarm position RMSE over time ({what})")
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right", fontsize="small")
     return fig
+
+
+def _spread(series: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, ...]:
+    """(bin centres (B,), 5th percentile, median, 95th percentile (B,) each) over the vehicles of
+    per-vehicle series (centres, values) that share bins (a vehicle without a bin is left out of it)."""
+    centres = np.unique(np.concatenate([t for t, _ in series]))
+    table = np.full((len(series), len(centres)), np.nan)
+    for row, (t, values) in zip(table, series):
+        row[np.searchsorted(centres, t)] = values
+    low, median, high = np.nanpercentile(table, [5.0, 50.0, 95.0], axis=0)
+    return centres, low, median, high
 
 
 def nees_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
@@ -206,7 +261,7 @@ def block_nees_figure(data: RunData, *, block_s: float = BLOCK_S) -> Figure | No
     """Per vehicle: its NEES per second (thin), each ``block_s`` block's mean (steps), the block ANEES
     (their mean, red) and its band (shaded; bus.consistency): a consistent filter's steps scatter
     around 3 and their mean falls inside the band."""
-    vehicles = [v for v in data.vehicles if len(data.rows_of(v).get("t_s", ()))][:MAX_ERROR_PANELS]
+    vehicles, total = worst_vehicles(data, _inconsistency_of)
     if not vehicles:
         return None
     fig = Figure(figsize=(9.0, 1.0 + 1.7 * len(vehicles)), layout="constrained")
@@ -234,6 +289,6 @@ def block_nees_figure(data: RunData, *, block_s: float = BLOCK_S) -> Figure | No
         ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
         ax.set_ylabel(f"v{vid} NEES")
         ax.grid(alpha=0.3, which="both")
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside upper center", fontsize="small", ncols=4)
+    _panels_legend(fig, axes[0], len(vehicles), total, "whose mean NEES is farthest from 3")
     axes[-1].set_xlabel("sim time [s]")
     return fig
