@@ -29,6 +29,9 @@ def vehicle_rows(vehicles: dict[str, dict[str, Any]], badness: Any, what: str) -
     return worst, f"the {MAX_ROWS} of {len(ids)} vehicles {what}; every vehicle in summary.json and report.html"
 
 
+LEAST_CONSISTENT = "least consistent (block ANEES farthest outside its band, then from 3)"
+
+
 def _rmse(v: dict[str, Any]) -> float:
     value = v.get("rmse_m")
     return math.inf if value is None or not math.isfinite(value) else float(value)
@@ -84,7 +87,7 @@ def consistency_table(summary: dict[str, Any], title: str = "consistency (NEES)"
     for column in ("vehicle", "blocks", "block ANEES", "95% band", "inside", "> 95% pt", "< 5% pt"):
         table.add_column(column, justify="right")
     with_blocks = {vid: v for vid, v in summary["vehicles"].items() if v.get("consistency")}
-    shown, caption = vehicle_rows(with_blocks, _inconsistency, "least consistent (block ANEES farthest outside its band, then from 3)")
+    shown, caption = vehicle_rows(with_blocks, _inconsistency, LEAST_CONSISTENT)
     for vid in shown:
         c = with_blocks[vid]["consistency"]
         band = c.get("band_95") or [None, None]
@@ -113,7 +116,7 @@ def nis_table(summary: dict[str, Any], title: str = "consistency (NIS of the fus
     table = Table(title=title, min_width=76)
     for column in ("vehicle", *kinds):
         table.add_column(column, justify="right")
-    shown, caption = vehicle_rows(summary["vehicles"], _inconsistency, "least consistent (block ANEES farthest outside its band, then from 3)")
+    shown, caption = vehicle_rows(summary["vehicles"], _inconsistency, LEAST_CONSISTENT)
     for vid in shown:
         nis = summary["vehicles"][vid].get("nis", {})
         table.add_row(vid, *(_nis(nis.get(k)) for k in kinds))
