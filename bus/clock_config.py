@@ -36,7 +36,11 @@ class ClockConfig(Strict):
     ack_timeout_s: float = Field(
         10.0, gt=0, description="lockstep (realtime: the first tick): wall time before a silent vehicle is dead"
     )
-    start_timeout_s: float = Field(60.0, gt=0, description="wall time to wait for every process to join")
+    start_timeout_s: float = Field(
+        60.0,
+        gt=0,
+        description="wall time to wait for the next process to join (the start goes on while processes keep joining)",
+    )
     gone_timeout_s: float = Field(
         30.0,
         gt=0,

@@ -38,6 +38,19 @@ class StartTimeout(SwarmlocError):
     """Not every process joined the swarm in time."""
 
 
+class JoinDeadline:
+    """The start's deadline: ``wait_s`` after the last time the count of joined processes grew."""
+
+    def __init__(self, wait_s: float, now: float) -> None:
+        self.wait_s, self.deadline, self.joined = wait_s, now + wait_s, 0
+
+    def expired(self, joined: int, now: float) -> bool:
+        """Whether the start is over at ``now`` with ``joined`` processes in (a new one moves the deadline)."""
+        if joined > self.joined:
+            self.deadline, self.joined = now + self.wait_s, joined
+        return now > self.deadline
+
+
 class WorldNode:
     def __init__(self, bus: Bus, config: SwarmConfig) -> None:
         self.bus, self.config, keys = bus, config, bus.keys
@@ -83,18 +96,25 @@ class WorldNode:
 
     def wait_for_members(self, stop: threading.Event) -> None:
         """Until every vehicle and the ground station are alive and listen to what the world sends
-        them (a publication no subscriber is known for yet would be dropped)."""
-        deadline = time.monotonic() + self.config.clock.start_timeout_s
+        them (a publication no subscriber is known for yet would be dropped). The start timeout counts
+        from the last process that joined: a large swarm whose processes start one after another on
+        a few cores keeps the start as long as it progresses."""
+        wait_s = self.config.clock.start_timeout_s
+        start = JoinDeadline(wait_s, time.monotonic())
         while not (self.members.everyone_joined() and not await_subscribers(self._publishers, timeout_s=0.0)):
             if stop.is_set():
                 return
-            if time.monotonic() > deadline:
+            if start.expired(self._joined(), time.monotonic()):
                 missing = sorted(self.members.expected - self.members.alive)
                 who = ([f"vehicles {missing}"] if missing else []) + (
                     [] if self.members.groundstation else ["the ground station"]
                 )
-                raise StartTimeout(f"{' and '.join(who)} did not join within {self.config.clock.start_timeout_s:g} s")
+                raise StartTimeout(f"{' and '.join(who)} did not join within {wait_s:g} s of the last that did")
             self.drain(0.1)
+
+    def _joined(self) -> int:
+        """How many of the processes the run waits for are alive (the vehicles, the ground station)."""
+        return len(self.members.alive & self.members.expected) + bool(self.members.groundstation)
 
     def prepare(self, tick: int) -> EncodedTick:
         """Advance the world to the tick's stamp and encode what it measured (no publishing)."""

@@ -125,3 +125,21 @@ def test_a_realtime_world_paces_its_vehicles_with_the_ticks_they_need_and_tells_
 
     assert heard(clock) == list(range(126))
     assert heard(pace) == [0, 1, 50, 100, 125]
+
+
+def test_the_start_goes_on_while_processes_keep_joining():
+    """250 processes starting on two cores join over minutes: the deadline counts from the last join."""
+    from sim.node import JoinDeadline
+
+    start = JoinDeadline(60.0, now=0.0)
+    assert not start.expired(1, now=50.0)  # one joined at 50 s: the start may go on until 110 s
+    assert not start.expired(1, now=109.0) and not start.expired(2, now=109.5)
+    assert not start.expired(2, now=169.0)
+    assert start.expired(2, now=170.0)  # nobody new for 60 s
+
+
+def test_the_start_ends_when_nobody_joins():
+    from sim.node import JoinDeadline
+
+    start = JoinDeadline(60.0, now=0.0)
+    assert not start.expired(0, now=59.9) and start.expired(0, now=60.1)
