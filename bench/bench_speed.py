@@ -30,6 +30,7 @@ QUIET_A0FCCEE_RTF = 22.7
 DEMO = ("--vehicles", "5", "--duration", "60", "--mode", "lockstep", "--seed", "5")
 ROLES = ("vehicle", "sim", "gs", "router")
 HZ = os.sysconf("SC_CLK_TCK")
+PAGE_MB = os.sysconf("SC_PAGE_SIZE") / 2**20
 SAMPLE_S = 0.02
 GROWTH_REPEATS = 3
 GROWTH_S = (10, 40)  # each size flies both: the difference is the stepping's CPU, without start and stop
@@ -52,9 +53,12 @@ def lockstep(vehicles: int, duration_s: int) -> tuple[str, ...]:
     return ("--vehicles", str(vehicles), "--duration", str(duration_s), "--mode", "lockstep")
 
 
-def role_cpu(args: tuple[str, ...], out: Path, name: str) -> dict[str, float]:
+def role_cpu(
+    args: tuple[str, ...], out: Path, name: str, peak_rss_mb: dict[str, float] | None = None
+) -> dict[str, float]:
     """CPU seconds of each role's processes (summed), read from /proc every ``SAMPLE_S`` until the run
-    ends (a process's CPU after its last reading is not counted: at most ``SAMPLE_S`` each)."""
+    ends (a process's CPU after its last reading is not counted: at most ``SAMPLE_S`` each); with
+    ``peak_rss_mb``, each role's largest resident memory of one process seen (MB) filled in."""
     seen: dict[int, tuple[str, float]] = {}
     others: set[int] = set()  # processes that are not the run's
     process = subprocess.Popen(
@@ -79,6 +83,9 @@ def role_cpu(args: tuple[str, ...], out: Path, name: str) -> dict[str, float]:
                 stat = Path(entry.path, "stat").read_text()
                 fields = stat[stat.rindex(")") + 2 :].split()
                 seen[pid] = (seen[pid][0], (int(fields[11]) + int(fields[12])) / HZ)
+                if peak_rss_mb is not None:
+                    role, rss_mb = seen[pid][0], int(fields[21]) * PAGE_MB
+                    peak_rss_mb[role] = max(peak_rss_mb.get(role, 0.0), rss_mb)
             except (OSError, ValueError, IndexError):
                 continue
         time.sleep(SAMPLE_S)

@@ -223,6 +223,7 @@ class VehicleStatus:
     frames_used: Annotated[int, Int(0, 2**53)] = 0  # SLAM: camera frames through the front end
     nis: Annotated[tuple[float, ...], Floats((0, NIS_FIELDS * len(NIS_KINDS)), 1e15)] = ()  # bus.consistency.NisBook
     loop_priority: Annotated[int, Int(0, 99)] = 0  # realtime: the SCHED_FIFO priority granted, 0 the fair scheduler
+    v2v_received: Annotated[int, Int(0, 2**53)] = 0  # V2V frames the bus delivered to it (inbound)
 
 
 @dataclass(frozen=True)

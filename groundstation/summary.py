@@ -146,6 +146,7 @@ def build_timing(
             "jitter_p99_us": _round(st.jitter_p99_us),
             "cycle_p99_us": _round(st.cycle_p99_us),
             "loop_priority": st.loop_priority,
+            "v2v_received": st.v2v_received,
         }
         for vid, st in sorted(statuses.items())
     }

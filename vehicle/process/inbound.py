@@ -72,6 +72,7 @@ class Inbound:
         self.refused_since = 0  # batches on its feed refused since the newest that arrived
         self.received_stamp_us = -1  # and the end of the time it covers
         self.heard: dict[int, int] = {}  # V2V frames sent to every vehicle heard, per sender
+        self.v2v_received = 0  # every V2V frame the bus delivered, to this vehicle or not, valid or not
         self.heard_until: dict[int, int] = {}  # the newest stamp heard per sender (before link faults)
         self._listeners: deque[tuple[int, tuple[int, ...]]] = deque(maxlen=LISTENER_BATCHES)
         self._parsed: dict[str, ParsedKey] = {}  # keys seen, as KeySpace.parse read them
@@ -108,6 +109,7 @@ class Inbound:
             return []
         if parsed.topic == "feed" and parsed.vehicle_id == self.vehicle_id:
             return self._batch(item)
+        self.v2v_received += parsed.topic == "v2v" and parsed.vehicle_id != self.vehicle_id
         if parsed.topic == "v2v" and parsed.recipient not in (None, self.vehicle_id):
             self.rejections.reject("unexpected", item.key, "a V2V frame addressed to another vehicle")
             return []

@@ -10,6 +10,7 @@ from bus import messages as m
 from bus.rejections import Rejections
 from vehicle.estimators.filter import Filter
 from vehicle.process.fusion import FusionHorizon
+from vehicle.process.inbound import Inbound
 from vehicle.process.loop_stats import LoopStats
 from vehicle.process.sequence import SequenceTracker
 from vehicle.process.v2v import V2V
@@ -25,6 +26,7 @@ class Reporting(Protocol):
     rejections: Rejections
     sequences: SequenceTracker
     v2v: V2V
+    inbound: Inbound
     reset_counter: int
     loop_priority: int
 
@@ -56,4 +58,5 @@ def vehicle_status(node: Reporting, t_us: int, *, final: bool = False) -> m.Vehi
         frames_used=c.frames_used,
         nis=c.nis.values,
         loop_priority=node.loop_priority,
+        v2v_received=node.inbound.v2v_received,
     )
