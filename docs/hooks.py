@@ -9,6 +9,7 @@ Nothing here is pasted: change the code, and the docs follow at the next build."
 from __future__ import annotations
 
 import json
+import re
 import sys
 import typing
 from pathlib import Path
@@ -33,6 +34,8 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
         markdown = markdown.replace("<!-- swarm-table -->", swarm_table())
     if "<!-- front-end-table -->" in markdown:
         markdown = markdown.replace("<!-- front-end-table -->", front_end_table())
+    for name in re.findall(r"<!-- bench-rows:([a-z ]+) -->", markdown):
+        markdown = markdown.replace(f"<!-- bench-rows:{name} -->", bench_rows(name))
     if "<!-- fault-table -->" in markdown:
         markdown = markdown.replace("<!-- fault-table -->", fault_table())
     return markdown
@@ -155,6 +158,21 @@ def bench_table() -> str:
             f"| {r['benchmark']} | {case} | {r['metric']} | {r['value']} {r['unit']} | {r['target']} | {met} |"
         )
     return "\n".join(lines)
+
+
+def bench_rows(benchmark: str) -> str:
+    """The rows of one benchmark of ``bench/results.json`` (``<!-- bench-rows:NAME -->``)."""
+    path = ROOT / "bench" / "results.json"
+    rows = [r for r in json.loads(path.read_text())["rows"] if r["benchmark"] == benchmark] if path.exists() else []
+    if not rows:
+        return f"*No {benchmark} rows in `bench/results.json` yet: run `make bench`.*"
+    lines = ["| case | metric | measured | target | met |", "| --- | --- | ---: | --- | --- |"]
+    for r in rows:
+        met = {True: "yes", False: "**no**", None: "-"}[r["met"]]
+        lines.append(f"| {r['case']} | {r['metric']} | {r['value']} {r['unit']} | {r['target']} | {met} |")
+    return "\n".join(
+        lines + ["", f"Generated from `bench/results.json` (`bench/bench_{benchmark}.py`) at every docs build."]
+    )
 
 
 def front_end_table() -> str:

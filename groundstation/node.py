@@ -87,6 +87,9 @@ class GroundStation:
         self.published_us = -1  # lockstep: every estimate up to here is published (the tick before the last)
         self.ended: m.RunEnd | None = None
         self.final_seen = False
+        # vehicles that left after the final tick went out: whether they completed is known only at the
+        # end (their last estimate and the world's end race their departure), so their event waits
+        self.final_departures: list[int] = []
         self.tick_members: set[int] | None = None  # lockstep: the vehicles the world's last tick waited for
         self.latest_truth_us = -1
         self.truth_tick = -1  # the newest tick whose truth batch arrived
@@ -150,9 +153,9 @@ class GroundStation:
             return
         before_first_tick = self.resumed and self.previous_tick_us < 0
         kind = self.presence.token(parsed.role, vid, item.alive, before_first_tick, self.completed)
-        if kind is not None and (
-            self.config.clock.mode is not ClockMode.LOCKSTEP or (self.final_seen and not item.alive)
-        ):
+        if kind is not None and self.final_seen and not item.alive:
+            self.final_departures.append(vid)  # left or lost: said at the end (groundstation.run_end)
+        elif kind is not None and self.config.clock.mode is not ClockMode.LOCKSTEP:
             self.event(kind, vehicle=vid)  # lockstep: the world's ticks say who joined and left when
 
     def _log_membership(self, tick: m.ClockTick) -> None:

@@ -38,6 +38,7 @@ class Finishing(Protocol):
     reports: VehicleReports
     faults: FaultControl
     ended: m.RunEnd | None
+    final_departures: list[int]
     sim_time_us: int
     wall_start: float | None
     wall_end: float | None
@@ -52,6 +53,8 @@ def finish_run(gs: Finishing, status: str) -> dict:
     for vid, frame in gs.intake.release(2**62):
         gs.streams.frame(vid, frame, gs.sim_time_us)
     gs.run.write_scores(gs.scorer.release(float("inf")))
+    for vid in gs.final_departures:
+        gs.event("vehicle_left" if gs.completed(vid) else "vehicle_lost", vehicle=vid)
     lost = sorted(vid for vid in gs.presence.departed if not gs.completed(vid))
     if lost:
         gs.events["vehicle_lost"] = len(lost)

@@ -126,7 +126,7 @@ class WorldNode:
             self.publish(key, payload)
         self.publish(self.bus.keys.truth(), prepared.truth)
         self._truth_sent.append(prepared.truth)
-        self.members.acked = set()
+        self.members.acked, self.members.started = set(), True
         tick = m.ClockTick(
             prepared.tick,
             prepared.stamp_us,

@@ -3,9 +3,10 @@ vehicle hosts, as network namespaces joined by veth links. Vehicle host A runs a
 router joined to the first (the two-router deployment of the README); its vehicles connect to it
 locally, while vehicle host B connects to the main router. Logins, access control and signing on.
 Started in the worst order, with no sleeps: everything else before the routers (they wait for
-them). Every vehicle is scored."""
+them). Every vehicle is scored, and the run is byte for byte the one the same seed gives on one host."""
 
 import os
+import subprocess
 import sys
 
 import pytest
@@ -78,3 +79,18 @@ def test_swarm_across_four_hosts_and_two_routers(lab, tmp_path):
     for vid in ("1", "2", "3"):
         assert summary["vehicles"][vid]["samples"] == DURATION_S * ESTIMATES_PER_S + 1, vid
         assert summary["vehicles"][vid]["rmse_m"] < 1.5 and summary["vehicles"][vid]["mavlink_rejected"] == 0
+
+    # the same seed on one host (`swarm up`, lockstep): the same run, byte for byte
+    one_host = subprocess.run(
+        [*cli, "up", "--vehicles", "3", "--seed", "3", "--duration", str(DURATION_S), "--mode", "lockstep",
+         "--out", str(tmp_path), "--name", "one-host", "--quiet", "--no-report", "--no-record"],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert one_host.returncode == 0, one_host.stdout[-2000:] + one_host.stderr[-2000:]
+    assert (tmp_path / "one-host" / "metrics.csv").read_bytes() == (run_dir / "metrics.csv").read_bytes()
+    assert _scored(read_summary(tmp_path / "one-host")) == _scored(summary)
+
+
+def _scored(summary: dict) -> dict:
+    """What a run scored, without its name."""
+    return {k: v for k, v in summary.items() if k != "name"}

@@ -92,6 +92,7 @@ def test_a_restarted_vehicle_that_acks_an_older_tick_is_waited_for_until_it_catc
     keys = node.bus.keys
     for vid in (1, 2, 3):
         node.intake.handle(LivelinessEvent(keys.alive("vehicle", vid), True), None)
+    node.members.started = True  # the run is at tick 31
     node.intake.handle(LivelinessEvent(keys.alive("vehicle", 2), False), None)  # killed
     node.intake.handle(LivelinessEvent(keys.alive("vehicle", 2), True), None)  # restarted
     assert node.members.alive == {1, 3} and node.members.joining == {2}
@@ -143,3 +144,28 @@ def test_the_start_ends_when_nobody_joins():
 
     start = JoinDeadline(60.0, now=0.0)
     assert not start.expired(0, now=59.9) and start.expired(0, now=60.1)
+
+
+def test_a_vehicle_whose_token_comes_back_before_the_first_tick_is_a_member_again():
+    """250 vehicles starting on two cores: a session that misses its lease loses its token and declares
+    it again; before the run began it missed nothing and must not be kept waiting for an ack."""
+    from sim.membership import Membership
+
+    members = Membership(expected={1, 2})
+    members.on_token("groundstation", None, True)
+    for vid in (1, 2):
+        members.on_token("vehicle", vid, True)
+    members.on_token("vehicle", 2, False)
+    assert not members.everyone_joined()
+    members.on_token("vehicle", 2, True)
+    assert members.everyone_joined()
+
+
+def test_a_vehicle_back_after_the_first_tick_joins_with_its_first_ack():
+    from sim.membership import Membership
+
+    members = Membership(expected={1, 2}, started=True)
+    members.on_token("vehicle", 2, True)
+    members.on_token("vehicle", 2, False)
+    members.on_token("vehicle", 2, True)
+    assert 2 in members.joining and 2 not in members.alive
