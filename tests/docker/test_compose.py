@@ -42,6 +42,7 @@ def compose(tmp_path):
     )
 
 
+@pytest.mark.timeout(2400)  # a first build of the image takes minutes
 def test_compose_swarm_of_three_vehicles(compose):
     command, env = compose
     build = subprocess.run([*command, "build"], env=env, cwd=ROOT, capture_output=True, text=True, timeout=1800)

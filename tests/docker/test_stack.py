@@ -38,6 +38,7 @@ def docker_swarm():
         _docker("swarm", "leave", "--force")
 
 
+@pytest.mark.timeout(2400)  # a first build of the image takes minutes
 def test_a_stack_deployed_by_docker_swarm_flies_the_run_one_host_flies(docker_swarm, tmp_path):
     build = _docker("build", "--network", "host", "-t", "swarmloc:latest", str(ROOT), timeout=1800,
                     env={**os.environ, "DOCKER_BUILDKIT": "0"})  # fmt: skip
