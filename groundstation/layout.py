@@ -67,7 +67,26 @@ class _Plot:
     series: tuple[tuple[str, str], ...]  # (label, message path or a number: a reference line)
 
 
+MAX_PLOTTED = 12  # beyond, the plots show the swarm's aggregates: hundreds of lines are noise
+
+
 def _plots(vehicles: int) -> tuple[_Plot, ...]:
+    """The plots beside the scene: per vehicle up to ``MAX_PLOTTED`` vehicles, the swarm's RMS and
+    largest error and mean NEES (against the band of a mean of ``vehicles`` NEES) beyond."""
+    if vehicles > MAX_PLOTTED:
+        low, high = chi2_band(3, runs=vehicles)
+        return (
+            _Plot(
+                "error",
+                "position error [m]",
+                (("swarm RMS", "/swarm.rms_error_m"), ("swarm max", "/swarm.max_error_m")),
+            ),
+            _Plot(
+                "nees",
+                f"pose NEES (3 dof), mean of the {vehicles} vehicles",
+                (("swarm mean", "/swarm.mean_nees"), ("95 % low", f"{low:.4f}"), ("95 % high", f"{high:.4f}")),
+            ),
+        )
     low, high = chi2_band(3)
     ids = range(1, vehicles + 1)
     return (

@@ -40,6 +40,8 @@ SWARM_SCHEMA = _schema(
     "swarmloc.SwarmError",
     t_s={"type": "number", "description": "sim time (s)"},
     rms_error_m={"type": "number", "description": "RMS position error of the vehicles scored then (m)"},
+    max_error_m={"type": "number", "description": "the largest position error of the vehicles scored then (m)"},
+    mean_nees={"type": "number", "description": "mean pose NEES (3 dof) of the vehicles scored then"},
     vehicles=INTEGER,
 )
 LOOP_SCHEMA = _schema(
@@ -103,12 +105,21 @@ def loop_record(status: Any) -> dict[str, Any]:
 
 
 def swarm_records(scores: list[Score]) -> list[tuple[int, dict[str, Any]]]:
-    """(stamp us, /swarm message) per stamp of ``scores``, in stamp order: the RMS position error of
-    the vehicles scored at that stamp."""
-    errors: dict[int, list[float]] = {}
+    """(stamp us, /swarm message) per stamp of ``scores``, in stamp order: the position error and
+    NEES of the vehicles scored at that stamp, summed up."""
+    by_stamp: dict[int, list[Score]] = {}
     for s in scores:
-        errors.setdefault(s.stamp_us, []).append(s.position_error_m)
-    return [
-        (stamp, {"t_s": stamp * 1e-6, "rms_error_m": math.sqrt(sum(e * e for e in es) / len(es)), "vehicles": len(es)})
-        for stamp, es in sorted(errors.items())
-    ]
+        by_stamp.setdefault(s.stamp_us, []).append(s)
+    return [(stamp, _swarm_record(stamp, group)) for stamp, group in sorted(by_stamp.items())]
+
+
+def _swarm_record(stamp_us: int, scores: list[Score]) -> dict[str, Any]:
+    """The /swarm message of the vehicles scored at ``stamp_us``: RMS and largest error, mean NEES
+    (of the finite ones; left out when none is)."""
+    errors = [s.position_error_m for s in scores]
+    record = {"t_s": stamp_us * 1e-6, "rms_error_m": math.sqrt(sum(e * e for e in errors) / len(errors)),
+              "max_error_m": max(errors), "vehicles": len(errors)}  # fmt: skip
+    nees = [s.nees for s in scores if math.isfinite(s.nees)]
+    if nees:
+        record["mean_nees"] = sum(nees) / len(nees)
+    return record

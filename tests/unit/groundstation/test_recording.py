@@ -66,6 +66,33 @@ def test_the_lichtblick_layout_is_what_its_import_accepts_and_every_series_reads
     assert '"timestampMethod": "receiveTime"' in json.dumps(foxglove) and "receiveTime" in json.dumps(foxglove)
 
 
+def test_a_large_swarm_plots_its_aggregates_not_hundreds_of_lines():
+    from bus.config import WorldConfig
+    from bus.statistics import chi2_band
+
+    data = json.loads(swarm_layouts(WorldConfig(vehicles=250))[LICHTBLICK_FILE])
+    assert lichtblick_layout_errors(data) == []
+    plots = {key: c for key, c in data["configById"].items() if key.startswith("Plot!")}
+    values = {p["value"] for c in plots.values() for p in c["paths"]}
+    assert values >= {"/swarm.rms_error_m", "/swarm.max_error_m", "/swarm.mean_nees"}
+    assert not any(v.startswith("/vehicle/") for v in values) and len(values) <= 6
+    low, high = chi2_band(3, runs=250)  # the band of a mean of 250 NEES, not of one
+    assert f"{low:.4f}" in values and f"{high:.4f}" in values
+
+
+def test_the_swarm_record_sums_up_the_vehicles_scored_at_a_stamp():
+    from types import SimpleNamespace
+
+    from groundstation.plot_records import swarm_records
+
+    def score(vid: int, error: float, nees: float) -> SimpleNamespace:  # what a Score offers the record
+        return SimpleNamespace(vehicle_id=vid, stamp_us=1_000_000, position_error_m=error, nees=nees)
+
+    [(stamp, record)] = swarm_records([score(1, 3.0, 2.0), score(2, 4.0, float("nan")), score(3, 0.0, 4.0)])
+    assert stamp == 1_000_000 and record["max_error_m"] == 4.0 and record["vehicles"] == 3
+    assert record["rms_error_m"] == pytest.approx(math.sqrt(25.0 / 3.0)) and record["mean_nees"] == 3.0
+
+
 @pytest.mark.parametrize("vehicles", [1, 5, 20, 50])
 def test_the_camera_frames_every_start_pad_and_the_trajectories_around_them(vehicles):
     """Looking down the camera's axis from its distance with its field of view, every point within a
