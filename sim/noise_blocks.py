@@ -10,6 +10,7 @@ import numpy as np
 
 from bus.config import SensorSpec, SensorTruth
 from bus.topics import Topic
+from sim.pair_draws import PAIRWISE_FROM, PairDraws
 from sim.true_errors import TrueErrors
 
 BLOCK_STEPS = 100
@@ -42,13 +43,23 @@ def next_block(
     """The next BLOCK_STEPS steps of every noise source of one vehicle of ``vehicles``, from its
     generators: (white noise by source, the true errors' draws)."""
     n = BLOCK_STEPS
-    noise = {
+    if vehicles >= PAIRWISE_FROM:  # per pair on first use: a vehicle costs its peers in reach, not the swarm
+        sigmas = np.array([spec.range_sigma_m, spec.bearing_sigma_rad])
+        key = int(ranging_rng.integers(2**63))
+        pairs = PairDraws(key, n, sigmas, truth.range_sigma_factor, truth.heavy_tail_dof)
+        noise = _white(spec, truth, step_us, rng, n) | {Topic.RANGING: pairs.noise()}
+        return noise, errors.next_block(n, 0) | {"tail_ranging": pairs.tail()}
+    ranging = ranging_rng.normal(0.0, [spec.range_sigma_m, spec.bearing_sigma_rad], (n, vehicles, 2))
+    noise = _white(spec, truth, step_us, rng, n) | {Topic.RANGING: ranging * truth.range_sigma_factor}
+    return noise, errors.next_block(n, vehicles)
+
+
+def _white(spec: SensorSpec, truth: SensorTruth, step_us: int, rng: np.random.Generator, n: int) -> dict:
+    """The white noise of every source but ranging, in ``next_block``'s order of draws."""
+    return {
         "gyro": rng.normal(0.0, spec.gyro_sigma_radps, (n, 3)),
         "accel": rng.normal(0.0, spec.accel_sigma_mps2, (n, 3)),
         "walk": rng.normal(0.0, spec.gyro_bias_walk_radps_rtsec * np.sqrt(step_us * 1e-6), (n, 3)),
         Topic.ODOM: rng.normal(0.0, [spec.odom_speed_sigma_mps, spec.odom_yaw_rate_sigma_radps], (n, 2)),
         Topic.GNSS: rng.normal(0.0, spec.gnss_sigma_m, (n, 2)) * truth.gnss_sigma_factor,
-        Topic.RANGING: ranging_rng.normal(0.0, [spec.range_sigma_m, spec.bearing_sigma_rad], (n, vehicles, 2))
-        * truth.range_sigma_factor,
     }
-    return noise, errors.next_block(n, vehicles)

@@ -258,15 +258,14 @@ class World:
         xy = self.poses[:, :2]
         dist = np.hypot(*(xy[None, :, :] - xy[:, None, :]).transpose(2, 0, 1))
         cov = np.array([spec.range_sigma_m**2, 0.0, 0.0, spec.bearing_sigma_rad**2])
+        reachable = (dist <= spec.ranging_max_m) & ~np.eye(len(xy), dtype=bool)
+        reachable[:, [j for j, v in enumerate(self.vehicles) if v.vehicle_id in jammed]] = False
         for i, v in enumerate(self.vehicles):
             if v.vehicle_id in jammed or self.faults.silenced(v.vehicle_id, Topic.RANGING, t_us, self.poses[i]):
                 continue
-            candidates = [
-                j
-                for j in np.argsort(dist[i], kind="stable")
-                if j != i and dist[i, j] <= spec.ranging_max_m and self.vehicles[j].vehicle_id not in jammed
-            ]
-            for j in sorted(candidates[: spec.ranging_max_peers]):
+            order = np.argsort(dist[i], kind="stable")
+            candidates = order[reachable[i, order]]  # in reach, nearest first (ties by index)
+            for j in sorted(candidates[: spec.ranging_max_peers].tolist()):
                 noise = v.noise[Topic.RANGING][k, j] * v.errors.block["tail_ranging"][k, j]
                 rng_m, bearing = sensors.range_bearing(self.poses[i], xy[j], noise)
                 if rng_m <= spec.ranging_max_m:
