@@ -21,6 +21,7 @@ import numpy as np
 from bus.config import ArSlamConfig
 from sim.pinhole import PAPER_K, PAPER_SIZE, Pinhole, look
 from vehicle.estimators.ar_slam3d import ArSlam3d
+from vehicle.models import slam3d
 from vehicle.vision.triangulation import camera_matrices, triangulate
 
 RATE_HZ, SPEED_MPS, HEIGHT_M, PITCH_RAD, SEE_M = 10.0, 5.0, 15.0, np.deg2rad(30.0), 60.0
@@ -42,8 +43,10 @@ def ground(xy: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class Track:
     """Per frame: time s, true position (3,), estimated position (3,), its covariance (3, 3), the
-    range R m, landmarks in the state, landmarks mapped so far (in the state or retired), and the frame's
-    wall time ms (prediction + frame)."""
+    range R m, landmarks in the state, landmarks mapped so far (in the state or retired), the frame's
+    wall time ms (prediction + frame), the vehicle's whole error [position, velocity] (6,) with its
+    covariance (6, 6), and the mean NEES (3 dof) of the landmarks in the state (NaN when they are not
+    identified or there are none)."""
 
     t_s: np.ndarray
     truth: np.ndarray
@@ -53,10 +56,29 @@ class Track:
     landmarks: np.ndarray
     mapped: np.ndarray
     frame_ms: np.ndarray
+    vehicle_error: np.ndarray
+    vehicle_covariance: np.ndarray
+    landmark_nees: np.ndarray
 
     def position_nees(self) -> np.ndarray:
         e = self.estimate - self.truth
         return np.einsum("ni,nij,nj->n", e, np.linalg.inv(self.covariance), e)
+
+    def vehicle_nees(self) -> np.ndarray:
+        """The NEES of the vehicle's whole state [p, v] (6 dof) per frame."""
+        e = self.vehicle_error
+        return np.einsum("ni,nij,nj->n", e, np.linalg.inv(self.vehicle_covariance), e)
+
+
+def landmark_nees(slam: ArSlam3d, landmarks: np.ndarray) -> float:
+    """Mean NEES (3 dof) of the state's landmarks against their true positions (m, 3), by id; NaN when
+    the landmarks are not identified or the state has none."""
+    if not len(slam.ids) or (slam.ids < 0).any():
+        return float("nan")
+    errors = slam.landmarks() - landmarks[slam.ids]
+    starts = [slam3d.HEAD + slam3d.POINT * j for j in range(len(slam.ids))]
+    blocks = np.array([slam.P[a : a + slam3d.POINT, a : a + slam3d.POINT] for a in starts])
+    return float(np.mean(np.einsum("ni,nij,nj->n", errors, np.linalg.inv(blocks), errors)))
 
 
 def world(seed: int, frames: int, town: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -143,5 +165,8 @@ def fly(
         slam.frame(*seen[:2], rotations[k], seen[2] if identified else None)
         elapsed = (time.perf_counter() - start) * 1e3
         state = (slam.x[:3].copy(), slam.P[:3, :3].copy(), slam.book.radius_m, (len(slam.x) - 6) // 3, slam.book.added)
-        rows.append((k * dt, positions[k], *state, elapsed))
+        velocity = (positions[k] - positions[k - 1]) / dt  # the truth's velocity over the frame (sim: p += v dt)
+        head = slice(0, slam3d.HEAD)
+        whole = (slam.x[head] - np.concatenate([positions[k], velocity]), slam.P[head, head].copy())
+        rows.append((k * dt, positions[k], *state, elapsed, *whole, landmark_nees(slam, landmarks)))
     return Track(*(np.array(column) for column in zip(*rows)))
