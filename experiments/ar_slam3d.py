@@ -13,6 +13,7 @@ the metric length of L). Points are the landmarks seen in both frames (in the im
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 
@@ -26,7 +27,7 @@ from vehicle.vision.triangulation import camera_matrices, triangulate
 
 RATE_HZ, SPEED_MPS, HEIGHT_M, PITCH_RAD, SEE_M = 10.0, 5.0, 15.0, np.deg2rad(30.0), 60.0
 OMEGA_VAR = 4e-4  # the truth's white velocity increments per frame, m^2/s^2
-FILTER_OMEGA_VAR = 10 * OMEGA_VAR  # what the filter is told: the white part and the relief's climbs
+FIT_SEEDS, FIT_HORIZON_FRAMES = range(100, 110), 10  # flights the filter's motion model is fitted on (never scored)
 TOWN_X_M, TOWN_DENSITY = (250.0, 450.0), 4.0
 MODES = {
     "adaptive": dict(adaptive=True),
@@ -109,6 +110,18 @@ def world(seed: int, frames: int, town: bool = True) -> tuple[np.ndarray, np.nda
     return landmarks, positions, np.array(rotations)
 
 
+@functools.cache
+def motion_noise() -> np.ndarray:
+    """What the filter is told of the vehicle's motion: per axis of the fixed frame, the variance of
+    the true velocity's change over ``FIT_HORIZON_FRAMES`` frames (the triangulation's baseline), per
+    frame, on flights of their own (``FIT_SEEDS``) (3,) m^2/s^2. Following the relief adds to the
+    velocity what is not white: its vertical part changes slowly, by more over a second than white
+    noise of its per-frame variance would (docs/ar-slam.md)."""
+    m = FIT_HORIZON_FRAMES
+    velocities = [np.diff(world(seed, 1600)[1], axis=0) * RATE_HZ for seed in FIT_SEEDS]
+    return np.concatenate([v[m:] - v[:-m] for v in velocities]).var(axis=0) / m
+
+
 def observe(
     landmarks, C1, R1, C2, R2, rng: np.random.Generator, min_parallax_rad: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -153,7 +166,7 @@ def fly(
     v0 = (positions[1] - positions[0]) / dt
     x0 = np.concatenate([positions[0] + rng.normal(0, 0.05, 3), v0 + rng.normal(0, 0.05, 3)])
     P0 = np.diag([0.05**2] * 3 + [0.05**2] * 3)
-    slam = ArSlam3d(x0, P0, omega_var=FILTER_OMEGA_VAR, seed=seed, association=association, entry=entry, **MODES[mode])
+    slam = ArSlam3d(x0, P0, omega_var=motion_noise(), seed=seed, association=association, entry=entry, **MODES[mode])
     rows = []
     for k in range(1, frames + 1):
         j = max(0, k - baseline_frames)

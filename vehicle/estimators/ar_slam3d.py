@@ -75,7 +75,7 @@ class ArSlam3d:
         P0: np.ndarray,
         *,
         spec: ArSlamConfig = ArSlamConfig(),
-        omega_var: float = 0.05,
+        omega_var: float | np.ndarray = 0.05,  # the velocity's white increment per step, m^2/s^2 (or (3,) per axis)
         association: str = "nn",
         adaptive: bool = True,
         gate_probability: float = 0.999,

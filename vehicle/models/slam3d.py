@@ -38,11 +38,17 @@ def landmarks(x: np.ndarray) -> int:
     return (len(x) - HEAD) // POINT
 
 
-def predict(x: np.ndarray, P: np.ndarray, dt: float, omega_var: float) -> tuple[np.ndarray, np.ndarray]:
-    """One constant-velocity step of ``dt`` s (module docstring): x (6 + 3n,), P (6 + 3n, 6 + 3n)."""
+def predict(x: np.ndarray, P: np.ndarray, dt: float, omega_var: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One constant-velocity step of ``dt`` s (module docstring): x (6 + 3n,), P (6 + 3n, 6 + 3n);
+    ``omega_var`` the velocity's white increment per step, m^2/s^2: one for every axis, or (3,) per
+    axis of the fixed frame."""
     eye = np.eye(POINT)
     F = np.block([[eye, dt * eye], [np.zeros((3, 3)), eye]])
-    Q = omega_var * np.block([[dt * dt * eye, dt * eye], [dt * eye, eye]])
+    if np.ndim(omega_var) == 0:
+        Q = omega_var * np.block([[dt * dt * eye, dt * eye], [dt * eye, eye]])
+    else:
+        W = np.diag(np.asarray(omega_var, float))
+        Q = np.block([[dt * dt * W, dt * W], [dt * W, W]])
     x_new = x.copy()
     x_new[:HEAD] = F @ x[:HEAD]
     P_new = P.copy()
