@@ -13,7 +13,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench.bench_speed import ROLES, lockstep, role_cpu
+from bench.bench_speed import lockstep, per_vehicle_second_ms, role_cpu
 from bench.bench_swarm import floor_wall_s
 from bench.common import Row
 
@@ -73,42 +73,54 @@ def fault_rows(faulted: dict, clean: dict) -> list[Row]:
 
 
 def rows(runs: dict[tuple[int, int], dict], sizes: tuple[int, ...], floor_s: float) -> list[Row]:
-    per_vs = {  # ms of CPU per vehicle per simulated second, by role
-        n: {
-            role: 1000.0 * (runs[n, LONG_S]["cpu"][role] - runs[n, SHORT_S]["cpu"][role]) / (n * (LONG_S - SHORT_S))
-            for role in ROLES
-        }
-        for n in sizes
-    }
-    total = {n: sum(v.values()) for n, v in per_vs.items()}
-    growth = total[250] / total[5]
+    """Every row but the faults' from the runs of each size and duration, and the floor's wall time."""
     big = runs[250, LONG_S]
-    out = [
-        Row("scale", "CPU per vehicle per simulated second, 250 against 5 vehicles", "ratio", round(growth, 3), "x",
-            f"<= {MAX_CPU_GROWTH}x", growth <= MAX_CPU_GROWTH,
-            {f"{n} vehicles (ms)": {k: round(v, 2) for k, v in roles.items()} for n, roles in per_vs.items()}),
-        Row("scale", "250 vehicles x 60 s, lockstep", "completes and scores every vehicle",
-            big["scored"], "vehicles", "250, status complete", big["status"] == "complete" and big["scored"] == 250,
-            {"status": big["status"]}),
-        Row("scale", "250 vehicles x 60 s, lockstep", "wall time / in-process floor",
-            round(big["timing"]["wall_s"] / floor_s, 2), "x", "- (reported)", None,
-            {"stepping_wall_s": big["timing"]["wall_s"], "floor_wall_s": round(floor_s, 1),
-             "real_time_factor": big["timing"]["real_time_factor"]}),
+    inbound = [inbound_row(runs, sizes)] if 20 in sizes else []
+    return [cpu_row(runs, sizes), *swarm_rows(big, floor_s), *inbound, *startup_rows(runs, sizes),
+            *memory_rows(runs[5, LONG_S]["peak_rss_mb"], big["peak_rss_mb"])]  # fmt: skip
+
+
+def cpu_row(runs: dict[tuple[int, int], dict], sizes: tuple[int, ...]) -> Row:
+    """CPU per vehicle per simulated second, 250 against 5, by role in the details."""
+    per_vs = {n: per_vehicle_second_ms(runs[n, SHORT_S]["cpu"], runs[n, LONG_S]["cpu"], n, LONG_S - SHORT_S)
+              for n in sizes}  # fmt: skip
+    growth = sum(per_vs[250].values()) / sum(per_vs[5].values())
+    details = {f"{n} vehicles (ms)": {k: round(v, 2) for k, v in roles.items()} for n, roles in per_vs.items()}
+    return Row("scale", "CPU per vehicle per simulated second, 250 against 5 vehicles", "ratio", round(growth, 3),
+               "x", f"<= {MAX_CPU_GROWTH}x", growth <= MAX_CPU_GROWTH, details)  # fmt: skip
+
+
+def swarm_rows(big: dict, floor_s: float) -> list[Row]:
+    """The 250-vehicle run: complete and scored, and its stepping against the in-process floor."""
+    case = "250 vehicles x 60 s, lockstep"
+    return [
+        Row("scale", case, "completes and scores every vehicle", big["scored"], "vehicles", "250, status complete",
+            big["status"] == "complete" and big["scored"] == 250, {"status": big["status"]}),
+        Row("scale", case, "wall time / in-process floor", round(big["timing"]["wall_s"] / floor_s, 2), "x",
+            "- (reported)", None, {"stepping_wall_s": big["timing"]["wall_s"], "floor_wall_s": round(floor_s, 1),
+                                   "real_time_factor": big["timing"]["real_time_factor"]}),
     ]  # fmt: skip
-    if 20 in sizes:
-        flat = inbound_per_s(big) / inbound_per_s(runs[20, LONG_S])
-        out.append(
-            Row("scale", "a vehicle's inbound V2V frames per second, 250 against 20 vehicles", "ratio",
-                round(flat, 3), "x", f"<= {MAX_INBOUND_GROWTH}x", flat <= MAX_INBOUND_GROWTH,
-                {f"{n} vehicles (per s)": round(inbound_per_s(runs[n, LONG_S]), 2) for n in sizes})
-        )  # fmt: skip
-    for n in sizes:
-        r = runs[n, LONG_S]
-        out.append(
-            Row("scale", f"start-up and shutdown, {n} vehicles", "wall time outside the stepping",
-                round(r["wall_s"] - r["timing"]["wall_s"], 1), "s", "-", None)
-        )  # fmt: skip
-    small, large = runs[5, LONG_S]["peak_rss_mb"], big["peak_rss_mb"]
+
+
+def inbound_row(runs: dict[tuple[int, int], dict], sizes: tuple[int, ...]) -> Row:
+    """A vehicle's inbound V2V frames per second, 250 against 20 vehicles."""
+    flat = inbound_per_s(runs[250, LONG_S]) / inbound_per_s(runs[20, LONG_S])
+    return Row("scale", "a vehicle's inbound V2V frames per second, 250 against 20 vehicles", "ratio",
+               round(flat, 3), "x", f"<= {MAX_INBOUND_GROWTH}x", flat <= MAX_INBOUND_GROWTH,
+               {f"{n} vehicles (per s)": round(inbound_per_s(runs[n, LONG_S]), 2) for n in sizes})  # fmt: skip
+
+
+def startup_rows(runs: dict[tuple[int, int], dict], sizes: tuple[int, ...]) -> list[Row]:
+    return [
+        Row("scale", f"start-up and shutdown, {n} vehicles", "wall time outside the stepping",
+            round(runs[n, LONG_S]["wall_s"] - runs[n, LONG_S]["timing"]["wall_s"], 1), "s", "-", None)
+        for n in sizes
+    ]  # fmt: skip
+
+
+def memory_rows(small: dict[str, float], large: dict[str, float]) -> list[Row]:
+    """Each role's largest process at 250 against 5 vehicles (MB by role)."""
+    out = []
     for role in ("sim", "gs"):
         per_vehicle = (large.get(role, 0.0) - small.get(role, 0.0)) / 245
         out.append(

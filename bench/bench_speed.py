@@ -156,13 +156,21 @@ def speed_rows(results: dict[str, list[dict[str, float]]], rounds: int) -> list[
     ]  # fmt: skip
 
 
+def per_vehicle_second_ms(
+    short: dict[str, float], long: dict[str, float], vehicles: int, seconds: float
+) -> dict[str, float]:
+    """Each role's CPU (ms) per vehicle per simulated second: a long run's CPU by role minus a short
+    one's (start-up and shutdown cancel out), over ``seconds`` simulated seconds more of ``vehicles``."""
+    return {role: 1000.0 * (long[role] - short[role]) / (vehicles * seconds) for role in ROLES}
+
+
 def growth_rows(per_role: dict[int, list[tuple[dict[str, float], dict[str, float]]]]) -> list[Row]:
     """CPU per vehicle per simulated second, 50 against 5 vehicles, and the projection to 100 and
     200 vehicles; ``per_role``: each size's (short run, long run) CPU by role, per repetition."""
     short, long = GROWTH_S
     per_vs = {  # the marginal CPU of a simulated second (start-up and shutdown cancel out), median of repetitions
         n: {
-            role: statistics.median(1000.0 * (b[role] - a[role]) / (n * (long - short)) for a, b in pairs)
+            role: statistics.median(per_vehicle_second_ms(a, b, n, long - short)[role] for a, b in pairs)
             for role in ROLES
         }
         for n, pairs in per_role.items()

@@ -62,13 +62,16 @@ class Track:
     landmark_nees: np.ndarray
 
     def position_nees(self) -> np.ndarray:
-        e = self.estimate - self.truth
-        return np.einsum("ni,nij,nj->n", e, np.linalg.inv(self.covariance), e)
+        return nees(self.estimate - self.truth, self.covariance)
 
     def vehicle_nees(self) -> np.ndarray:
         """The NEES of the vehicle's whole state [p, v] (6 dof) per frame."""
-        e = self.vehicle_error
-        return np.einsum("ni,nij,nj->n", e, np.linalg.inv(self.vehicle_covariance), e)
+        return nees(self.vehicle_error, self.vehicle_covariance)
+
+
+def nees(errors: np.ndarray, covariances: np.ndarray) -> np.ndarray:
+    """e_k^T P_k^-1 e_k of errors (k, d) and their covariances (k, d, d): (k,)."""
+    return np.einsum("ni,nij,nj->n", errors, np.linalg.inv(covariances), errors)
 
 
 def landmark_nees(slam: ArSlam3d, landmarks: np.ndarray) -> float:
@@ -76,10 +79,9 @@ def landmark_nees(slam: ArSlam3d, landmarks: np.ndarray) -> float:
     the landmarks are not identified or the state has none."""
     if not len(slam.ids) or (slam.ids < 0).any():
         return float("nan")
-    errors = slam.landmarks() - landmarks[slam.ids]
     starts = [slam3d.HEAD + slam3d.POINT * j for j in range(len(slam.ids))]
     blocks = np.array([slam.P[a : a + slam3d.POINT, a : a + slam3d.POINT] for a in starts])
-    return float(np.mean(np.einsum("ni,nij,nj->n", errors, np.linalg.inv(blocks), errors)))
+    return float(np.mean(nees(slam.landmarks() - landmarks[slam.ids], blocks)))
 
 
 def world(seed: int, frames: int, town: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

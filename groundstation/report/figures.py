@@ -72,13 +72,19 @@ def map_figure(data: RunData, *, ellipse_every_s: float = 5.0) -> Figure | None:
         fontsize="medium",
     )
     ax.grid(alpha=0.3)
-    if len(data.vehicles) <= MAX_ERROR_PANELS:
-        ax.legend(loc="upper right", fontsize="small", ncols=2)
-    else:  # a legend of hundreds of vehicles would hide the map: the zones alone
-        zones = [(h, label) for h, label in zip(*ax.get_legend_handles_labels()) if not label.startswith("v")]
-        if zones:
-            ax.legend(*zip(*zones), loc="upper right", fontsize="small")
+    _map_legend(ax, len(data.vehicles))
     return fig
+
+
+def _map_legend(ax: Any, vehicles: int) -> None:
+    """Every track and zone; beyond ``MAX_ERROR_PANELS`` vehicles the zones alone (a legend of hundreds
+    of vehicles would hide the map)."""
+    if vehicles <= MAX_ERROR_PANELS:
+        ax.legend(loc="upper right", fontsize="small", ncols=2)
+        return
+    zones = [(h, label) for h, label in zip(*ax.get_legend_handles_labels()) if not label.startswith("v")]
+    if zones:
+        ax.legend(*zip(*zones), loc="upper right", fontsize="small")
 
 
 def _frame_on_tracks(ax: Any, data: RunData, margin: float = 0.15) -> None:

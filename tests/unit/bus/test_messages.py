@@ -24,6 +24,7 @@ SAMPLES = [
     m.TickAck(9, 7),
     m.VehicleStatus(1, 100, 5, 0, 12.5, 300.0, 0, 1, 0, 0, 3, 4, 5, 6, 7),
     m.VehicleStatus(1, 100, 5, 0, 12.5, 300.0, 0, 1, 0, 0, 3, 4, 5, 6, 7, nis=tuple(float(k) for k in range(16))),
+    m.VehicleStatus(1, 100, 5, 0, 12.5, 300.0, 0, 1, 0, 0, 3, v2v_received=42),
     m.RunEnd(3001, 60_000_000, 5),
 ]
 

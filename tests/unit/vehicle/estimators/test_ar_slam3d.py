@@ -12,6 +12,7 @@ import numpy as np
 
 from bus.config import ArSlamConfig
 from bus.statistics import chi2_band
+from experiments.ar_slam3d import landmark_nees
 from sim.pinhole import look
 from vehicle.estimators.ar_slam3d import ArSlam3d
 
@@ -42,14 +43,8 @@ def flight(seed: int, frames: int, spec: ArSlamConfig = ArSlamConfig(), adaptive
         e = slam.x[:6] - np.concatenate([p, v])
         nees.append(float(e[:3] @ np.linalg.solve(slam.P[:3, :3], e[:3])))
         whole.append(float(e @ np.linalg.solve(slam.P[:6, :6], e)))
-        mapped.append(_landmark_nees(slam, landmarks) if identified else np.nan)
+        mapped.append(landmark_nees(slam, landmarks))
     return np.array(nees), slam, p, np.array(whole), np.array(mapped)
-
-
-def _landmark_nees(slam: ArSlam3d, landmarks: np.ndarray) -> float:
-    errors = slam.landmarks() - landmarks[slam.ids]
-    blocks = np.array([slam.P[6 + 3 * j : 9 + 3 * j, 6 + 3 * j : 9 + 3 * j] for j in range(len(slam.ids))])
-    return float(np.mean(np.einsum("ni,nij,nj->n", errors, np.linalg.inv(blocks), errors))) if len(errors) else np.nan
 
 
 def test_the_local_map_holds_only_what_lies_within_the_range_and_the_range_follows_q1_q3():
