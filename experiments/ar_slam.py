@@ -7,7 +7,9 @@ surveyed start; the same flight (same seed: the same frames, noise and all) is e
 - ``ar-ekf-slam``: the adaptive local map, with each association method (descriptor, nn, jcbb, aco);
 - ``ar-ekf-slam, visual odometry``: the same with no wheels (speed and yaw rate from the camera);
 - the association methods again over repetitive ground (``world.terrain_period_px``), where
-  look-alikes a period away make association hard.
+  look-alikes a period away make association hard;
+- the paper's own 3-D system (experiments.ar_slam3d_cases): a flight over relief estimated by the
+  6 + 3n back end with the adaptive range, a fixed 25 m range and no range (full 3-D EKF-SLAM).
 
 Each estimator runs in this process on the stream a vehicle process would receive
 (``harness.vehicle_feed``), through the vehicle's fusion horizon and (for visual odometry) its VO
@@ -27,6 +29,7 @@ from typing import Any
 
 from bus.config import SwarmConfig, build_config
 from bus.errors import ConfigError
+from experiments import ar_slam3d_cases
 from experiments.ar_slam_figures import write_figures
 from experiments.ar_slam_track import Track, fly, summary
 from experiments.conclusions import write_experiment
@@ -104,28 +107,40 @@ def slug(case: Case) -> str:
 
 def plan(seed: int, duration: float, cases: str) -> list[RunSpec]:
     """One run per case (default: every case) on ``seed``, each an estimator fed in one process
-    (``fly_case``)."""
+    (``fly_case``; the 3-D cases' ``ar_slam3d_cases.fly_case``)."""
+    cases_2d, cases_3d = chosen_cases(cases)
     return [
-        RunSpec(
-            slug(case),
-            case.name,
-            seed,
-            ar_slam_config(case, seed=seed, duration_s=duration).model_dump(mode="json"),
-            measure=f"{__name__}:measure",
-            runner=f"{__name__}:fly_case",
-        )
-        for case in chosen_cases(cases)
+        *(
+            RunSpec(
+                slug(case),
+                case.name,
+                seed,
+                ar_slam_config(case, seed=seed, duration_s=duration).model_dump(mode="json"),
+                measure=f"{__name__}:measure",
+                runner=f"{__name__}:fly_case",
+            )
+            for case in cases_2d
+        ),
+        *(ar_slam3d_cases.spec(name, seed, duration, _camera_uav(seed, duration)) for name in cases_3d),
     ]
 
 
-def chosen_cases(text: str) -> tuple[Case, ...]:
-    """The cases a comma-separated list names (every case for none); ConfigError naming the unknown."""
+def _camera_uav(seed: int, duration: float) -> dict[str, Any]:
+    """The configuration a 3-D case's run keeps for the campaign's table (its flight is the back end's)."""
+    return ar_slam_config(CASES[2], seed=seed, duration_s=duration).model_dump(mode="json")
+
+
+def chosen_cases(text: str) -> tuple[tuple[Case, ...], tuple[str, ...]]:
+    """The 2-D cases and the 3-D cases (names of ``ar_slam3d_cases.MODES``) a comma-separated list
+    names (every case for none); ConfigError naming the unknown."""
     chosen = [c.strip() for c in text.split(",") if c.strip()]
     known = {c.name: c for c in CASES}
-    unknown = [c for c in chosen if c not in known]
+    unknown = [c for c in chosen if c not in known and c not in ar_slam3d_cases.MODES]
     if unknown:
-        raise ConfigError(f"unknown case(s) {', '.join(unknown)}; known: {', '.join(known)}")
-    return tuple(known[c] for c in chosen) if chosen else CASES
+        raise ConfigError(f"unknown case(s) {', '.join(unknown)}; known: {', '.join([*known, *ar_slam3d_cases.MODES])}")
+    if not chosen:
+        return CASES, tuple(ar_slam3d_cases.MODES)
+    return tuple(known[c] for c in chosen if c in known), tuple(c for c in chosen if c in ar_slam3d_cases.MODES)
 
 
 def fly_case(spec: RunSpec, config: SwarmConfig, run_dir: Path) -> list[str]:
@@ -159,11 +174,17 @@ def conclude(rows: list[dict], folder: Path, *, seed: int, duration: float, case
     """experiment.json (a row per case that completed) and the figures, from the cases' run directories."""
     done = {row["run"] for row in rows if row.get("status") == "complete"}
     table: dict[str, Any] = {"seed": seed, "duration_s": duration, "cases": {}}
-    tracks = {}
-    for case in chosen_cases(cases):
+    tracks, tracks_3d = {}, {}
+    cases_2d, cases_3d = chosen_cases(cases)
+    for case in cases_2d:
         if slug(case) in done:
             table["cases"][case.name] = json.loads((folder / slug(case) / CASE).read_text())
             tracks[case.name] = Track(**json.loads((folder / slug(case) / TRACK).read_text()))
+    for name in cases_3d:
+        run_dir = folder / ar_slam3d_cases.slug(name)
+        if ar_slam3d_cases.slug(name) in done:
+            table["cases"][name] = json.loads((run_dir / ar_slam3d_cases.CASE).read_text())
+            tracks_3d[name] = ar_slam3d_cases.load_track(run_dir)
     write_experiment(folder, table)
     lines = [
         f"  {name:<28} RMSE {row['rmse_m']} m  ANEES {row['anees']}  state <= {row['state_dim_max']}"
@@ -171,4 +192,5 @@ def conclude(rows: list[dict], folder: Path, *, seed: int, duration: float, case
         f"  false {row['false_pairs']}"
         for name, row in table["cases"].items()
     ]
-    return lines + [f"figure: {figure}" for figure in write_figures(folder, tracks)]
+    figures = [*(write_figures(folder, tracks) if tracks else []), *ar_slam3d_cases.write_figures(folder, tracks_3d)]
+    return lines + [f"figure: {figure}" for figure in figures]

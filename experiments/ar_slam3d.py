@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,19 +89,7 @@ def world(seed: int, frames: int, town: bool = True) -> tuple[np.ndarray, np.nda
     """Landmarks (m, 3) along the flight (``town``: with the dense stretch), the camera's true positions
     (frames, 3) and rotations (frames, 3, 3)."""
     rng = np.random.default_rng([seed, 3])
-    dt = 1.0 / RATE_HZ
-    p, v = np.array([0.0, 0.0, HEIGHT_M + ground(np.zeros(2))]), np.array([SPEED_MPS, 0.0, 0.0])
-    positions, rotations = [], []
-    for k in range(frames):
-        t = k * dt
-        heading = 0.35 * np.sin(t / 25.0)
-        climb = 0.3 * (HEIGHT_M + ground(p[:2]) - p[2])  # following the relief: climbing and descending
-        wanted = np.array([SPEED_MPS * np.cos(heading), SPEED_MPS * np.sin(heading), climb])
-        v = v + 0.05 * (wanted - v) + rng.normal(0.0, np.sqrt(OMEGA_VAR), 3)
-        p = p + v * dt
-        positions.append(p.copy())
-        rotations.append(look(float(np.arctan2(v[1], v[0])), PITCH_RAD))
-    positions = np.array(positions)
+    positions, rotations = trajectory(rng, frames, lambda t: 0.35 * np.sin(t / 25.0), ground, np.zeros(2))
     low, high = positions[:, :2].min(axis=0) - 60.0, positions[:, :2].max(axis=0) + 60.0
     count = int(np.prod(high - low) / 15.0)  # one landmark per 15 m^2 of ground
     xy = rng.uniform(low, high, (count, 2))
@@ -109,7 +98,30 @@ def world(seed: int, frames: int, town: bool = True) -> tuple[np.ndarray, np.nda
     xy = np.vstack([xy, rng.uniform(town_low, town_high, (max(extra, 0), 2))])
     count = len(xy)
     landmarks = np.column_stack([xy, ground(xy) + rng.uniform(0.0, 4.0, count)])
-    return landmarks, positions, np.array(rotations)
+    return landmarks, positions, rotations
+
+
+def trajectory(
+    rng: np.random.Generator, frames: int, heading: Callable[[float], float], ground: Callable, start_xy: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The camera's true positions (frames, 3) and rotations (frames, 3, 3): from ``start_xy`` at
+    SPEED_MPS, steering towards ``heading(t)`` rad and HEIGHT_M over ``ground`` (relief at (..., 2)),
+    so climbing and descending with it, its velocity also driven by white noise (OMEGA_VAR); the camera
+    looks along the velocity, PITCH_RAD below the horizon."""
+    dt = 1.0 / RATE_HZ
+    h0 = heading(0.0)
+    p = np.array([*start_xy, HEIGHT_M + ground(np.asarray(start_xy))])
+    v = SPEED_MPS * np.array([np.cos(h0), np.sin(h0), 0.0])
+    positions, rotations = [], []
+    for k in range(frames):
+        t = k * dt
+        climb = 0.3 * (HEIGHT_M + ground(p[:2]) - p[2])  # following the relief: climbing and descending
+        wanted = np.array([SPEED_MPS * np.cos(heading(t)), SPEED_MPS * np.sin(heading(t)), climb])
+        v = v + 0.05 * (wanted - v) + rng.normal(0.0, np.sqrt(OMEGA_VAR), 3)
+        p = p + v * dt
+        positions.append(p.copy())
+        rotations.append(look(float(np.arctan2(v[1], v[0])), PITCH_RAD))
+    return np.array(positions), np.array(rotations)
 
 
 @functools.cache

@@ -38,3 +38,24 @@ def test_each_case_is_a_run_and_the_table_is_built_from_them(tmp_path):
 def test_an_unknown_case_is_refused_by_name(tmp_path):
     result = _experiment("--cases", "ekf-slam,warp-drive", "--out", str(tmp_path))
     assert result.returncode != 0 and "warp-drive" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_the_papers_3d_cases_are_runs_beside_the_2d_ones(tmp_path):
+    """The 3-D back end's cases fly the same flight over relief, each a run with its row and track, and
+    the paper's figures 7 and 8 of them; full 3-D EKF-SLAM keeps every landmark, the adaptive range
+    fewer."""
+    cases = "ar-ekf-slam,3-D ar-ekf-slam,3-D ekf-slam"
+    result = _experiment("--cases", cases, "--duration", "12", "--out", str(tmp_path))
+    assert result.returncode == 0, result.stdout + result.stderr
+    folder = tmp_path / "ar-slam"
+    table = json.loads((folder / "experiment.json").read_text())["cases"]
+    assert set(table) == set(cases.split(","))
+    adaptive, full = table["3-D ar-ekf-slam"], table["3-D ekf-slam"]
+    assert adaptive["range"] == "adaptive" and full["range"] == "all" and adaptive["terrain"] == "relief"
+    assert adaptive["distance_m"] == full["distance_m"] > 50.0  # the same flight, 120 frames at 5 m/s
+    assert adaptive["state_dim_max"] < full["state_dim_max"]
+    assert adaptive["rmse_m"] < 1.0 and full["rmse_m"] < 1.0
+    rows = pd.read_parquet(folder / "results.parquet").set_index("run")
+    assert rows.loc["3-D-ekf-slam", "state_dim_max"] == full["state_dim_max"]
+    figures = ("frame_time.png", "frame_time_3d.png", "track_3d.png")
+    assert all((folder / figure).stat().st_size > 0 for figure in figures)

@@ -121,8 +121,10 @@ class ArSlam3d:
         else:
             assignment = np.full(len(z), -1)
         for i in np.flatnonzero(assignment >= 0):
-            h, H_j = slam3d.observe(self.x, int(assignment[i]), rotation)
-            self.x, self.P, result = gated_update(self.x, self.P, z[i] - h, H_j, R_z[i], self.gate)
+            j = int(assignment[i])
+            h, H_j = slam3d.observe(self.x, j, rotation)
+            columns = np.r_[: slam3d.POINT, slam3d.landmark_slice(j)]  # the position and landmark j
+            self.x, self.P, result = gated_update(self.x, self.P, z[i] - h, H_j, R_z[i], self.gate, columns=columns)
             self.book.fused += int(result.accepted)
             self.book.gated_out += int(not result.accepted)
         self._enter(np.flatnonzero(assignment < 0), z, R_z, rotation, ids)

@@ -189,3 +189,46 @@ def relative_pose(F: np.ndarray, K: np.ndarray, p1: np.ndarray, p2: np.ndarray) 
         if best is None or front > best.in_front:
             best = RelativePose(R, t, X, front)
     return best
+
+
+def translation_given_rotation(
+    R: np.ndarray,
+    K: np.ndarray,
+    p1: np.ndarray,
+    p2: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    threshold_px: float = 1.5,
+    iterations: int = 200,
+) -> tuple[RelativePose, np.ndarray] | None:
+    """Camera 2's direction of travel when its rotation R (X2 = R X1 + t) is known (from an attitude
+    sensor): the epipolar constraint x2^T [t]x R x1 = 0 is linear in t, t . (R x1 x x2) = 0 for the
+    normalised rays x, so two pairs give t and RANSAC keeps the pairs within ``threshold_px`` of their
+    epipolar lines (F = K^-T [t]x R K^-1) both ways; t is refitted on them by least squares and its sign
+    chosen by cheirality. Two unknowns instead of the essential matrix's five: well posed where F is
+    not (a forward-looking camera moving forward has its epipole in the frame). Returns the pose with
+    t of unit norm and the inlier mask (p1's), or None (fewer than two pairs, no sample fitted)."""
+    K_inv = np.linalg.inv(K)
+    rays1 = np.column_stack([p1, np.ones(len(p1))]) @ K_inv.T
+    rays2 = np.column_stack([p2, np.ones(len(p2))]) @ K_inv.T
+    constraints = np.cross(rays1 @ R.T, rays2)  # (n, 3): t . a_i = 0
+
+    def fit(a: np.ndarray, _: np.ndarray) -> np.ndarray:
+        return np.linalg.svd(a)[2][-1]
+
+    def distances(t: np.ndarray, _a: np.ndarray, _b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        skew = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+        return epipolar_distances(K_inv.T @ skew @ R @ K_inv, p1, p2)
+
+    fitted = ransac(fit, distances, 2, constraints, constraints, rng, threshold=threshold_px**2, iterations=iterations)
+    if fitted is None:
+        return None
+    t, inliers = fitted
+    P1 = K @ np.hstack([np.eye(3), np.zeros((3, 1))])
+    best = None
+    for sign in (1.0, -1.0):
+        X = triangulate(P1, K @ np.hstack([R, sign * t[:, None]]), p1[inliers], p2[inliers])
+        front = int(np.sum((X[:, 2] > 0) & ((X @ R.T + sign * t)[:, 2] > 0)))
+        if best is None or front > best.in_front:
+            best = RelativePose(R, sign * t, X, front)
+    return best, inliers

@@ -27,6 +27,24 @@ def test_joseph_update_keeps_covariance_symmetric_positive_definite():
     assert np.allclose(P, P.T) and np.all(np.linalg.eigvalsh(P) > 0)
 
 
+def test_joseph_update_on_the_columns_a_sighting_touches_is_the_full_joseph_update():
+    """A landmark sighting in a large map (H zero but on a few states), updated in O(n^2 m): the
+    same state and covariance as the O(n^3) form, and still positive definite."""
+    rng = np.random.default_rng(3)
+    n, columns = 60, np.r_[0:3, 30:33]
+    A = rng.normal(size=(n, n))
+    P = A @ A.T / n + np.eye(n) * 1e-3
+    H = np.zeros((3, n))
+    H[:, columns] = rng.normal(size=(3, 6))
+    y, R = rng.normal(size=3), np.diag([0.2, 0.3, 0.4])
+    x_full, P_full, full = gated_update(np.zeros(n), P, y, H, R, 1e9)
+    x_cols, P_cols, cols = gated_update(np.zeros(n), P, y, H, R, 1e9, columns=columns)
+    assert cols.nis == pytest.approx(full.nis, rel=1e-10)
+    np.testing.assert_allclose(x_cols, x_full, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(P_cols, P_full, rtol=0, atol=1e-10)
+    assert np.array_equal(P_cols, P_cols.T) and np.linalg.eigvalsh(P_cols).min() > 0
+
+
 def test_gate_rejects_an_outlier_and_leaves_the_state_untouched():
     x, P = np.zeros(4), np.eye(4)
     x2, P2, result = gated_update(x, P, np.array([100.0, 0.0]), np.eye(2, 4), np.eye(2), gate_threshold(2, 0.999))

@@ -85,6 +85,27 @@ def test_relief_picks_the_fundamental_matrix_and_recovers_the_motion(seed):
     assert abs(np.linalg.norm(motion.t) / np.linalg.norm(t) - 1) < 0.1
 
 
+@pytest.mark.parametrize("relief_m", [0.0, 10.0])
+def test_with_the_rotation_known_the_direction_of_travel_is_found_and_wrong_matches_are_left_out(relief_m):
+    """Known R (an attitude sensor's): t from two pairs inside RANSAC, over flat ground too (where F is
+    not determined), its sign by cheirality; a fifth of the pairs shuffled are not inliers."""
+    rng = np.random.default_rng(7)
+    p1, p2, R, t = two_views(rng, relief_m=relief_m)
+    wrong = rng.choice(len(p2), size=len(p2) // 5, replace=False)
+    p2[wrong] = p2[np.roll(wrong, 1)]
+    pose, inliers = two_view.translation_given_rotation(R, K, p1, p2, rng)
+    direction = np.degrees(np.arccos(pose.t @ t / np.linalg.norm(pose.t) / np.linalg.norm(t)))
+    assert direction < 1.0 and np.linalg.norm(pose.t) == pytest.approx(1.0)
+    assert not inliers[wrong].any() and inliers.sum() >= 0.9 * (len(p1) - len(wrong))
+    assert pose.in_front == inliers.sum()
+
+
+def test_with_the_rotation_known_too_few_pairs_is_no_direction():
+    rng = np.random.default_rng(0)
+    p1, p2, R, _ = two_views(rng, relief_m=5.0, n=1)
+    assert two_view.translation_given_rotation(R, K, p1, p2, rng) is None
+
+
 def test_too_few_matches_is_no_motion():
     rng = np.random.default_rng(0)
     p1, p2, _, _ = two_views(rng, relief_m=0.0, n=6)
