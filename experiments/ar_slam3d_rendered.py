@@ -83,39 +83,40 @@ def motion_noise() -> np.ndarray:
     return np.concatenate([v[m:] - v[:-m] for v in velocities]).var(axis=0) / m
 
 
-def sightings(
-    camera: Pinhole,
-    older: tuple[np.ndarray, np.ndarray],
-    newer: tuple[np.ndarray, np.ndarray],
-    baseline_m: float,
-    rng: np.random.Generator,
-    min_parallax_rad: float,
-    rotation: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
-    """Two frames' (image, SUSAN corners): the points triangulated from their matches, in the newer
-    camera (k, 3), their covariances (k, 3, 3), the rotation R from the older camera to the newer
-    (3, 3) and how many matches were kept; None when the two-view geometry fails. ``rotation``: R
-    known (an attitude sensor's), so only the direction of travel is fitted
-    (two_view.translation_given_rotation); else R and t from E = K^T F K (the paper's VO)."""
-    if rotation is None:  # the paper: RANSAC on F, then R and t from E
-        fitted = ncc.matched_geometry(older[0], older[1], newer[0], newer[1], rng)
-        if fitted is None or len(fitted[1]) < MIN_MATCHES:
+def relative(
+    camera: Pinhole, p1: np.ndarray, p2: np.ndarray, rng: np.random.Generator, rotation: np.ndarray | None
+) -> tuple[two_view.RelativePose, np.ndarray] | None:
+    """The older camera to the newer from matched pixels p1, p2 (m, 2), and which pairs agree with it
+    (m,): RANSAC on F then R and t from E = K^T F K (the paper's VO), or with the rotation known (an
+    attitude sensor's) only the direction of travel (two_view.translation_given_rotation). None when
+    fewer than MIN_MATCHES pairs agree."""
+    if rotation is None:
+        fitted = two_view.ransac(
+            two_view.eight_point, two_view.epipolar_distances, 8, p1, p2, rng, threshold=1.5**2, iterations=200
+        )
+        if fitted is None:
             return None
-        F, p1, p2 = fitted
-        vo = two_view.relative_pose(F, camera.K, p1, p2)
-    else:  # R known: RANSAC on F = K^-T [t]x R K^-1, two unknowns
-        i1, i2, _ = ncc.match(older[0], older[1], newer[0], newer[1])
-        known = two_view.translation_given_rotation(rotation, camera.K, older[1][i1], newer[1][i2], rng)
-        if known is None or known[1].sum() < MIN_MATCHES:
+        inliers = fitted[1]
+        pose = two_view.relative_pose(fitted[0], camera.K, p1[inliers], p2[inliers])
+    else:
+        known = two_view.translation_given_rotation(rotation, camera.K, p1, p2, rng)
+        if known is None:
             return None
-        vo, inliers = known
-        p1, p2 = older[1][i1][inliers], newer[1][i2][inliers]
-    L = vo.t / np.linalg.norm(vo.t) * baseline_m  # the paper's metric length of L, the fitted direction
-    out = triangulate(*camera_matrices(camera.K, vo.R, L), p1, p2)
+        pose, inliers = known
+    return (pose, inliers) if inliers.sum() >= MIN_MATCHES else None
+
+
+def points(
+    camera: Pinhole, pose: two_view.RelativePose, p1: np.ndarray, p2: np.ndarray, baseline_m: float, min_parallax_rad
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs triangulated (vehicle.vision.triangulation) with ``pose`` at the paper's metric length of
+    L: points in the newer camera (k, 3) and their covariances (k, 3, 3), those of at least
+    ``min_parallax_rad``."""
+    L = pose.t / np.linalg.norm(pose.t) * baseline_m
+    out = triangulate(*camera_matrices(camera.K, pose.R, L), p1, p2)
     keep = out.usable & (out.parallax_rad >= min_parallax_rad)
-    z = out.points[keep] @ vo.R.T + L
-    cov = np.einsum("ij,njk,lk->nil", vo.R, out.covariances[keep], vo.R)
-    return z, cov, vo.R, len(p1)
+    z = out.points[keep] @ pose.R.T + L
+    return z, np.einsum("ij,njk,lk->nil", pose.R, out.covariances[keep], pose.R)
 
 
 def fly(
@@ -140,30 +141,32 @@ def fly(
     P0 = np.diag([0.05**2] * 6)
     told = motion_noise() if omega_var is None else omega_var
     slam = ArSlam3d(x0, P0, omega_var=told, seed=seed, association="nn", **MODES[mode])
-    seen: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # frame -> (image, corners), the last few
+    detected: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # frame -> (image, SUSAN corners), the last few
     believed = {k: path.rotations[k] for k in range(baseline_frames)}  # R_wc the back end is handed
     counts, rows = FrontEndCounts(), []
     for k in range(frames + 1):
         image, _ = render(path.relief, path.camera, path.positions[k], path.rotations[k], rng)
-        seen[k] = (image, susan.corners(image)[0])
-        seen.pop(k - baseline_frames - 1, None)
+        detected[k] = (image, susan.corners(image)[0].astype(float))
+        detected.pop(k - baseline_frames - 1, None)
         if k == 0:
             continue
         j = max(0, k - baseline_frames)
         if rotation == "given":
             believed[k] = path.rotations[k]
-        baseline = float(np.linalg.norm(path.positions[k] - path.positions[j]))
+        p1, p2 = _matched(detected[j], detected[k])
         known = believed[k].T @ believed[j] if rotation == "given" else None
-        found = sightings(path.camera, seen[j], seen[k], baseline, rng, np.deg2rad(min_parallax_deg), known)
-        if found is None:
+        fitted = relative(path.camera, p1, p2, rng, known) if len(p1) >= MIN_MATCHES else None
+        if fitted is None:
             counts.failed += 1
             z, cov = np.zeros((0, 3)), np.zeros((0, 3, 3))
             believed.setdefault(k, believed[j])
         else:
-            z, cov, R_rel, matches = found
-            counts.matches += matches
+            pose, inliers = fitted
+            baseline = float(np.linalg.norm(path.positions[k] - path.positions[j]))
+            z, cov = points(path.camera, pose, p1[inliers], p2[inliers], baseline, np.deg2rad(min_parallax_deg))
+            counts.matches += int(inliers.sum())
             counts.points += len(z)
-            believed.setdefault(k, believed[j] @ R_rel.T if rotation == "vo" else path.rotations[k])
+            believed.setdefault(k, believed[j] @ pose.R.T)
         start = time.perf_counter()
         slam.predict(dt)
         slam.frame(z, cov, believed[k])
@@ -188,3 +191,11 @@ def fly(
     R_err = believed[frames].T @ path.rotations[frames]
     counts.rotation_error_rad = float(np.arccos(np.clip((np.trace(R_err) - 1.0) / 2.0, -1.0, 1.0)))
     return Track(*(np.array(column) for column in zip(*rows))), counts
+
+
+def _matched(
+    older: tuple[np.ndarray, np.ndarray], newer: tuple[np.ndarray, np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (m, 2), (m, 2) of two frames' SUSAN corners paired by mutual best NCC (vehicle.vision.ncc)."""
+    i1, i2, _ = ncc.match(older[0], older[1], newer[0], newer[1])
+    return older[1][i1], newer[1][i2]
