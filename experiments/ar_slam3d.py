@@ -191,9 +191,26 @@ def fly(
         slam.predict(dt)
         slam.frame(*seen[:2], rotations[k], seen[2] if identified else None)
         elapsed = (time.perf_counter() - start) * 1e3
-        state = (slam.x[:3].copy(), slam.P[:3, :3].copy(), slam.book.radius_m, (len(slam.x) - 6) // 3, slam.book.added)
-        velocity = (positions[k] - positions[k - 1]) / dt  # the truth's velocity over the frame (sim: p += v dt)
-        head = slice(0, slam3d.HEAD)
-        whole = (slam.x[head] - np.concatenate([positions[k], velocity]), slam.P[head, head].copy())
-        rows.append((k * dt, positions[k], *state, elapsed, *whole, landmark_nees(slam, landmarks)))
+        rows.append(track_row(slam, k, positions, elapsed, landmark_nees(slam, landmarks)))
     return Track(*(np.array(column) for column in zip(*rows)))
+
+
+def track_row(slam: ArSlam3d, k: int, positions: np.ndarray, elapsed_ms: float, landmarks_nees: float) -> tuple:
+    """Frame ``k``'s row of a Track (its fields in order) from the back end after the frame, the true
+    positions (frames, 3), the frame's wall time and the landmarks' mean NEES."""
+    dt = 1.0 / RATE_HZ
+    velocity = (positions[k] - positions[k - 1]) / dt  # the truth's velocity over the frame (sim: p += v dt)
+    head = slice(0, slam3d.HEAD)
+    return (
+        k * dt,
+        positions[k],
+        slam.x[:3].copy(),
+        slam.P[:3, :3].copy(),
+        slam.book.radius_m,
+        (len(slam.x) - slam3d.HEAD) // slam3d.POINT,
+        slam.book.added,
+        elapsed_ms,
+        slam.x[head] - np.concatenate([positions[k], velocity]),
+        slam.P[head, head].copy(),
+        landmarks_nees,
+    )

@@ -2,16 +2,18 @@
 (the paper's K scaled by ``SCALE``, 10 frames a second, 5 m/s, 15 m over the ground, 30 degrees down)
 flies circles over terrain with hills and buildings (sim.relief); each frame is rendered by ray
 casting (sim.pinhole.render, grey-level noise); the paper's front end finds SUSAN corners
-(vehicle.vision.susan), matches them by NCC and keeps what RANSAC on F keeps (vehicle.vision.ncc);
-visual odometry takes R from E = K^T F K by cheirality (vehicle.vision.two_view); the matched corners
+(vehicle.vision.susan) and matches them by NCC (vehicle.vision.ncc) with the frame ``baseline_frames``
+before; the relative pose is fitted inside RANSAC (``relative``); the matched corners that agree with it
 are triangulated (vehicle.vision.triangulation, the paper's least squares) and fused by the 6 + 3n back
 end (vehicle.estimators.ar_slam3d) with nn association: no landmark ids, no projected points. Pure;
 seeded.
 
 What is given, as in the paper: the metric length of the baseline between the two frames (VO's
 translation has no scale), and the first ``baseline_frames`` frames' rotations (a surveyed start).
-``rotation``: "vo" chains each frame's rotation from the frame ``baseline_frames`` before by VO's R (the
-paper), "given" hands the back end the true rotation (the front end's share of the error apart).
+``rotation``: "vo", the paper's visual odometry, fits F, takes R and t from E = K^T F K by cheirality
+(vehicle.vision.two_view) and chains each frame's rotation from the frame ``baseline_frames`` before;
+"given" hands the back end the true rotation (an attitude sensor's) and fits only the direction of
+travel (two_view.translation_given_rotation).
 The altitude follows the relief smoothed over ``FOLLOW_M`` (a UAV does not jump each wall); the
 filter's velocity noise is fitted on flights of this kind of their own (never scored), as the
 projected experiment's is.
@@ -26,11 +28,19 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from experiments.ar_slam3d import FIT_HORIZON_FRAMES, FIT_SEEDS, MODES, RATE_HZ, SPEED_MPS, Track, trajectory
+from experiments.ar_slam3d import (
+    FIT_HORIZON_FRAMES,
+    FIT_SEEDS,
+    MODES,
+    RATE_HZ,
+    SPEED_MPS,
+    Track,
+    track_row,
+    trajectory,
+)
 from sim.pinhole import Pinhole, render
 from sim.relief import Relief, relief_terrain
 from vehicle.estimators.ar_slam3d import ArSlam3d
-from vehicle.models import slam3d
 from vehicle.vision import ncc, susan, two_view
 from vehicle.vision.triangulation import camera_matrices, triangulate
 
@@ -171,23 +181,7 @@ def fly(
         slam.predict(dt)
         slam.frame(z, cov, believed[k])
         elapsed = (time.perf_counter() - start) * 1e3
-        velocity = (path.positions[k] - path.positions[k - 1]) / dt
-        head = slice(0, slam3d.HEAD)
-        rows.append(
-            (
-                k * dt,
-                path.positions[k],
-                slam.x[:3].copy(),
-                slam.P[:3, :3].copy(),
-                slam.book.radius_m,
-                (len(slam.x) - slam3d.HEAD) // slam3d.POINT,
-                slam.book.added,
-                elapsed,
-                slam.x[head] - np.concatenate([path.positions[k], velocity]),
-                slam.P[head, head].copy(),
-                float("nan"),
-            )
-        )
+        rows.append(track_row(slam, k, path.positions, elapsed, float("nan")))  # no identities: no landmark NEES
     R_err = believed[frames].T @ path.rotations[frames]
     counts.rotation_error_rad = float(np.arccos(np.clip((np.trace(R_err) - 1.0) / 2.0, -1.0, 1.0)))
     return Track(*(np.array(column) for column in zip(*rows))), counts
