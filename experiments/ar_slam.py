@@ -188,8 +188,8 @@ def conclude(rows: list[dict], folder: Path, *, seed: int, duration: float, case
     write_experiment(folder, table)
     lines = [
         f"  {name:<28} RMSE {row['rmse_m']} m  ANEES {row['anees']}  state <= {row['state_dim_max']}"
-        f"  frame p50/p99 {row['frame_ms_p50']}/{row['frame_ms_p99']} ms  correct {row['correct_rate']}"
-        f"  false {row['false_pairs']}"
+        f"  frame p50/p99 {row['frame_ms_p50']}/{row['frame_ms_p99']} ms"
+        + (f"  correct {row['correct_rate']}  false {row['false_pairs']}" if row["correct_rate"] is not None else "")
         for name, row in table["cases"].items()
     ]
     figures = [*(write_figures(folder, tracks) if tracks else []), *ar_slam3d_cases.write_figures(folder, tracks_3d)]
