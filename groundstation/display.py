@@ -15,18 +15,17 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from bus.consistency import NIS_KINDS
-
-MAX_ROWS = 12  # a swarm larger than this: the tables show its worst vehicles and say so (all in summary.json)
+from groundstation.shown import SHOWN
 
 
 def vehicle_rows(vehicles: dict[str, dict[str, Any]], badness: Any, what: str) -> tuple[list[str], str | None]:
-    """(the vehicle ids a table shows, in numeric order, or, beyond ``MAX_ROWS``, the ``MAX_ROWS``
+    """(the vehicle ids a table shows, in numeric order, or, beyond ``SHOWN``, the ``SHOWN``
     worst by ``badness(vehicle summary)`` worst first; a caption saying which when not all)."""
     ids = sorted(vehicles, key=lambda vid: (len(vid), vid))
-    if len(ids) <= MAX_ROWS:
+    if len(ids) <= SHOWN:
         return ids, None
-    worst = sorted(ids, key=lambda vid: -badness(vehicles[vid]))[:MAX_ROWS]
-    return worst, f"the {MAX_ROWS} of {len(ids)} vehicles {what}; every vehicle in summary.json and report.html"
+    worst = sorted(ids, key=lambda vid: -badness(vehicles[vid]))[:SHOWN]
+    return worst, f"the {SHOWN} of {len(ids)} vehicles {what}; every vehicle in summary.json and report.html"
 
 
 LEAST_CONSISTENT = "least consistent (block ANEES farthest outside its band, then from 3)"

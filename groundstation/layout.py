@@ -21,6 +21,7 @@ import numpy as np
 from bus.config import WorldConfig
 from bus.pads import start_pads
 from bus.statistics import chi2_band
+from groundstation.shown import SHOWN
 
 FOXGLOVE_FILE, LICHTBLICK_FILE = "layout-foxglove.json", "layout-lichtblick.json"
 SCENE_TOPICS = ("/scene", "/zones", "/landmarks", "/ranging", "/trails", "/terrain")
@@ -67,13 +68,10 @@ class _Plot:
     series: tuple[tuple[str, str], ...]  # (label, message path or a number: a reference line)
 
 
-MAX_PLOTTED = 12  # beyond, the plots show the swarm's aggregates: hundreds of lines are noise
-
-
 def _plots(vehicles: int) -> tuple[_Plot, ...]:
-    """The plots beside the scene: per vehicle up to ``MAX_PLOTTED`` vehicles, the swarm's RMS and
+    """The plots beside the scene: per vehicle up to ``SHOWN`` vehicles, the swarm's RMS and
     largest error and mean NEES (against the band of a mean of ``vehicles`` NEES) beyond."""
-    if vehicles > MAX_PLOTTED:
+    if vehicles > SHOWN:
         low, high = chi2_band(3, runs=vehicles)
         return (
             _Plot(

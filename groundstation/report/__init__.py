@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from groundstation.report.rundata import ReportError, load_run
+from groundstation.shown import SHOWN
 
 __all__ = ["Report", "ReportError", "write_report"]
 
@@ -27,8 +28,8 @@ def write_report(run_dir: Path) -> Report:
     out = data.path / "report"
     out.mkdir(exist_ok=True)
     notes = []
-    if len(data.vehicles) > f.MAX_ERROR_PANELS:
-        notes.append(f"the error figure shows the first {f.MAX_ERROR_PANELS} of {len(data.vehicles)} vehicles")
+    if len(data.vehicles) > SHOWN:
+        notes.append(f"the per-vehicle figures show the {SHOWN} of {len(data.vehicles)} vehicles with the largest RMSE")
     if not data.zones():
         notes.append("no jamming or spoofing zones in this run")
     if not data.maps:

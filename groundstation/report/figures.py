@@ -18,8 +18,8 @@ from bus.statistics import binned_mean, binned_rms
 from groundstation.report.rundata import RunData
 from groundstation.report.stats import binned_nees, covariance_ellipse
 from groundstation.scene_primitives import zone_colour
+from groundstation.shown import SHOWN
 
-MAX_ERROR_PANELS = 12  # more vehicles than this: per-vehicle figures show the worst, the swarm as a band
 MARKER_COLORS = {
     "fault_added": "tab:red",
     "fault_removed": "tab:green",
@@ -77,9 +77,9 @@ def map_figure(data: RunData, *, ellipse_every_s: float = 5.0) -> Figure | None:
 
 
 def _map_legend(ax: Any, vehicles: int) -> None:
-    """Every track and zone; beyond ``MAX_ERROR_PANELS`` vehicles the zones alone (a legend of hundreds
+    """Every track and zone; beyond ``SHOWN`` vehicles the zones alone (a legend of hundreds
     of vehicles would hide the map)."""
-    if vehicles <= MAX_ERROR_PANELS:
+    if vehicles <= SHOWN:
         ax.legend(loc="upper right", fontsize="small", ncols=2)
         return
     zones = [(h, label) for h, label in zip(*ax.get_legend_handles_labels()) if not label.startswith("v")]
@@ -140,12 +140,12 @@ def _marker_legend(ax: Any, events: list[dict[str, Any]]) -> None:
 
 
 def worst_vehicles(data: RunData, score: Callable[[dict[str, np.ndarray]], float]) -> tuple[list[int], int]:
-    """(the vehicles with rows, in order, or the ``MAX_ERROR_PANELS`` of them with the highest
+    """(the vehicles with rows, in order, or the ``SHOWN`` of them with the highest
     ``score`` of their rows when there are more; how many have rows)."""
     vehicles = [v for v in data.vehicles if len(data.rows_of(v).get("t_s", ()))]
-    if len(vehicles) <= MAX_ERROR_PANELS:
+    if len(vehicles) <= SHOWN:
         return vehicles, len(vehicles)
-    worst = sorted(vehicles, key=lambda v: -score(data.rows_of(v)))[:MAX_ERROR_PANELS]
+    worst = sorted(vehicles, key=lambda v: -score(data.rows_of(v)))[:SHOWN]
     return worst, len(vehicles)
 
 
@@ -171,7 +171,7 @@ def _panels_legend(fig: Figure, first: Any, shown: int, total: int, which: str) 
 
 def error_figure(data: RunData) -> Figure | None:
     """Position error per axis over time per vehicle, inside its shaded 3-sigma envelope (the vehicles
-    with the largest RMSE when there are more than ``MAX_ERROR_PANELS``)."""
+    with the largest RMSE when there are more than ``SHOWN``)."""
     vehicles, total = worst_vehicles(data, _rmse_of)
     if not vehicles:
         return None
@@ -196,14 +196,14 @@ def error_figure(data: RunData) -> Figure | None:
 
 def rmse_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
     """Swarm RMSE per ``bin_s`` seconds (bold) over the per-vehicle RMSE (thin; beyond
-    ``MAX_ERROR_PANELS`` vehicles their median and 5-95 % band instead), with fault markers."""
+    ``SHOWN`` vehicles their median and 5-95 % band instead), with fault markers."""
     m = data.metrics
     if not m or not len(m["t_s"]):
         return None
     fig = Figure(figsize=(9.0, 3.6), layout="constrained")
     ax = fig.subplots()
     per_vehicle = [binned_rms(r["t_s"], r["err_pos_m"], bin_s) for r in map(data.rows_of, data.vehicles) if r]
-    if len(per_vehicle) <= MAX_ERROR_PANELS:
+    if len(per_vehicle) <= SHOWN:
         for i, (t, rms) in enumerate(per_vehicle):
             ax.plot(t, rms, color=_color(i), lw=0.6, alpha=0.6)
         what = "thin: each vehicle"

@@ -134,21 +134,22 @@ def test_ellipse_outline_is_at_three_sigma():
 def test_a_large_swarm_shows_its_worst_vehicles_and_says_so(tmp_path):
     """Beyond a dozen vehicles the tables and per-vehicle figures show the worst, named as such, and
     the RMSE figure draws the vehicles as a band (a person can scan it; 250 lines would be noise)."""
-    from groundstation.display import MAX_ROWS, rmse_table
-    from groundstation.report.figures import MAX_ERROR_PANELS, error_figure, rmse_figure, worst_vehicles
+    from groundstation.display import rmse_table
+    from groundstation.report.figures import error_figure, rmse_figure, worst_vehicles
+    from groundstation.shown import SHOWN
 
     _write_run(tmp_path / "big", np.random.default_rng(7), vehicles=30, seconds=4)
     data = load_run(tmp_path / "big")
     rmse = {v: float(np.sqrt(np.mean(data.rows_of(v)["err_pos_m"] ** 2))) for v in data.vehicles}
     shown, total = worst_vehicles(data, lambda rows: float(np.sqrt(np.mean(rows["err_pos_m"] ** 2))))
-    assert total == 30 and shown == sorted(rmse, key=lambda v: -rmse[v])[:MAX_ERROR_PANELS]
-    assert len(error_figure(data).axes) == MAX_ERROR_PANELS
+    assert total == 30 and shown == sorted(rmse, key=lambda v: -rmse[v])[:SHOWN]
+    assert len(error_figure(data).axes) == SHOWN
     assert "the 12 of 30" in error_figure(data).legends[0].get_title().get_text()
     assert "30 vehicles: their median and 5-95 % band" in rmse_figure(data).axes[0].get_title()
 
     summary = json.loads((tmp_path / "big" / "summary.json").read_text())
     table = rmse_table(summary)
-    by_rmse = sorted(summary["vehicles"], key=lambda v: -summary["vehicles"][v]["rmse_m"])[:MAX_ROWS]
+    by_rmse = sorted(summary["vehicles"], key=lambda v: -summary["vehicles"][v]["rmse_m"])[:SHOWN]
     assert list(table.columns[0].cells) == [*by_rmse, "swarm"]
     assert "12 of 30 vehicles with the largest RMSE" in table.caption
 
