@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from bus.statistics import gate_threshold
 from experiments.ar_slam3d import (
     FIT_HORIZON_FRAMES,
     FIT_SEEDS,
@@ -116,17 +117,35 @@ def relative(
     return (pose, inliers) if inliers.sum() >= MIN_MATCHES else None
 
 
-def points(
-    camera: Pinhole, pose: two_view.RelativePose, p1: np.ndarray, p2: np.ndarray, baseline_m: float, min_parallax_rad
-) -> tuple[np.ndarray, np.ndarray]:
+def triangulated(
+    camera: Pinhole, pose: two_view.RelativePose, p1: np.ndarray, p2: np.ndarray, baseline_m: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The pairs triangulated (vehicle.vision.triangulation) with ``pose`` at the paper's metric length of
-    L: points in the newer camera (k, 3) and their covariances (k, 3, 3), those of at least
-    ``min_parallax_rad``."""
+    L: points in the newer camera (m, 3), their covariances (m, 3, 3) and their parallax (m,) rad (NaN
+    where the triangulation refuses the pair)."""
     L = pose.t / np.linalg.norm(pose.t) * baseline_m
     out = triangulate(*camera_matrices(camera.K, pose.R, L), p1, p2)
-    keep = out.usable & (out.parallax_rad >= min_parallax_rad)
-    z = out.points[keep] @ pose.R.T + L
-    return z, np.einsum("ij,njk,lk->nil", pose.R, out.covariances[keep], pose.R)
+    z = out.points @ pose.R.T + L
+    cov = np.einsum("ij,njk,lk->nil", pose.R, out.covariances, pose.R)
+    return z, cov, np.where(out.usable, out.parallax_rad, np.nan)
+
+
+def refereed(
+    z: np.ndarray, cov: np.ndarray, corners: np.ndarray, z_ref: np.ndarray, cov_ref: np.ndarray, corners_ref
+) -> np.ndarray:
+    """Which points (m,) a second triangulation of the same corner of the newer frame (``corners``: its
+    index in that frame's corners; ``*_ref``: from another older frame) confirms: the two within their
+    covariances (chi-square, 3 dof, 0.999). A point the other pair did not triangulate is not confirmed."""
+    row = {int(c): i for i, c in enumerate(corners_ref)}
+    ok = np.zeros(len(z), bool)
+    gate = gate_threshold(3, 0.999)
+    for i, c in enumerate(corners):
+        r = row.get(int(c))
+        if r is None or not np.isfinite(z_ref[r]).all():
+            continue
+        d = z[i] - z_ref[r]
+        ok[i] = float(d @ np.linalg.solve(cov[i] + cov_ref[r], d)) <= gate
+    return ok
 
 
 def fly(
@@ -138,11 +157,13 @@ def fly(
     baseline_frames: int = 10,
     min_parallax_deg: float = 2.0,
     omega_var: np.ndarray | None = None,
+    referee: bool = False,
 ) -> tuple[Track, FrontEndCounts]:
     """One rendered flight of ``frames`` frames with the back end in ``mode`` (ar_slam3d.MODES), each
     frame paired with the one ``baseline_frames`` before it (module docstring); the track (landmark
     NEES NaN: the map's points have no identity) and the front end's counts. ``omega_var``: the
-    velocity noise the filter is told (default: ``motion_noise()``, fitted)."""
+    velocity noise the filter is told (default: ``motion_noise()``, fitted). ``referee``: a point is
+    kept only where the frame ``baseline_frames // 2`` before confirms it (``refereed``)."""
     path = flight(seed, frames + 1)
     rng = np.random.default_rng([seed, 5])
     dt = 1.0 / RATE_HZ
@@ -163,18 +184,26 @@ def fly(
         j = max(0, k - baseline_frames)
         if rotation == "given":
             believed[k] = path.rotations[k]
-        p1, p2 = _matched(detected[j], detected[k])
         known = believed[k].T @ believed[j] if rotation == "given" else None
-        fitted = relative(path.camera, p1, p2, rng, known) if len(p1) >= MIN_MATCHES else None
-        if fitted is None:
+        found = _pair(path, detected, j, k, rng, known)
+        if found is None:
             counts.failed += 1
             z, cov = np.zeros((0, 3)), np.zeros((0, 3, 3))
             believed.setdefault(k, believed[j])
         else:
-            pose, inliers = fitted
-            baseline = float(np.linalg.norm(path.positions[k] - path.positions[j]))
-            z, cov = points(path.camera, pose, p1[inliers], p2[inliers], baseline, np.deg2rad(min_parallax_deg))
-            counts.matches += int(inliers.sum())
+            pose, z, cov, parallax, corners = found
+            keep = parallax >= np.deg2rad(min_parallax_deg)  # NaN (refused) is not
+            h = k - baseline_frames // 2
+            if referee and h > j:
+                known_h = believed[k].T @ believed[h] if rotation == "given" else None
+                other = _pair(path, detected, h, k, rng, known_h)
+                if other is None:
+                    keep[:] = False
+                else:
+                    usable = np.where(np.isfinite(other[3])[:, None], other[1], np.nan)  # refused: NaN
+                    keep &= refereed(z, cov, corners, usable, other[2], other[4])
+            counts.matches += len(z)
+            z, cov = z[keep], cov[keep]
             counts.points += len(z)
             believed.setdefault(k, believed[j] @ pose.R.T)
         start = time.perf_counter()
@@ -187,9 +216,16 @@ def fly(
     return Track(*(np.array(column) for column in zip(*rows))), counts
 
 
-def _matched(
-    older: tuple[np.ndarray, np.ndarray], newer: tuple[np.ndarray, np.ndarray]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Pixels (m, 2), (m, 2) of two frames' SUSAN corners paired by mutual best NCC (vehicle.vision.ncc)."""
-    i1, i2, _ = ncc.match(older[0], older[1], newer[0], newer[1])
-    return older[1][i1], newer[1][i2]
+def _pair(path: RenderedFlight, detected: dict, j: int, k: int, rng: np.random.Generator, rotation):
+    """Frames j and k's SUSAN corners matched, the relative pose fitted (``relative``) and the pairs that
+    agree with it triangulated: (pose, points (m, 3) in camera k, covariances, parallax (m,), the
+    points' indices in frame k's corners (m,)), or None when the geometry fails."""
+    i1, i2, _ = ncc.match(detected[j][0], detected[j][1], detected[k][0], detected[k][1])
+    p1, p2 = detected[j][1][i1], detected[k][1][i2]
+    fitted = relative(path.camera, p1, p2, rng, rotation) if len(p1) >= MIN_MATCHES else None
+    if fitted is None:
+        return None
+    pose, inliers = fitted
+    baseline = float(np.linalg.norm(path.positions[k] - path.positions[j]))
+    z, cov, parallax = triangulated(path.camera, pose, p1[inliers], p2[inliers], baseline)
+    return pose, z, cov, parallax, i2[inliers]
