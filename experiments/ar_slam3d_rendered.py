@@ -184,28 +184,13 @@ def fly(
         j = max(0, k - baseline_frames)
         if rotation == "given":
             believed[k] = path.rotations[k]
-        known = believed[k].T @ believed[j] if rotation == "given" else None
-        found = _pair(path, detected, j, k, rng, known)
-        if found is None:
-            counts.failed += 1
-            z, cov = np.zeros((0, 3)), np.zeros((0, 3, 3))
-            believed.setdefault(k, believed[j])
-        else:
-            pose, z, cov, parallax, corners = found
-            keep = parallax >= np.deg2rad(min_parallax_deg)  # NaN (refused) is not
-            h = k - baseline_frames // 2
-            if referee and h > j:
-                known_h = believed[k].T @ believed[h] if rotation == "given" else None
-                other = _pair(path, detected, h, k, rng, known_h)
-                if other is None:
-                    keep[:] = False
-                else:
-                    usable = np.where(np.isfinite(other[3])[:, None], other[1], np.nan)  # refused: NaN
-                    keep &= refereed(z, cov, corners, usable, other[2], other[4])
-            counts.matches += len(z)
-            z, cov = z[keep], cov[keep]
-            counts.points += len(z)
-            believed.setdefault(k, believed[j] @ pose.R.T)
+        h = k - baseline_frames // 2 if referee else j  # the referee's frame (none: j)
+        parallax = np.deg2rad(min_parallax_deg)
+        z, cov, pose, matches = _frame_points(path, detected, believed, (j, h, k), rng, rotation, parallax)
+        counts.failed += pose is None
+        counts.matches += matches
+        counts.points += len(z)
+        believed.setdefault(k, believed[j] if pose is None else believed[j] @ pose.R.T)
         start = time.perf_counter()
         slam.predict(dt)
         slam.frame(z, cov, believed[k])
@@ -214,6 +199,43 @@ def fly(
     R_err = believed[frames].T @ path.rotations[frames]
     counts.rotation_error_rad = float(np.arccos(np.clip((np.trace(R_err) - 1.0) / 2.0, -1.0, 1.0)))
     return Track(*(np.array(column) for column in zip(*rows))), counts
+
+
+def _frame_points(
+    path: RenderedFlight,
+    detected: dict,
+    believed: dict,
+    frames: tuple[int, int, int],
+    rng: np.random.Generator,
+    rotation: str,
+    min_parallax_rad: float,
+) -> tuple[np.ndarray, np.ndarray, two_view.RelativePose | None, int]:
+    """Frame k's points from the pair (j, k) (``_pair``) of ``frames`` (j, h, k) with at least
+    ``min_parallax_rad`` of parallax and, for h between j and k, confirmed by the pair (h, k)
+    (``_confirmed``): points (n, 3), covariances (n, 3, 3), the pair's relative pose (None when its
+    geometry failed) and how many matches it kept. ``believed``: the rotations the back end is handed,
+    by frame (frame k's set where it is given)."""
+    j, h, k = frames
+    known = believed[k].T @ believed[j] if rotation == "given" else None
+    found = _pair(path, detected, j, k, rng, known)
+    if found is None:
+        return np.zeros((0, 3)), np.zeros((0, 3, 3)), None, 0
+    pose, z, cov, parallax, corners = found
+    keep = parallax >= min_parallax_rad  # NaN (refused) is not
+    if h > j:
+        known_h = believed[k].T @ believed[h] if rotation == "given" else None
+        keep &= _confirmed(path, detected, h, k, rng, known_h, z, cov, corners)
+    return z[keep], cov[keep], pose, len(z)
+
+
+def _confirmed(path: RenderedFlight, detected: dict, h: int, k: int, rng, rotation, z, cov, corners) -> np.ndarray:
+    """Which of frame k's points z (m, 3) (covariances ``cov``, from its ``corners``) the pair of frames h
+    and k confirms (``refereed``); none when that pair's geometry fails."""
+    other = _pair(path, detected, h, k, rng, rotation)
+    if other is None:
+        return np.zeros(len(z), bool)
+    usable = np.where(np.isfinite(other[3])[:, None], other[1], np.nan)  # refused there: NaN
+    return refereed(z, cov, corners, usable, other[2], other[4])
 
 
 def _pair(path: RenderedFlight, detected: dict, j: int, k: int, rng: np.random.Generator, rotation):
