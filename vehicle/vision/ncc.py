@@ -31,6 +31,8 @@ def patches(image: np.ndarray, points: np.ndarray, half: int) -> tuple[np.ndarra
     h, w = image.shape
     p = np.rint(points).astype(int)
     inside = np.flatnonzero((p[:, 0] >= half) & (p[:, 0] < w - half) & (p[:, 1] >= half) & (p[:, 1] < h - half))
+    if not len(inside):  # no corner away from the border: no patch (and no reshape of nothing)
+        return np.zeros((0, (2 * half + 1) ** 2), np.float32), inside
     d = np.arange(-half, half + 1)
     rows = p[inside, 1][:, None, None] + d[None, :, None]
     cols = p[inside, 0][:, None, None] + d[None, None, :]

@@ -57,3 +57,14 @@ def test_ncc_matches_a_moved_frame_and_ransac_keeps_only_the_motion():
     _, q1, q2 = fitted  # RANSAC on F drops what leaves the epipolar lines (not what slides along them)
     kept_right = np.linalg.norm(q2 - q1 - shift, axis=1) <= 1.0
     assert len(q1) >= 30 and kept_right.mean() >= max(0.9, right.mean())
+
+
+def test_corners_only_at_the_border_or_none_at_all_are_no_matches_not_an_error():
+    """A frame whose corners all lie within a patch's half-size of the border (or that has none) has
+    no patch to match: no pairs, and RANSAC is not tried (a rendered flight met it over a blank field)."""
+    image = np.full((60, 80), 100, np.uint8)
+    border = np.array([[1.0, 1.0], [78.0, 30.0], [40.0, 58.0]])
+    for points in (border, np.zeros((0, 2))):
+        i1, i2, score = match(image, points, image, border)
+        assert len(i1) == len(i2) == len(score) == 0
+        assert matched_geometry(image, points, image, border, np.random.default_rng(0)) is None
