@@ -127,7 +127,8 @@ def plan(seed: int, duration: float, cases: str) -> list[RunSpec]:
 
 def _camera_uav(seed: int, duration: float) -> dict[str, Any]:
     """The configuration a 3-D case's run keeps for the campaign's table (its flight is the back end's)."""
-    return ar_slam_config(CASES[2], seed=seed, duration_s=duration).model_dump(mode="json")
+    adaptive = next(case for case in CASES if case.name == "ar-ekf-slam")
+    return ar_slam_config(adaptive, seed=seed, duration_s=duration).model_dump(mode="json")
 
 
 def chosen_cases(text: str) -> tuple[tuple[Case, ...], tuple[str, ...]]:

@@ -58,6 +58,19 @@ class RenderedFlight:
     rotations: np.ndarray  # (frames, 3, 3) R_wc
 
 
+@dataclass(frozen=True)
+class PairPoints:
+    """What a pair of frames (older, k) gives (``_pair``): the relative pose, the points triangulated
+    in camera k (m, 3), their covariances (m, 3, 3), their parallax (m,) rad (NaN where the
+    triangulation refused the pair) and their corners' indices in frame k (m,)."""
+
+    pose: two_view.RelativePose
+    z: np.ndarray
+    cov: np.ndarray
+    parallax: np.ndarray
+    corners: np.ndarray
+
+
 @dataclass
 class FrontEndCounts:
     """Per flight: frames whose two-view geometry failed (too few matches, no F), matches RANSAC kept,
@@ -102,9 +115,7 @@ def relative(
     attitude sensor's) only the direction of travel (two_view.translation_given_rotation). None when
     fewer than MIN_MATCHES pairs agree."""
     if rotation is None:
-        fitted = two_view.ransac(
-            two_view.eight_point, two_view.epipolar_distances, 8, p1, p2, rng, threshold=1.5**2, iterations=200
-        )
+        fitted = ncc.fundamental(p1, p2, rng)
         if fitted is None:
             return None
         inliers = fitted[1]
@@ -220,28 +231,27 @@ def _frame_points(
     found = _pair(path, detected, j, k, rng, known)
     if found is None:
         return np.zeros((0, 3)), np.zeros((0, 3, 3)), None, 0
-    pose, z, cov, parallax, corners = found
-    keep = parallax >= min_parallax_rad  # NaN (refused) is not
+    keep = found.parallax >= min_parallax_rad  # NaN (refused) is not
     if h > j:
         known_h = believed[k].T @ believed[h] if rotation == "given" else None
-        keep &= _confirmed(path, detected, h, k, rng, known_h, z, cov, corners)
-    return z[keep], cov[keep], pose, len(z)
+        keep &= _confirmed(found, _pair(path, detected, h, k, rng, known_h))
+    return found.z[keep], found.cov[keep], found.pose, len(found.z)
 
 
-def _confirmed(path: RenderedFlight, detected: dict, h: int, k: int, rng, rotation, z, cov, corners) -> np.ndarray:
-    """Which of frame k's points z (m, 3) (covariances ``cov``, from its ``corners``) the pair of frames h
-    and k confirms (``refereed``); none when that pair's geometry fails."""
-    other = _pair(path, detected, h, k, rng, rotation)
+def _confirmed(found: PairPoints, other: PairPoints | None) -> np.ndarray:
+    """Which of ``found``'s points the pair ``other`` (the same newer frame) confirms (``refereed``); none
+    when that pair's geometry failed."""
     if other is None:
-        return np.zeros(len(z), bool)
-    usable = np.where(np.isfinite(other[3])[:, None], other[1], np.nan)  # refused there: NaN
-    return refereed(z, cov, corners, usable, other[2], other[4])
+        return np.zeros(len(found.z), bool)
+    usable = np.where(np.isfinite(other.parallax)[:, None], other.z, np.nan)  # refused there: NaN
+    return refereed(found.z, found.cov, found.corners, usable, other.cov, other.corners)
 
 
-def _pair(path: RenderedFlight, detected: dict, j: int, k: int, rng: np.random.Generator, rotation):
+def _pair(
+    path: RenderedFlight, detected: dict, j: int, k: int, rng: np.random.Generator, rotation: np.ndarray | None
+) -> PairPoints | None:
     """Frames j and k's SUSAN corners matched, the relative pose fitted (``relative``) and the pairs that
-    agree with it triangulated: (pose, points (m, 3) in camera k, covariances, parallax (m,), the
-    points' indices in frame k's corners (m,)), or None when the geometry fails."""
+    agree with it triangulated; None when the geometry fails."""
     i1, i2, _ = ncc.match(detected[j][0], detected[j][1], detected[k][0], detected[k][1])
     p1, p2 = detected[j][1][i1], detected[k][1][i2]
     fitted = relative(path.camera, p1, p2, rng, rotation) if len(p1) >= MIN_MATCHES else None
@@ -249,5 +259,4 @@ def _pair(path: RenderedFlight, detected: dict, j: int, k: int, rng: np.random.G
         return None
     pose, inliers = fitted
     baseline = float(np.linalg.norm(path.positions[k] - path.positions[j]))
-    z, cov, parallax = triangulated(path.camera, pose, p1[inliers], p2[inliers], baseline)
-    return pose, z, cov, parallax, i2[inliers]
+    return PairPoints(pose, *triangulated(path.camera, pose, p1[inliers], p2[inliers], baseline), i2[inliers])

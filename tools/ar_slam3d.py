@@ -39,13 +39,11 @@ def monte_carlo(seeds: int, two_frames: dict) -> dict:
     runs = [(True, "adaptive"), (True, "fixed-25"), (True, "full"), (False, "adaptive"), (False, "fixed-25")]
     for identified, mode in runs:
         tracks = [fly(s, 300, mode, identified=identified, **two_frames) for s in range(seeds)]
-        position = _at_checkpoints(np.array([t.position_nees() for t in tracks]))
+        position, errors = _position(tracks, (low, high))
         vehicle = _at_checkpoints(np.array([t.vehicle_nees() for t in tracks]))
-        errors = np.array([np.linalg.norm(t.estimate - t.truth, axis=1) for t in tracks])
         key = f"{mode}, {'identified' if identified else 'nn association'}"
         cases[key] = {
-            "checkpoint_position_anees": position,
-            "inside": [low <= m <= high for m in position],
+            **position,
             "checkpoint_vehicle_anees": vehicle,
             "vehicle_inside": [low6 <= m <= high6 for m in vehicle],
             "rmse_m": round(float(np.sqrt(np.mean(errors**2))), 4),
@@ -74,12 +72,9 @@ def rendered_monte_carlo(seeds: int) -> dict:
     cases = {}
     for rotation in ("given", "vo"):
         flown = [fly_rendered(s, 300, "adaptive", rotation=rotation) for s in range(seeds)]
-        tracks = [track for track, _ in flown]
-        position = _at_checkpoints(np.array([t.position_nees() for t in tracks]))
-        errors = np.array([np.linalg.norm(t.estimate - t.truth, axis=1) for t in tracks])
+        position, errors = _position([track for track, _ in flown], (low, high))
         cases[rotation] = {
-            "checkpoint_position_anees": position,
-            "inside": [low <= m <= high for m in position],
+            **position,
             "rmse_m": round(float(np.sqrt(np.mean(errors**2))), 3),
             "final_error_m": [round(float(e), 2) for e in errors[:, -1]],
             "failed_frames": [c.failed for _, c in flown],
@@ -90,6 +85,15 @@ def rendered_monte_carlo(seeds: int) -> dict:
         print(rotation, cases[rotation], flush=True)
     band = [round(low, 2), round(high, 2)]
     return {"seeds": seeds, "checkpoints_frame": [c + 1 for c in CHECKPOINTS], "band_95": band, "cases": cases}
+
+
+def _position(tracks: list, band: tuple[float, float]) -> tuple[dict, np.ndarray]:
+    """The flights' position ANEES at the checkpoints and whether each lies inside ``band``, and their
+    position errors (flights, frames) m."""
+    anees = _at_checkpoints(np.array([t.position_nees() for t in tracks]))
+    inside = [band[0] <= m <= band[1] for m in anees]
+    errors = np.array([np.linalg.norm(t.estimate - t.truth, axis=1) for t in tracks])
+    return {"checkpoint_position_anees": anees, "inside": inside}, errors
 
 
 def _at_checkpoints(nees: np.ndarray) -> list[float]:

@@ -71,7 +71,7 @@ def main() -> None:
         for n in map(int, options.vehicles.split(",")):
             a, b = fly(n, short, Path(tmp)), fly(n, long, Path(tmp))
             for role in sorted(b):
-                per = [(y - x) / (n * (long - short)) for x, y in zip(a.get(role, [0.0] * 4), b[role])]
+                per = [(y - x) / (n * (long - short)) for x, y in zip(a.get(role, [0.0] * len(FIELDS)), b[role])]
                 scaled = [per[0] * 1e3, per[1] * 1e3, per[2], per[3]]  # ms, ms, switches, switches
                 print(f"| {n} | {role} | " + " | ".join(f"{v:.2f}" for v in scaled) + " |")
 

@@ -29,7 +29,7 @@ def write_report(run_dir: Path) -> Report:
     out.mkdir(exist_ok=True)
     notes = []
     if len(data.vehicles) > SHOWN:
-        notes.append(f"the per-vehicle figures show the {SHOWN} of {len(data.vehicles)} vehicles with the largest RMSE")
+        notes.append(f"the per-vehicle figures show {SHOWN} of {len(data.vehicles)} vehicles, each naming which")
     if not data.zones():
         notes.append("no jamming or spoofing zones in this run")
     if not data.maps:

@@ -44,11 +44,8 @@ def predict(x: np.ndarray, P: np.ndarray, dt: float, omega_var: float | np.ndarr
     axis of the fixed frame."""
     eye = np.eye(POINT)
     F = np.block([[eye, dt * eye], [np.zeros((3, 3)), eye]])
-    if np.ndim(omega_var) == 0:
-        Q = omega_var * np.block([[dt * dt * eye, dt * eye], [dt * eye, eye]])
-    else:
-        W = np.diag(np.asarray(omega_var, float))
-        Q = np.block([[dt * dt * W, dt * W], [dt * W, W]])
+    W = np.diag(np.broadcast_to(np.asarray(omega_var, float), POINT))
+    Q = np.block([[dt * dt * W, dt * W], [dt * W, W]])
     x_new = x.copy()
     x_new[:HEAD] = F @ x[:HEAD]
     P_new = P.copy()

@@ -71,7 +71,19 @@ def matched_geometry(
     when fewer than 8 matches or no F fits."""
     i1, i2, _ = match(image1, points1, image2, points2, spec)
     p1, p2 = points1[i1], points2[i2]
-    fitted = two_view.ransac(
+    fitted = fundamental(p1, p2, rng, spec)
+    if fitted is None:
+        return None
+    F, inliers = fitted
+    return F, p1[inliers], p2[inliers]
+
+
+def fundamental(
+    p1: np.ndarray, p2: np.ndarray, rng: np.random.Generator, spec: NccSpec = NccSpec()
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """RANSAC on F over matched pixels p1, p2 (m, 2) (``spec``'s threshold and iterations): (F (3, 3),
+    inlier mask (m,)), or None when fewer than 8 pairs or no F fits."""
+    return two_view.ransac(
         two_view.eight_point,
         two_view.epipolar_distances,
         8,
@@ -81,7 +93,3 @@ def matched_geometry(
         threshold=spec.threshold_px**2,
         iterations=spec.iterations,
     )
-    if fitted is None:
-        return None
-    F, inliers = fitted
-    return F, p1[inliers], p2[inliers]

@@ -180,10 +180,15 @@ class RelativePose:
 def relative_pose(F: np.ndarray, K: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> RelativePose:
     """E = K^T F K, its four decompositions, and the one with most triangulated points in front of
     both cameras (the cheirality check)."""
-    E = K.T @ F @ K
+    return most_in_front(decompose_essential(K.T @ F @ K), K, p1, p2)
+
+
+def most_in_front(candidates, K: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> RelativePose:
+    """The cheirality check: of the candidate (R, t), the one with most of the pairs p1, p2 (n, 2)
+    triangulated in front of both cameras (the first of equals)."""
     P1 = K @ np.hstack([np.eye(3), np.zeros((3, 1))])
     best = None
-    for R, t in decompose_essential(E):
+    for R, t in candidates:
         X = triangulate(P1, K @ np.hstack([R, t[:, None]]), p1, p2)
         front = int(np.sum((X[:, 2] > 0) & ((X @ R.T + t)[:, 2] > 0)))
         if best is None or front > best.in_front:
@@ -212,23 +217,17 @@ def translation_given_rotation(
     rays1 = np.column_stack([p1, np.ones(len(p1))]) @ K_inv.T
     rays2 = np.column_stack([p2, np.ones(len(p2))]) @ K_inv.T
     constraints = np.cross(rays1 @ R.T, rays2)  # (n, 3): t . a_i = 0
+    pairs = np.hstack([p1, p2])  # (n, 4): what the distances are measured on
 
     def fit(a: np.ndarray, _: np.ndarray) -> np.ndarray:
-        return np.linalg.svd(a)[2][-1]
+        return np.linalg.svd(a)[2][-1]  # t: the null vector of the sample's constraints
 
-    def distances(t: np.ndarray, _a: np.ndarray, _b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def distances(t: np.ndarray, _: np.ndarray, both: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         skew = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
-        return epipolar_distances(K_inv.T @ skew @ R @ K_inv, p1, p2)
+        return epipolar_distances(K_inv.T @ skew @ R @ K_inv, both[:, :2], both[:, 2:])
 
-    fitted = ransac(fit, distances, 2, constraints, constraints, rng, threshold=threshold_px**2, iterations=iterations)
+    fitted = ransac(fit, distances, 2, constraints, pairs, rng, threshold=threshold_px**2, iterations=iterations)
     if fitted is None:
         return None
     t, inliers = fitted
-    P1 = K @ np.hstack([np.eye(3), np.zeros((3, 1))])
-    best = None
-    for sign in (1.0, -1.0):
-        X = triangulate(P1, K @ np.hstack([R, sign * t[:, None]]), p1[inliers], p2[inliers])
-        front = int(np.sum((X[:, 2] > 0) & ((X @ R.T + sign * t)[:, 2] > 0)))
-        if best is None or front > best.in_front:
-            best = RelativePose(R, sign * t, X, front)
-    return best, inliers
+    return most_in_front(((R, t), (R, -t)), K, p1[inliers], p2[inliers]), inliers
