@@ -19,7 +19,17 @@ exactly, split CI on what is left, e_b = C^T P^-1 e_a + r), and ``tree`` (factor
 chain 1-2-...-n, split CI on the others); ``luft-two-sided`` is Luft et al.'s algorithm as published, both vehicles of
 the pair updated by the one joint update (which the trust model here does not allow: it is measured to
 see whether the one-sided form is what costs), sigma_ij sigma_ji^T with the reset sigma_ij = P_ij+,
-sigma_ji = I and sigma_ik <- P_ii+ P_ii^-1 sigma_ik for the others.
+sigma_ji = I and sigma_ik <- P_ii+ P_ii^-1 sigma_ik for the others. ``kia`` is Kia, Rounds and
+Martinez's interim-master algorithm (IEEE Control Systems 2016), exact with cycles: every vehicle keeps
+its own estimate and a copy of every pair's correlation factor sigma_jk (P_jk = Phi_j sigma_jk Phi_k^T,
+Phi the product of a vehicle's own motion Jacobians, the identity for these random walks), and each
+update (a relative measurement by the vehicle that made it, or vehicle 1's GNSS fix) is broadcast by
+its maker to every vehicle of the swarm: the normalised residual S^-1/2 r and the gains' terms of the
+two vehicles it measured; each vehicle l computes Gamma_j = (sigma_ja H_a^T + sigma_jb H_b^T) S^-1/2
+for every vehicle, moves its own estimate by Phi_l Gamma_l S^-1/2 r and its covariance by
+-Phi_l Gamma_l Gamma_l^T Phi_l^T, and every factor by sigma_jk <- sigma_jk - Gamma_j Gamma_k^T.
+``Regime.loss``: each broadcast misses each vehicle with this probability (a vehicle that misses one
+does not apply it: its estimate, covariance and copy of the factors stay as they were).
 """
 
 from __future__ import annotations
@@ -43,6 +53,7 @@ METHODS = (
     "factors-residual-ci",
     "tree",
     "luft-two-sided",
+    "kia",
 )
 
 
@@ -53,6 +64,8 @@ class Regime:
     prior: tuple[float, float, float] = (0.1, 0.1, 0.01)
     gnss_var: float = 0.5  # m^2 per axis, vehicle 1's fix
     gnss_every: int = 5  # epochs
+    loss: float = 0.0  # ``kia``: the probability that a broadcast misses a vehicle
+    seed: int = 0  # of the losses
 
 
 @dataclass(frozen=True)
@@ -76,6 +89,8 @@ def study(
         return _centralized(n, pairs, regime, epochs, settle)
     if method == "luft-two-sided":
         return _two_sided(n, pairs, regime, epochs, settle)
+    if method == "kia":
+        return _interim_master(n, pairs, regime, epochs, settle)
     swarm = _Decentralized(n, regime, method)
     nees, spread = [], []
     for k in range(epochs):
@@ -268,3 +283,119 @@ def _joint_update(P: list, sigma: dict, who: tuple[int, ...], H: np.ndarray, R: 
     if len(who) == 2:
         sigma[who], sigma[who[::-1]] = J_new[:POSE, POSE:], np.eye(POSE)
     return K
+
+
+@dataclass(frozen=True)
+class KiaOutcome(Outcome):
+    """An ``Outcome`` of ``kia`` (over the settled epochs before it broke down, NaN when it broke down
+    before), with the largest difference between any vehicle's covariance and the centralized
+    filter's block for it (0 to rounding when no broadcast is lost), the broadcasts each vehicle
+    receives per epoch (each update goes to the n - 1 others), and the epoch at which a vehicle's
+    books stopped describing a possible joint covariance (an update's S or a vehicle's covariance not
+    positive definite; None: it did not)."""
+
+    largest_gap: float = 0.0
+    messages_per_epoch: float = 0.0
+    broke_at: int | None = None
+
+
+def _interim_master(n: int, pairs: list[tuple[int, int]], regime: Regime, epochs: int, settle: int) -> KiaOutcome:
+    """Kia et al.'s algorithm (module docstring) beside the centralized filter and the truth."""
+    rng = np.random.default_rng(regime.seed)
+    Q, prior = np.diag(regime.q), np.diag(regime.prior)
+    P = [prior.copy() for _ in range(n)]  # each vehicle's own covariance
+    books = [{(j, k): np.zeros((POSE, POSE)) for j in range(n) for k in range(n) if j != k} for _ in range(n)]
+    central = np.kron(np.eye(n), prior)
+    Sigma = central.copy()
+    nees, spread, gap, sent, broke_at = [], [], 0.0, 0, None
+    for k in range(epochs):
+        P = [p + Q for p in P]  # Phi = I: the factors stay, P_jk = sigma_jk
+        central = central + np.kron(np.eye(n), Q)
+        Sigma = Sigma + np.kron(np.eye(n), Q)
+        updates = [((0,), (H_POSITION,), regime.gnss_var)] if k % regime.gnss_every == 0 else []
+        updates += [
+            ((own, their), (-H_POSITION, H_POSITION), regime.relative_var)
+            for a, b in pairs
+            for own, their in ((a, b), (b, a))
+        ]
+        for who, Hs, var in updates:
+            R = var * np.eye(2)
+            S = _innovation_cov(P, books[who[0]], who, Hs, R)
+            if not _positive(S):
+                broke_at = k
+                break
+            heard = [v for v in range(n) if v == who[0] or rng.random() >= regime.loss]
+            sent += n - 1
+            gains = _broadcast_update(P, books, heard, who, Hs, _inverse_root(S))
+            central = _joint_kalman(central, who, Hs, R, n)
+            Sigma = truth_after(Sigma, heard, list(who), np.vstack(gains), np.hstack(Hs), R)
+        if broke_at is None and not all(_positive(p) for p in P):
+            broke_at = k
+        if broke_at is not None:
+            break
+        gap = max(gap, max(float(np.abs(P[i] - central[_block(i), _block(i)]).max()) for i in range(n)))
+        if k >= settle:
+            blocks = [Sigma[_block(i), _block(i)] for i in range(n)]
+            nees.append([float(np.trace(np.linalg.solve(P[i], blocks[i]))) for i in range(n)])
+            spread.append(np.mean([np.trace(b[:2, :2]) for b in blocks]))
+    mean_nees = np.mean(nees, axis=0) if nees else np.full(n, np.nan)
+    rms = float(np.sqrt(np.mean(spread))) if spread else float("nan")
+    return KiaOutcome(mean_nees, rms, gap, sent / (k + 1) / n, broke_at)
+
+
+def _broadcast_update(P: list, books: list, heard: list[int], who, Hs, S_root_inv: np.ndarray) -> list[np.ndarray]:
+    """One update as the vehicles ``heard`` apply its broadcast (module docstring), P and books changed
+    in place: each computes every Gamma_j from its copy of the factors and the covariances before the
+    update. Returns their gains K_v = Gamma_v S^-1/2 (3, m), in the order of ``heard``."""
+    before, gains = list(P), []
+    for v in heard:
+        gammas = {j: _gamma(before, books[v], j, who, Hs) @ S_root_inv for j in range(len(P))}
+        gains.append(gammas[v] @ S_root_inv)
+        P[v] = P[v] - gammas[v] @ gammas[v].T
+        for (j, m), factor in books[v].items():
+            books[v][(j, m)] = factor - gammas[j] @ gammas[m].T
+    return gains
+
+
+def _positive(A: np.ndarray) -> bool:
+    return bool(np.linalg.eigvalsh(0.5 * (A + A.T)).min() > 0.0)
+
+
+def _block(i: int) -> slice:
+    return slice(POSE * i, POSE * i + POSE)
+
+
+def _cross(P: list, book: dict, j: int, m: int) -> np.ndarray:
+    """cov(e_j, e_m) as a vehicle's book has it (its own P on the diagonal)."""
+    return P[j] if j == m else book[(j, m)]
+
+
+def _innovation_cov(P: list, book: dict, who, Hs, R: np.ndarray) -> np.ndarray:
+    """S of an update of the vehicles ``who`` seen through ``Hs``, from the maker's book."""
+    S = R.copy()
+    for a, H_a in zip(who, Hs):
+        for b, H_b in zip(who, Hs):
+            S = S + H_a @ _cross(P, book, a, b) @ H_b.T
+    return S
+
+
+def _gamma(P: list, book: dict, j: int, who, Hs) -> np.ndarray:
+    """sum over the measured vehicles a of cov(e_j, e_a) H_a^T (3, m), from a book: the measured
+    vehicles' own rows are the maker's broadcast (it alone knows them: its own P, and the measured
+    neighbour's broadcast P), a third vehicle's the book's factors."""
+    return sum(_cross(P, book, j, a) @ H_a.T for a, H_a in zip(who, Hs))
+
+
+def _inverse_root(S: np.ndarray) -> np.ndarray:
+    """S^-1/2 (symmetric)."""
+    values, vectors = np.linalg.eigh(S)
+    return (vectors / np.sqrt(values)) @ vectors.T
+
+
+def _joint_kalman(P: np.ndarray, who, Hs, R: np.ndarray, n: int) -> np.ndarray:
+    H = np.zeros((2, POSE * n))
+    for a, H_a in zip(who, Hs):
+        H[:, _block(a)] = H_a
+    S = H @ P @ H.T + R
+    K = P @ H.T @ np.linalg.inv(S)
+    return P - K @ S @ K.T
