@@ -169,11 +169,13 @@ def fly(
     association: str = "nn",
     entry: str = "second",
     town: bool = True,
+    on_frame: Callable[[int, ArSlam3d, float], None] | None = None,
 ) -> Track:
     """One flight of ``frames`` frames with the back end in ``mode`` (MODES), each frame triangulated
     with the one ``baseline_frames`` before it; ``identified``: association by landmark id (the back
     end alone), else by ``association`` on the triangulated points; ``entry``: how points enter the map
-    (vehicle.estimators.ar_slam3d)."""
+    (vehicle.estimators.ar_slam3d); ``on_frame(k, back end, frame ms)``: called after each frame (a
+    recording), outside the frame's timing."""
     landmarks, positions, rotations = world(seed, frames + 1, town)
     rng = np.random.default_rng([seed, 5])
     dt = 1.0 / RATE_HZ
@@ -192,6 +194,8 @@ def fly(
         slam.frame(*seen[:2], rotations[k], seen[2] if identified else None)
         elapsed = (time.perf_counter() - start) * 1e3
         rows.append(track_row(slam, k, positions, elapsed, landmark_nees(slam, landmarks)))
+        if on_frame is not None:
+            on_frame(k, slam, elapsed)
     return Track(*(np.array(column) for column in zip(*rows)))
 
 

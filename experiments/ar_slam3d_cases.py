@@ -8,8 +8,9 @@ more than the comparison is worth; the Monte Carlo of docs/ar-slam.md measures n
 
 Each case is a run of its own in one process (``fly_case``): its track (track3d.npz) and its row of
 the table (case.json, the same keys as the 2-D cases' where they mean the same; the association's
-correct rate and false pairs are None, association being by id). ``conclude`` adds the paper's
-figures 7 and 8 for the cases that completed.
+correct rate and false pairs are None, association being by id) and, as a swarm run has, run.mcap
+and a Lichtblick layout: the flight, the map and its ellipsoids (experiments.ar_slam3d_recording).
+``conclude`` adds the paper's figures 7 and 8 for the cases that completed.
 """
 
 from __future__ import annotations
@@ -21,8 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from experiments.ar_slam3d import RATE_HZ, Track, fly
+from experiments.ar_slam3d import RATE_HZ, Track, fly, world
 from experiments.ar_slam3d_figures import figure_time, figure_track, summary
+from experiments.ar_slam3d_recording import FlightRecording
 from launch.runspec import RunSpec
 from vehicle.models import slam3d
 
@@ -51,8 +53,15 @@ def frames_of(duration_s: float) -> int:
 
 
 def fly_case(spec: RunSpec, config, run_dir: Path) -> list[str]:
-    """Fly one 3-D case in this process: its track and its row of the table."""
-    track = fly(spec.seed, frames_of(config.clock.duration_s), MODES[spec.variant])
+    """Fly one 3-D case in this process: its track, its row of the table and, unless the run records
+    nothing (``--no-record``), its run.mcap with a Lichtblick layout (experiments.ar_slam3d_recording)."""
+    frames = frames_of(config.clock.duration_s)
+    recording = FlightRecording(run_dir, world(spec.seed, frames + 1)[1]) if config.view.record else None
+    try:
+        track = fly(spec.seed, frames, MODES[spec.variant], on_frame=None if recording is None else recording.frame)
+    finally:
+        if recording is not None:
+            recording.close()
     np.savez_compressed(run_dir / TRACK, **asdict(track))
     (run_dir / CASE).write_text(json.dumps(case_row(spec.variant, track), indent=2, sort_keys=True) + "\n")
     return []

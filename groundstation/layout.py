@@ -62,24 +62,24 @@ def framing(world: WorldConfig) -> Framing:
 
 
 @dataclass(frozen=True)
-class _Plot:
+class Plot:
     key: str
     title: str
     series: tuple[tuple[str, str], ...]  # (label, message path or a number: a reference line)
 
 
-def _plots(vehicles: int) -> tuple[_Plot, ...]:
+def _plots(vehicles: int) -> tuple[Plot, ...]:
     """The plots beside the scene: per vehicle up to ``SHOWN`` vehicles, the swarm's RMS and
     largest error and mean NEES (against the band of a mean of ``vehicles`` NEES) beyond."""
     if vehicles > SHOWN:
         low, high = chi2_band(3, runs=vehicles)
         return (
-            _Plot(
+            Plot(
                 "error",
                 "position error [m]",
                 (("swarm RMS", "/swarm.rms_error_m"), ("swarm max", "/swarm.max_error_m")),
             ),
-            _Plot(
+            Plot(
                 "nees",
                 f"pose NEES (3 dof), mean of the {vehicles} vehicles",
                 (("swarm mean", "/swarm.mean_nees"), ("95 % low", f"{low:.4f}"), ("95 % high", f"{high:.4f}")),
@@ -88,19 +88,19 @@ def _plots(vehicles: int) -> tuple[_Plot, ...]:
     low, high = chi2_band(3)
     ids = range(1, vehicles + 1)
     return (
-        _Plot(
+        Plot(
             "error",
             "position error [m]",
             tuple((f"v{v}", f"{_topic(v, 'metrics')}.err_pos_m") for v in ids) + (("swarm RMS", "/swarm.rms_error_m"),),
         ),
-        _Plot(
+        Plot(
             "nees",
             "pose NEES (3 dof)",
             tuple((f"v{v}", f"{_topic(v, 'metrics')}.nees") for v in ids)
             + (("95 % low", f"{low:.4f}"), ("95 % high", f"{high:.4f}")),
         ),
-        _Plot("gnss", "GNSS test ratio", tuple((f"v{v}", f"{_topic(v, 'health')}.gnss_test_ratio") for v in ids)),
-        _Plot("loop", "loop overruns", tuple((f"v{v}", f"{_topic(v, 'loop')}.overruns") for v in ids)),
+        Plot("gnss", "GNSS test ratio", tuple((f"v{v}", f"{_topic(v, 'health')}.gnss_test_ratio") for v in ids)),
+        Plot("loop", "loop overruns", tuple((f"v{v}", f"{_topic(v, 'loop')}.overruns") for v in ids)),
     )
 
 
@@ -182,21 +182,40 @@ def foxglove_layout(vehicles: int, view: Framing) -> str:
 
 def lichtblick_layout(vehicles: int, view: Framing) -> str:
     """The layout as Lichtblick reads it (Layouts, Import, or ``?layoutUrl=``)."""
+    return lichtblick_document("swarm", view.camera(), _scene_topics(vehicles), _plots(vehicles), "/events")
+
+
+def lichtblick_document(
+    scene_title: str,
+    camera: dict[str, object],
+    topics: dict[str, dict],
+    plots: tuple[Plot, ...],
+    log_topic: str | None,
+    follow: tuple[str, str] = ("world", "follow-none"),
+    hidden_frames: tuple[str, ...] = (),
+    preload_transforms: bool = False,
+) -> str:
+    """A Lichtblick layout: a 3-D panel titled ``scene_title`` looking from ``camera`` (``Framing.camera``'s
+    keys) at ``topics`` (topic -> its settings), following the frame ``follow`` [0] in the mode
+    ``follow`` [1] (its axes and its line to the parent not drawn for the frames ``hidden_frames``),
+    beside a column of ``plots`` and, with ``log_topic``, a log panel of that topic under them;
+    ``preload_transforms``: the panel reads a recording's transforms ahead (what Lichtblick recommends,
+    with an alert, when a recording has a transform topic)."""
     config: dict[str, dict] = {
-        "3D!swarm": {
-            "lichtblickPanelTitle": "swarm",
-            "cameraState": view.camera(),
-            "followTf": "world",
-            "followMode": "follow-none",
-            "scene": {},
-            "transforms": {},
-            "topics": _scene_topics(vehicles),
+        f"3D!{scene_title}": {
+            "lichtblickPanelTitle": scene_title,
+            "cameraState": camera,
+            "followTf": follow[0],
+            "followMode": follow[1],
+            "scene": {"transforms": {"enablePreloading": True}} if preload_transforms else {},
+            "transforms": {f"frame:{frame}": {"visible": False} for frame in hidden_frames},
+            "topics": topics,
             "layers": {},
             "publish": {"type": "point", "poseTopic": "/move_base_simple/goal", "pointTopic": "/clicked_point"},
             "imageMode": {},
         }
     }
-    for plot in _plots(vehicles):
+    for plot in plots:
         config[f"Plot!{plot.key}"] = {
             "lichtblickPanelTitle": plot.title,
             "paths": [
@@ -213,17 +232,19 @@ def lichtblick_layout(vehicles: int, view: Framing) -> str:
             "yAxisLabel": plot.title,
             "sidebarDimension": 240,
         }
-    config["RosOut!events"] = {
-        "lichtblickPanelTitle": "events",
-        "searchTerms": [],
-        "minLogLevel": 1,
-        "topicToRender": "/events",
-    }
-    column: object = "RosOut!events"
-    panels = [f"Plot!{p.key}" for p in _plots(vehicles)]
-    for count, panel in enumerate(reversed(panels), start=1):  # each split gives its first an equal share
+    panels = [f"Plot!{p.key}" for p in plots]
+    if log_topic is not None:
+        config["RosOut!events"] = {
+            "lichtblickPanelTitle": "events",
+            "searchTerms": [],
+            "minLogLevel": 1,
+            "topicToRender": log_topic,
+        }
+        panels.append("RosOut!events")
+    column: object = panels[-1]
+    for count, panel in enumerate(reversed(panels[:-1]), start=1):  # each split gives its first an equal share
         column = {"direction": "column", "first": panel, "second": column, "splitPercentage": 100.0 / (count + 1)}
-    layout = {"direction": "row", "first": "3D!swarm", "second": column, "splitPercentage": 58.0}
+    layout = {"direction": "row", "first": f"3D!{scene_title}", "second": column, "splitPercentage": 58.0}
     data = {
         "configById": config,
         "globalVariables": {},

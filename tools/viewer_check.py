@@ -2,11 +2,13 @@
 the viewer complains: `make viewer-check LICHTBLICK=DIR` (outside CI: it needs a Lichtblick web
 build and Chromium; docs/live-view.md says how to get both).
 
-Three cases, each with the run's own Lichtblick layout (``layout-lichtblick.json``):
+Four cases, each with the run's own Lichtblick layout (``layout-lichtblick.json``):
 
 - ``live``: a 5-vehicle realtime `swarm up --live`, joined while it flies;
 - ``recording``: that run's run.mcap, opened near its end;
-- ``camera``: a camera swarm's run.mcap (`swarm experiment vision-slam`: terrain and landmarks).
+- ``camera``: a camera swarm's run.mcap (`swarm experiment vision-slam`: terrain and landmarks);
+- ``flight3d``: the 3-D AR-EKF-SLAM flight's run.mcap (`swarm experiment ar-slam`'s 3-D case: the
+  relief, the camera and the map's 3-sigma ellipsoids).
 
 For each it writes a screenshot, the browser console and what the Alerts tab says, and reads every
 plot's legend: each series must show a current value (its data arrived). It fails when the Alerts
@@ -39,9 +41,11 @@ SWARM = [sys.executable, "-m", "cli"]
 ALERTS_JS = """(async () => {
   const tab = [...document.querySelectorAll('[role=tab]')].find(e => e.innerText.startsWith('Alerts'));
   if (!tab) return 'no alerts tab';
+  const count = parseInt(tab.innerText.replace('Alerts', '').trim(), 10) || 0;
   tab.click();
   await new Promise(r => setTimeout(r, 1000));
-  return document.querySelector('[role=tabpanel]:not([hidden])')?.innerText ?? '';
+  const panel = document.querySelector('[role=tabpanel]:not([hidden])')?.innerText ?? '';
+  return count ? `${count} alert(s): ${panel || document.body.innerText.slice(0, 1500)}` : panel;
 })()"""
 LEGENDS_JS = """(() => [...document.querySelectorAll('[data-testid=plot-legend-row-path-label]')].map(label => {
   const row = label.closest('[class*=PlotLegendRow_tsx-root]');
@@ -242,6 +246,15 @@ def main(argv: list[str] | None = None) -> int:
         report["camera"] = browser.visit(
             f"{base}?ds=remote-file&ds.url={camera}/run.mcap&time=25&layoutUrl={camera}/layout-lichtblick.json",
             25, out / "camera.png",
+        )  # fmt: skip
+        subprocess.run(
+            [*SWARM, "experiment", "ar-slam", "--cases", "3-D ar-ekf-slam", "--out", str(out), "--quiet"],
+            cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
+        )  # fmt: skip
+        flight = f"http://127.0.0.1:{data}/ar-slam/3-D-ar-ekf-slam"
+        report["flight3d"] = browser.visit(
+            f"{base}?ds=remote-file&ds.url={flight}/run.mcap&time=60&layoutUrl={flight}/layout-lichtblick.json",
+            25, out / "flight3d.png",
         )  # fmt: skip
     finally:
         browser.close()

@@ -41,9 +41,9 @@ def test_an_unknown_case_is_refused_by_name(tmp_path):
 
 
 def test_the_papers_3d_cases_are_runs_beside_the_2d_ones(tmp_path):
-    """The 3-D back end's cases fly the same flight over relief, each a run with its row and track, and
-    the paper's figures 7 and 8 of them; full 3-D EKF-SLAM keeps every landmark, the adaptive range
-    fewer."""
+    """The 3-D back end's cases fly the same flight over relief, each a run with its row, track and
+    run.mcap, and the paper's figures 7 and 8 of them; full 3-D EKF-SLAM keeps every landmark, the
+    adaptive range fewer."""
     cases = "ar-ekf-slam,3-D ar-ekf-slam,3-D ekf-slam"
     result = _experiment("--cases", cases, "--duration", "12", "--out", str(tmp_path))
     assert result.returncode == 0, result.stdout + result.stderr
@@ -59,3 +59,5 @@ def test_the_papers_3d_cases_are_runs_beside_the_2d_ones(tmp_path):
     assert rows.loc["3-D-ekf-slam", "state_dim_max"] == full["state_dim_max"]
     figures = ("frame_time.png", "frame_time_3d.png", "track_3d.png")
     assert all((folder / figure).stat().st_size > 0 for figure in figures)
+    for run in ("3-D-ar-ekf-slam", "3-D-ekf-slam"):  # each flight, its map and ellipsoids to open in Lichtblick
+        assert (folder / run / "run.mcap").stat().st_size > 0 and (folder / run / "layout-lichtblick.json").exists()
