@@ -167,6 +167,7 @@ class SwarmConfig(_Strict):
         has = {
             "camera": bool(self.sensors.camera_rate_hz) or self.replay is not None,
             "map": bool(self.vehicle.landmarks),
+            "camera3d": bool(self.sensors.camera3d.rate_hz),
         }
         for need in sorted(ESTIMATORS[self.vehicle.estimator].needs):
             if not has[need]:

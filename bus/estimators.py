@@ -14,6 +14,7 @@ from typing import Literal
 NEEDS = {
     "camera": "a camera: set sensors.camera_rate_hz (e.g. 10), or replay a data set's sightings",
     "map": "the surveyed map: vehicle.landmarks",
+    "camera3d": "a UAV's 3-D camera: set sensors.camera3d.rate_hz (e.g. 10)",
 }
 
 
@@ -46,6 +47,11 @@ ESTIMATORS: dict[str, EstimatorEntry] = {
         "vehicle.estimators.ar_ekf_slam",
         "EKF-SLAM keeping only the landmarks within an adaptive range in its state (AR-EKF-SLAM paper)",
         frozenset({"camera"}),
+    ),
+    "ar-ekf-slam-3d": EstimatorEntry(
+        "vehicle.estimators.ar_ekf_slam_3d",
+        "the AR-EKF-SLAM paper's 3-D system: [p, v] + 3 per landmark from a UAV's 3-D camera and GNSS",
+        frozenset({"camera3d"}),
     ),
 }
 

@@ -116,7 +116,8 @@ def block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.ndar
         raise DecodeError(f"{topic}: {k} stamps need {k * width} values (at most {max_rows} rows), got {len(rows)}")
     seq0 = int_field(raw, "seq0", 0, MAX_SEQ)
     rows = rows.reshape(k, width)
-    once = topic not in SIGHTINGS
+    added = BY_TOPIC.get(topic)
+    once = topic not in SIGHTINGS and not (added is not None and added.several)
     if k <= SMALL_BLOCK_ROWS and topic is not Topic.PRIOR:
         values = struct.unpack(f"<{k * width}d", raw["data"])
         flaw = _flaw_small(struct.unpack(f"<{k}q", raw["stamp"]), values, stamp_us, max_abs, once)
@@ -126,7 +127,6 @@ def block(topic: str, raw: Any, vehicle_id: int, stamp_us: int) -> tuple[np.ndar
     if flaw is not None:
         who = "target" if topic is Topic.RANGING else "observer"
         raise DecodeError(f"{topic}: " + _MESSAGES[flaw].format(stamp_us=stamp_us, max_abs=max_abs, who=who))
-    added = BY_TOPIC.get(topic)
     if added is not None and len(rows) and (own := added.flaw(rows)) is not None:
         raise DecodeError(f"{topic}: expected {own}")
     return stamps, seq0, rows

@@ -22,6 +22,7 @@ import numpy as np
 
 from bus.config import ArSlamConfig
 from sim.pinhole import PAPER_K, PAPER_SIZE, Pinhole, look
+from sim.relief import rolling_hills as ground
 from vehicle.estimators.ar_slam3d import ArSlam3d
 from vehicle.models import slam3d
 from vehicle.vision.triangulation import camera_matrices, triangulate
@@ -35,11 +36,6 @@ MODES = {
     "fixed-25": dict(adaptive=False),
     "full": dict(adaptive=False, spec=ArSlamConfig(r0_m=10_000.0, r_max_m=10_000.0)),
 }
-
-
-def ground(xy: np.ndarray) -> np.ndarray:
-    """Relief (m) at (..., 2): rolling hills."""
-    return 6.0 * np.sin(xy[..., 0] / 60.0) * np.cos(xy[..., 1] / 45.0) + 3.0 * np.sin(xy[..., 0] / 23.0 + 1.0)
 
 
 @dataclass(frozen=True)

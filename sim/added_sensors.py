@@ -1,8 +1,9 @@
 """The sensors added by the sensor recipe (bus.sensors), measured by the world: each one whose
-datasheet section is on (``rate_hz`` > 0), at its rate, by its model (``world_model``), from the
-vehicle's true pose, unless a fault silences it. Each vehicle draws each added sensor's noise from a
-generator of its own (seeded by the world's seed, the vehicle and the sensor's name), so turning one
-on leaves every other noise stream of the world bit-identical."""
+datasheet section is on (``rate_hz`` > 0), at its rate, by its model (``world_model``: a function of
+the true pose giving one row, or a class built once from the configuration whose ``measure`` gives a
+measurement's rows), from the vehicle's true pose, unless a fault silences it. Each vehicle draws
+each added sensor's noise from a generator of its own (seeded by the world's seed, the vehicle and
+the sensor's name), so turning one on leaves every other noise stream of the world bit-identical."""
 
 from __future__ import annotations
 
@@ -30,7 +31,12 @@ class AddedSensors:
                     vid: np.random.default_rng([config.world.seed, vid, zlib.crc32(kind.topic.encode())])
                     for vid in vehicle_ids
                 }
-                self._sensors.append((kind.topic, resolve(kind.world_model), spec, period_us, rngs))
+                model = resolve(kind.world_model)
+                if isinstance(model, type):  # a model with state of its own: its rows per measurement
+                    model = model(config).measure
+                else:
+                    model = _one_row(model)
+                self._sensors.append((kind.topic, model, spec, period_us, rngs))
 
     @property
     def topics(self) -> tuple[str, ...]:
@@ -42,6 +48,16 @@ class AddedSensors:
             if t_us % period_us:
                 continue
             for vid, pose in zip(vehicle_ids, poses):
-                row = model(pose, spec, rngs[vid])  # drawn whether silenced or not: faults never shift noise
+                rows = model(vid, t_us, pose, spec, rngs[vid])  # drawn even when silenced: faults shift no noise
                 if not silenced(vid, topic):
-                    emit(vid, topic, row)
+                    for row in rows:
+                        emit(vid, topic, row)
+
+
+def _one_row(function: Callable) -> Callable:
+    """A world model ``(pose, spec, rng) -> row`` as a measurement's rows."""
+
+    def measure(vehicle_id: int, t_us: int, pose: np.ndarray, spec, rng: np.random.Generator) -> np.ndarray:
+        return function(pose, spec, rng)[None, :]
+
+    return measure

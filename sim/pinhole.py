@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bus.sensors.camera3d import PAPER_K, look  # noqa: F401 (the camera's intrinsics and mount, here too)
 from sim.relief import Relief
 
-PAPER_K = np.array([[1015.78212, 0.0, 320.03704], [0.0, 1012.65800, 240.40334], [0.0, 0.0, 1.0]])
 PAPER_SIZE = (640, 480)
 MARCH_STEPS = 48
 BISECTIONS = 10
@@ -43,15 +43,6 @@ class Pinhole:
         camera = (X - C) @ R_wc  # R_wc^T (X - C), row by row
         pixels = camera @ self.K.T
         return pixels[:, :2] / pixels[:, 2:3], camera[:, 2]
-
-
-def look(yaw: float, pitch: float) -> np.ndarray:
-    """R_wc (3, 3): camera axes (x right, y down, z forward) in the world, the optical axis at heading
-    ``yaw`` and ``pitch`` below the horizon."""
-    forward = np.array([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), -np.sin(pitch)])
-    right = np.array([np.sin(yaw), -np.cos(yaw), 0.0])
-    down = np.cross(forward, right)
-    return np.column_stack([right, down, forward])
 
 
 def render(

@@ -19,6 +19,12 @@ from sim.terrain import procedural_terrain
 ROW = 1024  # points per row of the maps cv2.remap is handed
 
 
+def rolling_hills(xy: np.ndarray) -> np.ndarray:
+    """An analytic relief (m) at world points (..., 2) m: rolling hills of up to 9 m (the 3-D
+    AR-EKF-SLAM flights', experiments.ar_slam3d and sim.sensor_models.camera3d)."""
+    return 6.0 * np.sin(xy[..., 0] / 60.0) * np.cos(xy[..., 1] / 45.0) + 3.0 * np.sin(xy[..., 0] / 23.0 + 1.0)
+
+
 @dataclass(frozen=True)
 class Relief:
     """The ground texture (H, W) uint8 and its height (H, W) float32 [m], ``metres_per_pixel`` apart."""

@@ -6,9 +6,10 @@ measurements and the filters' parts come from here (docs/tutorial/adding-a-senso
 from __future__ import annotations
 
 from bus.sensors.base import SensorKind, SensorSpec
+from bus.sensors.camera3d import Camera3d
 from bus.sensors.compass import Compass
 
-SENSORS: tuple[type[SensorKind], ...] = (Compass,)
+SENSORS: tuple[type[SensorKind], ...] = (Compass, Camera3d)
 BY_TOPIC = {sensor.topic: sensor for sensor in SENSORS}
 
 __all__ = ["BY_TOPIC", "SENSORS", "SensorKind", "SensorSpec"]

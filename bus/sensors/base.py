@@ -3,10 +3,14 @@ rest is derived:
 
 - ``topic``: its name on the wire, in a batch's blocks, in link-fault globs and blackouts;
 - ``width``, ``max_rows``, ``max_abs``: a row's values, how many rows a batch may carry, their bound
-  (the feed's common checks: bus.feed_blocks), and ``flaw`` for checks of its own;
+  (the feed's common checks: bus.feed_blocks), ``several`` whether one stamp may carry several rows
+  (a camera frame's points; else one sample per stamp), and ``flaw`` for checks of its own;
 - ``message``: the typed message a row becomes (what the vehicle's filter hands its part);
 - ``Spec``: its section of the datasheet (``sensors.<topic>``; ``rate_hz`` 0: the sensor is off);
-- ``world_model``: the function the world measures it with (``"module:function"``, in sim/);
+- ``world_model``: what the world measures it with (``"module:name"``, in sim/): a function
+  ``(pose, spec, rng) -> row``, or a class built once from the swarm's configuration whose
+  ``measure(vehicle_id, t_us, pose, spec, rng)`` returns the rows (k, width) of one measurement (a
+  sensor that keeps state, or sees many things at once);
 - ``part``: the function that builds the filter part that fuses it (``"module:function"``, in
   vehicle/estimators/): every estimator of a vehicle whose datasheet has the sensor on gets it.
 
@@ -34,6 +38,7 @@ class SensorKind:
     width: ClassVar[int]
     max_rows: ClassVar[int]
     max_abs: ClassVar[float]
+    several: ClassVar[bool] = False
     Spec: ClassVar[type[SensorSpec]]
     world_model: ClassVar[str]
     part: ClassVar[str]

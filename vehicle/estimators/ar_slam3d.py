@@ -1,7 +1,8 @@
 """The AR-EKF-SLAM paper's three-dimensional back end: the 6 + 3n EKF (vehicle.models.slam3d) with the
 adaptive observation range in 3-D distance, data association on the triangulated points
 (vehicle.association, of dimension 3), and marginalisation of what leaves the range. Pure: no bus, no
-clock; not yet an estimator a vehicle process runs (docs/ar-slam.md says what is missing).
+clock; the experiments fly it, and ``ar-ekf-slam-3d`` (vehicle.estimators.ar_ekf_slam_3d) runs it in
+a vehicle process.
 
 Per camera frame (``frame``): the state is predicted to the frame (constant velocity); the landmarks
 in the state farther than R from the camera are retired (marginalised out);
@@ -40,6 +41,7 @@ from vehicle.models import added_states, slam3d
 from vehicle.models.kalman import gated_update
 
 CANDIDATE_FRAMES = 5
+AMBIGUOUS = -2  # an assignment's mark for a point set aside (``unambiguous``)
 Entry = Literal["first", "second"]
 
 
@@ -81,8 +83,10 @@ class ArSlam3d:
         gate_probability: float = 0.999,
         entry: Entry = "second",
         seed: int = 0,
+        unambiguous: bool = False,
     ) -> None:
         self.x, self.P = np.asarray(x0, float).copy(), np.asarray(P0, float).copy()
+        self.unambiguous = unambiguous
         self.spec, self.omega_var, self.adaptive = spec, omega_var, adaptive
         self.associate = METHODS[association]
         self.gate_probability = gate_probability
@@ -92,22 +96,50 @@ class ArSlam3d:
         self.ids = np.zeros(0, np.int64)  # each state landmark's id where the frames are identified (else -1)
         self.entry = entry
         self.candidates: list[Candidate] = []
+        self._shared: tuple | None = None  # while a frame with shared errors is fused: where they start, G, R_z
         self.frames = 0
 
     def landmarks(self) -> np.ndarray:
         """The landmarks in the state (n, 3)."""
         return self.x[slam3d.HEAD :].reshape(-1, 3)
 
-    def predict(self, dt: float) -> None:
-        self.x, self.P = slam3d.predict(self.x, self.P, dt, self.omega_var)
+    def predict(self, dt: float, omega_var: float | np.ndarray | None = None) -> None:
+        """The constant-velocity step of ``dt`` s with the velocity's white increment ``omega_var`` over
+        it (m^2/s^2; None: the back end's per-frame ``omega_var``)."""
+        increment = self.omega_var if omega_var is None else omega_var
+        self.x, self.P = slam3d.predict(self.x, self.P, dt, increment)
 
-    def frame(self, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray, ids: np.ndarray | None = None) -> None:
+    def position_fix(self, xy: np.ndarray, cov: np.ndarray, gate: float):
+        """A horizontal position fix (a GNSS receiver's) xy (2,) m with covariance (2, 2): one gated
+        update of the position's first two rows; the update's result."""
+        H = np.zeros((2, len(self.x)))
+        H[0, 0] = H[1, 1] = 1.0
+        self.x, self.P, result = gated_update(self.x, self.P, xy - self.x[:2], H, cov, gate, columns=np.arange(2))
+        return result
+
+    def frame(
+        self,
+        z: np.ndarray,
+        R_z: np.ndarray,
+        rotation: np.ndarray,
+        ids: np.ndarray | None = None,
+        common: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
         """One frame's triangulated points z (k, 3) with covariances R_z (k, 3, 3), camera rotation
         ``rotation`` (3, 3) (module docstring); the state must be predicted to the frame first.
         ``ids`` (k,): the points' landmark ids where the frame is identified (association by id,
-        as a replay's identified sightings), else the configured association method."""
+        as a replay's identified sightings), else the configured association method. ``common``:
+        errors the frame's points share (the rotation's, the baseline's), as G (k, 3, c), the
+        innovation of each point per unit of each error, and their covariance (c, c); they are
+        states while the frame's points are fused and new landmarks enter (so that they count once,
+        and a new landmark keeps them as correlations), and marginalised after."""
         self._retire()
         n = slam3d.landmarks(self.x)
+        G, shared = common if common is not None else (np.zeros((len(z), 3, 0)), np.zeros((0, 0)))
+        first = len(self.x)  # the shared errors' first row while they are in the state
+        self.x, self.P = np.append(self.x, np.zeros(len(shared))), np.pad(self.P, ((0, len(shared)), (0, len(shared))))
+        self.P[first:, first:] = shared
+        R_alone = R_z + np.einsum("nic,cd,njd->nij", G, shared, G)  # a point's noise with its share
         if ids is not None:
             where = {int(ident): j for j, ident in enumerate(self.ids.tolist())}
             assignment = np.array([where.get(int(ident), -1) for ident in ids], dtype=np.int64)
@@ -115,21 +147,51 @@ class ArSlam3d:
             predicted, H = zip(*(slam3d.observe(self.x, j, rotation) for j in range(n)))
             H = np.vstack(H)
             gated = problem(
-                z, R_z, np.array(predicted), H @ self.P @ H.T, gate_probability=self.gate_probability, angles=()
+                z, R_alone, np.array(predicted), H @ self.P @ H.T, gate_probability=self.gate_probability, angles=()
             )
             assignment = self.associate(gated, self.rng)
+            if self.unambiguous:
+                assignment = _without_ambiguous(assignment, gated.candidates)
         else:
             assignment = np.full(len(z), -1)
         for i in np.flatnonzero(assignment >= 0):
             j = int(assignment[i])
             h, H_j = slam3d.observe(self.x, j, rotation)
-            columns = np.r_[: slam3d.POINT, slam3d.landmark_slice(j)]  # the position and landmark j
+            H_j[:, first:] = G[i]
+            columns = np.r_[: slam3d.POINT, slam3d.landmark_slice(j), first : len(self.x)]  # position, X_j, shared
             self.x, self.P, result = gated_update(self.x, self.P, z[i] - h, H_j, R_z[i], self.gate, columns=columns)
             self.book.fused += int(result.accepted)
             self.book.gated_out += int(not result.accepted)
-        self._enter(np.flatnonzero(assignment < 0), z, R_z, rotation, ids)
+        self._shared = (first, G, R_z) if len(shared) else None  # new landmarks meet the shared errors
+        self._enter(np.flatnonzero(assignment == -1), z, R_alone, rotation, ids)
+        first = self._shared[0] if self._shared is not None else len(self.x)
+        self._shared = None
+        self.x, self.P = self.x[:first], self.P[:first, :first]  # marginalised out
         if self.adaptive:
             self.book.radius_m = next_radius(self.book.radius_m, slam3d.landmarks(self.x), self.spec)
+
+    def turn_velocity(self, angle_rad: float, angle_var: float) -> None:
+        """The horizontal velocity turned by ``angle_rad`` about the vertical, that angle uncertain by
+        ``angle_var`` (rad^2): v' = R_z(a) v, P' = T P T^T + var (d v'/d a)(d v'/d a)^T."""
+        c, s = np.cos(angle_rad), np.sin(angle_rad)
+        turn = np.array([[c, -s], [s, c]])
+        self.x[3:5] = turn @ self.x[3:5]
+        self.P[3:5, :] = turn @ self.P[3:5, :]
+        self.P[:, 3:5] = self.P[:, 3:5] @ turn.T
+        across = np.array([-self.x[4], self.x[3]])
+        self.P[3:5, 3:5] += angle_var * np.outer(across, across)
+
+    def relocalize(self, xy: np.ndarray, cov: np.ndarray, velocity_var: float) -> None:
+        """Lost: the map dropped (its landmarks were placed from a pose that is wrong), the horizontal
+        position put at ``xy`` (2,) m with covariance ``cov`` (2, 2) (an absolute fix's), the rest of
+        the vehicle's state kept with its variances only, ``velocity_var`` (m^2/s^2) added on the
+        horizontal velocity."""
+        head = slam3d.HEAD
+        self.x, self.P = self.x[:head].copy(), np.diag(np.diagonal(self.P)[:head])
+        self.x[:2] = xy
+        self.P[:2, :2] = cov
+        self.P[[3, 4], [3, 4]] += velocity_var
+        self.ids, self.candidates = self.ids[:0], []
 
     def _enter(self, unpaired: np.ndarray, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray, ids) -> None:
         """New landmarks from the unpaired points (module docstring, ``entry``)."""
@@ -137,11 +199,11 @@ class ArSlam3d:
         within = [int(i) for i in unpaired if np.linalg.norm(z[i]) <= self.book.radius_m]
         if self.entry == "first":
             for i in within:
-                self._add(z[i], R_z[i], rotation, -1 if ids is None else int(ids[i]))
+                self._add(i, z[i], R_z[i], rotation, -1 if ids is None else int(ids[i]))
             return
         seconds = self._seen_again(unpaired, z, R_z, rotation, ids)
         for i, candidate in seconds.items():
-            self._add(z[i], R_z[i], rotation, candidate.ident)
+            self._add(i, z[i], R_z[i], rotation, candidate.ident)
         taken = {id(c) for c in seconds.values()}
         self.candidates = [
             c for c in self.candidates if id(c) not in taken and self.frames - c.frame < CANDIDATE_FRAMES
@@ -171,8 +233,18 @@ class ArSlam3d:
     def _in_the_map(self, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.x[:3] + rotation @ z, self.P[:3, :3] + rotation @ R_z @ rotation.T
 
-    def _add(self, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray, ident: int) -> None:
-        self.x, self.P = slam3d.add_landmark(self.x, self.P, z, R_z, rotation)
+    def _add(self, i: int, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray, ident: int) -> None:
+        """Point i of the frame, z (3,) with R_z (3, 3) its noise with its share of the frame's shared
+        errors, enters the map. With shared errors (``frame``'s ``common``) it is placed from the state
+        that still carries them: X = p + R (z - G_i c), so that the errors it shares with the frame's
+        other points and with the pose stay correlations of P, not independent noise (the paper's
+        P_new with grad g_X widened to those rows)."""
+        if self._shared is None:
+            self.x, self.P = slam3d.add_landmark(self.x, self.P, z, R_z, rotation)
+        else:
+            first, G, R_pixels = self._shared
+            self.x, self.P = _insert_point(self.x, self.P, first, z, R_pixels[i], -rotation @ G[i], rotation)
+            self._shared = (first + slam3d.POINT, G, R_pixels)
         self.ids = np.append(self.ids, ident)
         self.book.added += 1
 
@@ -186,3 +258,43 @@ class ArSlam3d:
         drop = (slam3d.HEAD + slam3d.POINT * far[:, None] + np.arange(slam3d.POINT)).ravel().tolist()
         self.x, self.P = added_states.drop_states(self.x, self.P, drop)
         self.ids = np.delete(self.ids, far)
+
+
+def _without_ambiguous(assignment: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+    """The assignment (k,) with every point that another landmark's gate also admits, or whose
+    landmark's gate admits another point, set aside (-2: neither fused nor entered): a pairing the
+    gate cannot single out is the likeliest wrong one when the pose is uncertain. ``candidates``
+    (k, m) bool: the individually compatible pairs."""
+    out = assignment.copy()
+    paired = np.flatnonzero(assignment >= 0)
+    rivals = (candidates[paired].sum(axis=1) > 1) | (candidates[:, assignment[paired]].sum(axis=0) > 1)
+    out[paired[rivals]] = AMBIGUOUS
+    return out
+
+
+def _insert_point(
+    x: np.ndarray,
+    P: np.ndarray,
+    at: int,
+    z: np.ndarray,
+    R_z: np.ndarray,
+    shared_jacobian: np.ndarray,
+    rotation: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The state grown by the landmark X = p + R z seen at z (3,) with noise R_z (3, 3), inserted at
+    row ``at`` before the shared errors' rows (from ``at`` on), X's Jacobian on which is
+    ``shared_jacobian`` (3, len(x) - at)."""
+    n = len(x)
+    J = np.zeros((slam3d.POINT, n))
+    J[:, : slam3d.POINT] = np.eye(slam3d.POINT)
+    J[:, at:] = shared_jacobian
+    cross = J @ P
+    block = cross @ J.T + rotation @ R_z @ rotation.T
+    keep = np.r_[:at, at + slam3d.POINT : n + slam3d.POINT]
+    new = np.arange(at, at + slam3d.POINT)
+    P_new = np.empty((n + slam3d.POINT, n + slam3d.POINT))
+    P_new[np.ix_(keep, keep)] = P
+    P_new[np.ix_(new, keep)] = cross
+    P_new[np.ix_(keep, new)] = cross.T
+    P_new[np.ix_(new, new)] = 0.5 * (block + block.T)
+    return np.insert(x, at, x[: slam3d.POINT] + rotation @ z), P_new

@@ -1,0 +1,81 @@
+"""3-D AR-EKF-SLAM through the real processes (lockstep): two UAVs of scenarios/uav-3d.toml, their
+GNSS jammed and one camera blacked out for a while, map the points their cameras track, publish
+estimates the ground station scores for the whole flight, and come back onto GNSS after the jam."""
+
+import csv
+import math
+
+import pytest
+
+from tests.integration.conftest import ESTIMATES_PER_S, read_summary, run_swarm
+
+pytestmark = pytest.mark.integration
+
+SCENARIO = """
+[world]
+vehicles = 2
+seed = 2
+
+[clock]
+duration_s = 30
+
+[vehicle]
+estimator = "ar-ekf-slam-3d"
+
+[sensors.camera3d]
+rate_hz = 10
+
+[[faults]]
+name = "jammer"
+kind = "jam-gnss"
+center_m = [0.0, 0.0]
+radius_m = 500.0
+start_s = 8.0
+for_s = 14.0
+
+[[faults]]
+name = "camera-out"
+kind = "blackout"
+vehicle = 1
+sensor = "camera3d"
+start_s = 12.0
+for_s = 3.0
+"""
+
+
+@pytest.fixture(scope="module")
+def flight(tmp_path_factory):
+    out = tmp_path_factory.mktemp("uav3d")
+    scenario = out / "uav.toml"
+    scenario.write_text(SCENARIO)
+    result = run_swarm(out, str(scenario), "--mode", "lockstep", "--name", "uav", timeout_s=400)
+    assert result.returncode == 0, result.stdout + result.stderr
+    return out / "uav"
+
+
+def _errors(run, vehicle: int) -> dict[float, float]:
+    with (run / "metrics.csv").open() as handle:
+        return {
+            float(r["t_s"]): math.hypot(float(r["err_x_m"]), float(r["err_y_m"]))
+            for r in csv.DictReader(handle)
+            if r["vehicle"] == str(vehicle)
+        }
+
+
+def test_every_uav_is_scored_for_the_whole_flight(flight):
+    summary = read_summary(flight)
+    assert summary["status"] == "complete" and summary["faults"]["total"] == 2
+    for vid in ("1", "2"):
+        vehicle = summary["vehicles"][vid]
+        assert vehicle["samples"] == 30 * ESTIMATES_PER_S + 1
+        assert vehicle["landmarks"] > 0 and vehicle["decode_errors"] == 0
+    assert summary["vehicles"]["1"]["camera_frames_used"] < summary["vehicles"]["2"]["camera_frames_used"]
+
+
+def test_the_map_carries_the_uavs_through_the_jam_and_gnss_takes_them_back(flight):
+    for vid in (1, 2):
+        errors = _errors(flight, vid)
+        jammed = [e for t, e in errors.items() if 8.0 <= t <= 22.0]
+        after = [e for t, e in errors.items() if t >= 26.0]
+        assert max(jammed) < 10.0, max(jammed)
+        assert max(after) < 2.0, max(after)
