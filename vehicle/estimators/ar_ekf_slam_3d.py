@@ -42,7 +42,7 @@ import numpy as np
 
 from bus import messages as m
 from bus.angles import wrap_angle
-from bus.config import VehicleProcessConfig
+from bus.config import ArSlamConfig, VehicleProcessConfig
 from bus.estimate import Health, PoseEstimate
 from bus.sensors.camera3d import Camera3dSpec, TrackedPoint
 from bus.sensors.camera3d import look as camera_rotation
@@ -79,7 +79,7 @@ class ArEkfSlam3d:
 
     name = "ar-ekf-slam-3d"
 
-    def __init__(self, vehicle_id: int, camera: Camera3dSpec, ar: Any, association: str = "nn") -> None:
+    def __init__(self, vehicle_id: int, camera: Camera3dSpec, ar: ArSlamConfig, association: str = "nn") -> None:
         self.vehicle_id, self.camera = vehicle_id, camera
         self._ar, self._association = ar, association
         self._pitch = np.deg2rad(camera.pitch_deg)

@@ -6,22 +6,13 @@ is the estimator that fuses them."""
 from __future__ import annotations
 
 from bus.config import SensorSpec
-from vehicle.estimators.parts import Handler
-from vehicle.estimators.state import FilterState
+from vehicle.estimators.parts import BooklessPart, Handler
 
 
-class Camera3dUnused:
+class Camera3dUnused(BooklessPart):
     """A planar filter's part for the 3-D camera: nothing (module docstring)."""
 
     def __init__(self, spec: SensorSpec) -> None: ...
 
     def handlers(self) -> dict[type, Handler]:
         return {}
-
-    def start(self, s: FilterState) -> None: ...
-    def initialise(self, s: FilterState) -> None: ...
-    def position_reset(self, s: FilterState) -> None: ...
-    def recovered(self, s: FilterState) -> None: ...
-
-    def landmark_map(self, s: FilterState) -> None:
-        return None

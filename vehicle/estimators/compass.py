@@ -10,14 +10,13 @@ from bus.angles import wrap_angle
 from bus.config import SensorSpec
 from bus.sensors.compass import CompassHeading
 from bus.statistics import gate_threshold
-from vehicle.estimators.parts import Fusing, Handler
-from vehicle.estimators.state import FilterState
+from vehicle.estimators.parts import BooklessPart, Fusing, Handler
 
 HEADING = 2  # the heading's index in every vehicle state [x, y, theta, ...]
 GATE_PROBABILITY = 0.9995  # as the GNSS gate's default
 
 
-class CompassPart:
+class CompassPart(BooklessPart):  # the compass keeps no book in the state
     """Compass headings into the heading state (module docstring)."""
 
     def __init__(self, spec: SensorSpec) -> None:
@@ -37,12 +36,3 @@ class CompassPart:
             self.fused += 1
         else:
             self.rejected += 1
-
-    # the state's life: the compass keeps no book in the state
-    def start(self, s: FilterState) -> None: ...
-    def initialise(self, s: FilterState) -> None: ...
-    def position_reset(self, s: FilterState) -> None: ...
-    def recovered(self, s: FilterState) -> None: ...
-
-    def landmark_map(self, s: FilterState) -> None:
-        return None
