@@ -41,7 +41,7 @@ def main() -> None:
     for item in args.set:
         key, _, value = item.partition("=")
         section, _, name = key.partition(".")
-        overrides.setdefault(section, {})[name] = float(value)
+        overrides.setdefault(section, {})[name] = json.loads(value)  # a number, or a list in JSON
     seeds = range(1, args.seeds + 1)
     with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
         runs = pool.map(flight, [(args.scenario, seed, overrides) for seed in seeds])
