@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from bus.config import ArSlamConfig
-from sim.pinhole import PAPER_K, PAPER_SIZE, Pinhole, look
+from bus.sensors.camera3d import PAPER_K, look
+from sim.pinhole import PAPER_SIZE, Pinhole
 from sim.relief import rolling_hills as ground
 from vehicle.estimators.ar_slam3d import ArSlam3d
 from vehicle.models import slam3d

@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.pinhole import Pinhole, look, render
+from bus.sensors.camera3d import look
+from sim.pinhole import Pinhole, render
 from sim.relief import Relief, relief_terrain
 from vehicle.vision import ncc, susan, two_view
 from vehicle.vision.features import detect, make_detector

@@ -2,11 +2,11 @@
 480 pixels (``scale`` shrinks the frame and K alike: fx, fy, cx, cy times the scale), frames rendered
 by casting every pixel's ray onto the height field, with pixel noise. Pure.
 
-Camera frame: x right, y down, z along the optical axis; ``look(yaw, pitch)`` points the axis at
-heading ``yaw`` (rad from east, counter-clockwise) and ``pitch`` below the horizon. A ray
-X(t) = C + t d (d = R_wc K^-1 [u, v, 1], t the depth along the axis) is marched in ``MARCH_STEPS``
-steps from ``near_m`` to ``far_m`` to the first point below the ground, then bisected
-``BISECTIONS`` times; a ray that meets no ground by ``far_m`` sees the sky (grey ``SKY``, depth inf).
+Camera frame: x right, y down, z along the optical axis; ``look(yaw, pitch)`` (bus.sensors.camera3d:
+the mount the world and the vehicles share) points the axis at heading ``yaw`` (rad from east,
+counter-clockwise) and ``pitch`` below the horizon. A ray X(t) = C + t d (d = R_wc K^-1 [u, v, 1],
+t the depth along the axis) is marched in ``MARCH_STEPS`` steps from ``near_m`` to ``far_m`` to the
+first point below the ground, then bisected ``BISECTIONS`` times; a ray that meets no ground by ``far_m`` sees the sky (grey ``SKY``, depth inf).
 Rendering returns the depth of every pixel too: the truth a test or a benchmark projects through.
 """
 
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bus.sensors.camera3d import PAPER_K, look  # noqa: F401 (the camera's intrinsics and mount, here too)
+from bus.sensors.camera3d import PAPER_K
 from sim.relief import Relief
 
 PAPER_SIZE = (640, 480)

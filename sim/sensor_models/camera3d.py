@@ -18,8 +18,8 @@ import numpy as np
 from bus.angles import wrap_angle
 from bus.config import SwarmConfig
 from bus.pads import start_pads
-from bus.sensors.camera3d import Camera3dSpec
-from sim.pinhole import Pinhole, look
+from bus.sensors.camera3d import Camera3dSpec, look
+from sim.pinhole import Pinhole
 from sim.relief import rolling_hills
 
 SLIP_RATE, SLIP_PX = 0.01, (5.0, 20.0)

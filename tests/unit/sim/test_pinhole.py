@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.pinhole import Pinhole, look, render
+from bus.sensors.camera3d import look
+from sim.pinhole import Pinhole, render
 from sim.relief import relief_terrain
 
 

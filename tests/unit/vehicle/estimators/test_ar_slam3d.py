@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from bus.config import ArSlamConfig
+from bus.sensors.camera3d import look
 from bus.statistics import chi2_band
 from experiments.ar_slam3d import landmark_nees
-from sim.pinhole import look
 from vehicle.estimators.ar_slam3d import ArSlam3d
 
 DT, OMEGA_VAR = 0.1, 4e-4
