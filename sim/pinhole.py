@@ -6,8 +6,9 @@ Camera frame: x right, y down, z along the optical axis; ``look(yaw, pitch)`` (b
 the mount the world and the vehicles share) points the axis at heading ``yaw`` (rad from east,
 counter-clockwise) and ``pitch`` below the horizon. A ray X(t) = C + t d (d = R_wc K^-1 [u, v, 1],
 t the depth along the axis) is marched in ``MARCH_STEPS`` steps from ``near_m`` to ``far_m`` to the
-first point below the ground, then bisected ``BISECTIONS`` times; a ray that meets no ground by ``far_m`` sees the sky (grey ``SKY``, depth inf).
-Rendering returns the depth of every pixel too: the truth a test or a benchmark projects through.
+first point below the ground, then bisected ``BISECTIONS`` times; a ray that meets no ground by
+``far_m`` sees the sky (grey ``SKY``, depth inf). Rendering returns the depth of every pixel too:
+the truth a test or a benchmark projects through.
 """
 
 from __future__ import annotations
