@@ -1,6 +1,7 @@
 """3-D AR-EKF-SLAM through the real processes (lockstep): two UAVs of scenarios/uav-3d.toml, their
-GNSS jammed and one camera blacked out for a while, map the points their cameras track, publish
-estimates the ground station scores for the whole flight, and come back onto GNSS after the jam."""
+GNSS jammed, one camera blacked out for a while and a fifth of the other's tracked points lost on
+the way, map the points their cameras track, publish estimates the ground station scores for the
+whole flight, and come back onto GNSS after the jam."""
 
 import csv
 import math
@@ -40,6 +41,15 @@ vehicle = 1
 sensor = "camera3d"
 start_s = 12.0
 for_s = 3.0
+
+[[faults]]
+name = "points-lost"
+kind = "loss"
+percent = 20.0
+dst = "v2"
+topic = "camera3d"
+start_s = 5.0
+for_s = 20.0
 """
 
 
@@ -64,18 +74,21 @@ def _errors(run, vehicle: int) -> dict[float, float]:
 
 def test_every_uav_is_scored_for_the_whole_flight(flight):
     summary = read_summary(flight)
-    assert summary["status"] == "complete" and summary["faults"]["total"] == 2
+    assert summary["status"] == "complete" and summary["faults"]["total"] == 3
     for vid in ("1", "2"):
         vehicle = summary["vehicles"][vid]
         assert vehicle["samples"] == 30 * ESTIMATES_PER_S + 1
         assert vehicle["landmarks"] > 0 and vehicle["decode_errors"] == 0
+        assert vehicle["consistency"]["inside"], vehicle["consistency"]  # position and heading, two-sided
     assert summary["vehicles"]["1"]["camera_frames_used"] < summary["vehicles"]["2"]["camera_frames_used"]
+    assert summary["vehicles"]["2"]["sensor_samples_lost"] > 0 == summary["vehicles"]["1"]["sensor_samples_lost"]
 
 
 def test_the_map_carries_the_uavs_through_the_jam_and_gnss_takes_them_back(flight):
+    """The blacked-out camera's UAV flies on its gyro and constant velocity for 3 s: it drifts most."""
     for vid in (1, 2):
         errors = _errors(flight, vid)
         jammed = [e for t, e in errors.items() if 8.0 <= t <= 22.0]
         after = [e for t, e in errors.items() if t >= 26.0]
-        assert max(jammed) < 10.0, max(jammed)
+        assert max(jammed) < 5.0, max(jammed)
         assert max(after) < 2.0, max(after)

@@ -5,12 +5,14 @@ and its GNSS receiver. Pure: no bus, no clock; the vehicle process runs it as it
 (the same interface: ``handle``, ``cycle``, ``snapshot`` and ``restore`` for the fusion horizon,
 ``estimate``, ``health``).
 
-Per camera frame (its tracked points, which share the frame's stamp, heading and displacement):
-the horizontal velocity turns with the attitude sensor's heading (a UAV that flies nose first, as
-the world's do; half the turn before the frame's prediction, half after) and the state is predicted
-to the frame; the points the frame and the frame ``baseline_s`` earlier both track are triangulated
-(vehicle.vision.tracked_frames: the rotation the paper takes from visual odometry comes from the
-attitude sensor's headings, the scale it takes from an inertial unit from the inertial displacement).
+Between frames, the gyro's yaw rate turns the heading and the horizontal velocity (a UAV that flies
+nose first, as the world's do: at every prediction step the turn since the last, half before and
+half after); without a gyro the velocity turns with the frames' headings. Per camera frame (its
+tracked points, which share the frame's stamp, heading and displacement): the state is predicted to
+the frame and the frame's heading resets the heading; the points the frame and the frame
+``baseline_s`` earlier both track are triangulated (vehicle.vision.tracked_frames: the rotation the
+paper takes from visual odometry comes from the attitude sensor's headings, the scale it takes from
+an inertial unit from the inertial displacement).
 The errors a frame's points share (the two headings', the displacement's) are states of the back end
 while the frame's points are fused (ArSlam3d.frame's ``common``), so that they count once. The
 points are then associated with the map by nearest neighbour behind the chi-square gate, fused,
@@ -22,8 +24,9 @@ and climbing and descending with the relief; turns are the heading's. The altitu
 absolutely (no altimeter, and GNSS fixes are horizontal): it is the height above the take-off point,
 0 at the start (``ALTITUDE_SIGMA_M``, small: the camera measures only differences of height, and an
 origin uncertain by metres would leave the vehicle and its map with variances hundreds of times those
-differences'), and the map's heights follow it. The published pose is [x, y, heading]: the position's horizontal
-rows and the attitude sensor's latest heading with its variance.
+differences'), and the map's heights follow it. The published pose is [x, y, heading]: the position's
+horizontal rows, and the last frame's heading turned by the gyro since, its variance grown by the
+gyro's noise and unknown bias (the IMU's datasheet).
 
 Lost and found again: when ``LOST_AFTER_FIXES`` GNSS fixes in a row fail the gate (the map carried
 the vehicle off while GNSS was jammed, and the filter is sure of a wrong place), the map is dropped,
@@ -42,7 +45,7 @@ import numpy as np
 
 from bus import messages as m
 from bus.angles import wrap_angle
-from bus.config import ArSlamConfig, VehicleProcessConfig
+from bus.config import ArSlamConfig, SensorSpec, VehicleProcessConfig
 from bus.estimate import Health, PoseEstimate
 from bus.sensors.camera3d import Camera3dSpec, TrackedPoint
 from bus.sensors.camera3d import look as camera_rotation
@@ -59,10 +62,21 @@ LOST_AFTER_FIXES = 3  # GNSS fixes in a row failing the gate
 
 
 @dataclass
+class Gyro:
+    """What the gyro has said since the last frame: its last stamp (-1: none yet), the seconds since
+    the frame, and the turn (rad) and its variance (rad^2) not yet applied to the velocity."""
+
+    last_us: int = -1
+    since_frame_s: float = 0.0
+    turn_rad: float = 0.0
+    turn_var: float = 0.0
+
+
+@dataclass
 class Slam3dState:
     """Everything a fusion-horizon replay restores: the back end (None before the prior), the time it
-    stands at, the recent frames, the frame being received, the counters, the latest heading and the
-    GNSS test ratio, the GNSS fixes in a row that failed the gate."""
+    stands at, the recent frames, the frame being received, the counters, the heading and its
+    variance, the gyro's account, the GNSS test ratio, the GNSS fixes in a row that failed the gate."""
 
     slam: ArSlam3d | None = None
     time_us: int = 0
@@ -70,6 +84,8 @@ class Slam3dState:
     receiving: Frame | None = None
     counters: EstimatorCounters = field(default_factory=EstimatorCounters)
     heading_rad: float = 0.0
+    heading_var: float = 0.0
+    gyro: Gyro = field(default_factory=lambda: Gyro())
     gnss_ratio: float = 0.0
     fixes_failed: int = 0
 
@@ -79,8 +95,11 @@ class ArEkfSlam3d:
 
     name = "ar-ekf-slam-3d"
 
-    def __init__(self, vehicle_id: int, camera: Camera3dSpec, ar: ArSlamConfig, association: str = "nn") -> None:
+    def __init__(
+        self, vehicle_id: int, camera: Camera3dSpec, ar: ArSlamConfig, association: str = "nn", imu: Any = None
+    ) -> None:
         self.vehicle_id, self.camera = vehicle_id, camera
+        self._imu = imu if imu is not None else SensorSpec()
         self._ar, self._association = ar, association
         self._pitch = np.deg2rad(camera.pitch_deg)
         self._gnss_gate = gate_threshold(2, GNSS_GATE_PROBABILITY)
@@ -129,7 +148,7 @@ class ArEkfSlam3d:
         slam = s.slam
         cov = np.zeros((3, 3))
         cov[:2, :2] = slam.P[:2, :2]
-        cov[2, 2] = self.camera.heading_sigma_rad**2
+        cov[2, 2] = s.heading_var
         speed = float(np.hypot(slam.x[3], slam.x[4]))
         return PoseEstimate(
             vehicle_id=self.vehicle_id,
@@ -157,6 +176,8 @@ class ArEkfSlam3d:
             return
         if kind is TrackedPoint:
             self._take_point(msg)
+        elif kind is m.ImuSample:
+            self._gyro(msg.stamp_us, float(msg.gyro_radps[2]))
         elif kind is m.GnssFix:
             self._finish_frame(msg.stamp_us)
             if msg.stamp_us < s.time_us:
@@ -172,7 +193,9 @@ class ArEkfSlam3d:
                 self._relocalize(msg)
 
     def handle_row(self, topic: str, stamp_us: int, row: list[float], message) -> None:
-        """IMU and wheel rows: this estimator's motion model is its own (constant velocity)."""
+        """An IMU row's yaw rate turns the heading and the velocity (``_gyro``); wheel rows are not used."""
+        if topic == "imu" and self.state.slam is not None:
+            self._gyro(stamp_us, float(row[2]))
 
     def cycle(self, t_us: int) -> None:
         s = self.state
@@ -202,6 +225,7 @@ class ArEkfSlam3d:
             ),
             time_us=prior.stamp_us,
             heading_rad=float(prior.pose[2]),
+            heading_var=float(prior.covariance[2, 2]),
         )
 
     def _relocalize(self, fix: m.GnssFix) -> None:
@@ -214,11 +238,34 @@ class ArEkfSlam3d:
         self.notices.say(Notice(fix.stamp_us, SEVERITY_WARNING, text))
 
     def _predict_to(self, t_us: int) -> None:
+        """The constant-velocity step to ``t_us``, the velocity turned by the gyro's turn since the last
+        step, half before and half after."""
         s = self.state
         if t_us > s.time_us:
             dt = (t_us - s.time_us) * 1e-6
+            gyro = s.gyro
+            s.slam.turn_velocity(0.5 * gyro.turn_rad, 0.5 * gyro.turn_var)
             s.slam.predict(dt, ACCEL_PSD * dt)
+            s.slam.turn_velocity(0.5 * gyro.turn_rad, 0.5 * gyro.turn_var)
+            gyro.turn_rad = gyro.turn_var = 0.0
             s.time_us = t_us
+
+    def _gyro(self, stamp_us: int, rate_radps: float) -> None:
+        """One gyro sample: the heading and the pending turn of the velocity move by its yaw rate
+        over the interval since the last; the heading's variance grows by the gyro's noise and the
+        unknown bias over the time since the last frame (the datasheet's)."""
+        s, gyro = self.state, self.state.gyro
+        if stamp_us <= gyro.last_us or stamp_us < s.time_us:
+            return
+        dt = (stamp_us - gyro.last_us) * 1e-6 if gyro.last_us >= 0 else 0.0
+        gyro.last_us = stamp_us
+        noise_var = (self._imu.gyro_sigma_radps * dt) ** 2
+        bias_var = self._imu.gyro_bias_sigma_radps**2
+        s.heading_rad = float(wrap_angle(s.heading_rad + rate_radps * dt))
+        s.heading_var += noise_var + bias_var * ((gyro.since_frame_s + dt) ** 2 - gyro.since_frame_s**2)
+        gyro.since_frame_s += dt
+        gyro.turn_rad += rate_radps * dt
+        gyro.turn_var += noise_var + bias_var * dt**2
 
     def _take_point(self, point: TrackedPoint) -> None:
         """One tracked point: the frame it belongs to is received row by row (one stamp)."""
@@ -239,12 +286,12 @@ class ArEkfSlam3d:
         if frame is None or frame.stamp_us > until_us:
             return
         s.receiving = None
-        turn = wrap_angle(frame.heading_rad - s.heading_rad)  # the velocity turns with the heading
-        turn_var = 2.0 * self.camera.heading_sigma_rad**2
-        s.slam.turn_velocity(0.5 * turn, 0.5 * turn_var)
+        if s.gyro.last_us < 0:  # no gyro: the velocity turns with the frames' headings
+            s.gyro.turn_rad = float(wrap_angle(frame.heading_rad - s.heading_rad))
+            s.gyro.turn_var = 2.0 * self.camera.heading_sigma_rad**2
         self._predict_to(frame.stamp_us)
-        s.slam.turn_velocity(0.5 * turn, 0.5 * turn_var)
-        s.heading_rad = frame.heading_rad
+        s.heading_rad, s.heading_var = frame.heading_rad, self.camera.heading_sigma_rad**2
+        s.gyro.since_frame_s = 0.0
         earlier = next((f for f in s.frames if f.stamp_us == frame.earlier_us), None)
         z, R_z, common, _ = frame_points(earlier, frame, self.camera) if earlier is not None else NO_POINTS
         s.slam.frame(z, R_z, camera_rotation(frame.heading_rad, self._pitch), common=common)
@@ -259,4 +306,4 @@ class ArEkfSlam3d:
 def from_config(config: VehicleProcessConfig, vehicle_id: int, *, reject=None) -> ArEkfSlam3d:
     association = config.vehicle.association
     association = "nn" if association == "descriptor" else association  # a tracked point has no descriptor
-    return ArEkfSlam3d(vehicle_id, config.sensors.camera3d, config.vehicle.ar, association)
+    return ArEkfSlam3d(vehicle_id, config.sensors.camera3d, config.vehicle.ar, association, imu=config.sensors)

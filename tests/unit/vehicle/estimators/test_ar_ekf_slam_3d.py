@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bus import messages as m
-from bus.config import ArSlamConfig, build_config
+from bus.config import ArSlamConfig, SensorSpec, build_config
 from bus.sensors.camera3d import Camera3dSpec
 from experiments.uav3d_flights import fly_in_process
 from vehicle.estimators.ar_ekf_slam_3d import LOST_AFTER_FIXES, ArEkfSlam3d
@@ -93,3 +93,19 @@ def test_a_uav_keeps_its_place_on_its_map_through_a_jam(jammed_flight):
     assert jammed_flight.fused > 500 and jammed_flight.resets == 0
     assert jammed.max() < 3.0, jammed.max()
     assert jammed_flight.error_m[jammed_flight.t_s >= 33].max() < 1.0
+
+
+def test_between_frames_the_gyro_turns_the_heading_and_the_velocity():
+    estimator = ArEkfSlam3d(1, Camera3dSpec(rate_hz=10), ArSlamConfig(), imu=SensorSpec())
+    estimator.handle(m.PosePrior(1, 0, 0, np.zeros(3), np.diag([0.01, 0.01, 1e-4])))
+    estimator.state.slam.x[3:5] = [4.0, 0.0]
+    for k in range(101):  # 1 s of a 0.5 rad/s turn at 100 Hz
+        estimator.handle(m.ImuSample(1, 10_000 * k, k, np.array([0.0, 0.0, 0.5]), np.zeros(3)))
+    estimator.cycle(1_000_000)
+    published = estimator.estimate(1_000_000)
+    assert published.pose[2] == pytest.approx(0.5)
+    spec = SensorSpec()
+    assert published.pose_cov[2, 2] == pytest.approx(
+        1e-4 + spec.gyro_bias_sigma_radps**2 + 100 * (0.01 * spec.gyro_sigma_radps) ** 2
+    )
+    np.testing.assert_allclose(estimator.state.slam.x[3:5], 4.0 * np.array([np.cos(0.5), np.sin(0.5)]), atol=1e-9)
