@@ -37,53 +37,64 @@ def main() -> None:
     parser.add_argument("--set", action="append", default=[], help="section.key=value, e.g. world.radius_m=60")
     parser.add_argument("--json", type=Path, help="also write the rows and the summary here")
     args = parser.parse_args()
-    overrides: dict = {}
-    for item in args.set:
-        key, _, value = item.partition("=")
-        section, _, name = key.partition(".")
-        overrides.setdefault(section, {})[name] = json.loads(value)  # a number, or a list in JSON
+    overrides = _overrides(args.set)
     seeds = range(1, args.seeds + 1)
     with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
         runs = pool.map(flight, [(args.scenario, seed, overrides) for seed in seeds])
+    rows = [
+        {"seed": seed, "vehicle": vid, "rmse_m": s.rmse_m, "max_error_m": float(s.error_m.max()), "anees": s.anees}
+        | {"resets": s.resets}
+        for seed, run in zip(seeds, runs)
+        for vid, s in run.items()
+    ]
     print("| seed | vehicle | RMSE m | max error m | ANEES (2 dof) | resets |")
     print("|---|---|---|---|---|---|")
-    pooled = []
-    for seed, run in zip(seeds, runs):
-        for vid, score in run.items():
-            pooled.append(score.nees)
-            cells = (seed, vid, f"{score.rmse_m:.2f}", f"{score.error_m.max():.2f}", f"{score.anees:.2f}", score.resets)
-            print("| " + " | ".join(map(str, cells)) + " |")
-    flights = len(pooled)
-    nees = np.concatenate(pooled)
-    per_flight = np.array([p.mean() for p in pooled])
-    samples = min(len(p) for p in pooled)
-    low, high = stats.chi2.ppf([0.025, 0.975], 2 * flights) / flights  # ANEES across flights at one instant
+    for r in rows:
+        cells = (r["seed"], r["vehicle"], *(f"{r[k]:.2f}" for k in ("rmse_m", "max_error_m", "anees")), r["resets"])
+        print("| " + " | ".join(map(str, cells)) + " |")
+    summary = {"scenario": str(args.scenario), "overrides": overrides} | _consistency(
+        [s for run in runs for s in run.values()]
+    )
     print()
-    print(f"{flights} flights: median per-flight ANEES {np.median(per_flight):.2f}, pooled {nees.mean():.2f}")
-    at = np.array([p[:samples] for p in pooled]).mean(axis=0)  # each instant's ANEES across the flights
-    inside, below = np.mean((at >= low) & (at <= high)), np.mean(at < low)
+    print(
+        f"{summary['flights']} flights: median per-flight ANEES {summary['median_flight_anees']:.2f}, "
+        f"pooled {summary['pooled_anees']:.2f}"
+    )
+    (low, high), inside, below = summary["band"], summary["instants_in_band"], summary["instants_below_band"]
     print(f"instants whose ANEES across flights is in [{low:.2f}, {high:.2f}]: {inside:.0%} ({below:.0%} below)")
-    rmse = np.sqrt(np.mean(np.concatenate([run[v].error_m ** 2 for run in runs for v in run])))
-    print(f"swarm RMSE {rmse:.2f} m")
+    print(f"swarm RMSE {summary['swarm_rmse_m']:.2f} m")
     if args.json:
-        rows = [
-            {"seed": seed, "vehicle": vid, "rmse_m": s.rmse_m, "max_error_m": float(s.error_m.max()), "anees": s.anees}
-            | {"resets": s.resets}
-            for seed, run in zip(seeds, runs)
-            for vid, s in run.items()
-        ]
-        summary = {
-            "scenario": str(args.scenario),
-            "overrides": overrides,
-            "flights": flights,
-            "median_flight_anees": float(np.median(per_flight)),
-            "pooled_anees": float(nees.mean()),
-            "instants_in_band": float(inside),
-            "instants_below_band": float(below),
-            "band": [float(low), float(high)],
-            "swarm_rmse_m": float(rmse),
-        }
         args.json.write_text(json.dumps({"summary": summary, "flights": rows}, indent=1) + "\n")
+
+
+def _overrides(items: list[str]) -> dict:
+    """``--set section.key=value`` items as a scenario overlay (values in JSON: a number, or a list)."""
+    out: dict = {}
+    for item in items:
+        key, _, value = item.partition("=")
+        section, _, name = key.partition(".")
+        out.setdefault(section, {})[name] = json.loads(value)
+    return out
+
+
+def _consistency(flights: list[FlightScore]) -> dict:
+    """The flights' pooled statistics: the median per-flight and the pooled ANEES, the share of
+    instants whose ANEES across the flights is inside (and below) its two-sided 95% band, that band,
+    and the RMSE of them all."""
+    count = len(flights)
+    per_flight = np.array([f.anees for f in flights])
+    samples = min(len(f.nees) for f in flights)
+    low, high = stats.chi2.ppf([0.025, 0.975], 2 * count) / count  # ANEES across flights at one instant
+    at = np.array([f.nees[:samples] for f in flights]).mean(axis=0)  # each instant's ANEES across them
+    return {
+        "flights": count,
+        "median_flight_anees": float(np.median(per_flight)),
+        "pooled_anees": float(np.concatenate([f.nees for f in flights]).mean()),
+        "instants_in_band": float(np.mean((at >= low) & (at <= high))),
+        "instants_below_band": float(np.mean(at < low)),
+        "band": [float(low), float(high)],
+        "swarm_rmse_m": float(np.sqrt(np.mean(np.concatenate([f.error_m**2 for f in flights])))),
+    }
 
 
 if __name__ == "__main__":

@@ -96,7 +96,12 @@ class ArEkfSlam3d:
     name = "ar-ekf-slam-3d"
 
     def __init__(
-        self, vehicle_id: int, camera: Camera3dSpec, ar: ArSlamConfig, association: str = "nn", imu: Any = None
+        self,
+        vehicle_id: int,
+        camera: Camera3dSpec,
+        ar: ArSlamConfig,
+        association: str = "nn",
+        imu: SensorSpec | None = None,
     ) -> None:
         self.vehicle_id, self.camera = vehicle_id, camera
         self._imu = imu if imu is not None else SensorSpec()

@@ -96,7 +96,7 @@ class ArSlam3d:
         self.ids = np.zeros(0, np.int64)  # each state landmark's id where the frames are identified (else -1)
         self.entry = entry
         self.candidates: list[Candidate] = []
-        self._shared: tuple | None = None  # while a frame with shared errors is fused: where they start, G, R_z
+        self._shared: tuple | None = None  # while a frame's new landmarks enter: its shared errors' G, pixel R_z
         self.frames = 0
 
     def landmarks(self) -> np.ndarray:
@@ -140,20 +140,7 @@ class ArSlam3d:
         self.x, self.P = np.append(self.x, np.zeros(len(shared))), np.pad(self.P, ((0, len(shared)), (0, len(shared))))
         self.P[first:, first:] = shared
         R_alone = R_z + np.einsum("nic,cd,njd->nij", G, shared, G)  # a point's noise with its share
-        if ids is not None:
-            where = {int(ident): j for j, ident in enumerate(self.ids.tolist())}
-            assignment = np.array([where.get(int(ident), -1) for ident in ids], dtype=np.int64)
-        elif n and len(z):
-            predicted, H = zip(*(slam3d.observe(self.x, j, rotation) for j in range(n)))
-            H = np.vstack(H)
-            gated = problem(
-                z, R_alone, np.array(predicted), H @ self.P @ H.T, gate_probability=self.gate_probability, angles=()
-            )
-            assignment = self.associate(gated, self.rng)
-            if self.unambiguous:
-                assignment = _without_ambiguous(assignment, gated.candidates)
-        else:
-            assignment = np.full(len(z), -1)
+        assignment = self._assign(n, z, R_alone, rotation, ids)
         for i in np.flatnonzero(assignment >= 0):
             j = int(assignment[i])
             h, H_j = slam3d.observe(self.x, j, rotation)
@@ -162,13 +149,30 @@ class ArSlam3d:
             self.x, self.P, result = gated_update(self.x, self.P, z[i] - h, H_j, R_z[i], self.gate, columns=columns)
             self.book.fused += int(result.accepted)
             self.book.gated_out += int(not result.accepted)
-        self._shared = (first, G, R_z) if len(shared) else None  # new landmarks meet the shared errors
+        self._shared = (G, R_z) if len(shared) else None  # new landmarks meet the shared errors
         self._enter(np.flatnonzero(assignment == -1), z, R_alone, rotation, ids)
-        first = self._shared[0] if self._shared is not None else len(self.x)
         self._shared = None
-        self.x, self.P = self.x[:first], self.P[:first, :first]  # marginalised out
+        kept = len(self.x) - len(shared)
+        self.x, self.P = self.x[:kept], self.P[:kept, :kept]  # the shared errors marginalised out
         if self.adaptive:
             self.book.radius_m = next_radius(self.book.radius_m, slam3d.landmarks(self.x), self.spec)
+
+    def _assign(self, n: int, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray, ids) -> np.ndarray:
+        """Which of the n landmarks each point z (k, 3) (noise R_z) is: by id where the frame is
+        identified, else the configured method behind the gate (ambiguous pairings set aside when
+        ``unambiguous``); -1: none."""
+        if ids is not None:
+            where = {int(ident): j for j, ident in enumerate(self.ids.tolist())}
+            return np.array([where.get(int(ident), -1) for ident in ids], dtype=np.int64)
+        if not (n and len(z)):
+            return np.full(len(z), -1)
+        predicted, H = zip(*(slam3d.observe(self.x, j, rotation) for j in range(n)))
+        H = np.vstack(H)
+        gated = problem(
+            z, R_z, np.array(predicted), H @ self.P @ H.T, gate_probability=self.gate_probability, angles=()
+        )
+        assignment = self.associate(gated, self.rng)
+        return _without_ambiguous(assignment, gated.candidates) if self.unambiguous else assignment
 
     def turn_velocity(self, angle_rad: float, angle_var: float) -> None:
         """The horizontal velocity turned by ``angle_rad`` about the vertical, that angle uncertain by
@@ -242,9 +246,9 @@ class ArSlam3d:
         if self._shared is None:
             self.x, self.P = slam3d.add_landmark(self.x, self.P, z, R_z, rotation)
         else:
-            first, G, R_pixels = self._shared
+            G, R_pixels = self._shared
+            first = len(self.x) - G.shape[-1]  # the shared errors are the state's last rows
             self.x, self.P = _insert_point(self.x, self.P, first, z, R_pixels[i], -rotation @ G[i], rotation)
-            self._shared = (first + slam3d.POINT, G, R_pixels)
         self.ids = np.append(self.ids, ident)
         self.book.added += 1
 
