@@ -11,10 +11,21 @@ import numpy as np
 
 
 @dataclass(frozen=True)
+class Altitude:
+    """A vehicle's estimated height above its launch point (m, up: the origin of the altitude of
+    ODOMETRY's local NED frame), its variance (m^2) and its covariance (m^2) with x and y."""
+
+    height_m: float
+    var: float
+    cov_xy: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
 class PoseEstimate:
     """A planar pose estimate at ``stamp_us``: ``pose`` [x m, y m, yaw rad] (3,) with covariance
     ``pose_cov`` (3, 3), the forward speed (m/s) and yaw rate (rad/s) the vehicle moves with and
-    their variances ((m/s)^2, (rad/s)^2)."""
+    their variances ((m/s)^2, (rad/s)^2); ``altitude`` where the estimator estimates its height (a
+    UAV over relief), else None (the vehicle flies level at the configured altitude)."""
 
     vehicle_id: int
     stamp_us: int
@@ -24,6 +35,7 @@ class PoseEstimate:
     speed_var: float = 0.0
     yaw_rate_radps: float = 0.0
     yaw_rate_var: float = 0.0
+    altitude: Altitude | None = None
 
 
 @dataclass(frozen=True)

@@ -218,7 +218,7 @@ def _listeners(value: Any, vid: int) -> tuple[int, ...]:
     return tuple(value)
 
 
-TRUTH_WIDTH = 5  # x m, y m, theta rad, speed m/s, yaw rate rad/s
+TRUTH_WIDTH = 6  # x m, y m, theta rad, speed m/s, yaw rate rad/s, height above the launch point m
 MAX_TRUTH_BYTES = 1 << 20  # the largest truth batch the ground station takes (one tick, every vehicle)
 
 
@@ -233,9 +233,11 @@ def truth_batch_bytes(truth_rate_hz: float, tick_s: float, vehicles: int) -> int
 @dataclass(frozen=True)
 class TruthBatch:
     """Truth of every vehicle at the truth stamps of one tick: stamps (k,) us, vehicle ids (n,),
-    rows (k, n, 5) [x, y, theta, speed, yaw rate]; a row of NaN where a vehicle has no truth (a
+    rows (k, n, 6) [x, y, theta, speed, yaw rate, height]; a row of NaN where a vehicle has no truth (a
     replayed data set's gaps); the pairs (m, 2) [observer, target] of vehicles that ranged in the
-    tick (for the live view's ranging lines)."""
+    tick (for the live view's ranging lines). The height (m, up) is above the point the vehicle
+    launched from, the origin of the altitude its ODOMETRY's local NED frame carries (as PX4's local
+    frame starts at the vehicle's home): 0 for a world that flies level."""
 
     tick: int
     stamp_us: int

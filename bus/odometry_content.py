@@ -3,8 +3,10 @@ its contents must pass, and where a planar ``bus.estimate.PoseEstimate`` [x, y, 
 rows and columns [0, 1, 5] of the 6 x 6 pose covariance (local NED, z = -altitude, roll and pitch
 level and not estimated), its speed and yaw rate at [0] and [5] of the velocity covariance
 (``odometry_of`` / ``pose_of``). ``planar_estimate_of`` and ``planar_fields`` go between a
-PoseEstimate and ODOMETRY's wire fields (bus.odometry_wire) directly, to the same values. Pure;
-bus.mavlink_codec frames, signs and authenticates."""
+PoseEstimate and ODOMETRY's wire fields (bus.odometry_wire) directly, to the same values. A vehicle
+that estimates its height (``PoseEstimate.altitude``) puts it at z (above its launch point) with its
+variance and covariances at row 2; one that flies level claims z known to ``NOT_ESTIMATED_VAR``
+(``altitude_of`` tells them apart). Pure; bus.mavlink_codec frames, signs and authenticates."""
 
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from bus import odometry_wire as ow
 from bus.errors import MavlinkRejected
-from bus.estimate import PoseEstimate
+from bus.estimate import Altitude, PoseEstimate
 
 MAX_POSITION_M = 1e7
 MAX_VARIANCE = 1e8  # m^2, rad^2: beyond this an estimate carries no information
@@ -72,9 +74,16 @@ class NoEstimate:
 def odometry_of(estimate: PoseEstimate, *, altitude_m: float, reset_counter: int) -> StateEstimate:
     """ODOMETRY's contents for a planar estimate flown at ``altitude_m``: NED position (x, y, -altitude),
     body-frame velocity (speed, 0, 0), the pose covariance at [0, 1, 5] of the 6 x 6 with the
-    not-estimated axes at ``NOT_ESTIMATED_VAR``."""
+    not-estimated axes at ``NOT_ESTIMATED_VAR``; z and row 2 the estimate's own altitude where it has
+    one."""
     pose_cov = np.diag([0.0, 0.0, NOT_ESTIMATED_VAR, NOT_ESTIMATED_VAR, NOT_ESTIMATED_VAR, 0.0])
     pose_cov[_POSE_BLOCK] = estimate.pose_cov
+    z = -altitude_m
+    if estimate.altitude is not None:  # NED: z = -height, so its covariances change sign
+        z = -estimate.altitude.height_m
+        pose_cov[2, 2] = estimate.altitude.var
+        pose_cov[0, 2] = pose_cov[2, 0] = -estimate.altitude.cov_xy[0]
+        pose_cov[1, 2] = pose_cov[2, 1] = -estimate.altitude.cov_xy[1]
     vel_cov = np.diag(
         [
             estimate.speed_var,
@@ -89,7 +98,7 @@ def odometry_of(estimate: PoseEstimate, *, altitude_m: float, reset_counter: int
     return StateEstimate(
         vehicle_id=estimate.vehicle_id,
         time_usec=estimate.stamp_us,
-        position_m=np.array([x, y, -altitude_m]),
+        position_m=np.array([x, y, z]),
         yaw_rad=float(yaw),
         velocity_mps=np.array([estimate.speed_mps, 0.0, 0.0]),
         yaw_rate_radps=estimate.yaw_rate_radps,
@@ -100,7 +109,8 @@ def odometry_of(estimate: PoseEstimate, *, altitude_m: float, reset_counter: int
 
 
 def pose_of(est: StateEstimate) -> PoseEstimate:
-    """The planar estimate an ODOMETRY carries (the inverse of :func:`odometry_of` on x, y, yaw)."""
+    """The planar estimate an ODOMETRY carries (the inverse of :func:`odometry_of` on x, y, yaw, and on
+    the altitude where it has one)."""
     return PoseEstimate(
         vehicle_id=est.vehicle_id,
         stamp_us=est.time_usec,
@@ -110,6 +120,7 @@ def pose_of(est: StateEstimate) -> PoseEstimate:
         speed_var=float(est.velocity_covariance[0, 0]),
         yaw_rate_radps=est.yaw_rate_radps,
         yaw_rate_var=float(est.velocity_covariance[5, 5]),
+        altitude=altitude_of(est),
     )
 
 
@@ -136,6 +147,15 @@ def estimate_of(sysid: int, fields: tuple) -> StateEstimate | NoEstimate:
         reset_counter=fields[ow.RESET_COUNTER],
         estimator_type=fields[ow.ESTIMATOR_TYPE],
     )
+
+
+def altitude_of(est: StateEstimate) -> Altitude | None:
+    """The height above its launch point an estimate carries with its variance and covariances (m,
+    m^2), or None where the vehicle flies level (z's variance ``NOT_ESTIMATED_VAR`` or less)."""
+    cov = est.pose_covariance
+    if not cov[2, 2] > NOT_ESTIMATED_VAR:
+        return None
+    return Altitude(-float(est.position_m[2]), float(cov[2, 2]), (-float(cov[0, 2]), -float(cov[1, 2])))
 
 
 def _check_fields(sysid: int, fields: tuple) -> None:
@@ -180,6 +200,7 @@ def planar_estimate_of(sysid: int, fields: tuple) -> PoseEstimate | NoEstimate:
         speed_var=float(velocity_upper[0]),
         yaw_rate_radps=float(fields[ow.YAWSPEED]),
         yaw_rate_var=float(velocity_upper[20]),
+        altitude=Altitude(-fields[ow.Z], u[11], (-u[2], -u[7])) if u[11] > NOT_ESTIMATED_VAR else None,
     )
 
 
@@ -191,12 +212,16 @@ def planar_fields(estimate: PoseEstimate, *, altitude_m: float, reset_counter: i
     half = 0.5 * yaw
     ne = NOT_ESTIMATED_VAR
     # the upper triangles row by row: [x, y, z, roll, pitch, yaw] and [vx, vy, vz, roll, pitch, yaw rate]
-    pose_upper = (c00, c01, 0.0, 0.0, 0.0, c02) + (c11, 0.0, 0.0, 0.0, c12) + (ne, 0.0, 0.0, 0.0)
+    z, czx, czy, czz = float(-altitude_m), 0.0, 0.0, ne
+    if estimate.altitude is not None:  # NED: z = -height, so its covariances change sign
+        height = estimate.altitude
+        z, czx, czy, czz = -height.height_m, -height.cov_xy[0], -height.cov_xy[1], height.var
+    pose_upper = (c00, c01, czx, 0.0, 0.0, c02) + (c11, czy, 0.0, 0.0, c12) + (czz, 0.0, 0.0, 0.0)
     pose_upper += (ne, 0.0, 0.0) + (ne, 0.0) + (c22,)
     velocity_upper = (float(estimate.speed_var), 0.0, 0.0, 0.0, 0.0, 0.0) + (ne, 0.0, 0.0, 0.0, 0.0)
     velocity_upper += (ne, 0.0, 0.0, 0.0) + (ne, 0.0, 0.0) + (ne, 0.0) + (float(estimate.yaw_rate_var),)
     return (
-        (estimate.stamp_us, x, y, float(-altitude_m), float(np.cos(half)), 0.0, 0.0, float(np.sin(half)))
+        (estimate.stamp_us, x, y, float(z), float(np.cos(half)), 0.0, 0.0, float(np.sin(half)))
         + (float(estimate.speed_mps), 0.0, 0.0, 0.0, 0.0, float(estimate.yaw_rate_radps))
         + pose_upper
         + velocity_upper

@@ -16,7 +16,7 @@ def print_result(
     the report could not be."""
     from rich.console import Console
 
-    from groundstation.display import consistency_table, nis_table, rmse_table
+    from groundstation.display import altitude_table, consistency_table, nis_table, rmse_table
 
     console = Console()
     for note in notes:
@@ -29,6 +29,9 @@ def print_result(
         timing_path = run_dir / "timing.json"
         timing = json.loads(timing_path.read_text()) if timing_path.exists() else None
         console.print(rmse_table(summary, timing, title=f"{summary['name']}: {summary['status']}"))
+        heights = altitude_table(summary)
+        if heights is not None:
+            console.print(heights)
         if consistency:
             console.print(consistency_table(summary))
             nis = nis_table(summary)

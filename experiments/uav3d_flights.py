@@ -2,7 +2,8 @@
 feeding each vehicle's estimator its own samples, cycle by cycle at the vehicles' loop rate, no bus):
 what the unit tests and the Monte Carlo of tools/uav3d.py measure, where the processes would add
 nothing but time. Scored as the ground station scores the processes' estimates: the horizontal error
-of the published pose and its 2-dof NEES."""
+of the published pose and its 2-dof NEES, and the published height's error against the truth's height
+above the launch point, with its 1-dof NEES."""
 
 from __future__ import annotations
 
@@ -18,13 +19,20 @@ from vehicle.estimators import get_estimator
 @dataclass(frozen=True)
 class FlightScore:
     """One vehicle's flight, sampled every ``every_us``: times (k,) s, horizontal error (k,) m, the
-    published position's NEES (k,) (2 dof), and its counters at the end (resets, landmarks fused)."""
+    published position's NEES (k,) (2 dof), its counters at the end (resets, landmarks fused), and
+    the published height's error (k,) m with its NEES (k,) (1 dof)."""
 
     t_s: np.ndarray
     error_m: np.ndarray
     nees: np.ndarray
     resets: int
     fused: int
+    height_error_m: np.ndarray
+    height_nees: np.ndarray
+
+    @property
+    def height_rmse_m(self) -> float:
+        return float(np.sqrt(np.mean(self.height_error_m**2)))
 
     @property
     def rmse_m(self) -> float:
@@ -43,7 +51,7 @@ def fly_in_process(config: SwarmConfig, *, every_us: int = 1_000_000) -> dict[in
     vehicle_config = config.for_vehicle()
     ids = world.vehicle_ids()
     estimators = {vid: get_estimator(vehicle_config, vid) for vid in ids}
-    rows: dict[int, list[tuple[float, float, float]]] = {vid: [] for vid in ids}
+    rows: dict[int, list[tuple[float, float, float, float, float]]] = {vid: [] for vid in ids}
 
     def score(t_us: int, truth: np.ndarray | None) -> None:
         if truth is None or t_us % every_us:
@@ -55,13 +63,16 @@ def fly_in_process(config: SwarmConfig, *, every_us: int = 1_000_000) -> dict[in
             published = estimator.estimate(t_us)
             error = published.pose[:2] - true_pose[:2]
             nees = float(error @ np.linalg.solve(published.pose_cov[:2, :2], error))
-            rows[vid].append((t_us * 1e-6, float(np.hypot(*error)), nees))
+            height_error = published.altitude.height_m - float(true_pose[5])  # bus.feed.TruthBatch's height
+            height_nees = height_error**2 / published.altitude.var
+            rows[vid].append((t_us * 1e-6, float(np.hypot(*error)), nees, height_error, height_nees))
 
     listeners = [Listener((vid,), estimators[vid]) for vid in ids]
     run(world, listeners, end_us=round(config.clock.duration_s * 1e6), on_cycle=score)
     out = {}
     for vid in ids:
-        t_s, error_m, nees = (np.array(column) for column in zip(*rows[vid]))
+        t_s, error_m, nees, height_error, height_nees = (np.array(column) for column in zip(*rows[vid]))
         counters = estimators[vid].counters
-        out[vid] = FlightScore(t_s, error_m, nees, counters.resets, estimators[vid].state.slam.book.fused)
+        fused = estimators[vid].state.slam.book.fused
+        out[vid] = FlightScore(t_s, error_m, nees, counters.resets, fused, height_error, height_nees)
     return out

@@ -106,6 +106,34 @@ def consistency_table(summary: dict[str, Any], title: str = "consistency (NEES)"
     return table
 
 
+def altitude_table(summary: dict[str, Any], title: str = "height above the launch point") -> Table | None:
+    """Per vehicle that estimates its height (a UAV over relief): its RMSE, largest error, ANEES
+    (1 dof) and block ANEES against its band, from a summary whose vehicles carry ``altitude``; None
+    when none does."""
+    with_height = {vid: v["altitude"] for vid, v in summary["vehicles"].items() if v.get("altitude")}
+    if not with_height:
+        return None
+    table = Table(title=title)
+    for column in ("vehicle", "RMSE [m]", "max err [m]", "ANEES (1 dof)", "block ANEES", "95% band", "inside"):
+        table.add_column(column, justify="right")
+    shown, caption = vehicle_rows(with_height, _rmse, "with the largest RMSE")
+    for vid in shown:
+        a = with_height[vid]
+        c = a.get("consistency") or {}
+        band = c.get("band_95") or [None, None]
+        table.add_row(
+            vid,
+            _num(a.get("rmse_m")),
+            _num(a.get("max_error_m")),
+            _num(a.get("anees")),
+            _num(c.get("block_anees"), 2),
+            f"{_num(band[0], 2)}-{_num(band[1], 2)}",
+            "yes" if c.get("inside") else "no",
+        )
+    table.caption = caption
+    return table
+
+
 def nis_table(summary: dict[str, Any], title: str = "consistency (NIS of the fused updates)") -> Table | None:
     """Per vehicle and measurement kind (bus.consistency.NIS_KINDS): mean NIS and the shares above the
     95 % and below the 5 % point; None when no vehicle reported any."""

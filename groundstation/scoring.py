@@ -1,7 +1,9 @@
 """Scores state estimates against truth interpolated at their timestamps (pure, no bus).
 
 Errors are in the horizontal plane; NEES is over the pose [x, y, yaw] with the estimate's own
-covariance (3 degrees of freedom), so its mean should be 3 for a consistent estimator.
+covariance (3 degrees of freedom), so its mean should be 3 for a consistent estimator. A vehicle that
+estimates its height (a UAV over relief: bus.odometry_content.altitude_of) is scored on it too, apart:
+its error against the truth's height above the launch point and its NEES of 1 degree of freedom.
 """
 
 from __future__ import annotations
@@ -19,10 +21,11 @@ from bus import feed, statistics
 from bus.angles import wrap_angle as wrap
 from bus.consistency import ConsistencyTally
 from bus.mavlink_codec import StateEstimate, pose_of
-from bus.odometry_content import POSE_INDEX
+from bus.odometry_content import NOT_ESTIMATED_VAR, POSE_INDEX
 from bus.once import computed_once, known
 
 log = logging.getLogger("swarmloc.groundstation")
+TRUTH_COLUMNS = [0, 1, 2, 5]  # of a truth batch's rows (bus.feed.TruthBatch): x, y, theta, height
 MAX_PENDING = 500_000  # estimates waiting for the watermark; beyond, they are counted and dropped
 
 
@@ -36,6 +39,8 @@ class Score:
     reset_counter: int
     estimate: StateEstimate
     truth_pose: np.ndarray  # (3,)
+    altitude_error_m: float = math.nan  # estimate - truth of the height above the launch point (NaN: not estimated)
+    altitude_nees: float = math.nan  # its NEES, 1 dof (NaN: not estimated)
 
     # read by the run directory, the recording and the tallies (three or four times a score): worked
     # out once (kept in the frozen dataclass's __dict__: bus.once)
@@ -59,6 +64,7 @@ class Tally:
     sum_nees: float = 0.0
     nees_inside: int = 0
     consistency: ConsistencyTally = field(default_factory=ConsistencyTally)  # block ANEES, tail shares
+    altitude: AltitudeTally | None = None  # where the vehicle estimates its height
 
     def add(self, score: Score, bounds: tuple[float, float]) -> None:
         err = score.position_error_m
@@ -68,6 +74,30 @@ class Tally:
         self.sum_nees += score.nees
         self.nees_inside += int(bounds[0] <= score.nees <= bounds[1])
         self.consistency.add(score.stamp_us * 1e-6, score.nees)
+        if not math.isnan(score.altitude_nees):
+            if self.altitude is None:
+                self.altitude = AltitudeTally()
+            self.altitude.add(score)
+
+
+@dataclass
+class AltitudeTally:
+    """Running totals of a vehicle's height scores: samples, squared and largest error (m^2, m), the
+    NEES's sum and its consistency (1 dof)."""
+
+    samples: int = 0
+    sum_sq_m2: float = 0.0
+    max_error_m: float = 0.0
+    sum_nees: float = 0.0
+    consistency: ConsistencyTally = field(default_factory=lambda: ConsistencyTally(dof=1))
+
+    def add(self, score: Score) -> None:
+        err = abs(score.altitude_error_m)
+        self.samples += 1
+        self.sum_sq_m2 += err * err
+        self.max_error_m = max(self.max_error_m, err)
+        self.sum_nees += score.altitude_nees
+        self.consistency.add(score.stamp_us * 1e-6, score.altitude_nees)
 
 
 class TruthTrack:
@@ -78,7 +108,8 @@ class TruthTrack:
         self.poses: list[np.ndarray] = []
 
     def add(self, stamp_us: int, pose: np.ndarray) -> None:
-        """One truth sample: pose (3,) [x m, y m, theta rad] at ``stamp_us``."""
+        """One truth sample: pose (4,) [x m, y m, theta rad, height above the launch point m] at
+        ``stamp_us``."""
         if self.stamps and stamp_us <= self.stamps[-1]:
             return  # duplicate or out of order: truth is published in order
         self.stamps.append(stamp_us)
@@ -108,33 +139,62 @@ class TruthTrack:
         del self.stamps[:keep], self.poses[:keep]
 
 
-def score(est: StateEstimate, truth_pose: np.ndarray) -> Score:
+def score(est: StateEstimate, truth: np.ndarray) -> Score:
+    """``est`` scored against ``truth`` (4,) [x, y, theta, height] or (3,) (no height known)."""
     planar = pose_of(est)
     cov = planar.pose_cov
-    error = statistics.pose_error(planar.pose, truth_pose)
+    error = statistics.pose_error(planar.pose, truth)
+    height = planar.altitude
+    altitude_error = math.nan if height is None or len(truth) < 4 else height.height_m - float(truth[3])
     return Score(
-        est.vehicle_id, est.time_usec, error, cov, statistics.nees(error, cov), est.reset_counter, est, truth_pose
+        est.vehicle_id,
+        est.time_usec,
+        error,
+        cov,
+        statistics.nees(error, cov),
+        est.reset_counter,
+        est,
+        truth[:3] if len(truth) > 3 else truth,
+        altitude_error,
+        math.nan if height is None else altitude_error**2 / height.var,  # NaN where no height is known
     )
 
 
 def score_all(ests: list[StateEstimate], truth_poses: list[np.ndarray]) -> list[Score | None]:
-    """``score`` of each estimate against its truth pose (3,), the poses, errors and NEES worked out
+    """``score`` of each estimate against its truth (4,) (or (3,)), the poses, errors and NEES worked out
     for all at once (one solve over the stacked covariances: LAPACK's same solve of each, so each
     score is ``score``'s to the bit). None where a covariance is singular."""
     if not ests:
         return []
     poses = np.array([(e.position_m[0], e.position_m[1], e.yaw_rad) for e in ests])  # (n, 3)
-    covs = np.stack([e.pose_covariance for e in ests])[:, POSE_INDEX][:, :, POSE_INDEX]  # (n, 3, 3)
-    truths = np.array(truth_poses)  # (n, 3)
-    errors = poses - truths
+    full = np.stack([e.pose_covariance for e in ests])  # (n, 6, 6)
+    covs = full[:, POSE_INDEX][:, :, POSE_INDEX]  # (n, 3, 3)
+    truths = np.array(truth_poses)  # (n, 4), or (n, 3) with no height
+    truths = truths if truths.shape[1] == 4 else np.column_stack([truths, np.full(len(truths), np.nan)])
+    errors = poses - truths[:, :3]
     for row in errors:
         row[2] = wrap(row[2])  # pose_error's wrap, as it wraps one
     try:
         solved = np.linalg.solve(covs, errors[:, :, None])[:, :, 0]  # (n, 3)
     except np.linalg.LinAlgError:  # one singular covariance: each on its own
         return [_score_or_none(e, t) for e, t in zip(ests, truth_poses, strict=True)]
+    height_var = full[:, 2, 2]
+    estimated = height_var > NOT_ESTIMATED_VAR  # (bus.odometry_content.altitude_of)
+    height_error = np.where(estimated, -np.array([e.position_m[2] for e in ests]) - truths[:, 3], np.nan)
+    height_nees = np.where(estimated, height_error**2 / np.where(estimated, height_var, 1.0), np.nan)
     scores = [
-        Score(e.vehicle_id, e.time_usec, errors[i], covs[i], float(errors[i] @ solved[i]), e.reset_counter, e, t)
+        Score(
+            e.vehicle_id,
+            e.time_usec,
+            errors[i],
+            covs[i],
+            float(errors[i] @ solved[i]),
+            e.reset_counter,
+            e,
+            t[:3] if len(t) > 3 else t,
+            float(height_error[i]),
+            float(height_nees[i]),
+        )
         for i, (e, t) in enumerate(zip(ests, truth_poses, strict=True))
     ]
     # the properties every score is read for, worked out for all at once (the same values: sqrt and
@@ -171,6 +231,9 @@ class Scorer:
     bounds: tuple[float, float] = field(default_factory=lambda: statistics.chi2_band(statistics.POSE_NEES_DOF))
 
     def add_truth(self, vehicle_id: int, stamp_us: int, pose: np.ndarray) -> None:
+        """One truth sample of a vehicle: pose [x, y, theta] (3,) or with its height (4,) (else unknown)."""
+        if len(pose) == 3:
+            pose = np.append(pose, math.nan)
         track = self.truth.get(vehicle_id)
         if track is None:
             track = self.truth[vehicle_id] = TruthTrack()
@@ -179,9 +242,10 @@ class Scorer:
     def add_truth_batch(self, batch: feed.TruthBatch) -> int:
         """Every vehicle's truth of a tick's batch (bus.feed.TruthBatch); the newest stamp (-1: none)."""
         ids = batch.vehicle_ids.tolist()
+        rows = batch.rows[:, :, TRUTH_COLUMNS]
         for k, stamp in enumerate(batch.stamps_us.tolist()):
             for n, vid in enumerate(ids):
-                self.add_truth(vid, stamp, batch.rows[k, n, :3])
+                self.add_truth(vid, stamp, rows[k, n])
         return int(batch.stamps_us[-1]) if len(batch.stamps_us) else -1
 
     def add_estimate(self, est: StateEstimate) -> bool:

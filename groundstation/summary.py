@@ -14,7 +14,7 @@ from bus.messages import VehicleStatus
 from bus.rejections import REASONS, Rejections, counts_to_dict
 from bus.statistics import POSE_NEES_DOF
 from groundstation.link_quality import StreamQuality
-from groundstation.scoring import Scorer, Tally
+from groundstation.scoring import AltitudeTally, Scorer, Tally
 
 
 def _round(value: float) -> float:
@@ -74,6 +74,8 @@ def vehicle_entry(
             nees_inside_95=_round(tally.nees_inside / tally.samples),
             consistency=tally.consistency.result().as_dict(),
         )
+    if tally and tally.altitude is not None:
+        entry["altitude"] = altitude_entry(tally.altitude)
     if st is not None:
         entry.update(
             cycles=st.cycles,
@@ -97,6 +99,19 @@ def vehicle_entry(
     if link is not None:
         entry["mavlink_link"] = link.as_dict()
     return entry
+
+
+def altitude_entry(tally: AltitudeTally) -> dict[str, Any]:
+    """A vehicle's height above its launch point, scored (groundstation.scoring): RMSE and largest
+    error (m), ANEES and its consistency (1 dof)."""
+    return {
+        "samples": tally.samples,
+        "rmse_m": _round(math.sqrt(tally.sum_sq_m2 / tally.samples)),
+        "max_error_m": _round(tally.max_error_m),
+        "anees": _round(tally.sum_nees / tally.samples),
+        "nees_dof": 1,
+        "consistency": tally.consistency.result().as_dict(),
+    }
 
 
 def swarm_entry(scorer: Scorer, tallies: list[Tally]) -> dict[str, Any]:

@@ -6,7 +6,7 @@ centralized reference and the replay's own calibration run filters the one same 
 ``run`` advances the world a chunk at a time; every ``Listener`` (a filter and the vehicles whose
 samples it hears: one for a vehicle filter, all of them for the centralized reference) gets every
 sample stamped at or before a cycle's time, in stamp order (vehicles in id order at equal stamps),
-then the cycle; ``on_cycle(t_us, truth)`` sees the truth rows (N, 5) of that instant, when the world
+then the cycle; ``on_cycle(t_us, truth)`` sees the truth rows (N, 6) of that instant, when the world
 has them. With ``wire`` the samples go through the wire format first (bus.feed), as a vehicle
 process receives them.
 """

@@ -38,7 +38,7 @@ Block = tuple[np.ndarray, np.ndarray]  # stamps (k,) us, rows (k, w)
 @dataclass
 class ReplayOutput:
     """What one advance replayed: per vehicle, topic -> (stamps, first seq, rows); truth stamps (k,)
-    and rows (k, N, 5) [x, y, theta, speed, yaw rate]."""
+    and rows (k, N, 6) [x, y, theta, speed, yaw rate, height]."""
 
     feeds: dict[int, dict[str, tuple[np.ndarray, int, np.ndarray]]]
     truth_stamps: np.ndarray
@@ -173,14 +173,15 @@ class ReplayWorld:
         return np.zeros(1, np.int64), row[None, :]
 
     def _truth_rows(self, groundtruth: np.ndarray, grid_us: np.ndarray) -> np.ndarray:
-        """(k, 5) [x, y, theta, speed, yaw rate] on the grid; speed and yaw rate by central differences."""
+        """(k, 6) [x, y, theta, speed, yaw rate, height] on the grid; speed and yaw rate by central
+        differences, height 0 (the robots drive on a floor)."""
         t = self.start_s + grid_us * 1e-6
         pose = pose_at(groundtruth, t)
         dt = 0.02
         ahead, behind = pose_at(groundtruth, t + dt), pose_at(groundtruth, t - dt)
         speed = np.hypot(*(ahead[:, :2] - behind[:, :2]).T) / (2 * dt)
         rate = wrap_angles(ahead[:, 2] - behind[:, 2]) / (2 * dt)
-        rows = np.column_stack([pose, np.nan_to_num(speed), np.nan_to_num(rate)])
+        rows = np.column_stack([pose, np.nan_to_num(speed), np.nan_to_num(rate), np.zeros(len(t))])
         rows[np.isnan(pose[:, 0])] = np.nan
         return rows
 

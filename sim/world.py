@@ -9,6 +9,7 @@ output never depends on how time is cut into ticks, and faults never shift the n
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING
@@ -122,6 +123,11 @@ class World:
         if self.terrain is not None:
             self._periods[Topic.CAMERA] = _period_us(spec.camera_rate_hz)
         self.added = AddedSensors(config, self.vehicle_ids(), self.step_us)  # bus.sensors
+        self._height_over: Callable[[np.ndarray], np.ndarray] | None = None  # set for UAVs over relief
+        if spec.camera3d.rate_hz:  # the relief (and OpenCV) only for a 3-D camera swarm
+            from sim.sensor_models.camera3d import height_above_launch
+
+            self._height_over = partial(height_above_launch, launch_xy=self.poses[:, :2].copy())
 
     @property
     def now_us(self) -> int:
@@ -176,7 +182,7 @@ class World:
         inputs = law + self._wobble_block[k, 0] if self._wobbles else law
         if t_us % self._periods["truth"] == 0:
             out.truth_stamps.append(t_us)
-            out.truth.append(np.column_stack([self.poses, inputs]))
+            out.truth.append(np.column_stack([self.poses, inputs, self._heights()]))
         self.high_rate.step(streams, t_us, k, inputs[:, 0], inputs[:, 1], self._silenced)
         camera_due = self.terrain is not None and t_us % self._periods[Topic.CAMERA] == 0
         if t_us == 0 or self._gnss_due(t_us) or camera_due:
@@ -189,6 +195,13 @@ class World:
             self.added.measure(t_us, self.vehicle_ids(), self.poses, silenced, emit)
         self._move(law, k, dt)
         self.steps_done += 1
+
+    def _heights(self) -> np.ndarray:
+        """Every vehicle's height (N,) m above its launch point: a UAV's over the relief (the 3-D
+        camera's world), 0 in a world that flies level."""
+        if self._height_over is None:
+            return np.zeros(len(self.vehicles))
+        return self._height_over(self.poses[:, :2])
 
     def _gnss_due(self, t_us: int) -> bool:
         return (t_us - self._gnss_offset_us) % self._periods[Topic.GNSS] == 0

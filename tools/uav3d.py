@@ -43,14 +43,16 @@ def main() -> None:
         runs = pool.map(flight, [(args.scenario, seed, overrides) for seed in seeds])
     rows = [
         {"seed": seed, "vehicle": vid, "rmse_m": s.rmse_m, "max_error_m": float(s.error_m.max()), "anees": s.anees}
-        | {"resets": s.resets}
+        | {"resets": s.resets, "height_rmse_m": s.height_rmse_m, "height_anees": float(np.mean(s.height_nees))}
         for seed, run in zip(seeds, runs)
         for vid, s in run.items()
     ]
-    print("| seed | vehicle | RMSE m | max error m | ANEES (2 dof) | resets |")
-    print("|---|---|---|---|---|---|")
+    print("| seed | vehicle | RMSE m | max error m | ANEES (2 dof) | resets | height RMSE m | height ANEES (1 dof) |")
+    print("|---|---|---|---|---|---|---|---|")
     for r in rows:
-        cells = (r["seed"], r["vehicle"], *(f"{r[k]:.2f}" for k in ("rmse_m", "max_error_m", "anees")), r["resets"])
+        scores = (f"{r[k]:.2f}" for k in ("rmse_m", "max_error_m", "anees"))
+        heights = (f"{r[k]:.2f}" for k in ("height_rmse_m", "height_anees"))
+        cells = (r["seed"], r["vehicle"], *scores, r["resets"], *heights)
         print("| " + " | ".join(map(str, cells)) + " |")
     summary = {"scenario": str(args.scenario), "overrides": overrides} | _consistency(
         [s for run in runs for s in run.values()]
@@ -63,6 +65,12 @@ def main() -> None:
     (low, high), inside, below = summary["band"], summary["instants_in_band"], summary["instants_below_band"]
     print(f"instants whose ANEES across flights is in [{low:.2f}, {high:.2f}]: {inside:.0%} ({below:.0%} below)")
     print(f"swarm RMSE {summary['swarm_rmse_m']:.2f} m")
+    height = summary["height"]
+    (low, high), inside, below = height["band"], height["instants_in_band"], height["instants_below_band"]
+    print(
+        f"height: RMSE {height['rmse_m']:.2f} m, median per-flight ANEES {height['median_flight_anees']:.2f}, "
+        f"instants in [{low:.2f}, {high:.2f}]: {inside:.0%} ({below:.0%} below)"
+    )
     if args.json:
         args.json.write_text(json.dumps({"summary": summary, "flights": rows}, indent=1) + "\n")
 
@@ -94,6 +102,23 @@ def _consistency(flights: list[FlightScore]) -> dict:
         "instants_below_band": float(np.mean(at < low)),
         "band": [float(low), float(high)],
         "swarm_rmse_m": float(np.sqrt(np.mean(np.concatenate([f.error_m**2 for f in flights])))),
+        "height": _height(flights),
+    }
+
+
+def _height(flights: list[FlightScore]) -> dict:
+    """The heights' pooled statistics (1 dof): the median per-flight and the pooled ANEES, the share of
+    instants whose ANEES across the flights is inside (and below) its band, and the RMSE of them all."""
+    count, samples = len(flights), min(len(f.height_nees) for f in flights)
+    low, high = stats.chi2.ppf([0.025, 0.975], count) / count
+    at = np.array([f.height_nees[:samples] for f in flights]).mean(axis=0)
+    return {
+        "median_flight_anees": float(np.median([np.mean(f.height_nees) for f in flights])),
+        "pooled_anees": float(np.concatenate([f.height_nees for f in flights]).mean()),
+        "instants_in_band": float(np.mean((at >= low) & (at <= high))),
+        "instants_below_band": float(np.mean(at < low)),
+        "band": [float(low), float(high)],
+        "rmse_m": float(np.sqrt(np.mean(np.concatenate([f.height_error_m**2 for f in flights])))),
     }
 
 

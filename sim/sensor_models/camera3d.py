@@ -45,6 +45,12 @@ def camera_position(pose: np.ndarray, spec: Camera3dSpec) -> np.ndarray:
     return np.array([xy[0], xy[1], float(rolling_hills(xy)) + spec.height_m])
 
 
+def height_above_launch(xy: np.ndarray, launch_xy: np.ndarray) -> np.ndarray:
+    """How high (n,) m UAVs at ``xy`` (n, 2) fly above where they launched, ``launch_xy`` (n, 2): each
+    keeps its height over the relief (``camera_position``), so it climbs and descends with it."""
+    return rolling_hills(np.asarray(xy, float)) - rolling_hills(np.asarray(launch_xy, float))
+
+
 class Camera3dModel:
     """Measures every vehicle's frames (module docstring); built once per world."""
 

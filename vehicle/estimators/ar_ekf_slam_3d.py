@@ -26,7 +26,8 @@ absolutely (no altimeter, and GNSS fixes are horizontal): it is the height above
 origin uncertain by metres would leave the vehicle and its map with variances hundreds of times those
 differences'), and the map's heights follow it. The published pose is [x, y, heading]: the position's
 horizontal rows, and the last frame's heading turned by the gyro since, its variance grown by the
-gyro's noise and unknown bias (the IMU's datasheet).
+gyro's noise and unknown bias (the IMU's datasheet); with it the altitude (ODOMETRY's z, above the
+launch point, with its variance and covariances), which the ground station scores.
 
 Lost and found again: when ``LOST_AFTER_FIXES`` GNSS fixes in a row fail the gate (the map carried
 the vehicle off while GNSS was jammed, and the filter is sure of a wrong place), the map is dropped,
@@ -46,7 +47,7 @@ import numpy as np
 from bus import messages as m
 from bus.angles import wrap_angle
 from bus.config import ArSlamConfig, SensorSpec, VehicleProcessConfig
-from bus.estimate import Health, PoseEstimate
+from bus.estimate import Altitude, Health, PoseEstimate
 from bus.sensors.camera3d import Camera3dSpec, TrackedPoint
 from bus.sensors.camera3d import look as camera_rotation
 from bus.statistics import gate_threshold
@@ -162,6 +163,7 @@ class ArEkfSlam3d:
             pose_cov=cov,
             speed_mps=speed,
             speed_var=float(0.5 * (slam.P[3, 3] + slam.P[4, 4])),
+            altitude=Altitude(float(slam.x[2]), float(slam.P[2, 2]), (float(slam.P[0, 2]), float(slam.P[1, 2]))),
         )
 
     def health(self, t_us: int) -> Health:

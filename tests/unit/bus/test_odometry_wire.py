@@ -12,7 +12,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from bus import mavlink_codec, mavlink_decoder, odometry_wire
 from bus.errors import DecodeError
-from bus.estimate import PoseEstimate
+from bus.estimate import Altitude, PoseEstimate
 from bus.mavlink_codec import MavlinkDecoder, MavlinkEncoder, MavlinkRejected, StateEstimate, odometry_of, pose_of
 
 KEY = bytes(range(32))
@@ -196,11 +196,16 @@ def test_a_broadcast_reads_as_the_planar_estimate_of_its_decoded_odometry(
     values=st.one_of(nine(st.floats(-100.0, 100.0)), nine(floats)),
     cov=st.lists(st.one_of(st.just(0.0), floats), min_size=9, max_size=9),
     altitude=st.one_of(st.floats(0.0, 100.0), floats),
+    height=st.one_of(st.none(), st.tuples(floats, floats, floats, floats)),
     reset_counter=st.integers(0, 1000),
 )
-def test_a_planar_estimate_is_packed_as_its_odometry_is(sysid, signed, time_usec, values, cov, altitude, reset_counter):
-    """``pose_odometry`` packs byte for byte the frame ``odometry(odometry_of(...))`` packs, two in a row."""
-    est = PoseEstimate(sysid, time_usec, np.array(values[:3]), np.array(cov).reshape(3, 3), *values[3:7])
+def test_a_planar_estimate_is_packed_as_its_odometry_is(
+    sysid, signed, time_usec, values, cov, altitude, height, reset_counter
+):
+    """``pose_odometry`` packs byte for byte the frame ``odometry(odometry_of(...))`` packs, two in a row,
+    with or without an estimated height."""
+    own = None if height is None else Altitude(height[0], height[1], height[2:])
+    est = PoseEstimate(sysid, time_usec, np.array(values[:3]), np.array(cov).reshape(3, 3), *values[3:7], own)
     with pytest.MonkeyPatch.context() as monkeypatch, np.errstate(invalid="ignore"):  # a yaw of inf or NaN
         monkeypatch.setattr(mavlink_codec, "signing_now", lambda: 123_456_789)
         fast, slow = (MavlinkEncoder(vehicle_id=sysid, signing_key=KEY if signed else None) for _ in range(2))

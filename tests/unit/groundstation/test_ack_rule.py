@@ -51,7 +51,9 @@ def test_a_tick_is_acknowledged_once_the_tick_before_is_scored_or_the_hold_is_ov
 
     def truth(k: int) -> None:
         stamps = np.arange((k - 1) * TICK_US + period_us, k * TICK_US + 1, period_us) if k else np.array([0])
-        batch = feed.TruthBatch(k, k * TICK_US, stamps, np.array(VEHICLES), np.zeros((len(stamps), 2, 5)))
+        batch = feed.TruthBatch(
+            k, k * TICK_US, stamps, np.array(VEHICLES), np.zeros((len(stamps), 2, feed.TRUTH_WIDTH))
+        )
         gs.handle(Envelope(keys.truth(), feed.encode_truth(batch)))
 
     def frames(vid: int, k: int) -> None:

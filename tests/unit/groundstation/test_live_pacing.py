@@ -52,7 +52,7 @@ def test_a_paced_live_view_holds_each_ack_until_the_wall_clock_catches_up(tmp_pa
     tick(0)  # the run starts: nothing ahead yet
     assert acknowledged() == [0]
     # tick 0's truth and estimate are in (a tick's acknowledgement also waits for the tick before's)
-    truth = feed.TruthBatch(0, 0, np.array([0]), np.array([1]), np.zeros((1, 1, 5)))
+    truth = feed.TruthBatch(0, 0, np.array([0]), np.array([1]), np.zeros((1, 1, feed.TRUTH_WIDTH)))
     gs.handle(Envelope(gs.bus.keys.truth(), feed.encode_truth(truth)))
     est = StateEstimate(1, 0, np.array([1.0, 2.0, -30.0]), 0.0, np.zeros(3), 0.0, np.eye(6) * 0.5, np.eye(6))
     gs.handle(Envelope(gs.bus.keys.mavlink(1), MavlinkEncoder(vehicle_id=1).odometry(est)))

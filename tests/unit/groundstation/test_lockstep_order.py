@@ -31,7 +31,9 @@ def test_a_late_liveliness_token_does_not_reorder_the_metrics(tmp_path):
     gs = GroundStation(MemoryHub().connect("groundstation"), config, tmp_path / "run", master_key=MASTER)
     keys = gs.bus.keys
     stamps = list(range(0, 6 * STEP_US, STEP_US))
-    truth = feed.TruthBatch(0, stamps[-1], np.array(stamps), np.array([1, 2]), np.zeros((len(stamps), 2, 5)))
+    truth = feed.TruthBatch(
+        0, stamps[-1], np.array(stamps), np.array([1, 2]), np.zeros((len(stamps), 2, feed.TRUTH_WIDTH))
+    )
     gs.handle(Envelope(keys.truth(), feed.encode_truth(truth)))
     gs.handle(LivelinessEvent(keys.alive("vehicle", 1), True))
 

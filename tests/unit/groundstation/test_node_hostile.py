@@ -37,7 +37,7 @@ def _frame(vid: int, t_us: int, key_of: int | None = None, **kw) -> bytes:
 
 
 def _truth(gs: GroundStation, stamps: list[int]) -> None:
-    rows = np.zeros((len(stamps), 3, 5))
+    rows = np.zeros((len(stamps), 3, feed.TRUTH_WIDTH))
     batch = feed.TruthBatch(0, stamps[-1], np.array(stamps), np.array([1, 2, 3]), rows)
     gs.handle(Envelope(gs.bus.keys.truth(), feed.encode_truth(batch)))
 
