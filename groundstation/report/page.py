@@ -45,6 +45,27 @@ def _table(rows: list[dict[str, Any]]) -> str:
     return f"<table><tr>{head}</tr>{body}</table>"
 
 
+HEIGHT_COLUMNS = (("rmse_m", "RMSE [m]"), ("max_error_m", "max error [m]"), ("anees", "ANEES (1 dof)"))
+
+
+def _height_table(summary: dict[str, Any]) -> str:
+    """The vehicles that estimate their height (summary.json ``altitude``): its scores, with the block
+    ANEES against its band; empty when none does."""
+    heights = {vid: v["altitude"] for vid, v in (summary.get("vehicles") or {}).items() if v.get("altitude")}
+    if not heights:
+        return ""
+    head = "<th>vehicle</th>" + "".join(f"<th>{label}</th>" for _, label in HEIGHT_COLUMNS)
+    head += "<th>block ANEES</th><th>95% band</th>"
+    rows = ""
+    for vid in sorted(heights, key=lambda v: (len(v), v)):
+        h, c = heights[vid], heights[vid].get("consistency") or {}
+        band = c.get("band_95") or [None, None]
+        cells = [vid, *(h.get(key) for key, _ in HEIGHT_COLUMNS), c.get("block_anees")]
+        rows += "<tr>" + "".join(f"<td>{_cell(v)}</td>" for v in cells)
+        rows += f"<td>{_cell(band[0])}-{_cell(band[1])}</td></tr>"
+    return f"<h2>Height above the launch point</h2><table><tr>{head}</tr>{rows}</table>"
+
+
 def _events(events: list[dict[str, Any]]) -> str:
     shown = events[:MAX_EVENT_ROWS]
     rows = "".join(
@@ -83,6 +104,7 @@ def render_page(
         f"<div class='problems'><b>What is missing or was skipped</b><ul>{problems}</ul></div>" if problems else "",
         "<h2>Per vehicle</h2>",
         _table(table_rows),
+        _height_table(summary),
         *(_figure(title, png) for title, png in figures),
         "<h2>Events</h2>",
         _events(data.events),

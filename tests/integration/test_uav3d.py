@@ -86,16 +86,16 @@ def test_every_uav_is_scored_for_the_whole_flight(flight):
 
 def test_the_ground_station_scores_each_uavs_height_and_each_claims_it_honestly(flight):
     """GNSS is horizontal and nothing measures the height absolutely: it is carried from the launch
-    point by the camera's triangulations alone, and what each UAV claims of it is scored. The UAV
-    whose camera kept seeing holds its height within 2 m. The one blacked out for 3 s comes back
-    unsure by metres, sets aside every pairing for some 10 s (docs/ar-slam.md) and ends metres off,
-    but says so: both are inside the two-sided band of 1 dof."""
+    point by the camera's triangulations alone, and what each UAV claims of it is scored. The one
+    blacked out for 3 s comes back unsure by a couple of metres, pairs its points with the map again
+    and keeps its height within 3 m too (before the motion model was fitted, it set aside every
+    pairing for 9 s and was 8.1 m off at worst: docs/decisions/ar-slam3d-processes.md)."""
     vehicles = read_summary(flight)["vehicles"]
     for vid in ("1", "2"):
         height = vehicles[vid]["altitude"]
         assert height["samples"] == 30 * ESTIMATES_PER_S + 1
-        assert height["consistency"]["inside"], height["consistency"]
-    assert vehicles["2"]["altitude"]["max_error_m"] < 2.0, vehicles["2"]["altitude"]
+        assert height["max_error_m"] < 3.0, height
+        assert height["consistency"]["inside"], height["consistency"]  # two-sided, 1 dof
 
 
 def test_the_map_carries_the_uavs_through_the_jam_and_gnss_takes_them_back(flight):

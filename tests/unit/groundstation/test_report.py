@@ -160,3 +160,16 @@ def test_a_small_swarm_shows_every_vehicle_in_numeric_order(run_dir):
     summary = json.loads((run_dir / "summary.json").read_text())
     table = rmse_table(summary)
     assert list(table.columns[0].cells) == ["1", "2", "swarm"] and table.caption is None
+
+
+def test_the_page_shows_the_heights_of_the_vehicles_that_estimate_theirs(tmp_path):
+    from groundstation.report.page import _height_table
+
+    consistency = {"block_anees": 0.87, "band_95": [0.07, 3.12]}
+    summary = {"vehicles": {"2": {"altitude": {"rmse_m": 0.611, "max_error_m": 1.339, "anees": 0.865}}}}
+    summary["vehicles"]["2"]["altitude"]["consistency"] = consistency
+    summary["vehicles"]["1"] = {"rmse_m": 0.4}  # flies level: no height
+    table = _height_table(summary)
+    assert table.count("<tr>") == 2 and "<td>2</td><td>0.611</td><td>1.339</td><td>0.865</td>" in table
+    assert "0.070-3.120" in table
+    assert _height_table({"vehicles": {"1": {"rmse_m": 0.4}}}) == ""
