@@ -27,7 +27,7 @@ import numpy as np
 
 from bus.sensors.camera3d import PAPER_K, Camera3dSpec
 from bus.sensors.camera3d import look as camera_rotation
-from vehicle.vision.triangulation import camera_matrices, triangulate
+from vehicle.vision.triangulation import camera_matrices, triangulate, triangulated_points
 
 MIN_PARALLAX_RAD = np.deg2rad(2.0)
 USES = 2.0  # pairs each frame serves: as the later frame, then as the earlier one
@@ -83,7 +83,7 @@ def frame_points(earlier: Frame, later: Frame, spec: Camera3dSpec, uses: float =
     for k in range(len(inputs)):  # the innovation's change per unit error of each input
         step = np.zeros(len(inputs))
         step[k] = SHARED_STEP[k]
-        moved = triangulated(uv1, uv2, inputs + step, pitch, 1.0)[0]
+        moved = moved_points(uv1, uv2, inputs + step, pitch)
         if k == 1:  # h = R(psi)^T (X - p) with X - p = R(psi) z turns with the later heading too
             turn = camera_rotation(inputs[1] + step[1], pitch).T @ camera_rotation(inputs[1], pitch)
             G[:, :, k] = (moved - z @ turn.T) / step[k]
@@ -110,10 +110,21 @@ def triangulated(
     """Points (k, 3) m in the later camera's frame, their pixel covariances (k, 3, 3) and which are
     usable (k,) (in front of both cameras, parallax >= MIN_PARALLAX_RAD), from the pixels (k, 2) of the
     earlier and later frames and ``inputs`` [earlier heading, later heading, displacement (3)]."""
-    R1 = camera_rotation(inputs[0], pitch_rad)
-    R2 = camera_rotation(inputs[1], pitch_rad)
-    R_rel, L = R2.T @ R1, -R2.T @ inputs[2:]  # camera 1 -> camera 2: X2 = R_rel X1 + L
+    R_rel, L = _relative_pose(inputs, pitch_rad)
     out = triangulate(*camera_matrices(PAPER_K, R_rel, L), uv1, uv2, sigma_px=sigma_px)
     z = out.points @ R_rel.T + L
     cov = np.einsum("ij,njk,lk->nil", R_rel, out.covariances, R_rel)
     return z, cov, out.usable & (out.parallax_rad >= MIN_PARALLAX_RAD)
+
+
+def moved_points(uv1: np.ndarray, uv2: np.ndarray, inputs: np.ndarray, pitch_rad: float) -> np.ndarray:
+    """The points (k, 3) of :func:`triangulated` alone (the same values), for its finite differences."""
+    R_rel, L = _relative_pose(inputs, pitch_rad)
+    return triangulated_points(*camera_matrices(PAPER_K, R_rel, L), uv1, uv2) @ R_rel.T + L
+
+
+def _relative_pose(inputs: np.ndarray, pitch_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """Camera 1 -> camera 2 (X2 = R_rel X1 + L) from [earlier heading, later heading, displacement (3)]."""
+    R1 = camera_rotation(inputs[0], pitch_rad)
+    R2 = camera_rotation(inputs[1], pitch_rad)
+    return R2.T @ R1, -R2.T @ inputs[2:]

@@ -61,10 +61,7 @@ def triangulate(
     m1: np.ndarray, m2: np.ndarray, uv1: np.ndarray, uv2: np.ndarray, *, sigma_px: float = 1.0
 ) -> Triangulated:
     """Points seen at pixels uv1 (n, 2) by camera m1 (3, 4) and uv2 by m2 (module docstring)."""
-    uv1, uv2 = np.atleast_2d(uv1).astype(float), np.atleast_2d(uv2).astype(float)
-    A, b = linear_system(m1, m2, uv1, uv2)
-    AtA = np.einsum("nki,nkj->nij", A, A)
-    X = np.linalg.solve(AtA, np.einsum("nki,nk->ni", A, b)[..., None])[..., 0]
+    A, b, AtA, X = _least_squares(m1, m2, uv1, uv2)
     residual = b - np.einsum("nkj,nj->nk", A, X)
     J = np.empty((len(X), 3, 4))
     for k, m in enumerate((m1, m1, m2, m2)):  # d(row k)/d(its pixel coordinate): dA_k = m_3, db_k = -m_34
@@ -79,6 +76,24 @@ def triangulate(
     depth2 = np.einsum("j,nj->n", m2[2, :3], X) + m2[2, 3]
     refusal = np.where((X[:, 2] <= 0) | (depth2 <= 0), "behind", np.where(parallax < MIN_PARALLAX_RAD, "parallax", ""))
     return Triangulated(X, covariances, parallax, refusal)
+
+
+def triangulated_points(m1: np.ndarray, m2: np.ndarray, uv1: np.ndarray, uv2: np.ndarray) -> np.ndarray:
+    """The points (n, 3) of :func:`triangulate` alone (the same values), without their covariances,
+    parallax or refusals: what a finite difference of the cameras needs."""
+    return _least_squares(m1, m2, uv1, uv2)[3]
+
+
+def _least_squares(
+    m1: np.ndarray, m2: np.ndarray, uv1: np.ndarray, uv2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The four linear equations A (n, 4, 3), b (n, 4) of each point, A^T A (n, 3, 3) and their
+    least-squares solution X (n, 3)."""
+    uv1, uv2 = np.atleast_2d(uv1).astype(float), np.atleast_2d(uv2).astype(float)
+    A, b = linear_system(m1, m2, uv1, uv2)
+    AtA = np.einsum("nki,nkj->nij", A, A)
+    X = np.linalg.solve(AtA, np.einsum("nki,nk->ni", A, b)[..., None])[..., 0]
+    return A, b, AtA, X
 
 
 def _parallax(m1: np.ndarray, m2: np.ndarray, X: np.ndarray) -> np.ndarray:
