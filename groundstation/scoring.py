@@ -154,7 +154,7 @@ def score(est: StateEstimate, truth: np.ndarray) -> Score:
         statistics.nees(error, cov),
         est.reset_counter,
         est,
-        truth[:3] if len(truth) > 3 else truth,
+        _planar(truth),
         altitude_error,
         math.nan if height is None else altitude_error**2 / height.var,  # NaN where no height is known
     )
@@ -191,7 +191,7 @@ def score_all(ests: list[StateEstimate], truth_poses: list[np.ndarray]) -> list[
             float(errors[i] @ solved[i]),
             e.reset_counter,
             e,
-            t[:3] if len(t) > 3 else t,
+            _planar(t),
             float(height_error[i]),
             float(height_nees[i]),
         )
@@ -203,6 +203,11 @@ def score_all(ests: list[StateEstimate], truth_poses: list[np.ndarray]) -> list[
     for s, sigma, position_error_m in zip(scores, sigmas, np.hypot(errors[:, 0], errors[:, 1]).tolist()):
         known(s, sigma=sigma, position_error_m=position_error_m)
     return scores
+
+
+def _planar(truth: np.ndarray) -> np.ndarray:
+    """The pose [x, y, theta] (3,) of a truth (4,) with its height, or the truth (3,) itself."""
+    return truth[:3] if len(truth) > 3 else truth
 
 
 def _score_or_none(est: StateEstimate, truth_pose: np.ndarray) -> Score | None:
