@@ -8,6 +8,7 @@ the last second of metrics. A restarted ground station appends.
 from __future__ import annotations
 
 import json
+import math
 import time
 from pathlib import Path
 from typing import Any, TextIO
@@ -59,7 +60,8 @@ class RunDirectory:
         return self._tum[name]
 
     def write_scores(self, scores: list[Score]) -> None:
-        """A metrics row and an estimate and a truth TUM line per score. The numbers are read out of
+        """A metrics row and an estimate and a truth TUM line per score (the truth's z the estimate's
+        where the vehicle flies level, the true height's where it estimates its own). The numbers are read out of
         numpy once per score (``tolist``) and the half-yaw sines and cosines worked out for the whole
         list at once: the same text as formatting each numpy scalar, at a third of the cost."""
         half_yaws = np.array([(s.estimate.yaw_rad, s.truth_pose[2]) for s in scores], dtype=float).reshape(-1, 2) / 2
@@ -70,6 +72,7 @@ class RunDirectory:
             sx, sy, syaw = s.sigma.tolist()
             x, y, z = s.estimate.position_m.tolist()
             tx, ty = s.truth_pose[:2].tolist()
+            tz = z if math.isnan(s.altitude_error_m) else z + s.altitude_error_m  # NED: the true height's
             t_s = s.stamp_us * 1e-6
             self._metrics.write(
                 f"{t_s:.6f},{s.vehicle_id},{ex:.6f},{ey:.6f},{s.position_error_m:.6f},{eyaw:.6f},{sx:.6f},"
@@ -80,7 +83,7 @@ class RunDirectory:
                 f"{t_s:.6f} {x:.6f} {y:.6f} {z:.6f} 0 0 {sin_est:.9f} {cos_est:.9f}\n"
             )
             self._tum_file("truth", s.vehicle_id).write(
-                f"{t_s:.6f} {tx:.6f} {ty:.6f} {z:.6f} 0 0 {sin_truth:.9f} {cos_truth:.9f}\n"
+                f"{t_s:.6f} {tx:.6f} {ty:.6f} {tz:.6f} 0 0 {sin_truth:.9f} {cos_truth:.9f}\n"
             )
         if self.recording is not None and scores:
             self.recording.scores(scores)

@@ -18,12 +18,13 @@ def _scores(rng: np.random.Generator, n: int):
         yaw = rng.uniform(-np.pi, np.pi)
         vid, stamp_us = 1 + k % 4, 20_000 * k + 7
         ests.append(StateEstimate(vid, stamp_us, position, yaw, np.zeros(3), 0.0, a @ a.T, np.eye(6), k % 3))
-        truths.append(np.array([*rng.normal(size=2) * 10, rng.uniform(-np.pi, np.pi)]))
-    return score_all(ests, truths)
+        truths.append(np.array([*rng.normal(size=2) * 10, rng.uniform(-np.pi, np.pi), rng.normal() * 5]))
+    return score_all(ests, truths), truths
 
 
 def test_each_score_is_a_metrics_row_and_an_estimate_and_truth_tum_line(tmp_path):
-    scores = _scores(np.random.default_rng(11), 40)
+    scores, truths = _scores(np.random.default_rng(11), 40)
+    true_height = {id(s): t[3] for s, t in zip(scores, truths, strict=True)}
     run = RunDirectory(tmp_path)
     run.write_scores(scores)
     run.flush()
@@ -45,7 +46,9 @@ def test_each_score_is_a_metrics_row_and_an_estimate_and_truth_tum_line(tmp_path
             assert len(lines) == len(mine)
             for s, line in zip(mine, lines, strict=True):
                 x, y, yaw = (*s.estimate.position_m[:2], s.estimate.yaw_rad) if kind == "est" else s.truth_pose
-                z = s.estimate.position_m[2]
+                z = s.estimate.position_m[2]  # a level vehicle's truth flies at its estimate's altitude
+                if kind == "truth" and s.estimate.pose_covariance[2, 2] > 1e-6:  # it estimates its height
+                    z = -true_height[id(s)]  # NED
                 # TUM: timestamp tx ty tz qx qy qz qw, the attitude a yaw about z
                 attitude = f"0 0 {np.sin(yaw / 2):.9f} {np.cos(yaw / 2):.9f}"
                 assert line == f"{s.stamp_us * 1e-6:.6f} {x:.6f} {y:.6f} {z:.6f} {attitude}"
