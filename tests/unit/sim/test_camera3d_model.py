@@ -53,3 +53,21 @@ def test_the_displacement_comes_with_the_frame_a_baseline_later():
         truth
     )
     assert (frames[10][:, 4:8] == frames[10][0, 4:8]).all()  # one displacement per frame
+
+
+def test_the_world_s_truth_carries_each_uav_s_height_above_where_it_launched():
+    """The truth's height column is how far the camera the world flies has climbed since the first
+    truth (0 there), for every vehicle; a world without the 3-D camera flies level (0 throughout)."""
+    from sim.world import World
+
+    config = build_config({"world": {"vehicles": 3, "seed": 2}, "sensors": {"camera3d": {"rate_hz": 10}}})
+    out = World(config).advance(20_000_000)
+    rows = np.array(out.truth)  # (k, vehicles, 6)
+    spec = config.sensors.camera3d
+    climbed = [
+        [camera_position(r[v, :3], spec)[2] - camera_position(rows[0, v, :3], spec)[2] for v in range(3)] for r in rows
+    ]
+    np.testing.assert_allclose(rows[:, :, 5], climbed, atol=1e-9)
+    assert np.all(rows[0, :, 5] == 0.0) and np.ptp(rows[:, :, 5]) > 1.0  # it does climb and descend
+    level = np.array(World(build_config({"world": {"vehicles": 2}})).advance(2_000_000).truth)
+    assert np.all(level[:, :, 5] == 0.0)
