@@ -71,8 +71,10 @@ def test_a_realtime_vehicle_whose_feed_comes_late_is_as_honest_as_in_lockstep(tm
 
 def test_restart_on_failure_leaves_a_realtime_swarm_as_it_was(tmp_path):
     """The same realtime swarm with and without `--restart on-failure`: the same clock tick, no input
-    arriving after its cycle (only the ranging fixes, which come after their cycle by design), overruns
-    under 1 %, every vehicle inside its NEES band. Statistics, not timings."""
+    arriving after its cycle (only the ranging fixes, which come after their cycle by design), the loop
+    keeping up, every vehicle inside its NEES band. Statistics, not timings: overruns depend on what
+    else the machine runs (0-0.5 % of cycles alone on 2 cores, 1.5 % beside another test job), so
+    their bound is a guard against a loop that cannot keep up at all, not a measure of speed."""
     for policy in ("no", "on-failure"):
         name = f"restart-{policy}"
         args = ("--vehicles", "3", "--duration", "20", "--mode", "realtime", "--speed", "2", "--seed", "4")
@@ -85,5 +87,5 @@ def test_restart_on_failure_leaves_a_realtime_swarm_as_it_was(tmp_path):
             cycles = timing[vid]["cycles"]
             # on 0.5 s ticks every IMU and odometry sample came late: about 3 a cycle
             assert vehicle["late_fused"] - vehicle["v2v_fused"] < 0.5 * cycles, (policy, vid, vehicle["late_fused"])
-            assert timing[vid]["overruns"] < 0.01 * cycles, (policy, vid)
+            assert timing[vid]["overruns"] < 0.1 * cycles, (policy, vid)
             assert _inside(vehicle), (policy, vid, vehicle["consistency"])
