@@ -8,7 +8,6 @@ its error against the truth's height above the launch point and its NEES of 1 de
 
 from __future__ import annotations
 
-import bisect
 import heapq
 import itertools
 import logging
@@ -23,6 +22,7 @@ from bus.consistency import ConsistencyTally
 from bus.mavlink_codec import StateEstimate, pose_of
 from bus.odometry_content import NOT_ESTIMATED_VAR, POSE_INDEX
 from bus.once import computed_once, known
+from groundstation.truth_track import TruthTrack
 
 log = logging.getLogger("swarmloc.groundstation")
 TRUTH_COLUMNS = [0, 1, 2, 5]  # of a truth batch's rows (bus.feed.TruthBatch): x, y, theta, height
@@ -98,45 +98,6 @@ class AltitudeTally:
         self.max_error_m = max(self.max_error_m, err)
         self.sum_nees += score.altitude_nees
         self.consistency.add(score.stamp_us * 1e-6, score.altitude_nees)
-
-
-class TruthTrack:
-    """One vehicle's truth samples, interpolated (angle-aware) at arbitrary stamps."""
-
-    def __init__(self) -> None:
-        self.stamps: list[int] = []
-        self.poses: list[np.ndarray] = []
-
-    def add(self, stamp_us: int, pose: np.ndarray) -> None:
-        """One truth sample: pose (4,) [x m, y m, theta rad, height above the launch point m] at
-        ``stamp_us``."""
-        if self.stamps and stamp_us <= self.stamps[-1]:
-            return  # duplicate or out of order: truth is published in order
-        self.stamps.append(stamp_us)
-        self.poses.append(pose)
-
-    def covers(self, stamp_us: int) -> bool:
-        return bool(self.stamps) and self.stamps[0] <= stamp_us <= self.stamps[-1]
-
-    def in_gap(self, stamp_us: int) -> bool:
-        """``stamp_us`` (covered) touches a truth sample of NaN: the data set has no truth there."""
-        i = bisect.bisect_left(self.stamps, stamp_us)
-        near = [self.poses[i]] if self.stamps[i] == stamp_us else [self.poses[i - 1], self.poses[i]]
-        return any(math.isnan(p[0]) for p in near)
-
-    def at(self, stamp_us: int) -> np.ndarray:
-        i = bisect.bisect_left(self.stamps, stamp_us)
-        if self.stamps[i] == stamp_us:
-            return self.poses[i]
-        t0, t1, p0, p1 = self.stamps[i - 1], self.stamps[i], self.poses[i - 1], self.poses[i]
-        a = (stamp_us - t0) / (t1 - t0)
-        pose = p0 + a * (p1 - p0)
-        pose[2] = wrap(p0[2] + a * wrap(p1[2] - p0[2]))
-        return pose
-
-    def forget_before(self, stamp_us: int) -> None:
-        keep = max(0, bisect.bisect_left(self.stamps, stamp_us) - 1)
-        del self.stamps[:keep], self.poses[:keep]
 
 
 def score(est: StateEstimate, truth: np.ndarray) -> Score:

@@ -5,19 +5,19 @@ and its GNSS receiver. Pure: no bus, no clock; the vehicle process runs it as it
 (the same interface: ``handle``, ``cycle``, ``snapshot`` and ``restore`` for the fusion horizon,
 ``estimate``, ``health``).
 
-Between frames, the gyro's yaw rate turns the heading and the horizontal velocity (a UAV that flies
-nose first, as the world's do: at every prediction step the turn since the last, half before and
-half after); without a gyro the velocity turns with the frames' headings. Per camera frame (its
-tracked points, which share the frame's stamp, heading and displacement): the state is predicted to
-the frame and the frame's heading resets the heading; the points the frame and the frame
-``baseline_s`` earlier both track are triangulated (vehicle.vision.tracked_frames: the rotation the
-paper takes from visual odometry comes from the attitude sensor's headings, the scale it takes from
-an inertial unit from the inertial displacement).
-The errors a frame's points share (the two headings', the displacement's) are states of the back end
-while the frame's points are fused (ArSlam3d.frame's ``common``), so that they count once. The
-points are then associated with the map by nearest neighbour behind the chi-square gate, fused,
-entered and retired as the back end does. Track ids only pair a point's pixels across frames (what
-a tracker gives); the map is associated on geometry.
+Between frames, the gyro's yaw rate turns the heading and the horizontal velocity
+(vehicle.estimators.gyro_turn; a UAV that flies nose first, as the world's do: at every prediction
+step the turn since the last, half before and half after); without a gyro the velocity turns with
+the frames' headings. Per camera frame (its tracked points, which share the frame's stamp, heading
+and displacement): the state is predicted to the frame and the frame's heading resets the heading;
+the points the frame and the frame ``baseline_s`` earlier both track are triangulated
+(vehicle.vision.tracked_frames: the rotation the paper takes from visual odometry comes from the
+attitude sensor's headings, the scale it takes from an inertial unit from the inertial
+displacement). The errors a frame's points share (the two headings', the displacement's) are states
+of the back end while the frame's points are fused (ArSlam3d.frame's ``common``), so that they count
+once. The points are then associated with the map by nearest neighbour behind the chi-square gate,
+fused, entered and retired as the back end does. Track ids only pair a point's pixels across frames
+(what a tracker gives); the map is associated on geometry.
 
 The motion model's white acceleration (``ACCEL_PSD``, m^2/s^3 per axis) covers changes of speed
 and climbing and descending with the relief; turns are the gyro's. Its horizontal part was chosen on
@@ -57,6 +57,7 @@ from bus.sensors.camera3d import Camera3dSpec, TrackedPoint
 from bus.sensors.camera3d import look as camera_rotation
 from bus.statistics import gate_threshold
 from vehicle.estimators.ar_slam3d import ArSlam3d
+from vehicle.estimators.gyro_turn import Gyro
 from vehicle.estimators.state import SEVERITY_WARNING, EstimatorCounters, Notice, Notices
 from vehicle.models import slam3d
 from vehicle.vision.tracked_frames import NO_POINTS, Frame, frame_points
@@ -65,17 +66,6 @@ ACCEL_PSD = np.array([0.5, 0.5, 0.05])  # m^2/s^3: x, y, up
 ALTITUDE_SIGMA_M, SPEED_SIGMA_MPS = 0.05, 5.0
 GNSS_GATE_PROBABILITY = 0.9995
 LOST_AFTER_FIXES = 3  # GNSS fixes in a row failing the gate
-
-
-@dataclass
-class Gyro:
-    """What the gyro has said since the last frame: its last stamp (-1: none yet), the seconds since
-    the frame, and the turn (rad) and its variance (rad^2) not yet applied to the velocity."""
-
-    last_us: int = -1
-    since_frame_s: float = 0.0
-    turn_rad: float = 0.0
-    turn_var: float = 0.0
 
 
 @dataclass
@@ -255,29 +245,17 @@ class ArEkfSlam3d:
         s = self.state
         if t_us > s.time_us:
             dt = (t_us - s.time_us) * 1e-6
-            gyro = s.gyro
-            s.slam.turn_velocity(0.5 * gyro.turn_rad, 0.5 * gyro.turn_var)
+            turn_rad, turn_var = s.gyro.take_turn()
+            s.slam.turn_velocity(0.5 * turn_rad, 0.5 * turn_var)
             s.slam.predict(dt, ACCEL_PSD * dt)
-            s.slam.turn_velocity(0.5 * gyro.turn_rad, 0.5 * gyro.turn_var)
-            gyro.turn_rad = gyro.turn_var = 0.0
+            s.slam.turn_velocity(0.5 * turn_rad, 0.5 * turn_var)
             s.time_us = t_us
 
     def _gyro(self, stamp_us: int, rate_radps: float) -> None:
-        """One gyro sample: the heading and the pending turn of the velocity move by its yaw rate
-        over the interval since the last; the heading's variance grows by the gyro's noise and the
-        unknown bias over the time since the last frame (the datasheet's)."""
-        s, gyro = self.state, self.state.gyro
-        if stamp_us <= gyro.last_us or stamp_us < s.time_us:
-            return
-        dt = (stamp_us - gyro.last_us) * 1e-6 if gyro.last_us >= 0 else 0.0
-        gyro.last_us = stamp_us
-        noise_var = (self._imu.gyro_sigma_radps * dt) ** 2
-        bias_var = self._imu.gyro_bias_sigma_radps**2
-        s.heading_rad = float(wrap_angle(s.heading_rad + rate_radps * dt))
-        s.heading_var += noise_var + bias_var * ((gyro.since_frame_s + dt) ** 2 - gyro.since_frame_s**2)
-        gyro.since_frame_s += dt
-        gyro.turn_rad += rate_radps * dt
-        gyro.turn_var += noise_var + bias_var * dt**2
+        """One gyro sample (vehicle.estimators.gyro_turn), unless the state is already past it."""
+        s = self.state
+        if stamp_us >= s.time_us:
+            s.heading_rad, s.heading_var = s.gyro.sample(stamp_us, rate_radps, s.heading_rad, s.heading_var, self._imu)
 
     def _take_point(self, point: TrackedPoint) -> None:
         """One tracked point: the frame it belongs to is received row by row (one stamp)."""

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from bus.mavlink_codec import StateEstimate
-from groundstation.scoring import Scorer, TruthTrack, score, score_all
+from groundstation.scoring import Scorer, score, score_all
+from groundstation.truth_track import TruthTrack
 
 
 def _est(vid: int, t_us: int, x: float, y: float, yaw: float = 0.0, var: float = 1.0) -> StateEstimate:
