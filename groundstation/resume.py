@@ -21,7 +21,8 @@ def resume_run(run_dir: Path, bounds: tuple[float, float]) -> tuple[dict[int, Ta
 
 
 def resume_tallies(path: Path, bounds: tuple[float, float]) -> tuple[dict[int, Tally], dict[int, int]]:
-    """Per-vehicle tallies and the last scored stamp (us) from the complete lines of metrics.csv."""
+    """Per-vehicle tallies (the planar pose's, its consistency, and the height's where it was scored) and
+    the last scored stamp (us) from the complete lines of metrics.csv."""
     tallies: dict[int, Tally] = {}
     last_us: dict[int, int] = {}
     if not path.exists():
@@ -38,13 +39,21 @@ def resume_tallies(path: Path, bounds: tuple[float, float]) -> tuple[dict[int, T
             except (KeyError, TypeError, ValueError):
                 continue
             tally = tallies.setdefault(vid, Tally())
-            tally.samples += 1
-            tally.sum_sq_position_m2 += err * err
-            tally.max_position_error_m = max(tally.max_position_error_m, err)
-            tally.sum_nees += nees
-            tally.nees_inside += int(bounds[0] <= nees <= bounds[1])
+            tally.add_sample(t_us * 1e-6, err, nees, bounds)
+            height = _height_score(row)
+            if height is not None:
+                tally.add_altitude(t_us * 1e-6, *height)
             last_us[vid] = max(last_us.get(vid, t_us), t_us)
     return tallies, last_us
+
+
+def _height_score(row: dict) -> tuple[float, float] | None:
+    """A metrics row's height error (m) and NEES, None where it has none (a level vehicle, or a file
+    written before the height was scored)."""
+    try:
+        return float(row["err_alt_m"]), float(row["nees_alt"])
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def resume_events(path: Path) -> Counter[str]:

@@ -18,8 +18,9 @@ import numpy as np
 from groundstation.scoring import Score
 
 METRICS_HEADER = (
-    "t_s,vehicle,err_x_m,err_y_m,err_pos_m,err_yaw_rad,sigma_x_m,sigma_y_m,sigma_yaw_rad,nees,reset_counter,cov_xy_m2\n"
-)
+    "t_s,vehicle,err_x_m,err_y_m,err_pos_m,err_yaw_rad,sigma_x_m,sigma_y_m,sigma_yaw_rad,nees,reset_counter,cov_xy_m2,"
+    "err_alt_m,sigma_alt_m,nees_alt\n"
+)  # the last three: the height's score where the vehicle estimates its height (groundstation.scoring), else empty
 
 
 def drop_partial_line(path: Path) -> None:
@@ -30,6 +31,14 @@ def drop_partial_line(path: Path) -> None:
         data = handle.read()
         if not data.endswith(b"\n"):
             handle.truncate(data.rfind(b"\n") + 1)
+
+
+def _height_columns(s: Score) -> str:
+    """metrics.csv's err_alt_m, sigma_alt_m and nees_alt of a score: empty where no height is estimated."""
+    if math.isnan(s.altitude_nees):
+        return ",,"
+    sigma = math.sqrt(s.estimate.pose_covariance[2, 2].item())  # NED z's variance: the height's
+    return f"{s.altitude_error_m:.6f},{sigma:.6f},{s.altitude_nees:.6f}"
 
 
 class RunDirectory:
@@ -76,7 +85,8 @@ class RunDirectory:
             t_s = s.stamp_us * 1e-6
             self._metrics.write(
                 f"{t_s:.6f},{s.vehicle_id},{ex:.6f},{ey:.6f},{s.position_error_m:.6f},{eyaw:.6f},{sx:.6f},"
-                f"{sy:.6f},{syaw:.6f},{s.nees:.6f},{s.reset_counter},{s.pose_covariance[0, 1].item():.9f}\n"
+                f"{sy:.6f},{syaw:.6f},{s.nees:.6f},{s.reset_counter},{s.pose_covariance[0, 1].item():.9f},"
+                f"{_height_columns(s)}\n"
             )
             # TUM: timestamp tx ty tz qx qy qz qw (a yaw-only attitude)
             self._tum_file("est", s.vehicle_id).write(

@@ -67,17 +67,25 @@ class Tally:
     altitude: AltitudeTally | None = None  # where the vehicle estimates its height
 
     def add(self, score: Score, bounds: tuple[float, float]) -> None:
-        err = score.position_error_m
-        self.samples += 1
-        self.sum_sq_position_m2 += err * err
-        self.max_position_error_m = max(self.max_position_error_m, err)
-        self.sum_nees += score.nees
-        self.nees_inside += int(bounds[0] <= score.nees <= bounds[1])
-        self.consistency.add(score.stamp_us * 1e-6, score.nees)
+        t_s = score.stamp_us * 1e-6
+        self.add_sample(t_s, score.position_error_m, score.nees, bounds)
         if not math.isnan(score.altitude_nees):
-            if self.altitude is None:
-                self.altitude = AltitudeTally()
-            self.altitude.add(score)
+            self.add_altitude(t_s, score.altitude_error_m, score.altitude_nees)
+
+    def add_sample(self, t_s: float, error_m: float, nees: float, bounds: tuple[float, float]) -> None:
+        """One score of the planar pose: its position error (m) and NEES (3 dof) at ``t_s`` (s)."""
+        self.samples += 1
+        self.sum_sq_position_m2 += error_m * error_m
+        self.max_position_error_m = max(self.max_position_error_m, error_m)
+        self.sum_nees += nees
+        self.nees_inside += int(bounds[0] <= nees <= bounds[1])
+        self.consistency.add(t_s, nees)
+
+    def add_altitude(self, t_s: float, error_m: float, nees: float) -> None:
+        """One score of the height: its error (m, signed) and NEES (1 dof) at ``t_s`` (s)."""
+        if self.altitude is None:
+            self.altitude = AltitudeTally()
+        self.altitude.add(t_s, error_m, nees)
 
 
 @dataclass
@@ -91,13 +99,13 @@ class AltitudeTally:
     sum_nees: float = 0.0
     consistency: ConsistencyTally = field(default_factory=lambda: ConsistencyTally(dof=1))
 
-    def add(self, score: Score) -> None:
-        err = abs(score.altitude_error_m)
+    def add(self, t_s: float, error_m: float, nees: float) -> None:
+        err = abs(error_m)
         self.samples += 1
         self.sum_sq_m2 += err * err
         self.max_error_m = max(self.max_error_m, err)
-        self.sum_nees += score.altitude_nees
-        self.consistency.add(score.stamp_us * 1e-6, score.altitude_nees)
+        self.sum_nees += nees
+        self.consistency.add(t_s, nees)
 
 
 def score(est: StateEstimate, truth: np.ndarray) -> Score:

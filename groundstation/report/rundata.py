@@ -7,6 +7,7 @@ as one sentence a user can act on, and the report shows what is there.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -143,14 +144,15 @@ def _read_json(file: Path, problems: list[str], missing: str | None = None) -> d
 def _read_rows(
     file: Path, width: int, problems: list[str], skip_header: bool = False, sep: str | None = None
 ) -> np.ndarray:
-    """(N, width) floats from a text table; lines of another width or not numeric are skipped and counted
-    (the last line of a killed run is often cut short)."""
+    """(N, width) floats from a text table, an empty field NaN (metrics.csv's height columns of a level
+    vehicle); lines of another width or not numeric are skipped and counted (the last line of a killed
+    run is often cut short)."""
     lines = file.read_text(errors="replace").splitlines()[1 if skip_header else 0 :]
     rows, bad = [], 0
     for line in lines:
         fields = line.split(sep)
         try:
-            values = [float(f) for f in fields]
+            values = [float(f) if f else math.nan for f in fields]
         except ValueError:
             values = []
         if len(values) == width:

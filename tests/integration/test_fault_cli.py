@@ -110,7 +110,8 @@ def test_fault_commands_against_a_running_swarm(tmp_path):
 
 
 def _scored_until(run, *, vehicle: int) -> float:
-    rows = [line.split(",") for line in (run / "metrics.csv").read_text().splitlines()[1:] if line.count(",") == 11]
+    header, *lines = (run / "metrics.csv").read_text().splitlines()
+    rows = [line.split(",") for line in lines if line.count(",") == header.count(",")]
     return max((float(r[0]) for r in rows if r[1] == str(vehicle)), default=0.0)
 
 

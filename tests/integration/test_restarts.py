@@ -91,3 +91,4 @@ def test_restart_on_failure_brings_back_a_vehicle_and_the_ground_station(tmp_pat
         # (stamps are decimal text: 13.9 - 12.3 is 1.6000000000000014 in floats)
         assert max(b - a for a, b in zip(stamps, stamps[1:])) <= 3 * tick_s + 1 / ESTIMATES_PER_S + 1e-9
         assert summary["vehicles"][str(vid)]["samples"] == len(stamps)
+        assert summary["vehicles"][str(vid)]["consistency"]["samples"] == len(stamps)  # the whole run's too

@@ -39,6 +39,8 @@ def test_each_score_is_a_metrics_row_and_an_estimate_and_truth_tum_line(tmp_path
         np.testing.assert_allclose(float(f[9]), s.nees, atol=5e-7)
         assert int(f[10]) == s.reset_counter
         np.testing.assert_allclose(float(f[11]), s.pose_covariance[0, 1], atol=5e-10)
+        height = [s.altitude_error_m, np.sqrt(s.estimate.pose_covariance[2, 2]), s.altitude_nees]
+        np.testing.assert_allclose([float(x) for x in f[12:15]], height, rtol=1e-6, atol=5e-7)
     for vid in {s.vehicle_id for s in scores}:
         mine = [s for s in scores if s.vehicle_id == vid]
         for kind in ("est", "truth"):
