@@ -51,32 +51,6 @@ FLIGHT_SCHEMA = {
 }
 
 
-def ellipsoid(covariance: np.ndarray, sigmas: float = SIGMAS) -> tuple[np.ndarray, np.ndarray]:
-    """The ``sigmas`` ellipsoid of a 3 x 3 covariance: its diameters along its principal axes (3,) m and
-    the rotation to them as a quaternion (x, y, z, w) (the axes, right-handed, as the columns)."""
-    values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
-    if np.linalg.det(vectors) < 0.0:
-        vectors[:, 0] = -vectors[:, 0]
-    return 2.0 * sigmas * np.sqrt(np.maximum(values, 0.0)), quaternion(vectors)
-
-
-def quaternion(rotation: np.ndarray) -> np.ndarray:
-    """The unit quaternion (x, y, z, w) of a rotation matrix (3, 3) (Shepperd's method)."""
-    m = rotation
-    trace = np.trace(m)
-    if trace > 0.0:
-        s = 2.0 * math.sqrt(trace + 1.0)
-        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * math.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        q = [0.0, 0.0, 0.0, (m[k, j] - m[j, k]) / s]
-        q[i], q[j], q[k] = 0.25 * s, (m[j, i] + m[i, j]) / s, (m[k, i] + m[i, k]) / s
-    q = np.array(q)
-    return q / np.linalg.norm(q)
-
-
 def relief_mesh(positions: np.ndarray, step_m: float = MESH_STEP_M) -> tuple[np.ndarray, np.ndarray]:
     """The ground under the flight's true positions (k, 3), MESH_MARGIN_M around them: triangle
     vertices (t, 3, 3) m and each vertex's grey level (t, 3) in [0, 1] by height."""
@@ -194,13 +168,7 @@ class FlightRecording:
         ]
 
     def _ellipsoid(self, centre: np.ndarray, covariance: np.ndarray, rgba: tuple) -> Any:
-        fm = self.fm
-        size, q = ellipsoid(covariance)
-        return fm.SpherePrimitive(
-            pose=fm.Pose(position=_vector(fm, centre), orientation=_orientation(fm, q)),
-            size=fm.Vector3(x=float(size[0]), y=float(size[1]), z=float(size[2])),
-            color=_color(fm, rgba),
-        )
+        return sp.ellipsoid_sphere(self.fm, centre, covariance, rgba, SIGMAS)
 
     def _line(self, points: np.ndarray, rgba: tuple, thickness: float) -> Any:
         fm = self.fm

@@ -193,8 +193,9 @@ class Recording:
             ns = s.stamp_us * 1000
             stamp = sp.stamp(fm, s.stamp_us)
             est, truth = s.estimate, s.truth_pose
-            estimate_pose = sp.pose(fm, est.position_m[0], est.position_m[1], est.yaw_rad)
-            true_pose = sp.pose(fm, truth[0], truth[1], truth[2])
+            est_z, true_z = se.heights_m(s)
+            estimate_pose = sp.pose(fm, est.position_m[0], est.position_m[1], est.yaw_rad, est_z)
+            true_pose = sp.pose(fm, truth[0], truth[1], truth[2], true_z)
             self._pose_channel("estimate", s.vehicle_id).log(
                 fm.PoseInFrame(timestamp=stamp, frame_id="world", pose=estimate_pose), log_time=ns
             )
@@ -230,7 +231,8 @@ class Recording:
             trail = self._trails.setdefault(s.vehicle_id, deque())
             if trail and s.stamp_us < trail[-1][0] + TRAIL_STEP_US:
                 continue
-            trail.append((s.stamp_us, tuple(s.truth_pose[:2]), tuple(s.estimate.position_m[:2])))
+            est_z, true_z = se.heights_m(s)
+            trail.append((s.stamp_us, (*s.truth_pose[:2], true_z), (*s.estimate.position_m[:2], est_z)))
             while trail[0][0] < s.stamp_us - TRAIL_S * 1_000_000:
                 trail.popleft()
             grown[s.vehicle_id] = s.stamp_us

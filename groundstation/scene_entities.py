@@ -5,6 +5,7 @@ caller: only the ground station loads the SDK)."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -15,12 +16,25 @@ from groundstation.scoring import Score
 
 RANGING_LIFETIME_NS = 1_000_000_000
 TRUE_RGB, ESTIMATED_RGB = (0.1, 0.8, 0.2), (0.2, 0.4, 1.0)
+LANDMARK_RGBA = (1.0, 0.85, 0.2, 0.45)
+
+
+def heights_m(s: Score) -> tuple[float, float]:
+    """Where the scene draws a vehicle's estimate and truth, up (m): a vehicle that estimates its height
+    (a UAV) at its estimated and its true height above its launch point, one that flies level on the
+    ground (0, 0)."""
+    if math.isnan(s.altitude_error_m):
+        return 0.0, 0.0
+    estimated = -float(s.estimate.position_m[2])  # ODOMETRY's z is down
+    return estimated, estimated - s.altitude_error_m
 
 
 def vehicle_entity(fm: Any, s: Score) -> Any:
-    """A vehicle in the scene: its estimated and true pose arrows, its 3-sigma ellipse and its label."""
+    """A vehicle in the scene: its estimated and true pose arrows (at their heights, ``heights_m``), its
+    3-sigma ellipse at the estimate's height and its label."""
     est, truth = s.estimate, s.truth_pose
-    estimate_pose = sp.pose(fm, est.position_m[0], est.position_m[1], est.yaw_rad)
+    est_z, true_z = heights_m(s)
+    estimate_pose = sp.pose(fm, est.position_m[0], est.position_m[1], est.yaw_rad, est_z)
     ring = ellipse_xy(np.asarray(est.position_m[:2]), s.pose_covariance[:2, :2])
     return fm.SceneEntity(
         timestamp=sp.stamp(fm, s.stamp_us),
@@ -28,9 +42,9 @@ def vehicle_entity(fm: Any, s: Score) -> Any:
         id=f"vehicle-{s.vehicle_id}",
         arrows=[
             sp.arrow(fm, estimate_pose, ESTIMATED_RGB),
-            sp.arrow(fm, sp.pose(fm, truth[0], truth[1], truth[2]), TRUE_RGB),
+            sp.arrow(fm, sp.pose(fm, truth[0], truth[1], truth[2], true_z), TRUE_RGB),
         ],
-        lines=[sp.loop(fm, ring, (*ESTIMATED_RGB, 0.8), 2.0)],
+        lines=[sp.loop(fm, ring, (*ESTIMATED_RGB, 0.8), 2.0, est_z)],
         texts=[sp.label(fm, estimate_pose, f"v{s.vehicle_id}", (1.0, 1.0, 1.0, 1.0))],
     )
 
@@ -69,14 +83,14 @@ def ranging_update(fm: Any, stamp_us: int, pairs: np.ndarray, positions: dict[in
 
 
 def trail_entity(fm: Any, vehicle_id: int, stamp_us: int, trail: list[tuple[int, tuple, tuple]]) -> Any:
-    """A vehicle's true (green) and estimated (blue) trail through its points (stamp us, true xy,
-    estimated xy), oldest first."""
+    """A vehicle's true (green) and estimated (blue) trail through its points (stamp us, true xyz,
+    estimated xyz; z up, ``heights_m``), oldest first."""
     lines = [
         fm.LinePrimitive(
             type=fm.LinePrimitiveLineType.LineStrip,
             thickness=1.5,
             scale_invariant=True,
-            points=[fm.Point3(x=float(p[which][0]), y=float(p[which][1]), z=0.0) for p in trail],
+            points=[fm.Point3(x=float(p[which][0]), y=float(p[which][1]), z=float(p[which][2])) for p in trail],
             color=fm.Color(r=rgb[0], g=rgb[1], b=rgb[2], a=0.7),
         )
         for which, rgb in ((1, TRUE_RGB), (2, ESTIMATED_RGB))
@@ -85,7 +99,14 @@ def trail_entity(fm: Any, vehicle_id: int, stamp_us: int, trail: list[tuple[int,
 
 
 def landmark_update(fm: Any, lmap: Any) -> Any:
-    """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): one line list of 3-sigma ellipses."""
+    """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): one line list of 3-sigma ellipses on the
+    ground, or a 3-D map's 3-sigma ellipsoids at the landmarks' heights."""
+    stamp, entity_id = sp.stamp(fm, lmap.stamp_us), f"landmarks-{lmap.vehicle_id}"
+    if lmap.height_m is not None:
+        centres = np.column_stack([lmap.xy_m, lmap.height_m])
+        spheres = [sp.ellipsoid_sphere(fm, c, cov, LANDMARK_RGBA) for c, cov in zip(centres, lmap.covariance3_m2)]
+        entity = fm.SceneEntity(timestamp=stamp, frame_id="world", id=entity_id, spheres=spheres)
+        return fm.SceneUpdate(entities=[entity])
     points = []
     for xy, cov in zip(lmap.xy_m, lmap.covariance_m2):
         ring = ellipse_xy(np.asarray(xy), np.asarray(cov))[:: ELLIPSE_POINTS // 12]
@@ -95,16 +116,16 @@ def landmark_update(fm: Any, lmap: Any) -> Any:
                 fm.Point3(x=float(b[0]), y=float(b[1]), z=0.0),
             ]
     entity = fm.SceneEntity(
-        timestamp=sp.stamp(fm, lmap.stamp_us),
+        timestamp=stamp,
         frame_id="world",
-        id=f"landmarks-{lmap.vehicle_id}",
+        id=entity_id,
         lines=[
             fm.LinePrimitive(
                 type=fm.LinePrimitiveLineType.LineList,
                 thickness=1.0,
                 scale_invariant=True,
                 points=points,
-                color=fm.Color(r=1.0, g=0.85, b=0.2, a=0.8),
+                color=fm.Color(r=LANDMARK_RGBA[0], g=LANDMARK_RGBA[1], b=LANDMARK_RGBA[2], a=0.8),
             )
         ],
     )

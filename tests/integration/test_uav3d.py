@@ -4,8 +4,10 @@ the way, map the points their cameras track, publish estimates the ground statio
 whole flight (their heights above the launch point too), and come back onto GNSS after the jam."""
 
 import csv
+import json
 import math
 
+import numpy as np
 import pytest
 
 from tests.integration.conftest import ESTIMATES_PER_S, read_summary, run_swarm
@@ -106,3 +108,15 @@ def test_the_map_carries_the_uavs_through_the_jam_and_gnss_takes_them_back(fligh
         after = [e for t, e in errors.items() if t >= 26.0]
         assert max(jammed) < 5.0, max(jammed)
         assert max(after) < 2.0, max(after)
+
+
+def test_each_uav_reports_its_map_in_3d_with_its_landmarks_below_it(flight):
+    """The map each UAV sends with its status is 3-D (bus.landmark_map): heights from the launch point
+    and full covariances, the points the camera sees on the ground below the UAV (it flies 15 m over
+    the relief), each covariance positive definite."""
+    for vid in (1, 2):
+        record = json.loads((flight / f"map_v{vid}.json").read_text())
+        heights, cov_z = np.array(record["z_m"]), np.array(record["cov_z_m2"])
+        assert record["landmarks"] == len(heights) == len(cov_z) > 5
+        assert np.all(heights < 0.0), heights  # the ground under a UAV that climbs and descends with it
+        assert np.all(cov_z[:, 2] > 0.0)

@@ -133,16 +133,18 @@ class ArEkfSlam3d:
     def add_part(self, part: Any) -> None:
         """A part of a sensor added by the recipe: this estimator fuses its own camera and GNSS only."""
 
-    def landmark_map(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """The landmarks in the state, horizontally: positions (m, 2) and covariances (m, 2, 2)."""
+    def landmark_map(self) -> tuple[np.ndarray, ...] | None:
+        """The landmarks in the state: positions (m, 2), their covariances (m, 2, 2), heights (m,) up
+        from the launch point, and the full covariances (m, 3, 3) (bus.landmark_map)."""
         slam = self.state.slam
         if slam is None:
             return None
         n = slam3d.landmarks(slam.x)
         rows = slam3d.HEAD + slam3d.POINT * np.arange(n)
-        xy = np.stack([slam.x[rows], slam.x[rows + 1]], axis=-1)
-        cov = np.stack([slam.P[np.ix_([r, r + 1], [r, r + 1])] for r in rows]) if n else np.zeros((0, 2, 2))
-        return xy, cov
+        blocks = rows[:, None] + np.arange(3)  # (n, 3) each landmark's rows
+        points = slam.x[blocks] if n else np.zeros((0, 3))
+        cov3 = slam.P[blocks[:, :, None], blocks[:, None, :]] if n else np.zeros((0, 3, 3))
+        return points[:, :2], cov3[:, :2, :2], points[:, 2], cov3
 
     def estimate(self, t_us: int) -> PoseEstimate:
         s = self.state

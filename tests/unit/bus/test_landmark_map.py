@@ -23,6 +23,11 @@ from groundstation.node import GroundStation
 XY = np.array([[1.0, 2.0], [-3.5, 40.25], [7.0, -8.0]])
 COV = np.array([[[0.1, 0.02], [0.02, 0.2]], [[1.0, 0.0], [0.0, 1.0]], [[0.5, -0.1], [-0.1, 0.3]]])
 PAYLOAD = encode_map(LandmarkMap(2, 1_500_000, XY, COV))
+HEIGHT = np.array([-12.0, -9.5, 3.25])
+COV3 = np.zeros((3, 3, 3))
+COV3[:, :2, :2], COV3[:, 2, 2] = COV, [0.4, 2.0, 0.9]
+COV3[:, 0, 2] = COV3[:, 2, 0] = [0.05, -0.3, 0.0]
+PAYLOAD_3D = encode_map(LandmarkMap(2, 1_500_000, XY, COV, HEIGHT, COV3))
 
 
 def test_round_trip():
@@ -31,8 +36,15 @@ def test_round_trip():
     assert np.array_equal(again.xy_m, XY) and np.array_equal(again.covariance_m2, COV)
 
 
-def _body() -> dict:
-    return msgpack.unpackb(PAYLOAD, raw=False)
+def test_a_3d_map_round_trips_with_its_heights_and_full_covariances():
+    again = decode_map(PAYLOAD_3D)
+    assert np.array_equal(again.xy_m, XY) and np.array_equal(again.covariance_m2, COV)
+    assert np.array_equal(again.height_m, HEIGHT) and np.array_equal(again.covariance3_m2, COV3)
+    assert decode_map(PAYLOAD).height_m is None and decode_map(PAYLOAD).covariance3_m2 is None
+
+
+def _body(payload: bytes = PAYLOAD) -> dict:
+    return msgpack.unpackb(payload, raw=False)
 
 
 @pytest.mark.parametrize(
@@ -55,6 +67,25 @@ def test_malformed_maps_are_rejected_with_a_clear_error(mutate, reason):
         decode_map(msgpack.packb(body, use_bin_type=True))
 
 
+@pytest.mark.parametrize(
+    "mutate, reason",
+    [
+        (lambda b: b.pop("cov_z"), "both or neither"),
+        (lambda b: b.pop("z"), "both or neither"),
+        (lambda b: b.update(z=b["z"][:-8]), "3 positions but 2 heights"),
+        (lambda b: b.update(cov_z=b["cov_z"][:-8]), "rows of 3"),
+        (lambda b: b.update(z=np.array([np.inf, 0.0, 0.0]).tobytes()), "finite"),
+        (lambda b: b.update(cov_z=np.array([[0.0, 0.0, -1.0]] * 3).tobytes()), "3-D covariances must be positive"),
+        (lambda b: b.update(cov_z=np.array([[5.0, 0.0, 1.0]] * 3).tobytes()), "3-D covariances must be positive"),
+    ],
+)
+def test_malformed_3d_maps_are_rejected_with_a_clear_error(mutate, reason):
+    body = _body(PAYLOAD_3D)
+    mutate(body)
+    with pytest.raises(DecodeError, match=reason):
+        decode_map(msgpack.packb(body, use_bin_type=True))
+
+
 @given(st.binary(max_size=300))
 def test_any_bytes_decode_or_raise_decode_error(payload):
     try:
@@ -64,7 +95,8 @@ def test_any_bytes_decode_or_raise_decode_error(payload):
 
 
 @given(
-    st.sampled_from(["type", "v", "vehicle_id", "stamp_us", "xy", "cov"]),
+    st.sampled_from(["type", "v", "vehicle_id", "stamp_us", "xy", "cov", "z", "cov_z"]),
+    st.booleans(),
     st.none()
     | st.booleans()
     | st.integers(-(2**63), 2**64 - 1)
@@ -72,8 +104,8 @@ def test_any_bytes_decode_or_raise_decode_error(payload):
     | st.text(max_size=8)
     | st.binary(max_size=64),
 )
-def test_any_value_in_any_field_decodes_or_raises_decode_error(field, value):
-    body = _body()
+def test_any_value_in_any_field_decodes_or_raises_decode_error(field, three_d, value):
+    body = _body(PAYLOAD_3D if three_d else PAYLOAD)
     body[field] = value
     try:
         decode_map(msgpack.packb(body, use_bin_type=True))

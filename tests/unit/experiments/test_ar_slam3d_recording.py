@@ -8,7 +8,8 @@ import numpy as np
 from mcap.reader import make_reader
 
 from experiments.ar_slam3d import fly, world
-from experiments.ar_slam3d_recording import FLIGHT_SCHEMA, LAYOUT, MCAP, FlightRecording, ellipsoid
+from experiments.ar_slam3d_recording import FLIGHT_SCHEMA, LAYOUT, MCAP, FlightRecording
+from groundstation.scene_primitives import ellipsoid
 from tests.viewer_rules import json_schema_errors, lichtblick_layout_errors
 
 

@@ -5,6 +5,7 @@ Lichtblick's import (tests.viewer_rules) and framing the swarm."""
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -202,3 +203,57 @@ def test_a_viewer_that_never_reads_has_its_queue_overflow_counted_and_never_bloc
             assert overflows >= 1, f"{logged / 1e6:.0f} MB logged to a viewer that reads nothing, no overflow"
     finally:
         recording.close()
+
+
+class _Messages:
+    """A stand-in for ``foxglove.messages`` whose messages keep their fields readable (the SDK's are
+    opaque): every name is a message type, called with its fields."""
+
+    def __getattr__(self, name: str) -> "_Messages":
+        return self
+
+    def __call__(self, **fields) -> SimpleNamespace:
+        return SimpleNamespace(**fields)
+
+
+def test_a_uav_is_drawn_at_its_estimated_and_true_heights_and_a_level_vehicle_on_the_ground():
+    from bus.mavlink_codec import StateEstimate
+    from bus.odometry_content import NOT_ESTIMATED_VAR
+    from groundstation.scene_entities import heights_m, vehicle_entity
+    from groundstation.scoring import score_all
+
+    def estimate(vid: int, height_var: float) -> StateEstimate:
+        cov = np.diag([0.04, 0.04, height_var, 1e-4, 1e-4, 0.01])
+        return StateEstimate(vid, 1_000_000, np.array([3.0, 4.0, -12.0]), 0.2, np.zeros(3), 0.0, cov, np.eye(6), 0)
+
+    truth = np.array([3.1, 3.9, 0.2, 10.5])  # x, y, theta, height above the launch point
+    uav, level = score_all([estimate(1, 0.5), estimate(2, NOT_ESTIMATED_VAR)], [truth, truth])
+    assert heights_m(uav) == pytest.approx((12.0, 10.5)) and heights_m(level) == (0.0, 0.0)
+    fm = _Messages()
+    entity = vehicle_entity(fm, uav)
+    estimated_arrow, true_arrow = entity.arrows
+    assert estimated_arrow.pose.position.z == pytest.approx(12.0) and true_arrow.pose.position.z == pytest.approx(10.5)
+    assert np.allclose([p.z for p in entity.lines[0].points], 12.0)
+    assert {a.pose.position.z for a in vehicle_entity(fm, level).arrows} == {0.0}
+
+
+def test_a_3d_map_is_drawn_as_ellipsoids_at_the_landmarks_heights_and_a_planar_one_as_rings():
+    from bus.landmark_map import LandmarkMap
+    from groundstation.scene_entities import landmark_update
+    from groundstation.scene_primitives import ellipsoid
+
+    cov3 = np.array([np.diag([0.2, 0.3, 4.0]), np.diag([1.0, 1.0, 1.0])])
+    lmap = LandmarkMap(
+        3, 2_000_000, np.array([[1.0, 2.0], [5.0, 6.0]]), cov3[:, :2, :2], np.array([-11.0, -13.5]), cov3
+    )
+    fm = _Messages()
+    (entity,) = landmark_update(fm, lmap).entities
+    assert [(s.pose.position.x, s.pose.position.y, s.pose.position.z) for s in entity.spheres] == [
+        (1.0, 2.0, -11.0),
+        (5.0, 6.0, -13.5),
+    ]
+    size = entity.spheres[0].size
+    assert np.allclose(sorted([size.x, size.y, size.z]), sorted(ellipsoid(cov3[0])[0]))
+    assert np.allclose(sorted(ellipsoid(cov3[0])[0]), 6.0 * np.sqrt([0.2, 0.3, 4.0]))  # 3-sigma diameters
+    (planar,) = landmark_update(fm, LandmarkMap(3, 2_000_000, lmap.xy_m, lmap.covariance_m2)).entities
+    assert not hasattr(planar, "spheres") and {p.z for p in planar.lines[0].points} == {0.0}
