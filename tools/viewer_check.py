@@ -8,7 +8,9 @@ Four cases, each with the run's own Lichtblick layout (``layout-lichtblick.json`
 - ``recording``: that run's run.mcap, opened near its end;
 - ``camera``: a camera swarm's run.mcap (`swarm experiment vision-slam`: terrain and landmarks);
 - ``flight3d``: the 3-D AR-EKF-SLAM flight's run.mcap (`swarm experiment ar-slam`'s 3-D case: the
-  relief, the camera and the map's 3-sigma ellipsoids).
+  relief, the camera and the map's 3-sigma ellipsoids);
+- ``uav``: the UAV swarm's run.mcap (`swarm up scenarios/uav-3d.toml`: the UAVs at their heights,
+  their maps' ellipsoids).
 
 For each it writes a screenshot, the browser console and what the Alerts tab says, and reads every
 plot's legend: each series must show a current value (its data arrived). It fails when the Alerts
@@ -255,6 +257,16 @@ def main(argv: list[str] | None = None) -> int:
         report["flight3d"] = browser.visit(
             f"{base}?ds=remote-file&ds.url={flight}/run.mcap&time=60&layoutUrl={flight}/layout-lichtblick.json",
             25, out / "flight3d.png",
+        )  # fmt: skip
+        subprocess.run(
+            [*SWARM, "up", "scenarios/uav-3d.toml", "--mode", "lockstep", "--name", "uav", "--out", str(out),
+             "--quiet", "--no-report"],
+            cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
+        )  # fmt: skip
+        uav = f"http://127.0.0.1:{data}/uav"
+        report["uav"] = browser.visit(
+            f"{base}?ds=remote-file&ds.url={uav}/run.mcap&time=40&layoutUrl={uav}/layout-lichtblick.json",
+            25, out / "uav.png",
         )  # fmt: skip
     finally:
         browser.close()

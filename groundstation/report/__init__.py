@@ -35,16 +35,17 @@ def write_report(run_dir: Path) -> Report:
     if not data.maps:
         notes.append("this run's estimators have no landmarks to draw")
     written: list[tuple[str, Path]] = []
-    for title, stem, build in (
-        ("Map", "map", f.map_figure),
-        ("Position error", "error", f.error_figure),
-        ("Swarm RMSE", "rmse", f.rmse_figure),
-        ("NEES", "nees", f.nees_figure),
-        ("NEES per vehicle, in blocks", "nees_blocks", f.block_nees_figure),
+    for title, stem, build, always in (
+        ("Map", "map", f.map_figure, True),
+        ("Position error", "error", f.error_figure, True),
+        ("Height error", "height", f.height_figure, False),  # only where a vehicle estimates its height
+        ("Swarm RMSE", "rmse", f.rmse_figure, True),
+        ("NEES", "nees", f.nees_figure, True),
+        ("NEES per vehicle, in blocks", "nees_blocks", f.block_nees_figure, True),
     ):
         figure = build(data)
         if figure is None:
-            notes.append(f"{title}: nothing to draw")
+            notes += [f"{title}: nothing to draw"] if always else []
             continue
         png = out / f"{stem}.png"
         figure.savefig(png, dpi=100)

@@ -194,6 +194,38 @@ def error_figure(data: RunData) -> Figure | None:
     return fig
 
 
+def _height_rmse_of(rows: dict[str, np.ndarray]) -> float:
+    errors = rows.get("err_alt_m", np.zeros(0))
+    return float(np.sqrt(np.nanmean(np.square(errors)))) if np.isfinite(errors).any() else -1.0
+
+
+def height_figure(data: RunData) -> Figure | None:
+    """The height error over time of each vehicle that estimates its height (a UAV), inside its shaded
+    3-sigma envelope (the vehicles with the largest height RMSE when there are more than ``SHOWN``);
+    None when no vehicle does."""
+    vehicles, _ = worst_vehicles(data, _height_rmse_of)
+    vehicles = [v for v in vehicles if _height_rmse_of(data.rows_of(v)) >= 0.0]
+    total = sum(_height_rmse_of(data.rows_of(v)) >= 0.0 for v in data.vehicles)
+    if not vehicles:
+        return None
+    fig = Figure(figsize=(9.0, 1.0 + 1.7 * len(vehicles)), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(len(vehicles), 1, sharex=True))
+    events = data.marker_events()
+    for ax, vid in zip(axes, vehicles):
+        r = data.rows_of(vid)
+        bound = 3.0 * r["sigma_alt_m"]
+        ax.fill_between(r["t_s"], -bound, bound, color="C2", alpha=0.15, lw=0)
+        ax.plot(r["t_s"], r["err_alt_m"], color="C2", lw=0.8, label="height error")
+        _mark_events(ax, events, vid)
+        ax.set_ylabel(f"v{vid} [m]")
+        ax.grid(alpha=0.3)
+    axes[0].set_title("height error above the launch point (line) and its 3-sigma envelope (shaded)")
+    _marker_legend(axes[0], events)
+    _panels_legend(fig, axes[0], len(vehicles), total, "with the largest height RMSE")
+    axes[-1].set_xlabel("sim time [s]")
+    return fig
+
+
 def rmse_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
     """Swarm RMSE per ``bin_s`` seconds (bold) over the per-vehicle RMSE (thin; beyond
     ``SHOWN`` vehicles their median and 5-95 % band instead), with fault markers."""

@@ -22,20 +22,25 @@ from groundstation.summary import build_summary, build_timing
 ZONE_EVENT = {"name": "jam1", "fault": "jam-gnss", "zone": {"center_m": [5.0, 0.0], "radius_m": 8.0}}
 
 
-def _write_run(path: Path, rng: np.random.Generator, vehicles: int = 2, seconds: int = 10) -> None:
-    """A run directory as the ground station writes it: two vehicles on circles, noisy estimates."""
+def _write_run(
+    path: Path, rng: np.random.Generator, vehicles: int = 2, seconds: int = 10, uav: int | None = None
+) -> None:
+    """A run directory as the ground station writes it: two vehicles on circles, noisy estimates;
+    vehicle ``uav`` climbing and estimating its height (the others' truth has none)."""
     run, scorer = RunDirectory(path), Scorer()
     for k in range(seconds * 10 + 1):
         t_us = k * 100_000
         for vid in range(1, vehicles + 1):
             angle = 0.1 * k + vid
             truth = np.array([10 * np.cos(angle) + 30 * vid, 10 * np.sin(angle), angle + np.pi / 2])
-            scorer.add_truth(vid, t_us, truth)
-            cov = np.diag([0.25, 0.16, 1e-4, 1e-4, 1e-4, 1e-3])
+            height = 0.2 * k if vid == uav else None
+            scorer.add_truth(vid, t_us, truth if height is None else np.append(truth, height))
+            cov = np.diag([0.25, 0.16, 1e-4 if height is None else 0.36, 1e-4, 1e-4, 1e-3])
             cov[0, 1] = cov[1, 0] = 0.05
-            err = rng.multivariate_normal(np.zeros(2), cov[:2, :2])
+            err = rng.multivariate_normal(np.zeros(3), cov[:3, :3])
+            z = -30.0 if height is None else -(height + err[2])  # NED
             est = StateEstimate(
-                vid, t_us, np.array([*(truth[:2] + err), -30.0]), truth[2], np.zeros(3), 0.0, cov, np.eye(6)
+                vid, t_us, np.array([*(truth[:2] + err[:2]), z]), truth[2], np.zeros(3), 0.0, cov, np.eye(6)
             )
             scorer.add_estimate(est)
         if k == 30:
@@ -160,6 +165,22 @@ def test_a_small_swarm_shows_every_vehicle_in_numeric_order(run_dir):
     summary = json.loads((run_dir / "summary.json").read_text())
     table = rmse_table(summary)
     assert list(table.columns[0].cells) == ["1", "2", "swarm"] and table.caption is None
+
+
+def test_a_uav_run_adds_the_height_error_figure_and_a_level_one_says_nothing_of_it(run_dir, tmp_path):
+    from groundstation.report.figures import height_figure
+
+    _write_run(tmp_path / "uav", np.random.default_rng(3), vehicles=3, uav=2)
+    report = write_report(tmp_path / "uav")
+    assert "height.png" in [p.name for p in report.figures]
+    data = load_run(tmp_path / "uav")
+    (panel,) = height_figure(data).axes  # the UAV's only
+    assert panel.get_ylabel() == "v2 [m]"
+    errors = data.rows_of(2)["err_alt_m"]
+    assert np.allclose(data.rows_of(2)["sigma_alt_m"], 0.6) and 0.45 < np.sqrt(np.mean(errors**2)) < 0.75
+    assert np.isnan(data.rows_of(1)["err_alt_m"]).all()
+    assert "Height" not in " ".join(write_report(run_dir).problems) and height_figure(load_run(run_dir)) is None
+    assert "Height error" not in run_dir.joinpath("report.html").read_text()
 
 
 def test_the_page_shows_the_heights_of_the_vehicles_that_estimate_theirs(tmp_path):
