@@ -55,6 +55,7 @@ from groundstation.scoring import Score
 log = logging.getLogger("swarmloc.groundstation")
 RANGING_STEP_US, SCENE_STEP_US, CLOCK_STEP_US = 200_000, 100_000, 100_000
 TRAIL_S, TRAIL_STEP_US = 30, 1_000_000  # trails: the last 30 s, a point a second
+MAP_STEP_US = 1_000_000  # the maps: every vehicle's newest, together, at most once a second
 WARNING_EVENTS = ("fault", "neighbour_distrusted", "accusation_contradicted", "vehicle_lost", "estimator_reset", "gnss")
 
 
@@ -89,7 +90,8 @@ class Recording:
         self.swarm_channel = foxglove.Channel("/swarm", schema=SWARM_SCHEMA, context=self.context)
         self._poses: dict[tuple[str, int], Any] = {}
         self._scene: dict[int, Score] = {}  # vehicle -> its latest score, not in the scene yet
-        self._scene_us = self._ranging_us = self._clock_us = -(2**62)  # when each was last logged
+        self._scene_us = self._ranging_us = self._clock_us = self._maps_us = -(2**62)  # when each was last logged
+        self._maps: dict[int, Any] = {}  # vehicle -> its newest map (bus.landmark_map.LandmarkMap)
         self._zones: set[str] = set()
         self._terrain: bytes | None = None
         self._terrain_wanted = threading.Event()  # a live viewer subscribed to /terrain (SDK thread)
@@ -241,10 +243,21 @@ class Recording:
             self.trail_scene.log(fm.SceneUpdate(entities=entities), log_time=max(grown.values()) * 1000)
 
     def landmarks(self, lmap: Any) -> None:
-        """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): one line list of 3-sigma ellipses."""
+        """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): kept as its newest, and every vehicle's
+        newest logged together at most once per MAP_STEP_US of sim time (``_log_maps``)."""
+        self._maps[lmap.vehicle_id] = lmap
+        if lmap.stamp_us >= self._maps_us + MAP_STEP_US:
+            self._log_maps(lmap.stamp_us)
+
+    def _log_maps(self, stamp_us: int) -> None:
+        """Every vehicle's newest map in one update: a viewer seeking in the recording shows the newest
+        message of /landmarks, which then holds them all."""
         from foxglove import messages as fm
 
-        self.landmark_scene.log(se.landmark_update(fm, lmap), log_time=max(lmap.stamp_us, 0) * 1000)
+        if self._maps:
+            update = se.landmark_update(fm, [self._maps[vid] for vid in sorted(self._maps)])
+            self.landmark_scene.log(update, log_time=max(stamp_us, 0) * 1000)
+        self._maps_us = stamp_us
 
     def zones(self, stamp_us: int, faults: list) -> None:
         """Draw the fault zones active at ``stamp_us`` and delete those that ended (only on a change)."""
@@ -282,6 +295,8 @@ class Recording:
     def close(self) -> None:
         """Finish the MCAP file (its index and footer) and stop the server."""
         self._log_scene(self._last_ns // 1000)
+        if self._maps:
+            self._log_maps(max(m.stamp_us for m in self._maps.values()))
         if self.writer is not None:
             self.writer.close()
             self.writer = None

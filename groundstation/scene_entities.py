@@ -98,15 +98,20 @@ def trail_entity(fm: Any, vehicle_id: int, stamp_us: int, trail: list[tuple[int,
     return fm.SceneEntity(timestamp=sp.stamp(fm, stamp_us), frame_id="world", id=f"trail-{vehicle_id}", lines=lines)
 
 
-def landmark_update(fm: Any, lmap: Any) -> Any:
-    """A SLAM vehicle's map (bus.landmark_map.LandmarkMap): one line list of 3-sigma ellipses on the
-    ground, or a 3-D map's 3-sigma ellipsoids at the landmarks' heights."""
+def landmark_update(fm: Any, maps: list[Any]) -> Any:
+    """SLAM vehicles' maps (bus.landmark_map.LandmarkMap), an entity each (``landmark_entity``), in
+    one update: a viewer that seeks in a recording shows the newest message of a topic."""
+    return fm.SceneUpdate(entities=[landmark_entity(fm, lmap) for lmap in maps])
+
+
+def landmark_entity(fm: Any, lmap: Any) -> Any:
+    """A SLAM vehicle's map: one line list of 3-sigma ellipses on the ground, or a 3-D map's 3-sigma
+    ellipsoids at the landmarks' heights."""
     stamp, entity_id = sp.stamp(fm, lmap.stamp_us), f"landmarks-{lmap.vehicle_id}"
     if lmap.height_m is not None:
         centres = np.column_stack([lmap.xy_m, lmap.height_m])
         spheres = [sp.ellipsoid_sphere(fm, c, cov, LANDMARK_RGBA) for c, cov in zip(centres, lmap.covariance3_m2)]
-        entity = fm.SceneEntity(timestamp=stamp, frame_id="world", id=entity_id, spheres=spheres)
-        return fm.SceneUpdate(entities=[entity])
+        return fm.SceneEntity(timestamp=stamp, frame_id="world", id=entity_id, spheres=spheres)
     points = []
     for xy, cov in zip(lmap.xy_m, lmap.covariance_m2):
         ring = ellipse_xy(np.asarray(xy), np.asarray(cov))[:: ELLIPSE_POINTS // 12]
@@ -115,7 +120,7 @@ def landmark_update(fm: Any, lmap: Any) -> Any:
                 fm.Point3(x=float(a[0]), y=float(a[1]), z=0.0),
                 fm.Point3(x=float(b[0]), y=float(b[1]), z=0.0),
             ]
-    entity = fm.SceneEntity(
+    return fm.SceneEntity(
         timestamp=stamp,
         frame_id="world",
         id=entity_id,
@@ -129,7 +134,6 @@ def landmark_update(fm: Any, lmap: Any) -> Any:
             )
         ],
     )
-    return fm.SceneUpdate(entities=[entity])
 
 
 def zone_update(fm: Any, stamp_us: int, active: dict[str, Any], ended: set[str]) -> Any:

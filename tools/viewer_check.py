@@ -200,12 +200,20 @@ def problems(name: str, seen: dict) -> list[str]:
     return found
 
 
+CASES = ("live", "recording", "camera", "flight3d", "uav")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--lichtblick", type=Path, required=True, help="Lichtblick's built web app (web/.webpack)")
     parser.add_argument("--out", type=Path, default=Path("runs/viewer-check"), help="screenshots, logs and runs")
     parser.add_argument("--chromium", default=shutil.which("chromium") or "chromium")
+    parser.add_argument("--cases", default=",".join(CASES), help=f"some of {','.join(CASES)} (recording needs live)")
     args = parser.parse_args(argv)
+    cases = set(args.cases.split(","))
+    if not cases <= set(CASES) or ("recording" in cases and "live" not in cases):
+        print(f"viewer-check: --cases takes some of {','.join(CASES)}, recording with live", file=sys.stderr)
+        return 2
     if not (args.lichtblick / "index.html").is_file():
         print(f"viewer-check: no Lichtblick web build in {args.lichtblick} (index.html)", file=sys.stderr)
         return 2
@@ -221,53 +229,58 @@ def main(argv: list[str] | None = None) -> int:
     found: list[str] = []
     report: dict[str, dict] = {}
     try:
-        port = free_port()
-        live = subprocess.Popen(
-            [*SWARM, "up", "--vehicles", "5", "--duration", "90", "--mode", "realtime", "--live",
-             "--live-port", str(port), "--name", "live", "--out", str(out), "--quiet", "--no-report"],
-            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )  # fmt: skip
-        deadline = time.monotonic() + 60
-        while not (out / "live" / "layout-lichtblick.json").exists() and time.monotonic() < deadline:
-            time.sleep(0.5)
-        time.sleep(5)
-        layout = f"http://127.0.0.1:{data}/live/layout-lichtblick.json"
-        url = f"{base}?ds=foxglove-websocket&ds.url=ws://127.0.0.1:{port}&layoutUrl={layout}"
-        report["live"] = browser.visit(url, 30, out / "live.png")
-        live.send_signal(signal.SIGINT)
-        live.wait(timeout=120)
-        recording = f"http://127.0.0.1:{data}/live/run.mcap"
-        report["recording"] = browser.visit(f"{base}?ds=remote-file&ds.url={recording}&time=30&layoutUrl={layout}",
-                                            25, out / "recording.png")  # fmt: skip
-        subprocess.run(
-            [*SWARM, "experiment", "vision-slam", "--seed", "3", "--duration", "30", "--out", str(out), "--quiet"],
-            cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
-        )  # fmt: skip
-        slam = sorted(out.glob("vision-slam*/slam"))[-1].relative_to(out).as_posix()
-        camera = f"http://127.0.0.1:{data}/{slam}"
-        report["camera"] = browser.visit(
-            f"{base}?ds=remote-file&ds.url={camera}/run.mcap&time=25&layoutUrl={camera}/layout-lichtblick.json",
-            25, out / "camera.png",
-        )  # fmt: skip
-        subprocess.run(
-            [*SWARM, "experiment", "ar-slam", "--cases", "3-D ar-ekf-slam", "--out", str(out), "--quiet"],
-            cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
-        )  # fmt: skip
-        flight = f"http://127.0.0.1:{data}/ar-slam/3-D-ar-ekf-slam"
-        report["flight3d"] = browser.visit(
-            f"{base}?ds=remote-file&ds.url={flight}/run.mcap&time=60&layoutUrl={flight}/layout-lichtblick.json",
-            25, out / "flight3d.png",
-        )  # fmt: skip
-        subprocess.run(
-            [*SWARM, "up", "scenarios/uav-3d.toml", "--mode", "lockstep", "--name", "uav", "--out", str(out),
-             "--quiet", "--no-report"],
-            cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
-        )  # fmt: skip
-        uav = f"http://127.0.0.1:{data}/uav"
-        report["uav"] = browser.visit(
-            f"{base}?ds=remote-file&ds.url={uav}/run.mcap&time=40&layoutUrl={uav}/layout-lichtblick.json",
-            25, out / "uav.png",
-        )  # fmt: skip
+        if "live" in cases:
+            port = free_port()
+            live = subprocess.Popen(
+                [*SWARM, "up", "--vehicles", "5", "--duration", "90", "--mode", "realtime", "--live",
+                 "--live-port", str(port), "--name", "live", "--out", str(out), "--quiet", "--no-report"],
+                cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            )  # fmt: skip
+            deadline = time.monotonic() + 60
+            while not (out / "live" / "layout-lichtblick.json").exists() and time.monotonic() < deadline:
+                time.sleep(0.5)
+            time.sleep(5)
+            layout = f"http://127.0.0.1:{data}/live/layout-lichtblick.json"
+            url = f"{base}?ds=foxglove-websocket&ds.url=ws://127.0.0.1:{port}&layoutUrl={layout}"
+            report["live"] = browser.visit(url, 30, out / "live.png")
+            live.send_signal(signal.SIGINT)
+            live.wait(timeout=120)
+        if "recording" in cases:
+            recording = f"http://127.0.0.1:{data}/live/run.mcap"
+            report["recording"] = browser.visit(f"{base}?ds=remote-file&ds.url={recording}&time=30&layoutUrl={layout}",
+                                                25, out / "recording.png")  # fmt: skip
+        if "camera" in cases:
+            subprocess.run(
+                [*SWARM, "experiment", "vision-slam", "--seed", "3", "--duration", "30", "--out", str(out), "--quiet"],
+                cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
+            )  # fmt: skip
+            slam = sorted(out.glob("vision-slam*/slam"))[-1].relative_to(out).as_posix()
+            camera = f"http://127.0.0.1:{data}/{slam}"
+            report["camera"] = browser.visit(
+                f"{base}?ds=remote-file&ds.url={camera}/run.mcap&time=25&layoutUrl={camera}/layout-lichtblick.json",
+                25, out / "camera.png",
+            )  # fmt: skip
+        if "flight3d" in cases:
+            subprocess.run(
+                [*SWARM, "experiment", "ar-slam", "--cases", "3-D ar-ekf-slam", "--out", str(out), "--quiet"],
+                cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
+            )  # fmt: skip
+            flight = f"http://127.0.0.1:{data}/ar-slam/3-D-ar-ekf-slam"
+            report["flight3d"] = browser.visit(
+                f"{base}?ds=remote-file&ds.url={flight}/run.mcap&time=60&layoutUrl={flight}/layout-lichtblick.json",
+                25, out / "flight3d.png",
+            )  # fmt: skip
+        if "uav" in cases:
+            subprocess.run(
+                [*SWARM, "up", "scenarios/uav-3d.toml", "--mode", "lockstep", "--name", "uav", "--out", str(out),
+                 "--quiet", "--no-report"],
+                cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
+            )  # fmt: skip
+            uav = f"http://127.0.0.1:{data}/uav"
+            report["uav"] = browser.visit(
+                f"{base}?ds=remote-file&ds.url={uav}/run.mcap&time=40&layoutUrl={uav}/layout-lichtblick.json",
+                25, out / "uav.png",
+            )  # fmt: skip
     finally:
         browser.close()
     for name, seen in report.items():

@@ -237,7 +237,7 @@ def test_a_uav_is_drawn_at_its_estimated_and_true_heights_and_a_level_vehicle_on
     assert {a.pose.position.z for a in vehicle_entity(fm, level).arrows} == {0.0}
 
 
-def test_a_3d_map_is_drawn_as_ellipsoids_at_the_landmarks_heights_and_a_planar_one_as_rings():
+def test_maps_are_drawn_together_a_3d_one_as_ellipsoids_at_the_landmarks_heights_a_planar_one_as_rings():
     from bus.landmark_map import LandmarkMap
     from groundstation.scene_entities import landmark_update
     from groundstation.scene_primitives import ellipsoid
@@ -247,7 +247,9 @@ def test_a_3d_map_is_drawn_as_ellipsoids_at_the_landmarks_heights_and_a_planar_o
         3, 2_000_000, np.array([[1.0, 2.0], [5.0, 6.0]]), cov3[:, :2, :2], np.array([-11.0, -13.5]), cov3
     )
     fm = _Messages()
-    (entity,) = landmark_update(fm, lmap).entities
+    other = LandmarkMap(4, 2_000_000, lmap.xy_m + 50.0, lmap.covariance_m2)  # another vehicle's, on the ground
+    entity, planar = landmark_update(fm, [lmap, other]).entities  # one update: a viewer seeking shows both
+    assert (entity.id, planar.id) == ("landmarks-3", "landmarks-4")
     assert [(s.pose.position.x, s.pose.position.y, s.pose.position.z) for s in entity.spheres] == [
         (1.0, 2.0, -11.0),
         (5.0, 6.0, -13.5),
@@ -255,5 +257,26 @@ def test_a_3d_map_is_drawn_as_ellipsoids_at_the_landmarks_heights_and_a_planar_o
     size = entity.spheres[0].size
     assert np.allclose(sorted([size.x, size.y, size.z]), sorted(ellipsoid(cov3[0])[0]))
     assert np.allclose(sorted(ellipsoid(cov3[0])[0]), 6.0 * np.sqrt([0.2, 0.3, 4.0]))  # 3-sigma diameters
-    (planar,) = landmark_update(fm, LandmarkMap(3, 2_000_000, lmap.xy_m, lmap.covariance_m2)).entities
     assert not hasattr(planar, "spheres") and {p.z for p in planar.lines[0].points} == {0.0}
+
+
+def test_the_recording_logs_every_vehicles_newest_map_together_at_most_once_a_second(tmp_path):
+    """A viewer that seeks in run.mcap draws the newest /landmarks message: it holds every vehicle's map."""
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    from bus.landmark_map import LandmarkMap
+    from groundstation.recording import Recording
+
+    recording = Recording(tmp_path / "run.mcap")
+    cov = np.array([np.eye(2) * 0.5])
+    for stamp_us in (1_000_000, 1_300_000, 2_000_000, 2_400_000):  # a map of each vehicle a second, in turn
+        for vid in (1, 2, 3):
+            recording.landmarks(LandmarkMap(vid, stamp_us + 1000 * vid, np.array([[vid * 10.0, 0.0]]), cov))
+    recording.close()
+    with (tmp_path / "run.mcap").open("rb") as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+        updates = [(m.log_time, d) for _, c, m, d in reader.iter_decoded_messages() if c.topic == "/landmarks"]
+    assert [t // 1000 for t, _ in updates] == [1_001_000, 2_001_000, 2_403_000]  # per second, then the last at the end
+    assert [e.id for e in updates[-1][1].entities] == ["landmarks-1", "landmarks-2", "landmarks-3"]
+    assert [e.id for e in updates[0][1].entities] == ["landmarks-1"]  # only vehicle 1 had sent one
