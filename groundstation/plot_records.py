@@ -27,6 +27,8 @@ METRICS_SCHEMA = _schema(
     sigma_y_m=NUMBER,
     nees_band_low={"type": "number", "description": "two-sided 95 % band of one 3-dof NEES"},
     nees_band_high=NUMBER,
+    err_alt_m={"type": "number", "description": "height error, estimate - truth (m; a vehicle that estimates it)"},
+    sigma_alt_m={"type": "number", "description": "its 1-sigma (m)"},
 )
 HEALTH_SCHEMA = _schema(
     "swarmloc.GnssHealth",
@@ -59,7 +61,8 @@ LOOP_SCHEMA = _schema(
 
 def metrics_record(s: Score, nees_band: tuple[float, float]) -> dict[str, Any]:
     """One metrics message of a score (the vehicle's /vehicle/<id>/metrics); ``nees_band``:
-    chi2_band(3) (the plots draw it). A NEES that is not finite is left out."""
+    chi2_band(3) (the plots draw it). A NEES that is not finite is left out, and so is the height's
+    error and sigma where the vehicle does not estimate its height."""
     record = {
         "t_s": s.stamp_us * 1e-6,
         "vehicle": s.vehicle_id,
@@ -71,6 +74,9 @@ def metrics_record(s: Score, nees_band: tuple[float, float]) -> dict[str, Any]:
     }
     if math.isfinite(s.nees):
         record["nees"] = s.nees
+    if math.isfinite(s.altitude_error_m):
+        record["err_alt_m"] = s.altitude_error_m
+        record["sigma_alt_m"] = math.sqrt(s.estimate.pose_covariance[2, 2].item())  # NED z's variance
     return record
 
 

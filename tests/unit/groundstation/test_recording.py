@@ -235,6 +235,11 @@ def test_a_uav_is_drawn_at_its_estimated_and_true_heights_and_a_level_vehicle_on
     assert estimated_arrow.pose.position.z == pytest.approx(12.0) and true_arrow.pose.position.z == pytest.approx(10.5)
     assert np.allclose([p.z for p in entity.lines[0].points], 12.0)
     assert {a.pose.position.z for a in vehicle_entity(fm, level).arrows} == {0.0}
+    from groundstation.plot_records import metrics_record
+
+    record = metrics_record(uav, (0.2, 9.3))  # the live view's plots: the UAV's height error and sigma
+    assert record["err_alt_m"] == pytest.approx(1.5) and record["sigma_alt_m"] == pytest.approx(np.sqrt(0.5))
+    assert "err_alt_m" not in metrics_record(level, (0.2, 9.3))
 
 
 def test_maps_are_drawn_together_a_3d_one_as_ellipsoids_at_the_landmarks_heights_a_planar_one_as_rings():
