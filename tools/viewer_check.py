@@ -228,6 +228,16 @@ def main(argv: list[str] | None = None) -> int:
     browser = Browser(args.chromium, Path(tempfile.mkdtemp(prefix="viewer-check-")))
     found: list[str] = []
     report: dict[str, dict] = {}
+
+    def swarm(*arguments: str) -> None:
+        subprocess.run([*SWARM, *arguments], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+
+    def open_recording(run: str, at_s: int, name: str) -> dict:
+        """The run's run.mcap (``run`` under ``out``) opened at ``at_s`` with its own layout."""
+        where = f"http://127.0.0.1:{data}/{run}"
+        url = f"{base}?ds=remote-file&ds.url={where}/run.mcap&time={at_s}&layoutUrl={where}/layout-lichtblick.json"
+        return browser.visit(url, 25, out / f"{name}.png")
+
     try:
         if "live" in cases:
             port = free_port()
@@ -250,37 +260,16 @@ def main(argv: list[str] | None = None) -> int:
             report["recording"] = browser.visit(f"{base}?ds=remote-file&ds.url={recording}&time=30&layoutUrl={layout}",
                                                 25, out / "recording.png")  # fmt: skip
         if "camera" in cases:
-            subprocess.run(
-                [*SWARM, "experiment", "vision-slam", "--seed", "3", "--duration", "30", "--out", str(out), "--quiet"],
-                cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
-            )  # fmt: skip
+            swarm("experiment", "vision-slam", "--seed", "3", "--duration", "30", "--out", str(out), "--quiet")
             slam = sorted(out.glob("vision-slam*/slam"))[-1].relative_to(out).as_posix()
-            camera = f"http://127.0.0.1:{data}/{slam}"
-            report["camera"] = browser.visit(
-                f"{base}?ds=remote-file&ds.url={camera}/run.mcap&time=25&layoutUrl={camera}/layout-lichtblick.json",
-                25, out / "camera.png",
-            )  # fmt: skip
+            report["camera"] = open_recording(slam, 25, "camera")
         if "flight3d" in cases:
-            subprocess.run(
-                [*SWARM, "experiment", "ar-slam", "--cases", "3-D ar-ekf-slam", "--out", str(out), "--quiet"],
-                cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
-            )  # fmt: skip
-            flight = f"http://127.0.0.1:{data}/ar-slam/3-D-ar-ekf-slam"
-            report["flight3d"] = browser.visit(
-                f"{base}?ds=remote-file&ds.url={flight}/run.mcap&time=60&layoutUrl={flight}/layout-lichtblick.json",
-                25, out / "flight3d.png",
-            )  # fmt: skip
+            swarm("experiment", "ar-slam", "--cases", "3-D ar-ekf-slam", "--out", str(out), "--quiet")
+            report["flight3d"] = open_recording("ar-slam/3-D-ar-ekf-slam", 60, "flight3d")
         if "uav" in cases:
-            subprocess.run(
-                [*SWARM, "up", "scenarios/uav-3d.toml", "--mode", "lockstep", "--name", "uav", "--out", str(out),
-                 "--quiet", "--no-report"],
-                cwd=ROOT, check=True, stdout=subprocess.DEVNULL,
-            )  # fmt: skip
-            uav = f"http://127.0.0.1:{data}/uav"
-            report["uav"] = browser.visit(
-                f"{base}?ds=remote-file&ds.url={uav}/run.mcap&time=40&layoutUrl={uav}/layout-lichtblick.json",
-                25, out / "uav.png",
-            )  # fmt: skip
+            swarm("up", "scenarios/uav-3d.toml", "--mode", "lockstep", "--name", "uav", "--out", str(out), "--quiet",
+                  "--no-report")  # fmt: skip
+            report["uav"] = open_recording("uav", 40, "uav")
     finally:
         browser.close()
     for name, seen in report.items():

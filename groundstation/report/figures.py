@@ -173,25 +173,11 @@ def error_figure(data: RunData) -> Figure | None:
     """Position error per axis over time per vehicle, inside its shaded 3-sigma envelope (the vehicles
     with the largest RMSE when there are more than ``SHOWN``)."""
     vehicles, total = worst_vehicles(data, _rmse_of)
-    if not vehicles:
-        return None
-    fig = Figure(figsize=(9.0, 1.0 + 1.7 * len(vehicles)), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(len(vehicles), 1, sharex=True))
-    events = data.marker_events()
-    for ax, vid in zip(axes, vehicles):
-        r = data.rows_of(vid)
-        for axis, color in (("x", "C0"), ("y", "C1")):
-            bound = 3.0 * r[f"sigma_{axis}_m"]
-            ax.fill_between(r["t_s"], -bound, bound, color=color, alpha=0.15, lw=0)
-            ax.plot(r["t_s"], r[f"err_{axis}_m"], color=color, lw=0.8, label=f"{axis} error")
-        _mark_events(ax, events, vid)
-        ax.set_ylabel(f"v{vid} [m]")
-        ax.grid(alpha=0.3)
-    axes[0].set_title("position error per axis (lines) and its 3-sigma envelope (shaded)")
-    _marker_legend(axes[0], events)
-    _panels_legend(fig, axes[0], len(vehicles), total, "with the largest RMSE")
-    axes[-1].set_xlabel("sim time [s]")
-    return fig
+    series = [
+        (f"err_{axis}_m", f"sigma_{axis}_m", color, f"{axis} error") for axis, color in (("x", "C0"), ("y", "C1"))
+    ]
+    title = "position error per axis (lines) and its 3-sigma envelope (shaded)"
+    return _envelope_figure(data, vehicles, total, series, title, "with the largest RMSE")
 
 
 def _height_rmse_of(rows: dict[str, np.ndarray]) -> float:
@@ -206,6 +192,17 @@ def height_figure(data: RunData) -> Figure | None:
     vehicles, _ = worst_vehicles(data, _height_rmse_of)
     vehicles = [v for v in vehicles if _height_rmse_of(data.rows_of(v)) >= 0.0]
     total = sum(_height_rmse_of(data.rows_of(v)) >= 0.0 for v in data.vehicles)
+    series = [("err_alt_m", "sigma_alt_m", "C2", "height error")]
+    title = "height error above the launch point (line) and its 3-sigma envelope (shaded)"
+    return _envelope_figure(data, vehicles, total, series, title, "with the largest height RMSE")
+
+
+def _envelope_figure(
+    data: RunData, vehicles: list[int], total: int, series: list[tuple[str, str, str, str]], title: str, which: str
+) -> Figure | None:
+    """A panel per vehicle of ``vehicles`` (of ``total``): each of ``series`` (error column, sigma
+    column, colour, label) over time inside its shaded 3-sigma envelope, with the fault markers; None
+    without vehicles."""
     if not vehicles:
         return None
     fig = Figure(figsize=(9.0, 1.0 + 1.7 * len(vehicles)), layout="constrained")
@@ -213,15 +210,16 @@ def height_figure(data: RunData) -> Figure | None:
     events = data.marker_events()
     for ax, vid in zip(axes, vehicles):
         r = data.rows_of(vid)
-        bound = 3.0 * r["sigma_alt_m"]
-        ax.fill_between(r["t_s"], -bound, bound, color="C2", alpha=0.15, lw=0)
-        ax.plot(r["t_s"], r["err_alt_m"], color="C2", lw=0.8, label="height error")
+        for error, sigma, color, label in series:
+            bound = 3.0 * r[sigma]
+            ax.fill_between(r["t_s"], -bound, bound, color=color, alpha=0.15, lw=0)
+            ax.plot(r["t_s"], r[error], color=color, lw=0.8, label=label)
         _mark_events(ax, events, vid)
         ax.set_ylabel(f"v{vid} [m]")
         ax.grid(alpha=0.3)
-    axes[0].set_title("height error above the launch point (line) and its 3-sigma envelope (shaded)")
+    axes[0].set_title(title)
     _marker_legend(axes[0], events)
-    _panels_legend(fig, axes[0], len(vehicles), total, "with the largest height RMSE")
+    _panels_legend(fig, axes[0], len(vehicles), total, which)
     axes[-1].set_xlabel("sim time [s]")
     return fig
 
