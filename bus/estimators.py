@@ -23,6 +23,7 @@ class EstimatorEntry:
     module: str  # the module whose from_config builds it
     summary: str  # one line for the config reference
     needs: frozenset[str] = frozenset()  # of NEEDS
+    estimates_height: bool = False  # publishes its height (ODOMETRY z): the ground station scores it, the views plot it
 
 
 ESTIMATORS: dict[str, EstimatorEntry] = {
@@ -52,6 +53,7 @@ ESTIMATORS: dict[str, EstimatorEntry] = {
         "vehicle.estimators.ar_ekf_slam_3d",
         "the AR-EKF-SLAM paper's 3-D system: [p, v] + 3 per landmark from a UAV's 3-D camera and GNSS",
         frozenset({"camera3d"}),
+        estimates_height=True,
     ),
 }
 

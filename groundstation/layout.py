@@ -68,9 +68,10 @@ class Plot:
     series: tuple[tuple[str, str], ...]  # (label, message path or a number: a reference line)
 
 
-def _plots(vehicles: int) -> tuple[Plot, ...]:
-    """The plots beside the scene: per vehicle up to ``SHOWN`` vehicles, the swarm's RMS and
-    largest error and mean NEES (against the band of a mean of ``vehicles`` NEES) beyond."""
+def _plots(vehicles: int, heights: bool = False) -> tuple[Plot, ...]:
+    """The plots beside the scene: per vehicle up to ``SHOWN`` vehicles (with each one's height error
+    where the vehicles estimate their ``heights``), the swarm's RMS and largest error and mean NEES
+    (against the band of a mean of ``vehicles`` NEES) beyond."""
     if vehicles > SHOWN:
         low, high = chi2_band(3, runs=vehicles)
         return (
@@ -87,12 +88,14 @@ def _plots(vehicles: int) -> tuple[Plot, ...]:
         )
     low, high = chi2_band(3)
     ids = range(1, vehicles + 1)
+    height = Plot("height", "height error [m]", tuple((f"v{v}", f"{_topic(v, 'metrics')}.err_alt_m") for v in ids))
     return (
         Plot(
             "error",
             "position error [m]",
             tuple((f"v{v}", f"{_topic(v, 'metrics')}.err_pos_m") for v in ids) + (("swarm RMS", "/swarm.rms_error_m"),),
         ),
+        *((height,) if heights else ()),
         Plot(
             "nees",
             "pose NEES (3 dof)",
@@ -120,7 +123,7 @@ def _scene_topics(vehicles: int) -> dict[str, dict[str, object]]:
     return {**{t: {"visible": True} for t in SCENE_TOPICS}, **hidden}
 
 
-def foxglove_layout(vehicles: int, view: Framing) -> str:
+def foxglove_layout(vehicles: int, view: Framing, heights: bool = False) -> str:
     """The layout as Foxglove reads it (Layouts, Import from file), built with the SDK's classes."""
     from foxglove import layouts as fl
 
@@ -168,7 +171,7 @@ def foxglove_layout(vehicles: int, view: Framing) -> str:
                 y_axis_label=plot.title,
             ),
         )
-        for plot in _plots(vehicles)
+        for plot in _plots(vehicles, heights)
     ]
     events = fl.LogPanel(title="events", config=fl.LogConfig(topic_to_render="/events"))
     column = fl.SplitContainer(direction="column", items=[fl.SplitItem(content=p) for p in [*plots, events]])
@@ -180,9 +183,9 @@ def foxglove_layout(vehicles: int, view: Framing) -> str:
     return layout.to_json()
 
 
-def lichtblick_layout(vehicles: int, view: Framing) -> str:
+def lichtblick_layout(vehicles: int, view: Framing, heights: bool = False) -> str:
     """The layout as Lichtblick reads it (Layouts, Import, or ``?layoutUrl=``)."""
-    return lichtblick_document("swarm", view.camera(), _scene_topics(vehicles), _plots(vehicles), "/events")
+    return lichtblick_document("swarm", view.camera(), _scene_topics(vehicles), _plots(vehicles, heights), "/events")
 
 
 def lichtblick_document(
@@ -255,10 +258,11 @@ def lichtblick_document(
     return json.dumps(data, indent=2) + "\n"
 
 
-def swarm_layouts(world: WorldConfig) -> dict[str, str]:
-    """The run's layouts by file name (``FOXGLOVE_FILE``, ``LICHTBLICK_FILE``), framed on its world."""
+def swarm_layouts(world: WorldConfig, heights: bool = False) -> dict[str, str]:
+    """The run's layouts by file name (``FOXGLOVE_FILE``, ``LICHTBLICK_FILE``), framed on its world;
+    with a height error plot where its vehicles estimate their ``heights``."""
     view = framing(world)
     return {
-        FOXGLOVE_FILE: foxglove_layout(world.vehicles, view),
-        LICHTBLICK_FILE: lichtblick_layout(world.vehicles, view),
+        FOXGLOVE_FILE: foxglove_layout(world.vehicles, view, heights),
+        LICHTBLICK_FILE: lichtblick_layout(world.vehicles, view, heights),
     }

@@ -22,6 +22,7 @@ from bus import messages as m
 from bus.clock_config import ClockMode
 from bus.config import SwarmConfig
 from bus.errors import DecodeError
+from bus.estimators import ESTIMATORS
 from bus.link_faults import Arrival
 from bus.mailbox import Oversized
 from bus.plan import encode_json
@@ -67,7 +68,8 @@ class GroundStation:
         self.run = RunDirectory(run_dir)  # creates the directory the recording goes in
         self.run.recording = open_recording(run_dir, config.view, config.world.vehicles)
         if self.run.recording is not None:
-            self.run.write_layouts(swarm_layouts(config.world))
+            heights = ESTIMATORS[config.vehicle.estimator].estimates_height
+            self.run.write_layouts(swarm_layouts(config.world, heights))
         if self.run.recording is not None:
             self.rejections.on_first = self._show_rejection
         self.ids = IdRegister(vehicles=config.world.vehicles, path=run_dir / "claims.json", master_key=master_key)

@@ -285,3 +285,16 @@ def test_the_recording_logs_every_vehicles_newest_map_together_at_most_once_a_se
     assert [t // 1000 for t, _ in updates] == [1_001_000, 2_001_000, 2_403_000]  # per second, then the last at the end
     assert [e.id for e in updates[-1][1].entities] == ["landmarks-1", "landmarks-2", "landmarks-3"]
     assert [e.id for e in updates[0][1].entities] == ["landmarks-1"]  # only vehicle 1 had sent one
+
+
+def test_a_uav_swarms_layouts_plot_each_height_error_and_lichtblick_accepts_them():
+    from bus.config import WorldConfig
+    from bus.estimators import ESTIMATORS
+
+    assert ESTIMATORS["ar-ekf-slam-3d"].estimates_height and not ESTIMATORS["ekf"].estimates_height
+    layouts = swarm_layouts(WorldConfig(vehicles=3), heights=True)
+    data = json.loads(layouts[LICHTBLICK_FILE])
+    assert lichtblick_layout_errors(data) == []
+    for text in layouts.values():
+        assert all(f"/vehicle/{v}/metrics.err_alt_m" in text for v in (1, 2, 3)) and "height error [m]" in text
+    assert "err_alt_m" not in json.dumps(swarm_layouts(WorldConfig(vehicles=3)))
