@@ -76,7 +76,7 @@ def metrics_record(s: Score, nees_band: tuple[float, float]) -> dict[str, Any]:
         record["nees"] = s.nees
     if math.isfinite(s.altitude_error_m):
         record["err_alt_m"] = s.altitude_error_m
-        record["sigma_alt_m"] = math.sqrt(s.estimate.pose_covariance[2, 2].item())  # NED z's variance
+        record["sigma_alt_m"] = s.altitude_sigma_m
     return record
 
 

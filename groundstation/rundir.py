@@ -37,8 +37,7 @@ def _height_columns(s: Score) -> str:
     """metrics.csv's err_alt_m, sigma_alt_m and nees_alt of a score: empty where no height is estimated."""
     if math.isnan(s.altitude_nees):
         return ",,"
-    sigma = math.sqrt(s.estimate.pose_covariance[2, 2].item())  # NED z's variance: the height's
-    return f"{s.altitude_error_m:.6f},{sigma:.6f},{s.altitude_nees:.6f}"
+    return f"{s.altitude_error_m:.6f},{s.altitude_sigma_m:.6f},{s.altitude_nees:.6f}"
 
 
 class RunDirectory:

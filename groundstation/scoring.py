@@ -53,6 +53,11 @@ class Score:
     def position_error_m(self) -> float:
         return float(np.hypot(self.error_m[0], self.error_m[1]))
 
+    @property
+    def altitude_sigma_m(self) -> float:
+        """The height's standard deviation (m): ODOMETRY z's (NaN where no height is estimated)."""
+        return math.nan if math.isnan(self.altitude_nees) else math.sqrt(self.estimate.pose_covariance[2, 2].item())
+
 
 @dataclass
 class Tally:

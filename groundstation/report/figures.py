@@ -5,7 +5,6 @@ Each function takes the loaded run and returns a Figure, or None when the run ha
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -15,21 +14,11 @@ from matplotlib.ticker import FormatStrFormatter
 
 from bus.consistency import BLOCK_S, consistency
 from bus.statistics import binned_mean, binned_rms
+from groundstation.report.panels import mark_events, marker_legend, panels_legend, worst_vehicles
 from groundstation.report.rundata import RunData
 from groundstation.report.stats import binned_nees, covariance_ellipse
 from groundstation.scene_primitives import zone_colour
 from groundstation.shown import SHOWN
-
-MARKER_COLORS = {
-    "fault_added": "tab:red",
-    "fault_removed": "tab:green",
-    "fault_expired": "tab:green",
-    "vehicle_lost": "black",
-    "vehicle_restarted": "tab:purple",
-    "estimator_reset": "tab:purple",
-    "gnss_unhealthy": "tab:orange",
-    "gnss_healthy": "tab:olive",
-}
 
 
 def _color(index: int) -> Any:
@@ -125,30 +114,6 @@ def _draw_ellipses(ax: Any, data: RunData, vid: int, color: Any, every_s: float)
         ax.plot(outline[:, 0], outline[:, 1], "-", color=color, lw=0.7)
 
 
-def _mark_events(ax: Any, events: list[dict[str, Any]], vehicle: int | None = None) -> None:
-    """Vertical lines at fault events; per-vehicle panels show swarm-wide events and their own."""
-    for e in events:
-        if vehicle is not None and e.get("vehicle") not in (None, vehicle):
-            continue
-        kind = str(e.get("event"))
-        ax.axvline(float(e.get("t_s", 0.0)), color=MARKER_COLORS.get(kind, "tab:gray"), ls=":", lw=1.2)
-
-
-def _marker_legend(ax: Any, events: list[dict[str, Any]]) -> None:
-    for kind in sorted({str(e.get("event")) for e in events}):
-        ax.plot([], [], ":", color=MARKER_COLORS.get(kind, "tab:gray"), label=kind)
-
-
-def worst_vehicles(data: RunData, score: Callable[[dict[str, np.ndarray]], float]) -> tuple[list[int], int]:
-    """(the vehicles with rows, in order, or the ``SHOWN`` of them with the highest
-    ``score`` of their rows when there are more; how many have rows)."""
-    vehicles = [v for v in data.vehicles if len(data.rows_of(v).get("t_s", ()))]
-    if len(vehicles) <= SHOWN:
-        return vehicles, len(vehicles)
-    worst = sorted(vehicles, key=lambda v: -score(data.rows_of(v)))[:SHOWN]
-    return worst, len(vehicles)
-
-
 def _rmse_of(rows: dict[str, np.ndarray]) -> float:
     return float(np.sqrt(np.mean(np.square(rows["err_pos_m"]))))
 
@@ -157,16 +122,6 @@ def _inconsistency_of(rows: dict[str, np.ndarray]) -> float:
     """How far a vehicle's mean NEES is from 3, either way (a factor: log scale)."""
     mean = float(np.nanmean(rows["nees"]))
     return abs(np.log(mean / 3.0)) if mean > 0 else np.inf
-
-
-def _panels_legend(fig: Figure, first: Any, shown: int, total: int, which: str) -> None:
-    """The legend of a figure of per-vehicle panels, above them; titled with which vehicles they are
-    when not all."""
-    title = f"the {shown} of {total} vehicles {which}" if shown < total else None
-    handles, labels = first.get_legend_handles_labels()
-    fig.legend(
-        handles, labels, loc="outside upper center", fontsize="small", ncols=4, title=title, title_fontsize="small"
-    )
 
 
 def error_figure(data: RunData) -> Figure | None:
@@ -214,12 +169,12 @@ def _envelope_figure(
             bound = 3.0 * r[sigma]
             ax.fill_between(r["t_s"], -bound, bound, color=color, alpha=0.15, lw=0)
             ax.plot(r["t_s"], r[error], color=color, lw=0.8, label=label)
-        _mark_events(ax, events, vid)
+        mark_events(ax, events, vid)
         ax.set_ylabel(f"v{vid} [m]")
         ax.grid(alpha=0.3)
     axes[0].set_title(title)
-    _marker_legend(axes[0], events)
-    _panels_legend(fig, axes[0], len(vehicles), total, which)
+    marker_legend(axes[0], events)
+    panels_legend(fig, axes[0], len(vehicles), total, which)
     axes[-1].set_xlabel("sim time [s]")
     return fig
 
@@ -244,8 +199,8 @@ def rmse_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
         what = f"{len(per_vehicle)} vehicles: their median and 5-95 % band"
     ax.plot(*binned_rms(m["t_s"], m["err_pos_m"], bin_s), color="black", lw=2.0, label="swarm")
     events = data.marker_events()
-    _mark_events(ax, events)
-    _marker_legend(ax, events)
+    mark_events(ax, events)
+    marker_legend(ax, events)
     ax.set_xlabel("sim time [s]")
     ax.set_ylabel(f"RMSE per {bin_s:g} s [m]")
     ax.set_ylim(bottom=0.0)
@@ -277,7 +232,7 @@ def nees_figure(data: RunData, *, bin_s: float = 1.0) -> Figure | None:
     ax.fill_between(t, lower, upper, color="tab:green", alpha=0.2, lw=0, label="95% chi-square band")
     ax.axhline(3.0, color="tab:green", lw=0.8)
     ax.plot(t, mean, color="black", lw=1.2, marker=".", label="mean over vehicles, one sample each per bin")
-    _mark_events(ax, data.marker_events())
+    mark_events(ax, data.marker_events())
     ax.set_yscale("log")
     ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
@@ -325,6 +280,6 @@ def block_nees_figure(data: RunData, *, block_s: float = BLOCK_S) -> Figure | No
         ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
         ax.set_ylabel(f"v{vid} NEES")
         ax.grid(alpha=0.3, which="both")
-    _panels_legend(fig, axes[0], len(vehicles), total, "whose mean NEES is farthest from 3")
+    panels_legend(fig, axes[0], len(vehicles), total, "whose mean NEES is farthest from 3")
     axes[-1].set_xlabel("sim time [s]")
     return fig

@@ -140,7 +140,8 @@ def test_a_large_swarm_shows_its_worst_vehicles_and_says_so(tmp_path):
     """Beyond a dozen vehicles the tables and per-vehicle figures show the worst, named as such, and
     the RMSE figure draws the vehicles as a band (a person can scan it; 250 lines would be noise)."""
     from groundstation.display import rmse_table
-    from groundstation.report.figures import error_figure, rmse_figure, worst_vehicles
+    from groundstation.report.figures import error_figure, rmse_figure
+    from groundstation.report.panels import worst_vehicles
     from groundstation.shown import SHOWN
 
     _write_run(tmp_path / "big", np.random.default_rng(7), vehicles=30, seconds=4)
