@@ -2,7 +2,8 @@
 targets: over a long flight of uniform landmarks the adaptive range's p99 per frame stays flat as the
 map grows (its p99 near 2000 mapped landmarks at most 1.5x its p99 near 200), and over the flight with
 a dense town it stays below the fixed 25 m range's (the paper's figure 7). A frame's cost is the back
-end's prediction and frame (association by id, updates, entry, retirement), the triangulation not
+end's prediction and frame (association by id, updates, entry, retirement, and the covariances it
+asks the triangulation for at its landmarks' predictions), the frame's own triangulation not
 included. Mapped: landmarks entered so far (in the state or retired)."""
 
 from __future__ import annotations

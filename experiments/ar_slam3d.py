@@ -26,7 +26,7 @@ from sim.pinhole import PAPER_SIZE, Pinhole
 from sim.relief import rolling_hills as ground
 from vehicle.estimators.ar_slam3d import ArSlam3d
 from vehicle.models import slam3d
-from vehicle.vision.triangulation import camera_matrices, triangulate
+from vehicle.vision.triangulation import camera_matrices, covariance_at, triangulate
 
 RATE_HZ, SPEED_MPS, HEIGHT_M, PITCH_RAD, SEE_M = 10.0, 5.0, 15.0, np.deg2rad(30.0), 60.0
 OMEGA_VAR = 4e-4  # the truth's white velocity increments per frame, m^2/s^2
@@ -135,24 +135,33 @@ def motion_noise() -> np.ndarray:
 
 def observe(
     landmarks, C1, R1, C2, R2, rng: np.random.Generator, min_parallax_rad: float = 0.0
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, Callable[[np.ndarray], np.ndarray]]:
     """The landmarks seen from both cameras, triangulated: points (k, 3) in camera 2, covariances
-    (k, 3, 3) and the landmarks' indices (k,)."""
+    (k, 3, 3), the landmarks' indices (k,), and the covariances the same triangulation gives any
+    points (m, 3) in camera 2 (the back end's ``noise_at``)."""
     camera = Pinhole(PAPER_K, PAPER_SIZE)
     pixels, depths = zip(*(camera.project(R, C, landmarks) for C, R in ((C1, R1), (C2, R2))))
     seen = np.ones(len(landmarks), bool)
     for uv, d in zip(pixels, depths):
         seen &= (d > 0.5) & (d < SEE_M) & (uv[:, 0] >= 0) & (uv[:, 0] < PAPER_SIZE[0])
         seen &= (uv[:, 1] >= 0) & (uv[:, 1] < PAPER_SIZE[1])
-    if not seen.any():
-        return np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0, np.int64)
-    uv1, uv2 = (uv[seen] + rng.normal(0.0, 1.0, (seen.sum(), 2)) for uv in pixels)
     R_rel, L = R2.T @ R1, R2.T @ (C1 - C2)  # camera 1 -> camera 2: X2 = R_rel X1 + L
-    out = triangulate(*camera_matrices(PAPER_K, R_rel, L), uv1, uv2)
+    cameras = camera_matrices(PAPER_K, R_rel, L)
+    noise_at = functools.partial(_noise_in_camera_2, cameras, R_rel, L)
+    if not seen.any():
+        return np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0, np.int64), noise_at
+    uv1, uv2 = (uv[seen] + rng.normal(0.0, 1.0, (seen.sum(), 2)) for uv in pixels)
+    out = triangulate(*cameras, uv1, uv2)
     keep = out.usable & (out.parallax_rad >= min_parallax_rad)
     z = out.points[keep] @ R_rel.T + L
     cov = np.einsum("ij,njk,lk->nil", R_rel, out.covariances[keep], R_rel)
-    return z, cov, np.flatnonzero(seen)[keep]
+    return z, cov, np.flatnonzero(seen)[keep], noise_at
+
+
+def _noise_in_camera_2(cameras: tuple, R_rel: np.ndarray, L: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """The triangulation's covariances (m, 3, 3) in camera 2 of points z (m, 3) in camera 2."""
+    cov = covariance_at(*cameras, (z - L) @ R_rel)
+    return np.einsum("ij,njk,lk->nil", R_rel, cov, R_rel)
 
 
 def fly(
@@ -166,13 +175,15 @@ def fly(
     association: str = "nn",
     entry: str = "second",
     town: bool = True,
+    noise: bool = True,
     on_frame: Callable[[int, ArSlam3d, float], None] | None = None,
 ) -> Track:
     """One flight of ``frames`` frames with the back end in ``mode`` (MODES), each frame triangulated
     with the one ``baseline_frames`` before it; ``identified``: association by landmark id (the back
     end alone), else by ``association`` on the triangulated points; ``entry``: how points enter the map
-    (vehicle.estimators.ar_slam3d); ``on_frame(k, back end, frame ms)``: called after each frame (a
-    recording), outside the frame's timing."""
+    (vehicle.estimators.ar_slam3d); ``noise``: a landmark's sighting fused with the noise at its
+    prediction (the back end's ``noise_at``; False: at its own pixels); ``on_frame(k, back end, frame
+    ms)``: called after each frame (a recording), outside the frame's timing."""
     landmarks, positions, rotations = world(seed, frames + 1, town)
     rng = np.random.default_rng([seed, 5])
     dt = 1.0 / RATE_HZ
@@ -188,7 +199,7 @@ def fly(
         )
         start = time.perf_counter()
         slam.predict(dt)
-        slam.frame(*seen[:2], rotations[k], seen[2] if identified else None)
+        slam.frame(*seen[:2], rotations[k], seen[2] if identified else None, noise_at=seen[3] if noise else None)
         elapsed = (time.perf_counter() - start) * 1e3
         rows.append(track_row(slam, k, positions, elapsed, landmark_nees(slam, landmarks)))
         if on_frame is not None:

@@ -78,6 +78,21 @@ def triangulate(
     return Triangulated(X, covariances, parallax, refusal)
 
 
+def covariance_at(m1: np.ndarray, m2: np.ndarray, X: np.ndarray, *, sigma_px: float = 1.0) -> np.ndarray:
+    """The covariances (n, 3, 3) :func:`triangulate` gives points X (n, 3) (the first camera's frame)
+    seen where the cameras m1, m2 (3, 4) put them: the pixels' noise at a predicted point instead of
+    at the measured pixels. A covariance worked out at the measured pixels follows the measurement's
+    own error (a point measured short gets a smaller ellipsoid, its depth variance growing as depth^4
+    over the baseline), and a landmark fused from many sightings so weighted drifts short and claims
+    too much (docs/ar-slam.md); worked out at a prediction made before the sighting, it does not."""
+    X = np.atleast_2d(X).astype(float)
+    pixels = []
+    for m in (m1, m2):
+        h = X @ m[:, :3].T + m[:, 3]
+        pixels.append(h[:, :2] / h[:, 2:3])
+    return triangulate(m1, m2, *pixels, sigma_px=sigma_px).covariances
+
+
 def triangulated_points(m1: np.ndarray, m2: np.ndarray, uv1: np.ndarray, uv2: np.ndarray) -> np.ndarray:
     """The points (n, 3) of :func:`triangulate` alone (the same values), without their covariances,
     parallax or refusals: what a finite difference of the cameras needs."""

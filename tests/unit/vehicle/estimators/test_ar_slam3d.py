@@ -8,6 +8,8 @@ leave the band: docs/ar-slam.md)."""
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from bus.config import ArSlamConfig
@@ -75,3 +77,28 @@ def test_unidentified_points_enter_on_their_second_sighting_found_by_the_gate():
     assert slam.book.added > 10 and slam.book.fused > 100
     assert np.all(slam.ids == -1)
     assert len(slam.candidates) <= 60  # let go after a few frames unless seen again
+
+
+def test_a_mapped_landmark_s_sighting_is_fused_with_the_noise_at_its_prediction():
+    """Given ``noise_at``, a sighting of a landmark in the state is fused with the covariance it gives
+    at the landmark's prediction (asked once per frame, with the predictions before the frame), not
+    with the sighting's own; association and entry keep the sighting's own."""
+    _, slam, p, *_ = flight(0, 20, adaptive=False)
+    R = look(0.0, np.deg2rad(30.0))
+    ids = slam.ids[:3]
+    z = (slam.landmarks()[:3] - slam.x[:3]) @ R + 0.05
+    R_z = np.broadcast_to(np.diag([0.04, 0.04, 4.0]), (3, 3, 3)).copy()
+    at_prediction = np.diag([0.01, 0.02, 0.5])
+    asked = []
+
+    def noise_at(points: np.ndarray) -> np.ndarray:
+        asked.append(points.copy())
+        return np.broadcast_to(at_prediction, (len(points), 3, 3))
+
+    with_noise, told = copy.deepcopy(slam), copy.deepcopy(slam)
+    with_noise.frame(z, R_z, R, ids=ids, noise_at=noise_at)
+    told.frame(z, np.broadcast_to(at_prediction, (3, 3, 3)).copy(), R, ids=ids)
+    np.testing.assert_allclose(with_noise.x, told.x)
+    np.testing.assert_allclose(with_noise.P, told.P)
+    assert len(asked) == 1
+    np.testing.assert_allclose(asked[0], (slam.landmarks()[:3] - slam.x[:3]) @ R)
