@@ -160,8 +160,10 @@ class ArSlam3d:
         if noise_at is not None and len(paired):  # the pixels' noise at the predictions (``Noise``)
             mapped = self.x[slam3d.HEAD : first].reshape(-1, slam3d.POINT)[assignment[paired]]
             predicted = (mapped - self.x[: slam3d.POINT]) @ rotation  # h = R^T (X_j - p) of each pair
+            at_prediction = noise_at(predicted)
+            known = np.isfinite(at_prediction).all(axis=(1, 2))  # a prediction behind a camera has none
             R_fused = R_z.copy()
-            R_fused[paired] = noise_at(predicted)
+            R_fused[paired[known]] = at_prediction[known]
         for i in paired:
             j = int(assignment[i])
             h, H_j = slam3d.observe(self.x, j, rotation)

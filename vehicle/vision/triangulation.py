@@ -84,13 +84,17 @@ def covariance_at(m1: np.ndarray, m2: np.ndarray, X: np.ndarray, *, sigma_px: fl
     at the measured pixels. A covariance worked out at the measured pixels follows the measurement's
     own error (a point measured short gets a smaller ellipsoid, its depth variance growing as depth^4
     over the baseline), and a landmark fused from many sightings so weighted drifts short and claims
-    too much (docs/ar-slam.md); worked out at a prediction made before the sighting, it does not."""
+    too much (docs/ar-slam.md); worked out at a prediction made before the sighting, it does not.
+    A point behind either camera has none: NaN."""
     X = np.atleast_2d(X).astype(float)
-    pixels = []
+    pixels, behind = [], np.zeros(len(X), dtype=bool)
     for m in (m1, m2):
         h = X @ m[:, :3].T + m[:, 3]
-        pixels.append(h[:, :2] / h[:, 2:3])
-    return triangulate(m1, m2, *pixels, sigma_px=sigma_px).covariances
+        behind |= h[:, 2] <= 0.0
+        pixels.append(h[:, :2] / np.where(behind, 1.0, h[:, 2])[:, None])
+    covariances = triangulate(m1, m2, *pixels, sigma_px=sigma_px).covariances
+    covariances[behind] = np.nan
+    return covariances
 
 
 def triangulated_points(m1: np.ndarray, m2: np.ndarray, uv1: np.ndarray, uv2: np.ndarray) -> np.ndarray:

@@ -102,3 +102,19 @@ def test_a_mapped_landmark_s_sighting_is_fused_with_the_noise_at_its_prediction(
     np.testing.assert_allclose(with_noise.P, told.P)
     assert len(asked) == 1
     np.testing.assert_allclose(asked[0], (slam.landmarks()[:3] - slam.x[:3]) @ R)
+
+
+def test_a_sighting_whose_prediction_has_no_noise_keeps_its_own():
+    """A prediction behind a camera has no covariance (NaN from the triangulation): that sighting is
+    fused with its own, the others with theirs at the prediction."""
+    _, slam, *_ = flight(0, 20, adaptive=False)
+    R = look(0.0, np.deg2rad(30.0))
+    ids = slam.ids[:2]
+    z = (slam.landmarks()[:2] - slam.x[:3]) @ R + 0.05
+    R_z = np.broadcast_to(np.diag([0.04, 0.04, 4.0]), (2, 3, 3)).copy()
+    at_prediction = np.stack([np.full((3, 3), np.nan), np.diag([0.01, 0.02, 0.5])])
+    with_noise, told = copy.deepcopy(slam), copy.deepcopy(slam)
+    with_noise.frame(z, R_z, R, ids=ids, noise_at=lambda points: at_prediction)
+    told.frame(z, np.stack([R_z[0], at_prediction[1]]), R, ids=ids)
+    assert np.isfinite(with_noise.P).all()
+    np.testing.assert_allclose(with_noise.P, told.P)

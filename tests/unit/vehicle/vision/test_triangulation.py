@@ -109,6 +109,8 @@ def test_the_covariance_at_a_point_is_the_triangulation_s_at_its_exact_pixels():
     m1, m2 = camera_matrices(K, rotation(0.03, 0.1), np.array([-2.0, 0.1, -0.5]))
     expected = triangulate(m1, m2, project(m1, X), project(m2, X), sigma_px=1.5).covariances
     np.testing.assert_allclose(covariance_at(m1, m2, X, sigma_px=1.5), expected, rtol=1e-9)
+    behind = covariance_at(m1, m2, np.array([[0.0, 0.0, -5.0], [0.0, 0.0, 10.0]]))
+    assert np.isnan(behind[0]).all() and np.isfinite(behind[1]).all()  # a point behind has none
 
 
 def fused_depth_errors(weights_at_the_point: bool, trials: int = 1000, sightings: int = 100) -> np.ndarray:
