@@ -21,14 +21,11 @@ depth keeps the points measured short and makes their errors one-sided (docs/ar-
 of it (by id, or the nearest candidate within the gate) initialises it, whatever that sighting's own
 depth; a candidate not seen again within ``CANDIDATE_FRAMES`` frames is let go.
 
-Noise. A triangulated point's covariance worked out at its own pixels follows its own error: its depth
-variance grows as depth^4 over the baseline, so a point measured short claims a smaller ellipsoid and
-weighs more. A landmark fused from a hundred sightings weighted so drifts short of the truth while its
-covariance shrinks: full EKF-SLAM's position NEES climbed to 19 (3 when honest) over 300 frames, and
-with every covariance worked out at the true pixels (an oracle) it stayed at 2.3-2.5 and its error
-halved (docs/ar-slam.md). Given ``noise_at``, a sighting of a landmark in the state is fused with the
-covariance the triangulation gives at the landmark's prediction before the frame, which does not
-depend on that sighting's noise; association and entry use the sighting's own.
+Noise. A triangulated point's covariance worked out at its own pixels follows its own error (its depth
+variance grows as depth^4), so a landmark fused from many sightings drifts short while its covariance
+shrinks (docs/decisions/ar-slam3d-noise.md). Given ``noise_at``, a sighting of a landmark in the state
+is fused with the covariance at the landmark's prediction before the frame; association and entry use
+the sighting's own.
 
 The rotation of each frame, R_wc (the camera's axes in the fixed frame), is given: the paper takes it
 from visual odometry (R from E, cheirality) and does not estimate it.
@@ -156,14 +153,9 @@ class ArSlam3d:
         R_alone = R_z + np.einsum("nic,cd,njd->nij", G, shared, G)  # a point's noise with its share
         assignment = self._assign(n, z, R_alone, rotation, ids)
         paired = np.flatnonzero(assignment >= 0)
-        R_fused = R_z
-        if noise_at is not None and len(paired):  # the pixels' noise at the predictions (``Noise``)
-            mapped = self.x[slam3d.HEAD : first].reshape(-1, slam3d.POINT)[assignment[paired]]
-            predicted = (mapped - self.x[: slam3d.POINT]) @ rotation  # h = R^T (X_j - p) of each pair
-            at_prediction = noise_at(predicted)
-            known = np.isfinite(at_prediction).all(axis=(1, 2))  # a prediction behind a camera has none
-            R_fused = R_z.copy()
-            R_fused[paired[known]] = at_prediction[known]
+        R_fused = (
+            R_z if noise_at is None else _noise_at_predictions(self.x[:first], assignment, rotation, R_z, noise_at)
+        )
         for i in paired:
             j = int(assignment[i])
             h, H_j = slam3d.observe(self.x, j, rotation)
@@ -285,6 +277,23 @@ class ArSlam3d:
         drop = (slam3d.HEAD + slam3d.POINT * far[:, None] + np.arange(slam3d.POINT)).ravel().tolist()
         self.x, self.P = added_states.drop_states(self.x, self.P, drop)
         self.ids = np.delete(self.ids, far)
+
+
+def _noise_at_predictions(
+    x: np.ndarray, assignment: np.ndarray, rotation: np.ndarray, R_z: np.ndarray, noise_at: Callable
+) -> np.ndarray:
+    """The points' noise (k, 3, 3) to fuse with (``Noise``): for each point paired with landmark j of x
+    (6 + 3n,) (``assignment`` (k,), -1: none), what ``noise_at`` gives at h = R^T (X_j - p); its own
+    ``R_z`` for the rest, and where the prediction has none (behind a camera: NaN)."""
+    paired = np.flatnonzero(assignment >= 0)
+    if not len(paired):
+        return R_z
+    mapped = x[slam3d.HEAD :].reshape(-1, slam3d.POINT)[assignment[paired]]
+    at_prediction = noise_at((mapped - x[: slam3d.POINT]) @ rotation)
+    known = np.isfinite(at_prediction).all(axis=(1, 2))
+    out = R_z.copy()
+    out[paired[known]] = at_prediction[known]
+    return out
 
 
 def _without_ambiguous(assignment: np.ndarray, candidates: np.ndarray) -> np.ndarray:
