@@ -26,7 +26,7 @@ from sim.pinhole import PAPER_SIZE, Pinhole
 from sim.relief import rolling_hills as ground
 from vehicle.estimators.ar_slam3d import ArSlam3d
 from vehicle.models import slam3d
-from vehicle.vision.triangulation import camera_matrices, covariance_at, triangulate
+from vehicle.vision.triangulation import camera_matrices, covariance_at, in_second_camera, triangulate
 
 RATE_HZ, SPEED_MPS, HEIGHT_M, PITCH_RAD, SEE_M = 10.0, 5.0, 15.0, np.deg2rad(30.0), 60.0
 OMEGA_VAR = 4e-4  # the truth's white velocity increments per frame, m^2/s^2
@@ -153,15 +153,14 @@ def observe(
     uv1, uv2 = (uv[seen] + rng.normal(0.0, 1.0, (seen.sum(), 2)) for uv in pixels)
     out = triangulate(*cameras, uv1, uv2)
     keep = out.usable & (out.parallax_rad >= min_parallax_rad)
-    z = out.points[keep] @ R_rel.T + L
-    cov = np.einsum("ij,njk,lk->nil", R_rel, out.covariances[keep], R_rel)
+    z, cov = in_second_camera(R_rel, L, out.points[keep], out.covariances[keep])
     return z, cov, np.flatnonzero(seen)[keep], noise_at
 
 
 def _noise_in_camera_2(cameras: tuple, R_rel: np.ndarray, L: np.ndarray, z: np.ndarray) -> np.ndarray:
     """The triangulation's covariances (m, 3, 3) in camera 2 of points z (m, 3) in camera 2."""
-    cov = covariance_at(*cameras, (z - L) @ R_rel)
-    return np.einsum("ij,njk,lk->nil", R_rel, cov, R_rel)
+    X1 = (z - L) @ R_rel
+    return in_second_camera(R_rel, L, X1, covariance_at(*cameras, X1))[1]
 
 
 def fly(
@@ -194,12 +193,12 @@ def fly(
     rows = []
     for k in range(1, frames + 1):
         j = max(0, k - baseline_frames)
-        seen = observe(
+        z, R_z, seen, noise_at = observe(
             landmarks, positions[j], rotations[j], positions[k], rotations[k], rng, np.deg2rad(min_parallax_deg)
         )
         start = time.perf_counter()
         slam.predict(dt)
-        slam.frame(*seen[:2], rotations[k], seen[2] if identified else None, noise_at=seen[3] if noise else None)
+        slam.frame(z, R_z, rotations[k], seen if identified else None, noise_at=noise_at if noise else None)
         elapsed = (time.perf_counter() - start) * 1e3
         rows.append(track_row(slam, k, positions, elapsed, landmark_nees(slam, landmarks)))
         if on_frame is not None:

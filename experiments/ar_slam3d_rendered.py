@@ -43,7 +43,7 @@ from sim.pinhole import Pinhole, render
 from sim.relief import Relief, relief_terrain
 from vehicle.estimators.ar_slam3d import ArSlam3d
 from vehicle.vision import ncc, susan, two_view
-from vehicle.vision.triangulation import camera_matrices, triangulate
+from vehicle.vision.triangulation import camera_matrices, in_second_camera, triangulate
 
 SCALE = 0.5  # 320 x 240, K halved: a frame's ray casting and SUSAN at 640 x 480 cost four times as much
 MIN_MATCHES = 12  # fewer matches than this and a frame's two-view geometry is not trusted (none fitted)
@@ -136,8 +136,7 @@ def triangulated(
     where the triangulation refuses the pair)."""
     L = pose.t / np.linalg.norm(pose.t) * baseline_m
     out = triangulate(*camera_matrices(camera.K, pose.R, L), p1, p2)
-    z = out.points @ pose.R.T + L
-    cov = np.einsum("ij,njk,lk->nil", pose.R, out.covariances, pose.R)
+    z, cov = in_second_camera(pose.R, L, out.points, out.covariances)
     return z, cov, np.where(out.usable, out.parallax_rad, np.nan)
 
 

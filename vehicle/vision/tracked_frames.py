@@ -31,7 +31,7 @@ import numpy as np
 
 from bus.sensors.camera3d import PAPER_K, Camera3dSpec
 from bus.sensors.camera3d import look as camera_rotation
-from vehicle.vision.triangulation import camera_matrices, triangulate, triangulated_points
+from vehicle.vision.triangulation import camera_matrices, in_second_camera, triangulate, triangulated_points
 
 MIN_PARALLAX_RAD = np.deg2rad(2.0)
 USES = 2.0  # pairs each frame serves: as the later frame, then as the earlier one
@@ -90,12 +90,7 @@ def frame_points(
     for k in range(len(inputs)):  # the innovation's change per unit error of each input
         step = np.zeros(len(inputs))
         step[k] = SHARED_STEP[k]
-        moved = moved_points(uv1, uv2, inputs + step, pitch)
-        if k == 1:  # h = R(psi)^T (X - p) with X - p = R(psi) z turns with the later heading too
-            turn = camera_rotation(inputs[1] + step[1], pitch).T @ camera_rotation(inputs[1], pitch)
-            G[:, :, k] = (moved - z @ turn.T) / step[k]
-        else:
-            G[:, :, k] = (moved - z) / step[k]
+        G[:, :, k] = innovation_change(uv1, uv2, inputs, step, pitch, z) / step[k]
     if debiased:
         z = z - shared_bias(uv1, uv2, inputs, pitch, shared_covariance(later.displacement_m, spec, 1.0), z)
     return FramePoints(z, R_z, (G, shared_covariance(later.displacement_m, spec, uses)), tracks)
@@ -115,9 +110,21 @@ def shared_bias(
         for sign in (1.0, -1.0):
             step = np.zeros(len(inputs))
             step[k] = sign * np.sqrt(2.0 * spread[k, k])
-            turn = camera_rotation(inputs[1] + step[1], pitch_rad).T @ camera_rotation(inputs[1], pitch_rad)
-            total += moved_points(uv1, uv2, inputs + step, pitch_rad) - z @ turn.T
+            total += innovation_change(uv1, uv2, inputs, step, pitch_rad, z)
     return total / 4.0
+
+
+def innovation_change(
+    uv1: np.ndarray, uv2: np.ndarray, inputs: np.ndarray, step: np.ndarray, pitch_rad: float, z: np.ndarray
+) -> np.ndarray:
+    """How the innovations of the points ``z`` (k, 3) change (k, 3) m when the inputs [earlier heading,
+    later heading, displacement (3)] change by ``step`` (5,): the points triangulated again, and where
+    the later heading changes, the prediction h = R(psi)^T (X - p), with X - p = R(psi) z, turned too."""
+    moved = moved_points(uv1, uv2, inputs + step, pitch_rad)
+    if not step[1]:
+        return moved - z
+    turn = camera_rotation(inputs[1] + step[1], pitch_rad).T @ camera_rotation(inputs[1], pitch_rad)
+    return moved - z @ turn.T
 
 
 def shared_covariance(displacement_m: np.ndarray, spec: Camera3dSpec, uses: float = USES) -> np.ndarray:
@@ -140,8 +147,7 @@ def triangulated(
     earlier and later frames and ``inputs`` [earlier heading, later heading, displacement (3)]."""
     R_rel, L = _relative_pose(inputs, pitch_rad)
     out = triangulate(*camera_matrices(PAPER_K, R_rel, L), uv1, uv2, sigma_px=sigma_px)
-    z = out.points @ R_rel.T + L
-    cov = np.einsum("ij,njk,lk->nil", R_rel, out.covariances, R_rel)
+    z, cov = in_second_camera(R_rel, L, out.points, out.covariances)
     return z, cov, out.usable & (out.parallax_rad >= MIN_PARALLAX_RAD)
 
 

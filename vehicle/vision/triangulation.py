@@ -78,6 +78,14 @@ def triangulate(
     return Triangulated(X, covariances, parallax, refusal)
 
 
+def in_second_camera(
+    R: np.ndarray, L: np.ndarray, points: np.ndarray, covariances: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Points (n, 3) and covariances (n, 3, 3) of the first camera's frame in the second's, X_2 = R X_1
+    + L (the cameras of :func:`camera_matrices`)."""
+    return points @ R.T + L, np.einsum("ij,njk,lk->nil", R, covariances, R)
+
+
 def covariance_at(m1: np.ndarray, m2: np.ndarray, X: np.ndarray, *, sigma_px: float = 1.0) -> np.ndarray:
     """The covariances (n, 3, 3) :func:`triangulate` gives points X (n, 3) (the first camera's frame)
     seen where the cameras m1, m2 (3, 4) put them: the pixels' noise at a predicted point instead of
