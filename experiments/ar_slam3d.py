@@ -99,12 +99,17 @@ def world(seed: int, frames: int, town: bool = True) -> tuple[np.ndarray, np.nda
 
 
 def trajectory(
-    rng: np.random.Generator, frames: int, heading: Callable[[float], float], ground: Callable, start_xy: np.ndarray
+    rng: np.random.Generator,
+    frames: int,
+    heading: Callable[[float], float],
+    ground: Callable,
+    start_xy: np.ndarray,
+    pitch_rad: float = PITCH_RAD,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The camera's true positions (frames, 3) and rotations (frames, 3, 3): from ``start_xy`` at
     SPEED_MPS, steering towards ``heading(t)`` rad and HEIGHT_M over ``ground`` (relief at (..., 2)),
     so climbing and descending with it, its velocity also driven by white noise (OMEGA_VAR); the camera
-    looks along the velocity, PITCH_RAD below the horizon."""
+    looks along the velocity, ``pitch_rad`` below the horizon."""
     dt = 1.0 / RATE_HZ
     h0 = heading(0.0)
     p = np.array([*start_xy, HEIGHT_M + ground(np.asarray(start_xy))])
@@ -117,7 +122,7 @@ def trajectory(
         v = v + 0.05 * (wanted - v) + rng.normal(0.0, np.sqrt(OMEGA_VAR), 3)
         p = p + v * dt
         positions.append(p.copy())
-        rotations.append(look(float(np.arctan2(v[1], v[0])), PITCH_RAD))
+        rotations.append(look(float(np.arctan2(v[1], v[0])), pitch_rad))
     return np.array(positions), np.array(rotations)
 
 

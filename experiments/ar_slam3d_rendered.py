@@ -1,12 +1,13 @@
 """The AR-EKF-SLAM paper's whole 3-D system on rendered frames: the camera of experiments.ar_slam3d
-(the paper's K scaled by ``SCALE``, 10 frames a second, 5 m/s, 15 m over the ground, 30 degrees down)
-flies circles over terrain with hills and buildings (sim.relief); each frame is rendered by ray
-casting (sim.pinhole.render, grey-level noise); the paper's front end finds SUSAN corners
-(vehicle.vision.susan) and matches them by NCC (vehicle.vision.ncc) with the frame ``baseline_frames``
-before; the relative pose is fitted inside RANSAC (``relative``); the matched corners that agree with it
-are triangulated (vehicle.vision.triangulation, the paper's least squares) and fused by the 6 + 3n back
-end (vehicle.estimators.ar_slam3d) with nn association: no landmark ids, no projected points. Pure;
-seeded.
+(the paper's K scaled by ``SCALE``, 10 frames a second, 5 m/s, 15 m over the ground), looking
+``PITCH_DEG`` down, flies circles over terrain with hills and buildings (sim.relief); each frame is
+rendered by ray casting (sim.pinhole.render, grey-level noise); the paper's front end finds SUSAN
+corners (vehicle.vision.susan) and matches them by NCC (vehicle.vision.ncc) with the frame ``baseline_frames``
+before (``tracked``: follows them from frame to frame instead, vehicle.vision.corner_tracks, and
+pairs the two frames through the tracks they share); the relative pose is fitted inside RANSAC
+(``relative``); the matched corners that agree with it are triangulated (vehicle.vision.triangulation,
+the paper's least squares) and fused by the 6 + 3n back end (vehicle.estimators.ar_slam3d) with nn
+association: no landmark ids, no projected points. Pure; seeded.
 
 What is given, as in the paper: the metric length of the baseline between the two frames (VO's
 translation has no scale), and the first ``baseline_frames`` frames' rotations (a surveyed start).
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import functools
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -43,11 +45,13 @@ from sim.pinhole import Pinhole, render
 from sim.relief import Relief, relief_terrain
 from vehicle.estimators.ar_slam3d import ArSlam3d
 from vehicle.vision import ncc, susan, two_view
+from vehicle.vision.corner_tracks import CornerTracks
 from vehicle.vision.triangulation import camera_matrices, in_second_camera, triangulate
 
 SCALE = 0.5  # 320 x 240, K halved: a frame's ray casting and SUSAN at 640 x 480 cost four times as much
 MIN_MATCHES = 12  # fewer matches than this and a frame's two-view geometry is not trusted (none fitted)
 CIRCLE_M, FOLLOW_M = 60.0, 10.0  # the flight's circle (inside the relief's 205 m square); smoothing of the relief
+PITCH_DEG = 45.0  # below the horizon: the ground in the frame's middle about 21 m away, inside the paper's R of 25 m
 
 
 @dataclass(frozen=True)
@@ -82,8 +86,9 @@ class FrontEndCounts:
     rotation_error_rad: float = 0.0
 
 
-def flight(seed: int, frames: int) -> RenderedFlight:
-    """Relief of ``seed`` and the camera's true track over it: circles of CIRCLE_M around its centre."""
+def flight(seed: int, frames: int, pitch_deg: float = PITCH_DEG) -> RenderedFlight:
+    """Relief of ``seed`` and the camera's true track over it: circles of CIRCLE_M around its centre,
+    the camera ``pitch_deg`` below the horizon."""
     relief = relief_terrain(np.random.default_rng([seed, 7]), size_px=2048)
     smooth = cv2.GaussianBlur(relief.height_m, (0, 0), FOLLOW_M / relief.metres_per_pixel)
     followed = Relief(relief.texture, smooth, relief.metres_per_pixel)
@@ -94,6 +99,7 @@ def flight(seed: int, frames: int) -> RenderedFlight:
         lambda t: np.pi / 2 + turn * t,
         followed.height_at,
         np.array([CIRCLE_M, 0.0]),
+        np.deg2rad(pitch_deg),
     )
     return RenderedFlight(relief, Pinhole.paper(SCALE), positions, rotations)
 
@@ -168,13 +174,17 @@ def fly(
     min_parallax_deg: float = 2.0,
     omega_var: np.ndarray | None = None,
     referee: bool = False,
+    tracked: bool = False,
+    pitch_deg: float = PITCH_DEG,
 ) -> tuple[Track, FrontEndCounts]:
     """One rendered flight of ``frames`` frames with the back end in ``mode`` (ar_slam3d.MODES), each
     frame paired with the one ``baseline_frames`` before it (module docstring); the track (landmark
     NEES NaN: the map's points have no identity) and the front end's counts. ``omega_var``: the
     velocity noise the filter is told (default: ``motion_noise()``, fitted). ``referee``: a point is
-    kept only where the frame ``baseline_frames // 2`` before confirms it (``refereed``)."""
-    path = flight(seed, frames + 1)
+    kept only where the frame ``baseline_frames // 2`` before confirms it (``refereed``). ``tracked``: the
+    pairs from corners followed frame to frame (vehicle.vision.corner_tracks), not matched across the
+    baseline."""
+    path = flight(seed, frames + 1, pitch_deg)
     rng = np.random.default_rng([seed, 5])
     dt = 1.0 / RATE_HZ
     v0 = (path.positions[1] - path.positions[0]) / dt
@@ -183,12 +193,16 @@ def fly(
     told = motion_noise() if omega_var is None else omega_var
     slam = ArSlam3d(x0, P0, omega_var=told, seed=seed, association="nn", **MODES[mode])
     detected: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # frame -> (image, SUSAN corners), the last few
+    tracks = CornerTracks() if tracked else None
+    pairs = tracks.pairs if tracks is not None else functools.partial(matched_pairs, detected)
     believed = {k: path.rotations[k] for k in range(baseline_frames)}  # R_wc the back end is handed
     counts, rows = FrontEndCounts(), []
     for k in range(frames + 1):
         image, _ = render(path.relief, path.camera, path.positions[k], path.rotations[k], rng)
         detected[k] = (image, susan.corners(image)[0].astype(float))
         detected.pop(k - baseline_frames - 1, None)
+        if tracks is not None:
+            tracks.step(k, *detected[k])
         if k == 0:
             continue
         j = max(0, k - baseline_frames)
@@ -196,7 +210,7 @@ def fly(
             believed[k] = path.rotations[k]
         h = k - baseline_frames // 2 if referee else j  # the referee's frame (none: j)
         parallax = np.deg2rad(min_parallax_deg)
-        z, cov, pose, matches = _frame_points(path, detected, believed, (j, h, k), rng, rotation, parallax)
+        z, cov, pose, matches = _frame_points(path, pairs, believed, (j, h, k), rng, rotation, parallax)
         counts.failed += pose is None
         counts.matches += matches
         counts.points += len(z)
@@ -213,7 +227,7 @@ def fly(
 
 def _frame_points(
     path: RenderedFlight,
-    detected: dict,
+    pairs: Callable[[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]],
     believed: dict,
     frames: tuple[int, int, int],
     rng: np.random.Generator,
@@ -227,13 +241,13 @@ def _frame_points(
     by frame (frame k's set where it is given)."""
     j, h, k = frames
     known = believed[k].T @ believed[j] if rotation == "given" else None
-    found = _pair(path, detected, j, k, rng, known)
+    found = _pair(path, pairs, j, k, rng, known)
     if found is None:
         return np.zeros((0, 3)), np.zeros((0, 3, 3)), None, 0
     keep = found.parallax >= min_parallax_rad  # NaN (refused) is not
     if h > j:
         known_h = believed[k].T @ believed[h] if rotation == "given" else None
-        keep &= _confirmed(found, _pair(path, detected, h, k, rng, known_h))
+        keep &= _confirmed(found, _pair(path, pairs, h, k, rng, known_h))
     return found.z[keep], found.cov[keep], found.pose, len(found.z)
 
 
@@ -246,13 +260,19 @@ def _confirmed(found: PairPoints, other: PairPoints | None) -> np.ndarray:
     return refereed(found.z, found.cov, found.corners, usable, other.cov, other.corners)
 
 
-def _pair(
-    path: RenderedFlight, detected: dict, j: int, k: int, rng: np.random.Generator, rotation: np.ndarray | None
-) -> PairPoints | None:
-    """Frames j and k's SUSAN corners matched, the relative pose fitted (``relative``) and the pairs that
-    agree with it triangulated; None when the geometry fails."""
+def matched_pairs(detected: dict, j: int, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The paper's pairs: frames j and k's SUSAN corners (``detected``: frame -> (image, corners))
+    matched by NCC across the baseline; their pixels in j (m, 2), in k (m, 2), and their corners'
+    indices in frame k (m,)."""
     i1, i2, _ = ncc.match(detected[j][0], detected[j][1], detected[k][0], detected[k][1])
-    p1, p2 = detected[j][1][i1], detected[k][1][i2]
+    return detected[j][1][i1], detected[k][1][i2], i2
+
+
+def _pair(path: RenderedFlight, pairs, j: int, k: int, rng: np.random.Generator, rotation) -> PairPoints | None:
+    """Frames j and k's pairs (``pairs(j, k)``: ``matched_pairs``, or ``CornerTracks.pairs`` where the
+    corners are followed), the relative pose fitted (``relative``) and the pairs that agree with it
+    triangulated; None when the geometry fails."""
+    p1, p2, i2 = pairs(j, k)
     fitted = relative(path.camera, p1, p2, rng, rotation) if len(p1) >= MIN_MATCHES else None
     if fitted is None:
         return None

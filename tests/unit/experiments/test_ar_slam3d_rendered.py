@@ -12,7 +12,7 @@ TOLD = np.array([0.009, 0.009, 0.0016])  # about what motion_noise() fits (fitti
 
 
 def test_rendered_frames_are_matched_triangulated_and_mapped_and_locate_the_vehicle():
-    track, counts = fly(0, 40, "adaptive", rotation="given", omega_var=TOLD)
+    track, counts = fly(0, 40, "adaptive", rotation="given", omega_var=TOLD, pitch_deg=30.0)
     assert counts.failed == 0 and counts.points / 40 > 10  # each frame gives points from its corners
     assert track.landmarks.max() > 20 and np.isnan(track.landmark_nees).all()  # mapped, no identities
     error = np.linalg.norm(track.estimate - track.truth, axis=1)
@@ -30,3 +30,41 @@ def test_a_second_triangulation_confirms_a_point_only_within_their_covariances()
     # corner 4: 1 m along the ray (confirmed); corner 7: 1 m across it (not); corner 9: refused there
     assert refereed(z, cov, corners, other, cov, np.array([4, 7, 9])).tolist() == [True, False, False]
     assert not refereed(z, cov, corners, other, cov, np.array([1, 2, 3])).any()  # not triangulated there
+
+
+def _true_projections(path, depth, j: int, k: int, pixels: np.ndarray) -> np.ndarray:
+    """Where the ground seen at ``pixels`` (m, 2) of frame j (its depth map ``depth``) lies in frame k."""
+    K = path.camera.K
+    rows, cols = np.rint(pixels[:, 1]).astype(int), np.rint(pixels[:, 0]).astype(int)
+    rays = np.column_stack([pixels, np.ones(len(pixels))]) @ np.linalg.inv(K).T
+    X = path.positions[j] + (rays * depth[rows, cols][:, None]) @ path.rotations[j].T
+    uv = (X - path.positions[k]) @ path.rotations[k] @ K.T
+    return uv[:, :2] / uv[:, 2:]
+
+
+def test_corners_followed_frame_to_frame_pair_the_same_ground_where_ncc_across_the_baseline_does_not():
+    from experiments.ar_slam3d_rendered import flight
+    from sim.pinhole import render
+    from vehicle.vision import ncc, susan
+    from vehicle.vision.corner_tracks import CornerTracks
+
+    path, rng, tracks = flight(0, 31), np.random.default_rng(1), CornerTracks()
+    frames = {}
+    for k in range(20, 31):
+        image, depth = render(path.relief, path.camera, path.positions[k], path.rotations[k], rng)
+        frames[k] = (image, depth, susan.corners(image)[0])
+        tracks.step(k, image, frames[k][2])
+    (image_j, depth_j, corners_j), (image_k, _, corners_k) = frames[20], frames[30]
+    p1, p2, _ = tracks.pairs(20, 30)
+    followed = np.linalg.norm(_true_projections(path, depth_j, 20, 30, p1) - p2, axis=1)
+    i1, i2, _ = ncc.match(image_j, corners_j, image_k, corners_k)
+    matched = np.linalg.norm(_true_projections(path, depth_j, 20, 30, corners_j[i1]) - corners_k[i2], axis=1)
+    assert len(p1) >= 40 and (followed < 2.0).mean() >= 0.9 and (followed > 5.0).mean() <= 0.02
+    assert (matched < 2.0).mean() <= 0.6  # the paper's matching across 5 m of forward flight
+
+
+def test_the_tracked_front_end_locates_the_vehicle_on_rendered_frames():
+    track, counts = fly(0, 40, "adaptive", rotation="given", omega_var=TOLD, tracked=True)
+    assert counts.failed == 0 and counts.points / 40 > 20
+    error = np.linalg.norm(track.estimate - track.truth, axis=1)
+    assert error.max() < 1.0 and np.isfinite(track.position_nees()).all()
