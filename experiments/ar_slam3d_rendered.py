@@ -44,6 +44,7 @@ from experiments.ar_slam3d import (
 from sim.pinhole import Pinhole, render
 from sim.relief import Relief, relief_terrain
 from vehicle.estimators.ar_slam3d import ArSlam3d
+from vehicle.models import slam3d
 from vehicle.vision import ncc, susan, two_view
 from vehicle.vision.corner_tracks import CornerTracks
 from vehicle.vision.triangulation import camera_matrices, in_second_camera, triangulate
@@ -176,6 +177,7 @@ def fly(
     referee: bool = False,
     tracked: bool = False,
     pitch_deg: float = PITCH_DEG,
+    regrow: bool = False,
 ) -> tuple[Track, FrontEndCounts]:
     """One rendered flight of ``frames`` frames with the back end in ``mode`` (ar_slam3d.MODES), each
     frame paired with the one ``baseline_frames`` before it (module docstring); the track (landmark
@@ -183,7 +185,7 @@ def fly(
     velocity noise the filter is told (default: ``motion_noise()``, fitted). ``referee``: a point is
     kept only where the frame ``baseline_frames // 2`` before confirms it (``refereed``). ``tracked``: the
     pairs from corners followed frame to frame (vehicle.vision.corner_tracks), not matched across the
-    baseline."""
+    baseline. ``regrow``: an emptied local map takes R out to the frame's points at once (``regrown``)."""
     path = flight(seed, frames + 1, pitch_deg)
     rng = np.random.default_rng([seed, 5])
     dt = 1.0 / RATE_HZ
@@ -217,12 +219,25 @@ def fly(
         believed.setdefault(k, believed[j] if pose is None else believed[j] @ pose.R.T)
         start = time.perf_counter()
         slam.predict(dt)
+        if regrow:
+            regrown(slam, z)
         slam.frame(z, cov, believed[k])
         elapsed = (time.perf_counter() - start) * 1e3
         rows.append(track_row(slam, k, path.positions, elapsed, float("nan")))  # no identities: no landmark NEES
     R_err = believed[frames].T @ path.rotations[frames]
     counts.rotation_error_rad = float(np.arccos(np.clip((np.trace(R_err) - 1.0) / 2.0, -1.0, 1.0)))
     return Track(*(np.array(column) for column in zip(*rows))), counts
+
+
+def regrown(slam: ArSlam3d, z: np.ndarray) -> None:
+    """A local map holding fewer than n_min landmarks takes R out at once to the frame's n_min-th
+    nearest point z (k, 3) (at most R_max), instead of growing by the paper's dR a frame while the map
+    stays empty and the vehicle dead-reckons."""
+    spec = slam.spec
+    if slam3d.landmarks(slam.x) >= spec.n_min or len(z) < spec.n_min:
+        return
+    reach = float(np.sort(np.linalg.norm(z, axis=1))[spec.n_min - 1])
+    slam.book.radius_m = min(max(slam.book.radius_m, reach), spec.r_max_m)
 
 
 def _frame_points(

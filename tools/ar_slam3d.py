@@ -72,10 +72,11 @@ def monte_carlo(seeds: int, two_frames: dict, jobs: int = 1) -> dict:
 
 
 RENDERED_CASES = {
-    "given": ("given", False),
-    "vo": ("vo", False),
-    "given, tracked": ("given", True),
-    "vo, tracked": ("vo", True),
+    "given": {"rotation": "given"},
+    "vo": {"rotation": "vo"},
+    "given, tracked": {"rotation": "given", "tracked": True},
+    "vo, tracked": {"rotation": "vo", "tracked": True},
+    "given, tracked, R regrown": {"rotation": "given", "tracked": True, "regrow": True},
 }
 
 
@@ -83,13 +84,12 @@ def rendered_monte_carlo(seeds: int, jobs: int = 1, names: tuple[str, ...] = tup
     """The rendered flights (experiments.ar_slam3d_rendered), adaptive range: position NEES at the
     checkpoints, RMSE over the flights, the front end's failed frames and the last frame's rotation
     error, for the rotation given and from VO, each with the corners matched across the pair by NCC
-    (the paper's) and followed from frame to frame (``tracked``): the cases ``names`` of
-    RENDERED_CASES."""
+    (the paper's) and followed from frame to frame (``tracked``), and with an emptied local map's range
+    taken out to the frame's points at once (``regrow``): the cases ``names`` of RENDERED_CASES."""
     low, high = chi2_band(3, runs=seeds)
     cases = {}
     for key in names:
-        rotation, tracked = RENDERED_CASES[key]
-        flight = functools.partial(fly_rendered, frames=300, mode="adaptive", rotation=rotation, tracked=tracked)
+        flight = functools.partial(fly_rendered, frames=300, mode="adaptive", **RENDERED_CASES[key])
         with ProcessPoolExecutor(jobs) as pool:
             flown = list(pool.map(flight, range(seeds)))
         position, errors = _position([track for track, _ in flown], (low, high))
