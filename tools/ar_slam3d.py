@@ -145,8 +145,9 @@ def main() -> None:
             parser.error(f"--rendered-cases: unknown {unknown}; the cases are {sorted(RENDERED_CASES)}")
         path = args.out / "data" / "ar-slam3d-rendered.json"
         result = rendered_monte_carlo(args.rendered, args.jobs, names)
-        if path.exists() and json.loads(path.read_text()).get("seeds") == args.rendered:
-            result["cases"] = {**json.loads(path.read_text())["cases"], **result["cases"]}
+        kept = json.loads(path.read_text()) if path.exists() else {}
+        if kept.get("seeds") == args.rendered:
+            result["cases"] = {**kept["cases"], **result["cases"]}
         path.write_text(json.dumps(result, indent=2) + "\n")
         return
     two_frames = {"baseline_frames": args.baseline_frames, "min_parallax_deg": args.min_parallax, "entry": args.entry}

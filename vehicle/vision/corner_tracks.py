@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from vehicle.vision.ncc import patches
+
 LK_WINDOW = (15, 15)
 LK_LEVELS = 2
 
@@ -35,10 +37,14 @@ class CornerTracks:
     keep_frames: int = 12
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.float32))
-    first_patch: np.ndarray = field(default_factory=lambda: np.zeros((0, 121)))
+    first_patch: np.ndarray | None = None  # (n, (2 half + 1)^2), zero-mean and unit-norm (ncc.patches)
     history: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     _previous: np.ndarray | None = None
     _next_id: int = 0
+
+    def __post_init__(self) -> None:
+        if self.first_patch is None:
+            self.first_patch = np.zeros((0, (2 * self.half + 1) ** 2), np.float32)
 
     def step(self, frame: int, image: np.ndarray, corners: np.ndarray) -> None:
         """Follow the live tracks into ``image`` (H, W) uint8, frame number ``frame``, and start tracks
@@ -62,9 +68,9 @@ class CornerTracks:
         back, ok_back = _lucas_kanade(image, self._previous, ahead)
         keep = ok & ok_back & (np.linalg.norm(back - self.xy, axis=1) < self.fb_px)
         keep &= _inside(ahead, image.shape, self.half)
-        patches = np.zeros((len(ahead), self.first_patch.shape[1]))
-        patches[keep] = _patches(image, ahead[keep], self.half)
-        keep &= np.einsum("ij,ij->i", patches, self.first_patch) >= self.min_ncc
+        now = np.zeros_like(self.first_patch)
+        now[keep] = patches(image, ahead[keep], self.half)[0]
+        keep &= np.einsum("ij,ij->i", now, self.first_patch) >= self.min_ncc
         self.ids, self.xy, self.first_patch = self.ids[keep], ahead[keep], self.first_patch[keep]
 
     def _start(self, image: np.ndarray, corners: np.ndarray) -> None:
@@ -79,7 +85,7 @@ class CornerTracks:
         self.ids = np.concatenate([self.ids, self._next_id + np.arange(len(fresh))])
         self._next_id += len(fresh)
         self.xy = np.vstack([self.xy, fresh.astype(np.float32)])
-        self.first_patch = np.vstack([self.first_patch, _patches(image, fresh, self.half)])
+        self.first_patch = np.vstack([self.first_patch, patches(image, fresh, self.half)[0]])
 
 
 def _lucas_kanade(before: np.ndarray, after: np.ndarray, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -90,15 +96,6 @@ def _lucas_kanade(before: np.ndarray, after: np.ndarray, xy: np.ndarray) -> tupl
 
 
 def _inside(xy: np.ndarray, shape: tuple[int, ...], half: int) -> np.ndarray:
-    """Which pixels (n, 2) have a whole patch of half-width ``half`` in an image of ``shape``."""
+    """Which pixels (n, 2) have a whole patch of half-width ``half`` in an image of ``shape`` (a pixel
+    away from the border by a margin of one: ncc.patches then finds a patch for every one)."""
     return (xy[:, 0] >= half) & (xy[:, 1] >= half) & (xy[:, 0] < shape[1] - half - 1) & (xy[:, 1] < shape[0] - half - 1)
-
-
-def _patches(image: np.ndarray, xy: np.ndarray, half: int) -> np.ndarray:
-    """Zero-mean, unit-norm patches (n, (2 half + 1)^2) around the nearest pixels of ``xy`` (n, 2)."""
-    offsets = np.arange(-half, half + 1)
-    cols = np.rint(xy[:, 0]).astype(int)[:, None, None] + offsets[None, None, :]
-    rows = np.rint(xy[:, 1]).astype(int)[:, None, None] + offsets[None, :, None]
-    p = image[rows, cols].reshape(len(xy), (2 * half + 1) ** 2).astype(float)
-    p -= p.mean(axis=1, keepdims=True)
-    return p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-9)
