@@ -44,7 +44,6 @@ from experiments.ar_slam3d import (
 from sim.pinhole import Pinhole, render
 from sim.relief import Relief, relief_terrain
 from vehicle.estimators.ar_slam3d import ArSlam3d
-from vehicle.models import slam3d
 from vehicle.vision import ncc, susan, two_view
 from vehicle.vision.corner_tracks import CornerTracks
 from vehicle.vision.triangulation import camera_matrices, in_second_camera, triangulate
@@ -136,13 +135,18 @@ def relative(
 
 
 def triangulated(
-    camera: Pinhole, pose: two_view.RelativePose, p1: np.ndarray, p2: np.ndarray, baseline_m: float
+    camera: Pinhole,
+    pose: two_view.RelativePose,
+    p1: np.ndarray,
+    p2: np.ndarray,
+    baseline_m: float,
+    sigma_px: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The pairs triangulated (vehicle.vision.triangulation) with ``pose`` at the paper's metric length of
-    L: points in the newer camera (m, 3), their covariances (m, 3, 3) and their parallax (m,) rad (NaN
-    where the triangulation refuses the pair)."""
+    L, each pixel's noise ``sigma_px``: points in the newer camera (m, 3), their covariances (m, 3, 3)
+    and their parallax (m,) rad (NaN where the triangulation refuses the pair)."""
     L = pose.t / np.linalg.norm(pose.t) * baseline_m
-    out = triangulate(*camera_matrices(camera.K, pose.R, L), p1, p2)
+    out = triangulate(*camera_matrices(camera.K, pose.R, L), p1, p2, sigma_px=sigma_px)
     z, cov = in_second_camera(pose.R, L, out.points, out.covariances)
     return z, cov, np.where(out.usable, out.parallax_rad, np.nan)
 
@@ -178,6 +182,8 @@ def fly(
     tracked: bool = False,
     pitch_deg: float = PITCH_DEG,
     regrow: bool = False,
+    fallback_frames: int | None = None,
+    sigma_px: float = 1.0,
 ) -> tuple[Track, FrontEndCounts]:
     """One rendered flight of ``frames`` frames with the back end in ``mode`` (ar_slam3d.MODES), each
     frame paired with the one ``baseline_frames`` before it (module docstring); the track (landmark
@@ -185,7 +191,11 @@ def fly(
     velocity noise the filter is told (default: ``motion_noise()``, fitted). ``referee``: a point is
     kept only where the frame ``baseline_frames // 2`` before confirms it (``refereed``). ``tracked``: the
     pairs from corners followed frame to frame (vehicle.vision.corner_tracks), not matched across the
-    baseline. ``regrow``: an emptied local map takes R out to the frame's points at once (``regrown``)."""
+    baseline. ``regrow``: an emptied local map takes R out to the frame's points at once (ar_ekf_slam.regrown_radius).
+    ``fallback_frames``: where the pair with the frame ``baseline_frames`` before finds no geometry, the
+    pair with the frame this many before (fewer tracks survive the longer baseline). ``sigma_px``: the
+    pixel noise the triangulation is told, per coordinate (experiments.rendered_noise.tracked_pixel_sigma:
+    the followed corners' measured on flights of their own)."""
     path = flight(seed, frames + 1, pitch_deg)
     rng = np.random.default_rng([seed, 5])
     dt = 1.0 / RATE_HZ
@@ -193,7 +203,7 @@ def fly(
     x0 = np.concatenate([path.positions[0] + rng.normal(0, 0.05, 3), v0 + rng.normal(0, 0.05, 3)])
     P0 = np.diag([0.05**2] * 6)
     told = motion_noise() if omega_var is None else omega_var
-    slam = ArSlam3d(x0, P0, omega_var=told, seed=seed, association="nn", **MODES[mode])
+    slam = ArSlam3d(x0, P0, omega_var=told, seed=seed, association="nn", regrow=regrow, **MODES[mode])
     detected: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # frame -> (image, SUSAN corners), the last few
     tracks = CornerTracks() if tracked else None
     pairs = tracks.pairs if tracks is not None else functools.partial(matched_pairs, detected)
@@ -207,37 +217,29 @@ def fly(
             tracks.step(k, *detected[k])
         if k == 0:
             continue
-        j = max(0, k - baseline_frames)
         if rotation == "given":
             believed[k] = path.rotations[k]
-        h = k - baseline_frames // 2 if referee else j  # the referee's frame (none: j)
         parallax = np.deg2rad(min_parallax_deg)
-        z, cov, pose, matches = _frame_points(path, pairs, believed, (j, h, k), rng, rotation, parallax)
+        for older in (baseline_frames, fallback_frames):  # the fallback where the baseline's geometry fails
+            if older is None:
+                continue
+            j = max(0, k - older)
+            h = k - older // 2 if referee else j  # the referee's frame (none: j)
+            z, cov, pose, matches = _frame_points(path, pairs, believed, (j, h, k), rng, rotation, parallax, sigma_px)
+            if pose is not None:
+                break
         counts.failed += pose is None
         counts.matches += matches
         counts.points += len(z)
         believed.setdefault(k, believed[j] if pose is None else believed[j] @ pose.R.T)
         start = time.perf_counter()
         slam.predict(dt)
-        if regrow:
-            regrown(slam, z)
         slam.frame(z, cov, believed[k])
         elapsed = (time.perf_counter() - start) * 1e3
         rows.append(track_row(slam, k, path.positions, elapsed, float("nan")))  # no identities: no landmark NEES
     R_err = believed[frames].T @ path.rotations[frames]
     counts.rotation_error_rad = float(np.arccos(np.clip((np.trace(R_err) - 1.0) / 2.0, -1.0, 1.0)))
     return Track(*(np.array(column) for column in zip(*rows))), counts
-
-
-def regrown(slam: ArSlam3d, z: np.ndarray) -> None:
-    """A local map holding fewer than n_min landmarks takes R out at once to the frame's n_min-th
-    nearest point z (k, 3) (at most R_max), instead of growing by the paper's dR a frame while the map
-    stays empty and the vehicle dead-reckons."""
-    spec = slam.spec
-    if slam3d.landmarks(slam.x) >= spec.n_min or len(z) < spec.n_min:
-        return
-    reach = float(np.sort(np.linalg.norm(z, axis=1))[spec.n_min - 1])
-    slam.book.radius_m = min(max(slam.book.radius_m, reach), spec.r_max_m)
 
 
 def _frame_points(
@@ -248,6 +250,7 @@ def _frame_points(
     rng: np.random.Generator,
     rotation: str,
     min_parallax_rad: float,
+    sigma_px: float,
 ) -> tuple[np.ndarray, np.ndarray, two_view.RelativePose | None, int]:
     """Frame k's points from the pair (j, k) (``_pair``) of ``frames`` (j, h, k) with at least
     ``min_parallax_rad`` of parallax and, for h between j and k, confirmed by the pair (h, k)
@@ -256,13 +259,13 @@ def _frame_points(
     by frame (frame k's set where it is given)."""
     j, h, k = frames
     known = believed[k].T @ believed[j] if rotation == "given" else None
-    found = _pair(path, pairs, j, k, rng, known)
+    found = _pair(path, pairs, j, k, rng, known, sigma_px)
     if found is None:
         return np.zeros((0, 3)), np.zeros((0, 3, 3)), None, 0
     keep = found.parallax >= min_parallax_rad  # NaN (refused) is not
     if h > j:
         known_h = believed[k].T @ believed[h] if rotation == "given" else None
-        keep &= _confirmed(found, _pair(path, pairs, h, k, rng, known_h))
+        keep &= _confirmed(found, _pair(path, pairs, h, k, rng, known_h, sigma_px))
     return found.z[keep], found.cov[keep], found.pose, len(found.z)
 
 
@@ -283,7 +286,9 @@ def matched_pairs(detected: dict, j: int, k: int) -> tuple[np.ndarray, np.ndarra
     return detected[j][1][i1], detected[k][1][i2], i2
 
 
-def _pair(path: RenderedFlight, pairs, j: int, k: int, rng: np.random.Generator, rotation) -> PairPoints | None:
+def _pair(
+    path: RenderedFlight, pairs, j: int, k: int, rng: np.random.Generator, rotation, sigma_px: float
+) -> PairPoints | None:
     """Frames j and k's pairs (``pairs(j, k)``: ``matched_pairs``, or ``CornerTracks.pairs`` where the
     corners are followed), the relative pose fitted (``relative``) and the pairs that agree with it
     triangulated; None when the geometry fails."""
@@ -293,4 +298,5 @@ def _pair(path: RenderedFlight, pairs, j: int, k: int, rng: np.random.Generator,
         return None
     pose, inliers = fitted
     baseline = float(np.linalg.norm(path.positions[k] - path.positions[j]))
-    return PairPoints(pose, *triangulated(path.camera, pose, p1[inliers], p2[inliers], baseline), i2[inliers])
+    p1, p2 = p1[inliers], p2[inliers]
+    return PairPoints(pose, *triangulated(path.camera, pose, p1, p2, baseline, sigma_px), i2[inliers])

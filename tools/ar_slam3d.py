@@ -29,6 +29,7 @@ from bus.statistics import chi2_band
 from experiments.ar_slam3d import fly
 from experiments.ar_slam3d_figures import figure_time, figure_track, summary
 from experiments.ar_slam3d_rendered import fly as fly_rendered
+from experiments.rendered_noise import tracked_pixel_sigma
 
 CHECKPOINTS = (99, 199, 299)  # frames of the Monte Carlo flights (300 frames, 150 m)
 
@@ -77,6 +78,19 @@ RENDERED_CASES = {
     "given, tracked": {"rotation": "given", "tracked": True},
     "vo, tracked": {"rotation": "vo", "tracked": True},
     "given, tracked, R regrown": {"rotation": "given", "tracked": True, "regrow": True},
+    "given, tracked, R regrown, 5-frame fallback": {
+        "rotation": "given",
+        "tracked": True,
+        "regrow": True,
+        "fallback_frames": 5,
+    },
+    "given, tracked, R regrown, 5-frame fallback, pixel noise measured": {
+        "rotation": "given",
+        "tracked": True,
+        "regrow": True,
+        "fallback_frames": 5,
+        "sigma_px": "measured",
+    },
 }
 
 
@@ -89,12 +103,14 @@ def rendered_monte_carlo(seeds: int, jobs: int = 1, names: tuple[str, ...] = tup
     low, high = chi2_band(3, runs=seeds)
     cases = {}
     for key in names:
-        flight = functools.partial(fly_rendered, frames=300, mode="adaptive", **RENDERED_CASES[key])
+        told = {name: _measured(name, value) for name, value in RENDERED_CASES[key].items()}
+        flight = functools.partial(fly_rendered, frames=300, mode="adaptive", **told)
         with ProcessPoolExecutor(jobs) as pool:
             flown = list(pool.map(flight, range(seeds)))
         position, errors = _position([track for track, _ in flown], (low, high))
         cases[key] = {
             **position,
+            "position_nees_per_flight": _per_flight([track for track, _ in flown]),
             "rmse_m": round(float(np.sqrt(np.mean(errors**2))), 3),
             "final_error_m": [round(float(e), 2) for e in errors[:, -1]],
             "failed_frames": [c.failed for _, c in flown],
@@ -114,6 +130,22 @@ def _position(tracks: list, band: tuple[float, float]) -> tuple[dict, np.ndarray
     inside = [band[0] <= m <= band[1] for m in anees]
     errors = np.array([np.linalg.norm(t.estimate - t.truth, axis=1) for t in tracks])
     return {"checkpoint_position_anees": anees, "inside": inside}, errors
+
+
+def _measured(name: str, value):
+    """A case's option ``name`` as flown: ``"measured"`` the followed corners' pixel noise measured on
+    flights of their own (experiments.rendered_noise), anything else as it is."""
+    return _pixel_sigma() if value == "measured" else value
+
+
+@functools.cache
+def _pixel_sigma() -> float:
+    return tracked_pixel_sigma()
+
+
+def _per_flight(tracks: list) -> list[list[float]]:
+    """Each flight's position NEES at the checkpoints (flights, checkpoints)."""
+    return [[round(float(t.position_nees()[c]), 2) for c in CHECKPOINTS] for t in tracks]
 
 
 def _at_checkpoints(nees: np.ndarray) -> list[float]:

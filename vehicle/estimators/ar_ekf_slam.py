@@ -59,6 +59,17 @@ def next_radius(radius_m: float, n: int, spec: ArSlamConfig) -> float:
     return radius_m
 
 
+def regrown_radius(radius_m: float, n: int, distances_m: np.ndarray, spec: ArSlamConfig) -> float:
+    """q1 at once: a local map of fewer than n_min landmarks (``n``) takes R out to the n_min-th nearest
+    of a frame's points (``distances_m`` (k,) m from the camera), at most R_max, instead of by the
+    paper's dR a frame while the vehicle dead-reckons (docs/decisions/ar-slam3d-rendered.md); R as it
+    is when the map holds enough or the frame has fewer than n_min points."""
+    if n >= spec.n_min or len(distances_m) < spec.n_min:
+        return radius_m
+    reach = float(np.sort(distances_m)[spec.n_min - 1])
+    return min(max(radius_m, reach), spec.r_max_m)
+
+
 @dataclass
 class RangeBook:
     """The range and the retired landmarks: positions (k, 2) m, marginal covariances (k, 2, 2) and

@@ -10,7 +10,9 @@ the frame's triangulated points z_i (body frame, covariance R_i from vehicle.vis
 are associated with the landmarks in the state (the configured method, behind the chi-square gate),
 the pairs fused one by one, and the unpaired points within R initialised as new landmarks (the
 paper's g and its blocks; see Entry); then R follows the paper's state machine q1-q3
-(ar_ekf_slam.next_radius) with n the landmarks in the local map. A retired landmark seen again is
+(ar_ekf_slam.next_radius) with n the landmarks in the local map; with ``regrow``, a local map of
+fewer than n_min landmarks takes R out at once to the frame's points before the frame
+(ar_ekf_slam.regrown_radius). A retired landmark seen again is
 initialised anew (``reinit``, the 2-D estimator's default). A fixed range is R with q1-q3 off, and a
 range of infinity is full EKF-SLAM.
 
@@ -43,7 +45,7 @@ from bus.config import ArSlamConfig
 from bus.statistics import gate_threshold
 from vehicle.association.methods import METHODS
 from vehicle.association.problem import problem
-from vehicle.estimators.ar_ekf_slam import next_radius
+from vehicle.estimators.ar_ekf_slam import next_radius, regrown_radius
 from vehicle.models import added_states, slam3d
 from vehicle.models.kalman import gated_update
 
@@ -91,8 +93,10 @@ class ArSlam3d:
         entry: Entry = "second",
         seed: int = 0,
         unambiguous: bool = False,
+        regrow: bool = False,
     ) -> None:
         self.x, self.P = np.asarray(x0, float).copy(), np.asarray(P0, float).copy()
+        self.regrow = regrow
         self.unambiguous = unambiguous
         self.spec, self.omega_var, self.adaptive = spec, omega_var, adaptive
         self.associate = METHODS[association]
@@ -144,6 +148,9 @@ class ArSlam3d:
         the covariances (m, 3, 3) the triangulation gives points (m, 3) of z's frame; a sighting of a
         landmark in the state is then fused with the noise at its prediction before the frame rather
         than at its own measurement, which follows the measurement's error (``Noise``)."""
+        if self.regrow:  # an emptied local map reaches for the frame's points at once
+            distances = np.linalg.norm(z, axis=1)
+            self.book.radius_m = regrown_radius(self.book.radius_m, slam3d.landmarks(self.x), distances, self.spec)
         self._retire()
         n = slam3d.landmarks(self.x)
         G, shared = common if common is not None else (np.zeros((len(z), 3, 0)), np.zeros((0, 0)))

@@ -70,17 +70,17 @@ def test_the_tracked_front_end_locates_the_vehicle_on_rendered_frames():
     assert error.max() < 1.0 and np.isfinite(track.position_nees()).all()
 
 
-def test_an_emptied_local_map_takes_its_range_out_to_the_frames_points_at_once_up_to_r_max():
-    from experiments.ar_slam3d_rendered import regrown
-    from vehicle.estimators.ar_slam3d import ArSlam3d
+def test_where_the_baseline_finds_no_geometry_the_shorter_fallback_gives_the_frame_its_points(monkeypatch):
+    from vehicle.vision.corner_tracks import CornerTracks
 
-    slam = ArSlam3d(np.zeros(6), np.eye(6))  # no landmark: fewer than n_min (8)
-    ahead = np.column_stack([np.zeros(10), np.zeros(10), np.arange(26.0, 36.0)])  # 26-35 m, all beyond R0
-    regrown(slam, ahead)
-    assert slam.book.radius_m == 33.0  # the 8th nearest: the paper's dR would need 80 frames
-    slam.book.radius_m = 25.0
-    regrown(slam, ahead + [0.0, 0.0, 10.0])  # 36-45 m: no farther than R_max
-    assert slam.book.radius_m == slam.spec.r_max_m == 35.0
-    slam.book.radius_m = 25.0
-    regrown(slam, ahead[:7])  # fewer points than n_min: nothing to reach for
-    assert slam.book.radius_m == 25.0
+    followed = CornerTracks.pairs
+
+    def short_lived(tracks, j, k):  # as over close, poor ground: no track lives more than five frames
+        p1, p2, ids = followed(tracks, j, k)
+        return (p1, p2, ids) if k - j <= 5 else (p1[:0], p2[:0], ids[:0])
+
+    monkeypatch.setattr(CornerTracks, "pairs", short_lived)
+    _, alone = fly(0, 14, "adaptive", rotation="given", omega_var=TOLD, tracked=True)
+    track, counts = fly(0, 14, "adaptive", rotation="given", omega_var=TOLD, tracked=True, fallback_frames=5)
+    assert alone.failed == 9 and counts.failed == 0  # frames 6-14: none without, every one with it
+    assert counts.points > alone.points and np.linalg.norm(track.estimate - track.truth, axis=1).max() < 1.0

@@ -133,3 +133,13 @@ def test_ar_ekf_slam_is_as_accurate_as_full_ekf_slam_and_consistent_where_naive_
     assert rmse[kept] <= 1.3 * rmse["ekf-slam"], rmse
     assert np.all((anees[kept] >= low) & (anees[kept] <= high)), (anees[kept], low, high)
     assert np.all(anees["naive"] > high), anees["naive"]  # the control: old marginals double counted
+
+
+def test_an_emptied_local_map_takes_its_range_out_to_the_frames_points_at_once_up_to_r_max():
+    spec = ArSlamConfig()  # R0 25 m, n_min 8, R_max 35 m
+    ahead = np.arange(26.0, 36.0)  # a frame's points 26-35 m away, all beyond R0
+    assert ar_ekf_slam.regrown_radius(25.0, 0, ahead, spec) == 33.0  # the 8th nearest: dR would take 80 frames
+    assert ar_ekf_slam.regrown_radius(25.0, 0, ahead + 10.0, spec) == spec.r_max_m  # no farther than R_max
+    assert ar_ekf_slam.regrown_radius(25.0, 0, ahead[:7], spec) == 25.0  # fewer points than n_min
+    assert ar_ekf_slam.regrown_radius(25.0, spec.n_min, ahead, spec) == 25.0  # a map that holds enough
+    assert ar_ekf_slam.regrown_radius(30.0, 0, ahead - 10.0, spec) == 30.0  # never shrinks

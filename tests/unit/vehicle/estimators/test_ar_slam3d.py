@@ -118,3 +118,14 @@ def test_a_sighting_whose_prediction_has_no_noise_keeps_its_own():
     told.frame(z, np.stack([R_z[0], at_prediction[1]]), R, ids=ids)
     assert np.isfinite(with_noise.P).all()
     np.testing.assert_allclose(with_noise.P, told.P)
+
+
+def test_with_regrow_an_empty_map_reaches_for_the_frames_points_beyond_the_range():
+    ahead = np.column_stack([np.zeros(10), np.zeros(10), np.arange(26.0, 36.0)])  # 26-35 m, beyond R0 = 25 m
+    R_z = np.tile(np.eye(3) * 0.1, (10, 1, 1))
+    reaching, waiting = (ArSlam3d(np.zeros(6), np.eye(6), regrow=regrow) for regrow in (True, False))
+    for slam in (reaching, waiting):
+        slam.predict(DT)
+        slam.frame(ahead, R_z, np.eye(3), ids=np.arange(10))
+    assert len(reaching.candidates) == 8 and not waiting.candidates  # within 33 m: the 8th nearest
+    assert waiting.book.radius_m == 25.0 + ArSlamConfig().dr_m  # the paper's q1: one dR a frame
