@@ -11,6 +11,9 @@ followed from frame to frame (vehicle.vision.corner_tracks).
   shared by every point the pair triangulates (measured; told to the back end as an error the frame's
   points share, it changed nothing: docs/decisions/ar-slam3d-rendered.md).
 
+And how well-posed the paper's visual odometry is on such frames (``two_view_errors``): exact
+correspondences of the rendered ground with noise added.
+
 Pure; seeded.
 """
 
@@ -67,6 +70,43 @@ def across(t: np.ndarray) -> np.ndarray:
     first = np.cross(t, np.eye(3)[int(np.argmin(np.abs(t)))])
     first /= np.linalg.norm(first)
     return np.array([first, np.cross(t, first)])
+
+
+def two_view_errors(
+    seed: int, sigma_px: float, pairs: int = 11, points: int = 40, draws: int = 3, baseline_frames: int = 10
+) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's visual odometry (RANSAC on F, R and t from E; ``relative`` with no rotation given) on
+    exact correspondences with pixel noise ``sigma_px`` added: for ``pairs`` pairs of frames of flight
+    ``seed``, ``points`` ground points of a grid each, ``draws`` noise draws each, the relative rotation's
+    error (deg) and the direction of travel's (deg), each (n,). How well-posed the two-view geometry is,
+    whatever the front end."""
+    path = flight(seed, pairs * baseline_frames + baseline_frames + 1)
+    rng = np.random.default_rng([seed, 11])
+    grid = np.stack(np.meshgrid(np.arange(10, 310, 15.0), np.arange(10, 230, 15.0)), -1).reshape(-1, 2)
+    rotation_deg, direction_deg = [], []
+    for j in range(baseline_frames, (pairs + 1) * baseline_frames, baseline_frames):
+        k = j + baseline_frames
+        _, depth = render(path.relief, path.camera, path.positions[j], path.rotations[j], rng)
+        seen = projected(path, depth, j, k, grid)
+        width, height = path.camera.size
+        inside = np.isfinite(seen).all(axis=1) & (seen >= 0).all(axis=1) & (seen[:, 0] < width) & (seen[:, 1] < height)
+        chosen = rng.choice(np.flatnonzero(inside), size=min(points, int(inside.sum())), replace=False)
+        R_true = path.rotations[k].T @ path.rotations[j]
+        t_true = path.rotations[k].T @ (path.positions[j] - path.positions[k])
+        for _ in range(draws):
+            noisy = [p + rng.normal(0.0, sigma_px, p.shape) for p in (grid[chosen], seen[chosen])]
+            fitted = relative(path.camera, *noisy, rng, None)
+            if fitted is None:
+                continue
+            rotation_deg.append(_angle_deg(fitted[0].R.T @ R_true))
+            cosine = fitted[0].t @ t_true / np.linalg.norm(fitted[0].t) / np.linalg.norm(t_true)
+            direction_deg.append(float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))))
+    return np.array(rotation_deg), np.array(direction_deg)
+
+
+def _angle_deg(R: np.ndarray) -> float:
+    """The angle (deg) of rotation R (3, 3)."""
+    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
 
 
 def projected(path: RenderedFlight, depth: np.ndarray, j: int, k: int, pixels: np.ndarray) -> np.ndarray:

@@ -30,3 +30,12 @@ def test_corners_followed_over_ten_frames_land_within_a_pixel_of_the_truth():
     assert len(errors) > 200 and directions.shape == (16, 2)
     assert np.sqrt(np.mean(errors**2)) < 1.0 and (np.linalg.norm(errors, axis=1) > 3.0).mean() < 0.01
     assert np.abs(directions).max() < np.deg2rad(1.0)  # the direction of travel fitted within a degree
+
+
+def test_the_papers_visual_odometry_is_exact_on_exact_correspondences_and_loses_degrees_to_a_third_of_a_pixel():
+    from experiments.rendered_noise import two_view_errors
+
+    rotation, direction = two_view_errors(100, 0.0, pairs=3, draws=1)
+    assert len(rotation) == 3 and rotation.max() < 0.01 and direction.max() < 0.01
+    rotation, direction = two_view_errors(100, 0.33, pairs=3, draws=3)
+    assert np.median(direction) > 1.0  # 40 points, 35 degrees of view, 5 m forward: ill-posed
