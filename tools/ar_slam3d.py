@@ -103,7 +103,7 @@ def rendered_monte_carlo(seeds: int, jobs: int = 1, names: tuple[str, ...] = tup
     low, high = chi2_band(3, runs=seeds)
     cases = {}
     for key in names:
-        told = {name: _measured(name, value) for name, value in RENDERED_CASES[key].items()}
+        told = {name: _measured(value) for name, value in RENDERED_CASES[key].items()}
         flight = functools.partial(fly_rendered, frames=300, mode="adaptive", **told)
         with ProcessPoolExecutor(jobs) as pool:
             flown = list(pool.map(flight, range(seeds)))
@@ -132,9 +132,9 @@ def _position(tracks: list, band: tuple[float, float]) -> tuple[dict, np.ndarray
     return {"checkpoint_position_anees": anees, "inside": inside}, errors
 
 
-def _measured(name: str, value):
-    """A case's option ``name`` as flown: ``"measured"`` the followed corners' pixel noise measured on
-    flights of their own (experiments.rendered_noise), anything else as it is."""
+def _measured(value):
+    """A case's option as flown: ``"measured"`` (only ``sigma_px`` takes it) the followed corners' pixel
+    noise measured on flights of their own (experiments.rendered_noise), anything else as it is."""
     return _pixel_sigma() if value == "measured" else value
 
 
