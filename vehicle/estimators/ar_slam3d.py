@@ -21,7 +21,8 @@ R, initialised from that sighting. Deciding on a point's noisy depth and initial
 depth keeps the points measured short and makes their errors one-sided (docs/ar-slam.md). ``second``
 (default) splits the two: the first sighting within R makes the point a candidate, the next sighting
 of it (by id, or the nearest candidate within the gate) initialises it, whatever that sighting's own
-depth; a candidate not seen again within ``CANDIDATE_FRAMES`` frames is let go.
+depth; a candidate not seen again within a few frames is let go (the decision:
+vehicle.estimators.ar_slam3d_entry).
 
 Noise. A triangulated point's covariance worked out at its own pixels follows its own error (its depth
 variance grows as depth^4), so a landmark fused from many sightings drifts short while its covariance
@@ -37,7 +38,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
@@ -46,23 +46,11 @@ from bus.statistics import gate_threshold
 from vehicle.association.methods import METHODS
 from vehicle.association.problem import problem
 from vehicle.estimators.ar_ekf_slam import next_radius, regrown_radius
+from vehicle.estimators.ar_slam3d_entry import Candidate, Entry, Unpaired, entering
 from vehicle.models import added_states, slam3d
 from vehicle.models.kalman import gated_update
 
-CANDIDATE_FRAMES = 5
 AMBIGUOUS = -2  # an assignment's mark for a point set aside (``unambiguous``)
-Entry = Literal["first", "second"]
-
-
-@dataclass(frozen=True, eq=False)
-class Candidate:
-    """A point seen once within R: its id (-1 unidentified), where the sighting put it in the fixed frame
-    (3,) and that position's covariance (3, 3) (own position's and the sighting's), and the frame."""
-
-    ident: int
-    xyz: np.ndarray
-    cov: np.ndarray
-    frame: int
 
 
 @dataclass
@@ -220,41 +208,21 @@ class ArSlam3d:
         self.ids, self.candidates = self.ids[:0], []
 
     def _enter(self, unpaired: np.ndarray, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray, ids) -> None:
-        """New landmarks from the unpaired points (module docstring, ``entry``)."""
+        """New landmarks from the unpaired points (module docstring, ``entry``; the decision:
+        vehicle.estimators.ar_slam3d_entry)."""
         self.frames += 1
-        within = [int(i) for i in unpaired if np.linalg.norm(z[i]) <= self.book.radius_m]
-        if self.entry == "first":
-            for i in within:
-                self._add(i, z[i], R_z[i], rotation, -1 if ids is None else int(ids[i]))
-            return
-        seconds = self._seen_again(unpaired, z, R_z, rotation, ids)
-        for i, candidate in seconds.items():
-            self._add(i, z[i], R_z[i], rotation, candidate.ident)
-        taken = {id(c) for c in seconds.values()}
-        self.candidates = [
-            c for c in self.candidates if id(c) not in taken and self.frames - c.frame < CANDIDATE_FRAMES
-        ]
-        for i in within:
-            if i not in seconds:
-                xyz, cov = self._in_the_map(z[i], R_z[i], rotation)
-                self.candidates.append(Candidate(-1 if ids is None else int(ids[i]), xyz, cov, self.frames))
-
-    def _seen_again(self, unpaired, z, R_z, rotation, ids) -> dict[int, Candidate]:
-        """Which unpaired points are candidates seen again: by id, or each the nearest candidate within
-        the gate (one candidate per point)."""
-        out: dict[int, Candidate] = {}
-        free = list(self.candidates)
-        for i in (int(i) for i in unpaired):
-            if ids is not None:
-                match = next((c for c in free if c.ident == int(ids[i])), None)
-            else:
-                xyz, cov = self._in_the_map(z[i], R_z[i], rotation)
-                d2 = [float((xyz - c.xyz) @ np.linalg.solve(cov + c.cov, xyz - c.xyz)) for c in free]
-                match = free[int(np.argmin(d2))] if d2 and min(d2) <= self.gate else None
-            if match is not None:
-                out[i] = match
-                free = [c for c in free if c is not match]
-        return out
+        placed = [self._in_the_map(z[i], R_z[i], rotation) for i in unpaired]
+        points = Unpaired(
+            index=np.asarray(unpaired, dtype=np.int64),
+            xyz=np.array([xyz for xyz, _ in placed]).reshape(-1, 3),
+            cov=np.array([cov for _, cov in placed]).reshape(-1, 3, 3),
+            ident=np.full(len(unpaired), -1) if ids is None else np.asarray(ids)[unpaired].astype(np.int64),
+            identified=ids is not None,
+            within=np.linalg.norm(z[unpaired], axis=1) <= self.book.radius_m if len(unpaired) else np.zeros(0, bool),
+        )
+        enter, self.candidates = entering(self.candidates, points, self.frames, self.gate, self.entry)
+        for i, ident in enter.items():
+            self._add(i, z[i], R_z[i], rotation, ident)
 
     def _in_the_map(self, z: np.ndarray, R_z: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.x[:3] + rotation @ z, self.P[:3, :3] + rotation @ R_z @ rotation.T
