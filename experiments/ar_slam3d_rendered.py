@@ -5,7 +5,7 @@ rendered by ray casting (sim.pinhole.render, grey-level noise); the paper's fron
 corners (vehicle.vision.susan) and matches them by NCC (vehicle.vision.ncc) with the frame ``baseline_frames``
 before (``tracked``: follows them from frame to frame instead, vehicle.vision.corner_tracks, and
 pairs the two frames through the tracks they share); the relative pose is fitted inside RANSAC
-(``relative``); the matched corners that agree with it are triangulated (vehicle.vision.triangulation,
+(experiments.rendered_front_end); the matched corners that agree with it are triangulated (vehicle.vision.triangulation,
 the paper's least squares) and fused by the 6 + 3n back end (vehicle.estimators.ar_slam3d) with nn
 association: no landmark ids, no projected points. Pure; seeded.
 
@@ -24,13 +24,11 @@ from __future__ import annotations
 
 import functools
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from bus.statistics import gate_threshold
 from experiments.ar_slam3d import (
     FIT_HORIZON_FRAMES,
     FIT_SEEDS,
@@ -41,15 +39,14 @@ from experiments.ar_slam3d import (
     track_row,
     trajectory,
 )
+from experiments.rendered_front_end import frame_points, matched_pairs, rotation_angle_rad
 from sim.pinhole import Pinhole, render
 from sim.relief import Relief, relief_terrain
 from vehicle.estimators.ar_slam3d import ArSlam3d
-from vehicle.vision import ncc, susan, two_view
+from vehicle.vision import susan
 from vehicle.vision.corner_tracks import CornerTracks
-from vehicle.vision.triangulation import camera_matrices, in_second_camera, triangulate
 
 SCALE = 0.5  # 320 x 240, K halved: a frame's ray casting and SUSAN at 640 x 480 cost four times as much
-MIN_MATCHES = 12  # fewer matches than this and a frame's two-view geometry is not trusted (none fitted)
 CIRCLE_M, FOLLOW_M = 60.0, 10.0  # the flight's circle (inside the relief's 205 m square); smoothing of the relief
 PITCH_DEG = 45.0  # below the horizon: the ground in the frame's middle about 21 m away, inside the paper's R of 25 m
 
@@ -60,19 +57,6 @@ class RenderedFlight:
     camera: Pinhole
     positions: np.ndarray  # (frames, 3) m
     rotations: np.ndarray  # (frames, 3, 3) R_wc
-
-
-@dataclass(frozen=True)
-class PairPoints:
-    """What a pair of frames (older, k) gives (``_pair``): the relative pose, the points triangulated
-    in camera k (m, 3), their covariances (m, 3, 3), their parallax (m,) rad (NaN where the
-    triangulation refused the pair) and their corners' indices in frame k (m,)."""
-
-    pose: two_view.RelativePose
-    z: np.ndarray
-    cov: np.ndarray
-    parallax: np.ndarray
-    corners: np.ndarray
 
 
 @dataclass
@@ -113,62 +97,6 @@ def motion_noise() -> np.ndarray:
     return np.concatenate([v[m:] - v[:-m] for v in velocities]).var(axis=0) / m
 
 
-def relative(
-    camera: Pinhole, p1: np.ndarray, p2: np.ndarray, rng: np.random.Generator, rotation: np.ndarray | None
-) -> tuple[two_view.RelativePose, np.ndarray] | None:
-    """The older camera to the newer from matched pixels p1, p2 (m, 2), and which pairs agree with it
-    (m,): RANSAC on F then R and t from E = K^T F K (the paper's VO), or with the rotation known (an
-    attitude sensor's) only the direction of travel (two_view.translation_given_rotation). None when
-    fewer than MIN_MATCHES pairs agree."""
-    if rotation is None:
-        fitted = ncc.fundamental(p1, p2, rng)
-        if fitted is None:
-            return None
-        inliers = fitted[1]
-        pose = two_view.relative_pose(fitted[0], camera.K, p1[inliers], p2[inliers])
-    else:
-        known = two_view.translation_given_rotation(rotation, camera.K, p1, p2, rng)
-        if known is None:
-            return None
-        pose, inliers = known
-    return (pose, inliers) if inliers.sum() >= MIN_MATCHES else None
-
-
-def triangulated(
-    camera: Pinhole,
-    pose: two_view.RelativePose,
-    p1: np.ndarray,
-    p2: np.ndarray,
-    baseline_m: float,
-    sigma_px: float = 1.0,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The pairs triangulated (vehicle.vision.triangulation) with ``pose`` at the paper's metric length of
-    L, each pixel's noise ``sigma_px``: points in the newer camera (m, 3), their covariances (m, 3, 3)
-    and their parallax (m,) rad (NaN where the triangulation refuses the pair)."""
-    L = pose.t / np.linalg.norm(pose.t) * baseline_m
-    out = triangulate(*camera_matrices(camera.K, pose.R, L), p1, p2, sigma_px=sigma_px)
-    z, cov = in_second_camera(pose.R, L, out.points, out.covariances)
-    return z, cov, np.where(out.usable, out.parallax_rad, np.nan)
-
-
-def refereed(
-    z: np.ndarray, cov: np.ndarray, corners: np.ndarray, z_ref: np.ndarray, cov_ref: np.ndarray, corners_ref
-) -> np.ndarray:
-    """Which points (m,) a second triangulation of the same corner of the newer frame (``corners``: its
-    index in that frame's corners; ``*_ref``: from another older frame) confirms: the two within their
-    covariances (chi-square, 3 dof, 0.999). A point the other pair did not triangulate is not confirmed."""
-    row = {int(c): i for i, c in enumerate(corners_ref)}
-    ok = np.zeros(len(z), bool)
-    gate = gate_threshold(3, 0.999)
-    for i, c in enumerate(corners):
-        r = row.get(int(c))
-        if r is None or not np.isfinite(z_ref[r]).all():
-            continue
-        d = z[i] - z_ref[r]
-        ok[i] = float(d @ np.linalg.solve(cov[i] + cov_ref[r], d)) <= gate
-    return ok
-
-
 def fly(
     seed: int,
     frames: int,
@@ -189,8 +117,8 @@ def fly(
     frame paired with the one ``baseline_frames`` before it (module docstring); the track (landmark
     NEES NaN: the map's points have no identity) and the front end's counts. ``omega_var``: the
     velocity noise the filter is told (default: ``motion_noise()``, fitted). ``referee``: a point is
-    kept only where the frame ``baseline_frames // 2`` before confirms it (``refereed``). ``tracked``: the
-    pairs from corners followed frame to frame (vehicle.vision.corner_tracks), not matched across the
+    kept only where the frame ``baseline_frames // 2`` before confirms it (rendered_front_end.refereed).
+    ``tracked``: the pairs from corners followed frame to frame (vehicle.vision.corner_tracks), not matched across the
     baseline. ``regrow``: an emptied local map takes R out to the frame's points at once (ar_ekf_slam.regrown_radius).
     ``fallback_frames``: where the pair with the frame ``baseline_frames`` before finds no geometry, the
     pair with the frame this many before (fewer tracks survive the longer baseline). ``sigma_px``: the
@@ -219,15 +147,11 @@ def fly(
             continue
         if rotation == "given":
             believed[k] = path.rotations[k]
+        olders = (baseline_frames,) if fallback_frames is None else (baseline_frames, fallback_frames)
         parallax = np.deg2rad(min_parallax_deg)
-        for older in (baseline_frames, fallback_frames):  # the fallback where the baseline's geometry fails
-            if older is None:
-                continue
-            j = max(0, k - older)
-            h = k - older // 2 if referee else j  # the referee's frame (none: j)
-            z, cov, pose, matches = _frame_points(path, pairs, believed, (j, h, k), rng, rotation, parallax, sigma_px)
-            if pose is not None:
-                break
+        j, z, cov, pose, matches = frame_points(
+            path, pairs, believed, k, olders, referee, rng, rotation, parallax, sigma_px
+        )
         counts.failed += pose is None
         counts.matches += matches
         counts.points += len(z)
@@ -237,66 +161,5 @@ def fly(
         slam.frame(z, cov, believed[k])
         elapsed = (time.perf_counter() - start) * 1e3
         rows.append(track_row(slam, k, path.positions, elapsed, float("nan")))  # no identities: no landmark NEES
-    R_err = believed[frames].T @ path.rotations[frames]
-    counts.rotation_error_rad = float(np.arccos(np.clip((np.trace(R_err) - 1.0) / 2.0, -1.0, 1.0)))
+    counts.rotation_error_rad = rotation_angle_rad(believed[frames].T @ path.rotations[frames])
     return Track(*(np.array(column) for column in zip(*rows))), counts
-
-
-def _frame_points(
-    path: RenderedFlight,
-    pairs: Callable[[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]],
-    believed: dict,
-    frames: tuple[int, int, int],
-    rng: np.random.Generator,
-    rotation: str,
-    min_parallax_rad: float,
-    sigma_px: float,
-) -> tuple[np.ndarray, np.ndarray, two_view.RelativePose | None, int]:
-    """Frame k's points from the pair (j, k) (``_pair``) of ``frames`` (j, h, k) with at least
-    ``min_parallax_rad`` of parallax and, for h between j and k, confirmed by the pair (h, k)
-    (``_confirmed``): points (n, 3), covariances (n, 3, 3), the pair's relative pose (None when its
-    geometry failed) and how many matches it kept. ``believed``: the rotations the back end is handed,
-    by frame (frame k's set where it is given)."""
-    j, h, k = frames
-    known = believed[k].T @ believed[j] if rotation == "given" else None
-    found = _pair(path, pairs, j, k, rng, known, sigma_px)
-    if found is None:
-        return np.zeros((0, 3)), np.zeros((0, 3, 3)), None, 0
-    keep = found.parallax >= min_parallax_rad  # NaN (refused) is not
-    if h > j:
-        known_h = believed[k].T @ believed[h] if rotation == "given" else None
-        keep &= _confirmed(found, _pair(path, pairs, h, k, rng, known_h, sigma_px))
-    return found.z[keep], found.cov[keep], found.pose, len(found.z)
-
-
-def _confirmed(found: PairPoints, other: PairPoints | None) -> np.ndarray:
-    """Which of ``found``'s points the pair ``other`` (the same newer frame) confirms (``refereed``); none
-    when that pair's geometry failed."""
-    if other is None:
-        return np.zeros(len(found.z), bool)
-    usable = np.where(np.isfinite(other.parallax)[:, None], other.z, np.nan)  # refused there: NaN
-    return refereed(found.z, found.cov, found.corners, usable, other.cov, other.corners)
-
-
-def matched_pairs(detected: dict, j: int, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The paper's pairs: frames j and k's SUSAN corners (``detected``: frame -> (image, corners))
-    matched by NCC across the baseline; their pixels in j (m, 2), in k (m, 2), and their corners'
-    indices in frame k (m,)."""
-    i1, i2, _ = ncc.match(detected[j][0], detected[j][1], detected[k][0], detected[k][1])
-    return detected[j][1][i1], detected[k][1][i2], i2
-
-
-def _pair(
-    path: RenderedFlight, pairs, j: int, k: int, rng: np.random.Generator, rotation, sigma_px: float
-) -> PairPoints | None:
-    """Frames j and k's pairs (``pairs(j, k)``: ``matched_pairs``, or ``CornerTracks.pairs`` where the
-    corners are followed), the relative pose fitted (``relative``) and the pairs that agree with it
-    triangulated; None when the geometry fails."""
-    p1, p2, i2 = pairs(j, k)
-    fitted = relative(path.camera, p1, p2, rng, rotation) if len(p1) >= MIN_MATCHES else None
-    if fitted is None:
-        return None
-    pose, inliers = fitted
-    baseline = float(np.linalg.norm(path.positions[k] - path.positions[j]))
-    p1, p2 = p1[inliers], p2[inliers]
-    return PairPoints(pose, *triangulated(path.camera, pose, p1, p2, baseline, sigma_px), i2[inliers])

@@ -24,7 +24,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from experiments.ar_slam3d import FIT_SEEDS
-from experiments.ar_slam3d_rendered import RenderedFlight, flight, relative
+from experiments.ar_slam3d_rendered import RenderedFlight, flight
+from experiments.rendered_front_end import relative, rotation_angle_rad
 from sim.pinhole import render
 from vehicle.vision import susan
 from vehicle.vision.corner_tracks import CornerTracks
@@ -98,15 +99,10 @@ def two_view_errors(
             fitted = relative(path.camera, *noisy, rng, None)
             if fitted is None:
                 continue
-            rotation_deg.append(_angle_deg(fitted[0].R.T @ R_true))
+            rotation_deg.append(float(np.degrees(rotation_angle_rad(fitted[0].R.T @ R_true))))
             cosine = fitted[0].t @ t_true / np.linalg.norm(fitted[0].t) / np.linalg.norm(t_true)
             direction_deg.append(float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))))
     return np.array(rotation_deg), np.array(direction_deg)
-
-
-def _angle_deg(R: np.ndarray) -> float:
-    """The angle (deg) of rotation R (3, 3)."""
-    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
 
 
 def projected(path: RenderedFlight, depth: np.ndarray, j: int, k: int, pixels: np.ndarray) -> np.ndarray:

@@ -218,7 +218,7 @@ class ArSlam3d:
             cov=np.array([cov for _, cov in placed]).reshape(-1, 3, 3),
             ident=np.full(len(unpaired), -1) if ids is None else np.asarray(ids)[unpaired].astype(np.int64),
             identified=ids is not None,
-            within=np.linalg.norm(z[unpaired], axis=1) <= self.book.radius_m if len(unpaired) else np.zeros(0, bool),
+            within=np.linalg.norm(z[unpaired].reshape(-1, 3), axis=1) <= self.book.radius_m,
         )
         enter, self.candidates = entering(self.candidates, points, self.frames, self.gate, self.entry)
         for i, ident in enter.items():

@@ -21,7 +21,7 @@ def test_rendered_frames_are_matched_triangulated_and_mapped_and_locate_the_vehi
 
 
 def test_a_second_triangulation_confirms_a_point_only_within_their_covariances():
-    from experiments.ar_slam3d_rendered import refereed
+    from experiments.rendered_front_end import refereed
 
     z = np.array([[0.0, 0.0, 20.0], [1.0, 0.0, 20.0], [2.0, 0.0, 20.0]])
     cov = np.tile(np.diag([0.01, 0.01, 1.0]), (3, 1, 1))  # long along the ray
@@ -32,18 +32,9 @@ def test_a_second_triangulation_confirms_a_point_only_within_their_covariances()
     assert not refereed(z, cov, corners, other, cov, np.array([1, 2, 3])).any()  # not triangulated there
 
 
-def _true_projections(path, depth, j: int, k: int, pixels: np.ndarray) -> np.ndarray:
-    """Where the ground seen at ``pixels`` (m, 2) of frame j (its depth map ``depth``) lies in frame k."""
-    K = path.camera.K
-    rows, cols = np.rint(pixels[:, 1]).astype(int), np.rint(pixels[:, 0]).astype(int)
-    rays = np.column_stack([pixels, np.ones(len(pixels))]) @ np.linalg.inv(K).T
-    X = path.positions[j] + (rays * depth[rows, cols][:, None]) @ path.rotations[j].T
-    uv = (X - path.positions[k]) @ path.rotations[k] @ K.T
-    return uv[:, :2] / uv[:, 2:]
-
-
 def test_corners_followed_frame_to_frame_pair_the_same_ground_where_ncc_across_the_baseline_does_not():
     from experiments.ar_slam3d_rendered import flight
+    from experiments.rendered_noise import projected
     from sim.pinhole import render
     from vehicle.vision import ncc, susan
     from vehicle.vision.corner_tracks import CornerTracks
@@ -56,9 +47,9 @@ def test_corners_followed_frame_to_frame_pair_the_same_ground_where_ncc_across_t
         tracks.step(k, image, frames[k][2])
     (image_j, depth_j, corners_j), (image_k, _, corners_k) = frames[20], frames[30]
     p1, p2, _ = tracks.pairs(20, 30)
-    followed = np.linalg.norm(_true_projections(path, depth_j, 20, 30, p1) - p2, axis=1)
+    followed = np.linalg.norm(projected(path, depth_j, 20, 30, p1) - p2, axis=1)
     i1, i2, _ = ncc.match(image_j, corners_j, image_k, corners_k)
-    matched = np.linalg.norm(_true_projections(path, depth_j, 20, 30, corners_j[i1]) - corners_k[i2], axis=1)
+    matched = np.linalg.norm(projected(path, depth_j, 20, 30, corners_j[i1]) - corners_k[i2], axis=1)
     assert len(p1) >= 40 and (followed < 2.0).mean() >= 0.9 and (followed > 5.0).mean() <= 0.02
     assert (matched < 2.0).mean() <= 0.6  # the paper's matching across 5 m of forward flight
 
