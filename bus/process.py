@@ -7,9 +7,6 @@ import os
 import signal
 import threading
 import time
-from pathlib import Path
-
-AUTOGROUP = Path("/proc/self/autogroup")
 
 
 def die_with_parent(sig: int = signal.SIGTERM) -> None:
@@ -28,14 +25,14 @@ def die_with_parent(sig: int = signal.SIGTERM) -> None:
         os.kill(os.getpid(), sig)
 
 
-def lower_cpu_priority(niceness: int, autogroup: Path = AUTOGROUP) -> int:
+def lower_cpu_priority(niceness: int) -> int:
     """Run this process at ``niceness`` (1-19; 0 asks for nothing): its calling thread, and so every
-    thread it starts afterwards (call it before the zenoh session opens), and, when the process leads
-    its own session, that session's autogroup. Linux groups each session's processes for the fair
-    scheduler (``kernel.sched_autogroup_enabled``) and shares the cores between the groups, whatever
-    nice value their threads have: every process `swarm up` starts leads a session of its own, so
-    the group's nice value is the one that counts. A process started from a shell shares the shell's
-    group and leaves it alone. Raising one's own niceness needs no privilege. Returns the niceness
+    thread it starts afterwards (call it before the zenoh session opens). Raising one's own niceness
+    needs no privilege. Linux shares the cores between sessions (autogroups,
+    ``kernel.sched_autogroup_enabled``) before it weighs nice values, so a nice value orders only the
+    processes of one session: `swarm up` keeps its processes in its own session for that
+    (launch.children), and the session's own nice value is left alone, so that a swarm is never
+    starved beside the other sessions of a shared machine (docs/deployment.md). Returns the niceness
     applied (0: none, or not on this platform)."""
     if niceness <= 0 or not hasattr(os, "setpriority"):
         return 0
@@ -43,11 +40,6 @@ def lower_cpu_priority(niceness: int, autogroup: Path = AUTOGROUP) -> int:
         os.setpriority(os.PRIO_PROCESS, 0, max(os.getpriority(os.PRIO_PROCESS, 0), niceness))
     except OSError:
         return 0
-    if os.getsid(0) == os.getpid():
-        try:
-            autogroup.write_text(f"{niceness}\n")
-        except OSError:
-            pass  # no autogroups on this kernel: the threads' own nice value is what the scheduler reads
     return niceness
 
 

@@ -5,9 +5,10 @@ zenoh session and starts no thread (one BLAS thread: OpenBLAS starts no pool), s
 forked before any zenoh session exists, as the zenoh rules ask; each child opens its own. The
 forkserver lives as long as the command that started it, so an experiment's runs share it.
 
-A child runs the `swarm` command line it is given (``swarm vehicle --config ... --id 3``), in a
-session of its own, with its own environment (its logins and keys), its output in its log file,
-and that command line as its process title (``ps`` and /proc show it). ``SWARMLOC_FORKSERVER=0``
+A child runs the `swarm` command line it is given (``swarm vehicle --config ... --id 3``) in a
+process group of its own within `swarm up`'s session (``own_process_group``), with its own
+environment (its logins and keys), its output in its log file, and that command line as its process
+title (``ps`` and /proc show it). ``SWARMLOC_FORKSERVER=0``
 starts plain subprocesses (``python -m cli ...``) instead."""
 
 from __future__ import annotations
@@ -84,7 +85,7 @@ def start(args: list[str], env: dict[str, str], log_path: Path, *, inherit_stdou
                 stdout=None if inherit_stdout else log,
                 stderr=log,
                 stdin=subprocess.DEVNULL,
-                start_new_session=True,
+                process_group=0,
             )
     process = _context().Process(
         target=_child, args=(list(args), dict(env), str(log_path), inherit_stdout), daemon=True
@@ -143,13 +144,26 @@ def _stop_forkserver() -> None:
         stop()
 
 
+def own_process_group() -> None:
+    """Lead a process group of one's own and stay in the parent's session. A terminal's Ctrl-C (and
+    Ctrl-Z) reaches its foreground group, `swarm up`, which stops the swarm in order; a write to the
+    terminal from this background group is let through (SIGTTOU ignored). The session is shared on
+    purpose: Linux shares the cores between sessions before it weighs nice values, so the whole swarm
+    is one session beside the machine's other work, and the world's and ground station's lower
+    priority in lockstep orders them behind the swarm's own vehicles only. A session per process made
+    the world, at niceness 19, a session of weight 15 beside every other session's 1024: beside two
+    busy loops a 5-vehicle lockstep run fell from 32x to 1.8x real time (docs/deployment.md)."""
+    os.setpgid(0, 0)
+    signal.signal(signal.SIGTTOU, signal.SIG_IGN)
+
+
 def _child(args: list[str], env: dict[str, str], log_path: str, inherit_stdout: bool) -> None:
-    """In the forked child: a session, title, environment and output of its own, then the command."""
+    """In the forked child: a process group, title, environment and output of its own, then the command."""
     import setproctitle
 
     setproctitle.setproctitle(" ".join(["swarm", *args]))  # before the environment changes: it moves it
     die_with_parent()  # a forkserver that ends (its command killed) takes its children with it
-    os.setsid()
+    own_process_group()
     os.environ.clear()
     os.environ.update(env)
     log = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)

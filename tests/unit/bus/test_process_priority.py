@@ -1,6 +1,6 @@
 """A lower CPU priority for the processes off a lockstep run's critical path (bus.process.
 lower_cpu_priority, applied by cli.process_commands to the world and the ground station): the calling
-thread's nice value, and the session's autogroup when the process leads its session."""
+thread's nice value, inside the session `swarm up` shares with its processes (launch.children)."""
 
 from __future__ import annotations
 
@@ -30,71 +30,52 @@ def priority(monkeypatch):
     return state
 
 
-def test_niceness_zero_asks_for_nothing(priority, tmp_path):
-    group = tmp_path / "autogroup"
-    assert lower_cpu_priority(0, group) == 0
-    assert priority["calls"] == [] and not group.exists()
+def test_niceness_zero_asks_for_nothing(priority):
+    assert lower_cpu_priority(0) == 0
+    assert priority["calls"] == []
 
 
-def test_a_session_leader_sets_its_thread_and_its_sessions_autogroup(priority, tmp_path, monkeypatch):
-    monkeypatch.setattr(os, "getsid", lambda pid: os.getpid())
-    group = tmp_path / "autogroup"
-    assert lower_cpu_priority(19, group) == 19
+def test_the_calling_thread_gets_the_niceness(priority):
+    assert lower_cpu_priority(19) == 19
     assert priority["calls"] == [(os.PRIO_PROCESS, 0, 19)]  # who 0: the calling thread, inherited by later ones
-    assert group.read_text() == "19\n"
 
 
-def test_a_process_sharing_its_shells_session_leaves_the_session_alone(priority, tmp_path, monkeypatch):
-    monkeypatch.setattr(os, "getsid", lambda pid: os.getpid() + 1)
-    group = tmp_path / "autogroup"
-    assert lower_cpu_priority(10, group) == 10
-    assert priority["nice"] == 10 and not group.exists()
-
-
-def test_a_thread_already_nicer_keeps_its_niceness(priority, tmp_path, monkeypatch):
-    monkeypatch.setattr(os, "getsid", lambda pid: os.getpid() + 1)
+def test_a_thread_already_nicer_keeps_its_niceness(priority):
     priority["nice"] = 15
-    assert lower_cpu_priority(5, tmp_path / "autogroup") == 5
+    assert lower_cpu_priority(5) == 5
     assert priority["nice"] == 15
 
 
-def test_a_refused_change_applies_nothing(tmp_path, monkeypatch):
+def test_a_refused_change_applies_nothing(monkeypatch):
     def refuse(*_):
         raise PermissionError(1, "Operation not permitted")
 
     monkeypatch.setattr(os, "getpriority", lambda *_: 0)
     monkeypatch.setattr(os, "setpriority", refuse)
-    monkeypatch.setattr(os, "getsid", lambda pid: os.getpid())
-    group = tmp_path / "autogroup"
-    assert lower_cpu_priority(19, group) == 0
-    assert not group.exists()
+    assert lower_cpu_priority(19) == 0
 
 
-def test_a_kernel_without_autogroups_still_gets_the_threads_niceness(priority, tmp_path, monkeypatch):
-    monkeypatch.setattr(os, "getsid", lambda pid: os.getpid())
-    assert lower_cpu_priority(19, tmp_path / "no such dir" / "autogroup") == 19
-    assert priority["nice"] == 19
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="nice values and autogroups are Linux's")
-def test_a_real_session_leader_runs_at_the_niceness_it_asked_for():
-    """In a child of its own session, as `swarm up` starts its processes: the kernel reports the
-    niceness for the thread, for a thread started afterwards, and (where the kernel has autogroups
-    and this user may write the group's file) for the session's group."""
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread nice values and autogroups are Linux's")
+def test_a_swarm_child_runs_at_its_niceness_and_leaves_its_sessions_alone():
+    """As `swarm up` starts a process (launch.children.own_process_group): the kernel reports the
+    niceness for the thread and for a thread started afterwards; the child leads its own process group
+    in its parent's session, and that session's autogroup keeps its nice value (a session at 19 is
+    starved beside every other session of the machine)."""
     script = (
-        "import json, os, threading; from bus.process import lower_cpu_priority, AUTOGROUP; "
-        "applied = lower_cpu_priority(7); seen = []; "
+        "import json, os, pathlib, threading; from bus.process import lower_cpu_priority; "
+        "from launch.children import own_process_group; "
+        "group = pathlib.Path('/proc/self/autogroup'); before = group.read_text() if group.exists() else ''; "
+        "own_process_group(); applied = lower_cpu_priority(7); seen = []; "
         "t = threading.Thread(target=lambda: seen.append(os.getpriority(os.PRIO_PROCESS, 0))); t.start(); t.join(); "
-        "group = AUTOGROUP.read_text() if os.access(AUTOGROUP, os.W_OK) else ''; "
-        "print(json.dumps([applied, os.getpriority(os.PRIO_PROCESS, 0), seen[0], group]))"
+        "after = group.read_text() if group.exists() else ''; "
+        "print(json.dumps([applied, os.getpriority(os.PRIO_PROCESS, 0), seen[0], before, after, "
+        "os.getsid(0), os.getpgid(0), os.getpid()]))"
     )
-    done = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, start_new_session=True, check=True, timeout=60
-    )
-    applied, main_nice, thread_nice, group = json.loads(done.stdout)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True, timeout=60)
+    applied, main_nice, thread_nice, before, after, sid, pgid, pid = json.loads(done.stdout)
     assert (applied, main_nice, thread_nice) == (7, 7, 7)
-    if group:
-        assert group.split()[-1] == "7"  # "/autogroup-N nice 7"
+    assert sid == os.getsid(0) and pgid == pid  # the parent's session, a group of its own
+    assert before.split()[-1:] == after.split()[-1:]  # "/autogroup-N nice 0" untouched
 
 
 @pytest.mark.parametrize(
