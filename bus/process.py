@@ -30,9 +30,9 @@ def lower_cpu_priority(niceness: int) -> int:
     thread it starts afterwards (call it before the zenoh session opens). Raising one's own niceness
     needs no privilege. Linux shares the cores between sessions (autogroups,
     ``kernel.sched_autogroup_enabled``) before it weighs nice values, so a nice value orders only the
-    processes of one session: `swarm up` keeps its processes in its own session for that
-    (launch.children), and the session's own nice value is left alone, so that a swarm is never
-    starved beside the other sessions of a shared machine (docs/deployment.md). Returns the niceness
+    processes of one session: `swarm up` keeps the processes it starts in the session it runs in
+    (launch.children.own_process_group), and the session's own nice value is left alone, so that a
+    swarm is never starved beside the other sessions of a shared machine. Returns the niceness
     applied (0: none, or not on this platform)."""
     if niceness <= 0 or not hasattr(os, "setpriority"):
         return 0

@@ -8,8 +8,8 @@ forkserver lives as long as the command that started it, so an experiment's runs
 A child runs the `swarm` command line it is given (``swarm vehicle --config ... --id 3``) in a
 process group of its own within `swarm up`'s session (``own_process_group``), with its own
 environment (its logins and keys), its output in its log file, and that command line as its process
-title (``ps`` and /proc show it). ``SWARMLOC_FORKSERVER=0``
-starts plain subprocesses (``python -m cli ...``) instead."""
+title (``ps`` and /proc show it). ``SWARMLOC_FORKSERVER=0`` starts plain subprocesses (``python -m
+cli ...``) instead, each in a process group of its own too."""
 
 from __future__ import annotations
 
@@ -145,14 +145,13 @@ def _stop_forkserver() -> None:
 
 
 def own_process_group() -> None:
-    """Lead a process group of one's own and stay in the parent's session. A terminal's Ctrl-C (and
-    Ctrl-Z) reaches its foreground group, `swarm up`, which stops the swarm in order; a write to the
-    terminal from this background group is let through (SIGTTOU ignored). The session is shared on
-    purpose: Linux shares the cores between sessions before it weighs nice values, so the whole swarm
-    is one session beside the machine's other work, and the world's and ground station's lower
-    priority in lockstep orders them behind the swarm's own vehicles only. A session per process made
-    the world, at niceness 19, a session of weight 15 beside every other session's 1024: beside two
-    busy loops a 5-vehicle lockstep run fell from 32x to 1.8x real time (docs/deployment.md)."""
+    """Lead a process group of one's own and stay in the parent's session. A terminal's Ctrl-C reaches
+    its foreground group, `swarm up`, which stops the swarm in order; a write to the terminal from
+    this background group is let through (SIGTTOU ignored). The session is shared on purpose: Linux
+    shares the cores between sessions before it weighs nice values, so the whole swarm is one session
+    beside the machine's other work, and the lower priority of the world and the ground station in
+    lockstep puts them behind the swarm's own vehicles only, never behind other sessions
+    (docs/decisions/scale.md, Beside other work)."""
     os.setpgid(0, 0)
     signal.signal(signal.SIGTTOU, signal.SIG_IGN)
 
