@@ -22,6 +22,7 @@ import numpy as np
 
 from bus.config import ArSlamConfig
 from bus.sensors.camera3d import PAPER_K, look
+from experiments.flat_ground import flat_ground_points
 from sim.pinhole import PAPER_SIZE, Pinhole
 from sim.relief import rolling_hills as ground
 from vehicle.estimators.ar_slam3d import ArSlam3d
@@ -82,11 +83,13 @@ def landmark_nees(slam: ArSlam3d, landmarks: np.ndarray) -> float:
     return float(np.mean(nees(slam.landmarks() - landmarks[slam.ids], blocks)))
 
 
-def world(seed: int, frames: int, town: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def world(seed: int, frames: int, town: bool = True, relief: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Landmarks (m, 3) along the flight (``town``: with the dense stretch), the camera's true positions
-    (frames, 3) and rotations (frames, 3, 3)."""
+    (frames, 3) and rotations (frames, 3, 3). ``relief``: over the rolling hills, the landmarks 0-4 m
+    above the ground; else over flat ground at height 0 with the landmarks on it."""
     rng = np.random.default_rng([seed, 3])
-    positions, rotations = trajectory(rng, frames, lambda t: 0.35 * np.sin(t / 25.0), ground, np.zeros(2))
+    under = ground if relief else flat
+    positions, rotations = trajectory(rng, frames, lambda t: 0.35 * np.sin(t / 25.0), under, np.zeros(2))
     low, high = positions[:, :2].min(axis=0) - 60.0, positions[:, :2].max(axis=0) + 60.0
     count = int(np.prod(high - low) / 15.0)  # one landmark per 15 m^2 of ground
     xy = rng.uniform(low, high, (count, 2))
@@ -94,8 +97,14 @@ def world(seed: int, frames: int, town: bool = True) -> tuple[np.ndarray, np.nda
     extra = int(np.prod(town_high - town_low) / 15.0 * (TOWN_DENSITY - 1.0)) if town else 0
     xy = np.vstack([xy, rng.uniform(town_low, town_high, (max(extra, 0), 2))])
     count = len(xy)
-    landmarks = np.column_stack([xy, ground(xy) + rng.uniform(0.0, 4.0, count)])
+    above = rng.uniform(0.0, 4.0, count)
+    landmarks = np.column_stack([xy, under(xy) + (above if relief else 0.0)])
     return landmarks, positions, rotations
+
+
+def flat(xy: np.ndarray) -> np.ndarray:
+    """Flat ground (m) at world points (..., 2): height 0."""
+    return np.zeros(np.shape(xy)[:-1])
 
 
 def trajectory(
@@ -181,14 +190,19 @@ def fly(
     town: bool = True,
     noise: bool = True,
     on_frame: Callable[[int, ArSlam3d, float], None] | None = None,
+    relief: bool = True,
+    flat_ground: bool = False,
 ) -> Track:
     """One flight of ``frames`` frames with the back end in ``mode`` (MODES), each frame triangulated
     with the one ``baseline_frames`` before it; ``identified``: association by landmark id (the back
     end alone), else by ``association`` on the triangulated points; ``entry``: how points enter the map
     (vehicle.estimators.ar_slam3d); ``noise``: a landmark's sighting fused with the noise at its
     prediction (the back end's ``noise_at``; False: at its own pixels); ``on_frame(k, back end, frame
-    ms)``: called after each frame (a recording), outside the frame's timing."""
-    landmarks, positions, rotations = world(seed, frames + 1, town)
+    ms)``: called after each frame (a recording), outside the frame's timing. ``relief``: over the
+    hills, else flat ground (``world``). ``flat_ground``: each frame's landmarks placed from its own
+    pixels on a plane HEIGHT_M below the camera (experiments.flat_ground: what a flat-ground map
+    sees) instead of triangulated from two frames."""
+    landmarks, positions, rotations = world(seed, frames + 1, town, relief)
     rng = np.random.default_rng([seed, 5])
     dt = 1.0 / RATE_HZ
     v0 = (positions[1] - positions[0]) / dt
@@ -198,9 +212,14 @@ def fly(
     rows = []
     for k in range(1, frames + 1):
         j = max(0, k - baseline_frames)
-        z, R_z, seen, noise_at = observe(
-            landmarks, positions[j], rotations[j], positions[k], rotations[k], rng, np.deg2rad(min_parallax_deg)
-        )
+        if flat_ground:
+            camera = Pinhole(PAPER_K, PAPER_SIZE)
+            z, R_z, seen = flat_ground_points(camera, landmarks, positions[k], rotations[k], HEIGHT_M, SEE_M, rng)
+            noise_at = None
+        else:
+            z, R_z, seen, noise_at = observe(
+                landmarks, positions[j], rotations[j], positions[k], rotations[k], rng, np.deg2rad(min_parallax_deg)
+            )
         start = time.perf_counter()
         slam.predict(dt)
         slam.frame(z, R_z, rotations[k], seen if identified else None, noise_at=noise_at if noise else None)
