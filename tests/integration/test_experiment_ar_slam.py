@@ -43,8 +43,8 @@ def test_an_unknown_case_is_refused_by_name(tmp_path):
 def test_the_papers_3d_cases_are_runs_beside_the_2d_ones(tmp_path):
     """The 3-D back end's cases fly the same flight over relief, each a run with its row, track and
     run.mcap, and the paper's figures 7 and 8 of them; full 3-D EKF-SLAM keeps every landmark, the
-    adaptive range fewer."""
-    cases = "ar-ekf-slam,3-D ar-ekf-slam,3-D ekf-slam"
+    adaptive range fewer; a flat-ground map over the relief loses the vehicle the triangulated map keeps."""
+    cases = "ar-ekf-slam,3-D ar-ekf-slam,3-D ekf-slam,3-D flat-ground map"
     result = _experiment("--cases", cases, "--duration", "12", "--out", str(tmp_path))
     assert result.returncode == 0, result.stdout + result.stderr
     folder = tmp_path / "ar-slam"
@@ -55,6 +55,10 @@ def test_the_papers_3d_cases_are_runs_beside_the_2d_ones(tmp_path):
     assert adaptive["distance_m"] == full["distance_m"] > 50.0  # the same flight, 120 frames at 5 m/s
     assert adaptive["state_dim_max"] < full["state_dim_max"]
     assert adaptive["rmse_m"] < 1.0 and full["rmse_m"] < 1.0
+    assert (
+        table["3-D flat-ground map"]["rmse_m"] > 2.0
+        and table["3-D flat-ground map"]["distance_m"] == full["distance_m"]
+    )
     rows = pd.read_parquet(folder / "results.parquet").set_index("run")
     assert rows.loc["3-D-ekf-slam", "state_dim_max"] == full["state_dim_max"]
     figures = ("frame_time.png", "frame_time_3d.png", "track_3d.png")
