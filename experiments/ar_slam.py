@@ -132,16 +132,16 @@ def _camera_uav(seed: int, duration: float) -> dict[str, Any]:
 
 
 def chosen_cases(text: str) -> tuple[tuple[Case, ...], tuple[str, ...]]:
-    """The 2-D cases and the 3-D cases (names of ``ar_slam3d_cases.MODES``) a comma-separated list
+    """The 2-D cases and the 3-D cases (names of ``ar_slam3d_cases.CASES``) a comma-separated list
     names (for none: every 2-D case and ``ar_slam3d_cases.DEFAULT``); ConfigError naming the unknown."""
     chosen = [c.strip() for c in text.split(",") if c.strip()]
     known = {c.name: c for c in CASES}
-    unknown = [c for c in chosen if c not in known and c not in ar_slam3d_cases.MODES]
+    unknown = [c for c in chosen if c not in known and c not in ar_slam3d_cases.CASES]
     if unknown:
-        raise ConfigError(f"unknown case(s) {', '.join(unknown)}; known: {', '.join([*known, *ar_slam3d_cases.MODES])}")
+        raise ConfigError(f"unknown case(s) {', '.join(unknown)}; known: {', '.join([*known, *ar_slam3d_cases.CASES])}")
     if not chosen:
         return CASES, ar_slam3d_cases.DEFAULT
-    return tuple(known[c] for c in chosen if c in known), tuple(c for c in chosen if c in ar_slam3d_cases.MODES)
+    return tuple(known[c] for c in chosen if c in known), tuple(c for c in chosen if c in ar_slam3d_cases.CASES)
 
 
 def fly_case(spec: RunSpec, config: SwarmConfig, run_dir: Path) -> list[str]:

@@ -157,8 +157,7 @@ def observe(
     pixels, depths = zip(*(camera.project(R, C, landmarks) for C, R in ((C1, R1), (C2, R2))))
     seen = np.ones(len(landmarks), bool)
     for uv, d in zip(pixels, depths):
-        seen &= (d > 0.5) & (d < SEE_M) & (uv[:, 0] >= 0) & (uv[:, 0] < PAPER_SIZE[0])
-        seen &= (uv[:, 1] >= 0) & (uv[:, 1] < PAPER_SIZE[1])
+        seen &= camera.in_view(uv, d, SEE_M)
     R_rel, L = R2.T @ R1, R2.T @ (C1 - C2)  # camera 1 -> camera 2: X2 = R_rel X1 + L
     cameras = camera_matrices(PAPER_K, R_rel, L)
     noise_at = functools.partial(_noise_in_camera_2, cameras, R_rel, L)
@@ -169,6 +168,15 @@ def observe(
     keep = out.usable & (out.parallax_rad >= min_parallax_rad)
     z, cov = in_second_camera(R_rel, L, out.points[keep], out.covariances[keep])
     return z, cov, np.flatnonzero(seen)[keep], noise_at
+
+
+def on_flat_ground(
+    landmarks: np.ndarray, C: np.ndarray, R_wc: np.ndarray, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, None]:
+    """``observe``'s answer as a flat-ground map has it (experiments.flat_ground): the landmarks the
+    camera at C sees, placed from its own pixels on a plane HEIGHT_M below it; no ``noise_at``."""
+    z, R_z, seen = flat_ground_points(Pinhole(PAPER_K, PAPER_SIZE), landmarks, C, R_wc, HEIGHT_M, SEE_M, rng)
+    return z, R_z, seen, None
 
 
 def _noise_in_camera_2(cameras: tuple, R_rel: np.ndarray, L: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -210,15 +218,14 @@ def fly(
     P0 = np.diag([0.05**2] * 3 + [0.05**2] * 3)
     slam = ArSlam3d(x0, P0, omega_var=motion_noise(), seed=seed, association=association, entry=entry, **MODES[mode])
     rows = []
+    parallax = np.deg2rad(min_parallax_deg)
     for k in range(1, frames + 1):
-        j = max(0, k - baseline_frames)
         if flat_ground:
-            camera = Pinhole(PAPER_K, PAPER_SIZE)
-            z, R_z, seen = flat_ground_points(camera, landmarks, positions[k], rotations[k], HEIGHT_M, SEE_M, rng)
-            noise_at = None
+            z, R_z, seen, noise_at = on_flat_ground(landmarks, positions[k], rotations[k], rng)
         else:
+            j = max(0, k - baseline_frames)
             z, R_z, seen, noise_at = observe(
-                landmarks, positions[j], rotations[j], positions[k], rotations[k], rng, np.deg2rad(min_parallax_deg)
+                landmarks, positions[j], rotations[j], positions[k], rotations[k], rng, parallax
             )
         start = time.perf_counter()
         slam.predict(dt)

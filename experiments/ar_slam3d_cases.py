@@ -30,13 +30,15 @@ from experiments.ar_slam3d_recording import FlightRecording
 from launch.runspec import RunSpec
 from vehicle.models import slam3d
 
-MODES = {
-    "3-D ar-ekf-slam": "adaptive",
-    "3-D fixed 25 m": "fixed-25",
-    "3-D ekf-slam": "full",
-    "3-D flat-ground map": "adaptive",
+CASES = {  # each case's flight: the back end's range (experiments.ar_slam3d.MODES) and where the map's points come from
+    "3-D ar-ekf-slam": {"mode": "adaptive"},
+    "3-D fixed 25 m": {"mode": "fixed-25"},
+    "3-D ekf-slam": {"mode": "full"},
+    "3-D flat-ground map": {
+        "mode": "adaptive",
+        "flat_ground": True,
+    },  # on a plane below the camera (experiments.flat_ground)
 }
-FLAT_GROUND = ("3-D flat-ground map",)  # the map's points on a plane below the camera (experiments.flat_ground)
 # flown when no case is named: full 3-D EKF-SLAM keeps every landmark (700 after 600 frames, 154 s on
 # this machine, its cost per frame growing as their square), so over the default 1,630 frames it would
 # take hours; it is flown when named (docs/ar-slam.md)
@@ -50,7 +52,7 @@ def slug(name: str) -> str:
 
 
 def spec(name: str, seed: int, duration_s: float, config: dict[str, Any]) -> RunSpec:
-    """The run of the 3-D case ``name`` (of MODES); ``config``: the experiment's configuration of a
+    """The run of the 3-D case ``name`` (of CASES); ``config``: the experiment's configuration of a
     camera UAV, kept for the campaign's table (the flight itself is the back end's, not the world's)."""
     config = {**config, "name": slug(name), "clock": {**config.get("clock", {}), "duration_s": duration_s}}
     return RunSpec(slug(name), name, seed, config, measure=f"{__name__}:measure", runner=f"{__name__}:fly_case")
@@ -66,13 +68,7 @@ def fly_case(spec: RunSpec, config, run_dir: Path) -> list[str]:
     frames = frames_of(config.clock.duration_s)
     recording = FlightRecording(run_dir, world(spec.seed, frames + 1)[1]) if config.view.record else None
     try:
-        track = fly(
-            spec.seed,
-            frames,
-            MODES[spec.variant],
-            on_frame=None if recording is None else recording.frame,
-            flat_ground=spec.variant in FLAT_GROUND,
-        )
+        track = fly(spec.seed, frames, **CASES[spec.variant], on_frame=None if recording is None else recording.frame)
     finally:
         if recording is not None:
             recording.close()
@@ -82,14 +78,14 @@ def fly_case(spec: RunSpec, config, run_dir: Path) -> list[str]:
 
 
 def case_row(name: str, track: Track) -> dict[str, Any]:
-    row = summary(track)
+    row, case = summary(track), CASES[name]
     return {
         "estimator": "ar-slam-3d back end",
         "association": "by id",
-        "odometry": "visual odometry's rotation and baseline (given)"
-        if name not in FLAT_GROUND
-        else "visual odometry's rotation (given); points on flat ground",
-        "range": {"adaptive": "adaptive", "fixed-25": "fixed 25 m", "full": "all"}[MODES[name]],
+        "odometry": "visual odometry's rotation (given); points on flat ground"
+        if case.get("flat_ground")
+        else "visual odometry's rotation and baseline (given)",
+        "range": {"adaptive": "adaptive", "fixed-25": "fixed 25 m", "full": "all"}[case["mode"]],
         "terrain": "relief",
         "anees": row["position_anees"],
         "state_dim_max": slam3d.HEAD + slam3d.POINT * row["landmarks_max"],

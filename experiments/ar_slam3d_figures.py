@@ -48,7 +48,7 @@ def figure_time(tracks: dict[str, Track], path: Path) -> None:
         bottom.set_title(f"no range (every landmark kept): {', '.join(unbounded)}", fontsize="small")
     bottom.set_ylim(0, 40)
     bottom.set_xlabel("frame")
-    fig.suptitle("3-D AR-EKF-SLAM: per-frame cost, adaptive against fixed range (paper's fig. 7)")
+    fig.suptitle("3-D AR-EKF-SLAM: per-frame cost of each case (paper's fig. 7)")
     fig.savefig(path, dpi=110)
 
 

@@ -33,9 +33,7 @@ def flat_ground_points(
     frame, their covariances (k, 3, 3) from the pixels' noise and the height's, and the landmarks'
     indices (k,)."""
     uv, depth = camera.project(R_wc, C, landmarks)
-    width, height = camera.size
-    seen = (depth > 0.5) & (depth < see_m) & (uv[:, 0] >= 0) & (uv[:, 0] < width) & (uv[:, 1] >= 0)
-    seen &= uv[:, 1] < height
+    seen = camera.in_view(uv, depth, see_m)
     index = np.flatnonzero(seen)
     noisy = uv[seen] + rng.normal(0.0, sigma_px, (len(index), 2))
     K_inv = np.linalg.inv(camera.K)

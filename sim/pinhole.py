@@ -45,6 +45,13 @@ class Pinhole:
         pixels = camera @ self.K.T
         return pixels[:, :2] / pixels[:, 2:3], camera[:, 2]
 
+    def in_view(self, uv: np.ndarray, depth: np.ndarray, far_m: float, near_m: float = 0.5) -> np.ndarray:
+        """Which projected points (``project``'s pixels (n, 2) and depths (n,)) the frame shows: in
+        front between ``near_m`` and ``far_m``, inside the frame (n,) bool."""
+        width, height = self.size
+        inside = (uv[:, 0] >= 0) & (uv[:, 0] < width) & (uv[:, 1] >= 0) & (uv[:, 1] < height)
+        return inside & (depth > near_m) & (depth < far_m)
+
 
 def render(
     relief: Relief,
